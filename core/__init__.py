@@ -1,0 +1,1 @@
+"""Sampling Lab's renderer: NumPy + Embree (embreex). Never imports bpy."""

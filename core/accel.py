@@ -1,0 +1,132 @@
+"""Embree acceleration: closest-hit and any-hit queries on ray batches, and robust ray offsets.
+
+All triangles of a scene go into one Embree triangle mesh, so Embree's primitive id is the row of
+the scene's triangle tables. Object ray visibility (Cycles' camera / diffuse / shadow ... switches)
+is honoured by building one extra Embree scene per visibility class that some object opts out of;
+a scene where everything is visible to everything builds just one.
+
+embreex has no ``tnear``: rays leave a surface from an origin pushed off it along the geometric
+normal by :func:`offset_origin`, by an amount proportional to the float32 precision of the
+triangle's coordinates, so that no scale and no distance from the origin gives self-intersection.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import VIS_ALL
+
+# Offsets are this many float32 ulps of the triangle's largest coordinate.
+OFFSET_ULPS = 64.0
+FLOAT32_EPS = float(np.finfo(np.float32).eps)
+
+
+@dataclass
+class Hits:
+    """Closest hits of a ray batch.
+
+    Attributes
+    ----------
+    prim : (n,) int32
+        Triangle index, -1 for a miss.
+    t : (n,) float64
+        Hit distance along the (unit) direction; inf for a miss.
+    u, v : (n,) float64
+        Barycentrics of the hit (weights of vertices 1 and 2).
+    """
+
+    prim: np.ndarray
+    t: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+
+    @property
+    def hit(self):
+        return self.prim >= 0
+
+
+class Accel:
+    """Embree scenes over a :class:`core.scene.Scene`'s triangles.
+
+    Parameters
+    ----------
+    vertices : (v, 3) float32
+    triangles : (t, 3) int32
+    visibility : (t,) int32
+        ``VIS_*`` bits per triangle.
+    """
+
+    def __init__(self, vertices, triangles, visibility=None):
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        self._rtcore_scene = rtcore_scene
+        self._mesh = TriangleMesh
+        self.vertices = np.ascontiguousarray(vertices, np.float32)
+        self.triangles = np.ascontiguousarray(triangles, np.int32)
+        t = self.triangles.shape[0]
+        self.visibility = (np.full(t, VIS_ALL, np.int32) if visibility is None
+                           else np.asarray(visibility, np.int32))
+        v = self.vertices.astype(np.float64)
+        tri = v[self.triangles] if t else np.zeros((0, 3, 3))
+        self.tri_scale = np.abs(tri).max(axis=(1, 2)) if t else np.zeros(0)
+        self._scenes = {}
+        self.rays_traced = 0
+
+    def _scene_for(self, mask):
+        """Embree scene of the triangles visible to rays of class ``mask`` (a ``VIS_*`` bit)."""
+        visible = (self.visibility & mask) != 0
+        key = VIS_ALL if visible.all() else mask
+        if key not in self._scenes:
+            rows = np.nonzero(visible)[0]
+            scene = self._rtcore_scene.EmbreeScene()
+            if rows.size:
+                self._mesh(scene, self.vertices, self.triangles[rows])
+            self._scenes[key] = (scene, None if key == VIS_ALL else rows.astype(np.int32),
+                                 rows.size > 0)
+        return self._scenes[key]
+
+    def intersect(self, origins, directions, tmax=None, mask=VIS_ALL):
+        """Closest hits of rays ``origins (n, 3)``, unit ``directions (n, 3)``, up to ``tmax (n,)``."""
+        n = origins.shape[0]
+        self.rays_traced += n
+        scene, rows, any_tris = self._scene_for(mask)
+        if n == 0 or not any_tris:
+            return Hits(np.full(n, -1, np.int32), np.full(n, np.inf), np.zeros(n), np.zeros(n))
+        dists = None
+        if tmax is not None:
+            dists = np.ascontiguousarray(np.minimum(tmax, 3e38), np.float32)
+        out = scene.run(np.ascontiguousarray(origins, np.float32),
+                        np.ascontiguousarray(directions, np.float32), dists=dists, output=1)
+        prim = out["primID"].astype(np.int32)
+        hit = prim >= 0
+        if rows is not None:
+            prim = np.where(hit, rows[np.maximum(prim, 0)], -1).astype(np.int32)
+        t = np.where(hit, out["tfar"].astype(np.float64), np.inf)
+        return Hits(prim, t, out["u"].astype(np.float64), out["v"].astype(np.float64))
+
+    def occluded(self, origins, directions, tmax, mask=VIS_ALL):
+        """Whether anything blocks ``origins (n, 3)`` along ``directions (n, 3)`` before ``tmax``."""
+        n = origins.shape[0]
+        self.rays_traced += n
+        scene, _, any_tris = self._scene_for(mask)
+        if n == 0 or not any_tris:
+            return np.zeros(n, bool)
+        dists = np.ascontiguousarray(np.minimum(tmax, 3e38), np.float32)
+        res = scene.run(np.ascontiguousarray(origins, np.float32),
+                        np.ascontiguousarray(directions, np.float32), dists=dists,
+                        query="OCCLUDED")
+        return res != -1
+
+    def offset_origin(self, p, ng, prim, w):
+        """Push points ``p (n, 3)`` off triangles ``prim (n,)`` to the side of ``w (n, 3)``.
+
+        The push is ``OFFSET_ULPS`` float32 ulps of the triangle's largest coordinate, along its
+        unit geometric normal ``ng (n, 3)``.
+        """
+        side = np.sign(np.einsum("ij,ij->i", ng, w))
+        side = np.where(side == 0, 1.0, side)
+        eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(self.tri_scale[prim], 1e-30)
+        return p + ng * (side * eps)[:, None]

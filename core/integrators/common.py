@@ -1,0 +1,116 @@
+"""Stages shared by the integrators: camera rays, surface interactions, emitter hits."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import generate_rays
+from ..sampling.mis import mis_weight
+
+
+@dataclass
+class Counters:
+    """Work done by one batch (summed by the render loop)."""
+
+    rays: int = 0
+    camera_samples: int = 0
+
+
+def camera_rays(prep, pixel_filter, stream):
+    """Stage *generate camera rays*: filter-importance-sampled film positions -> rays.
+
+    Consumes dimensions 0-1 of ``stream``. Returns ``origins, directions, tmax`` as
+    :func:`core.camera.generate_rays`.
+    """
+    cam = prep.scene.camera
+    x = (stream.pixel % cam.width).astype(np.float64)
+    y = (stream.pixel // cam.width).astype(np.float64)
+    offset = pixel_filter.sample(stream.next_2d())
+    film_xy = np.stack([x + 0.5, y + 0.5], axis=-1) + offset
+    return generate_rays(cam, film_xy)
+
+
+@dataclass
+class Interaction:
+    """Surface points of a batch of hits.
+
+    Attributes
+    ----------
+    p : (k, 3) float64
+        Hit points, interpolated from the triangle's vertices.
+    ng : (k, 3) float64
+        Unit geometric normals.
+    ns : (k, 3) float64
+        Shading normals, flipped toward the side the ray came from (two-sided surfaces).
+    wo : (k, 3) float64
+        Unit direction back along the incoming ray.
+    prim : (k,) int32
+    """
+
+    p: np.ndarray
+    ng: np.ndarray
+    ns: np.ndarray
+    wo: np.ndarray
+    prim: np.ndarray
+
+
+def surface_interaction(prep, hits, d, rows):
+    """Build the :class:`Interaction` of the hit rays ``rows`` for directions ``d (n, 3)``."""
+    prim = hits.prim[rows]
+    v = prep.scene.vertices
+    tri = prep.scene.triangles[prim]
+    b1 = hits.u[rows][:, None]
+    b2 = hits.v[rows][:, None]
+    p = ((1 - b1 - b2) * v[tri[:, 0]].astype(np.float64) + b1 * v[tri[:, 1]]
+         + b2 * v[tri[:, 2]])
+    ng = prep.tri_normal[prim]
+    wo = -d[rows]
+    side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
+    return Interaction(p, ng, ng * side[:, None], wo, prim)
+
+
+def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera,
+                            heuristic="power"):
+    """Stage *handle escaped + handle emission*: light reaching the ray's origin along it.
+
+    Adds ``beta * Le * w`` to ``L[rows_of]`` for the world (escaped rays), light shapes before the
+    hit, and emissive triangles hit. ``w`` is the MIS weight against next-event estimation from
+    the previous vertex (``pdf_prev (n,)`` is the BSDF's solid-angle pdf there); where
+    ``use_mis (n,)`` is false (camera rays, previous delta BSDF) the weight is one.
+
+    Parameters
+    ----------
+    L : (N, 3) float64
+        Radiance accumulators of all paths; ``rows_of (n,)`` maps this batch's rays to them.
+    beta : (n, 3) float64
+        Path throughput up to the ray's origin.
+    o, d : (n, 3) float64
+    hits : core.accel.Hits
+    camera : bool
+        Whether these are camera rays (lamps show only if visible to the camera).
+    """
+    lights = prep.lights
+
+    def weight(rows, pdf_light):
+        w = mis_weight(pdf_prev[rows], pdf_light, heuristic)
+        return np.where(use_mis[rows], w, 1.0)
+
+    escaped = np.nonzero(~hits.hit)[0]
+    if escaped.size and lights.has_world:
+        le, pdf_l = lights.world_radiance(d[escaped])
+        L[rows_of[escaped]] += beta[escaped] * le * weight(escaped, pdf_l)[:, None]
+    for rows, le, pdf_l in lights.hit_shapes(o, d, hits.t, camera):
+        L[rows_of[rows]] += beta[rows] * le * weight(rows, pdf_l)[:, None]
+    hit_rows = np.nonzero(hits.hit)[0]
+    if hit_rows.size and lights.emissive_tris.size:
+        prim = hits.prim[hit_rows]
+        emissive = lights.tri_emitter[prim] >= 0
+        rows = hit_rows[emissive]
+        if rows.size:
+            prim = prim[emissive]
+            cos_l = np.einsum("ij,ij->i", d[rows], prep.tri_normal[prim])
+            pdf_l = lights.triangle_pdf(prim, o[rows], hits.t[rows], cos_l)
+            le = prep.tri_emission[prim]
+            L[rows_of[rows]] += beta[rows] * le * weight(rows, pdf_l)[:, None]

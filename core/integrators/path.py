@@ -1,0 +1,134 @@
+"""Path tracing with next-event estimation and multiple importance sampling.
+
+What it estimates
+    The pixel measurement of the rendering equation, one camera path per sample. At every
+    surface vertex it samples a light (next-event estimation, NEE) and the BSDF; the BSDF ray
+    also finds emitters, and the two estimates of direct light are combined with MIS (power
+    heuristic by default) so neither small lights nor large glossy lobes blow up the variance.
+Bias and consistency
+    Unbiased for paths of up to ``max_bounces + 1`` scattering vertices (Cycles' meaning of
+    "bounces": ``max_bounces = 0`` is direct light only); Russian roulette removes paths without
+    bias. Light carried by longer paths is missing, as in every renderer with a bounce limit.
+Parameters
+    ``max_bounces``, ``use_russian_roulette``, ``rr_min_bounces`` (roulette starts after that many
+    bounces, with survival probability ``min(1, max(throughput))``), ``mis_heuristic``.
+When to use it
+    The default for most scenes: diffuse and glossy transport lit by area lights, the sky, or
+    lamps seen directly.
+When it fails
+    Light that reaches the camera only through delta surfaces from a small or point light
+    (caustics through glass, a point light seen in a mirror) has zero or tiny probability of being
+    found from the camera side: those paths show as fireflies or are missing. Use BDPT there.
+
+Stages of one bounce (pbrt-v4's wavefront integrator): intersect -> handle escaped -> handle
+emission -> sample lights -> sample BSDF -> Russian roulette -> compact.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
+from ..sampling.mis import mis_weight
+from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
+from .common import Counters, add_emitters_along_rays, camera_rays, surface_interaction
+
+# Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce.
+DIMS_CAMERA = 2
+DIMS_PER_BOUNCE = 8
+
+
+def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
+    """Radiance of one camera path per entry of ``stream``.
+
+    Parameters
+    ----------
+    prep : core.prepare.PreparedScene
+    settings : core.render.RenderSettings
+    pixel_filter : core.film.PixelFilter
+    stream : core.sampling.stream.SampleStream
+        One sample vector per path (pixel, sample index).
+    counters : Counters
+        Incremented with the rays traced.
+
+    Returns
+    -------
+    (n, 3) float64
+        Radiance estimates, finite and non-negative.
+    """
+    n = len(stream)
+    L = np.zeros((n, 3))
+    counters.camera_samples += n
+    heuristic = settings.mis_heuristic
+    o, d, tmax = camera_rays(prep, pixel_filter, stream)
+    rows_of = np.arange(n)
+    beta = np.ones((n, 3))
+    pdf_prev = np.zeros(n)
+    use_mis = np.zeros(n, bool)
+
+    for bounce in range(settings.max_bounces + 2):
+        # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
+        camera = bounce == 0
+        hits = prep.accel.intersect(o, d, tmax, VIS_CAMERA if camera else VIS_DIFFUSE)
+        counters.rays += o.shape[0]
+        add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera,
+                                heuristic)
+        if bounce == settings.max_bounces + 1:
+            break  # this segment only gathered emission (Cycles' "terminate on next surface")
+
+        # Compact to surface hits; degenerate triangles end the path.
+        live = np.nonzero(hits.hit)[0]
+        live = live[prep.tri_area[hits.prim[live]] > 0]
+        if live.size == 0:
+            break
+        si = surface_interaction(prep, hits, d, live)
+        stream.compact(live)
+        rows_of, beta = rows_of[live], beta[live]
+        albedo = prep.tri_albedo[si.prim]
+        stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
+
+        # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
+        u_sel = stream.next_1d()
+        u_light = stream.next_2d()
+        wi, dist, li, pdf_l, delta, _ = prep.lights.sample(si.p, u_sel, u_light)
+        f = eval_lambert(albedo, si.ns, wi)
+        ok = (pdf_l > 0) & (f.max(axis=1) > 0) & (li.max(axis=1) > 0)
+        cand = np.nonzero(ok)[0]
+        if cand.size:
+            origin = prep.accel.offset_origin(si.p[cand], si.ng[cand], si.prim[cand], wi[cand])
+            shadow_tmax = np.where(np.isfinite(dist[cand]), dist[cand] * (1 - 1e-4), np.inf)
+            blocked = prep.accel.occluded(origin, wi[cand], shadow_tmax, VIS_SHADOW)
+            counters.rays += cand.size
+            vis = cand[~blocked]
+            w = np.where(delta[vis], 1.0,
+                         mis_weight(pdf_l[vis], pdf_lambert(si.ns[vis], wi[vis]), heuristic))
+            contrib = beta[vis] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
+            L[rows_of[vis]] += contrib
+
+        # Sample the BSDF for the next segment.
+        wi, weight, pdf_b = sample_lambert(albedo, si.ns, stream.next_2d())
+        beta = beta * weight
+        alive = pdf_b > 0
+
+        # Russian roulette: unbiased termination of low-throughput paths.
+        u_rr = stream.next_1d()
+        if settings.use_russian_roulette and bounce >= settings.rr_min_bounces:
+            q = np.minimum(1.0, beta.max(axis=1))
+            alive &= u_rr < q
+            beta = beta / np.maximum(q, 1e-12)[:, None]
+        alive &= beta.max(axis=1) > 0
+        keep = np.nonzero(alive)[0]
+        if keep.size == 0:
+            break
+        stream.compact(keep)
+        rows_of, beta = rows_of[keep], beta[keep]
+        o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
+        d = wi[keep]
+        tmax = np.full(keep.size, np.inf)
+        pdf_prev = pdf_b[keep]
+        use_mis = np.ones(keep.size, bool)
+
+    # No NaN or Inf reaches the film: a non-finite estimate is dropped (counted as zero).
+    bad = ~np.isfinite(L).all(axis=1)
+    L[bad] = 0.0
+    return np.maximum(L, 0.0)

@@ -1,0 +1,448 @@
+"""Lights in Cycles' units, light selection, next-event sampling and emitter hits.
+
+Constructors (:func:`point_light`, :func:`sun_light`, :func:`area_light`) turn Blender's light
+settings (S = color x energy, in W or W/m^2) into the radiometric quantities of
+:class:`core.scene.Lights`:
+
+- point / spot of radius 0: intensity S / (4 pi) W/sr (spot: times its smoothstep cone falloff,
+  not renormalised); radius r > 0: a sphere of radiance S / (4 pi^2 r^2);
+- sun: irradiance S W/m^2; with angular diameter a > 0, a disk of radiance S / (pi sin^2(a/2));
+- area: radiance S / (pi A), one-sided toward the light's local -Z (A x pi/4 for disk, ellipse).
+
+:class:`LightSampler` gathers every emitter of a scene (these lights, emissive triangles and the
+world) into one table, chooses among them in proportion to estimated power, samples a point or
+direction on the chosen one (next-event estimation), and evaluates the solid-angle density of the
+same choice for emitters found by BSDF sampling, so that the two strategies can be combined by MIS.
+Area and sphere lights are not occluders: as in Cycles, they emit toward rays that pass through
+them and never block light.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .sampling import warps
+from .sampling.distributions import PiecewiseConstant1D
+from .scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SUN, Lights
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def _row(kind, name, visible_camera, position=(0, 0, 0), axis_x=(0, 0, 0), axis_y=(0, 0, 0),
+         direction=(0, 0, -1), radius=0.0, angle=0.0, radiance=(0, 0, 0), spot_cos_half=-1.0,
+         spot_smooth=np.inf, power=0.0) -> Lights:
+    v3 = lambda a: np.asarray(a, np.float64).reshape(1, 3)  # noqa: E731
+    v1 = lambda a: np.asarray([a], np.float64)  # noqa: E731
+    return Lights(
+        kind=np.asarray([kind], np.int32), position=v3(position), axis_x=v3(axis_x),
+        axis_y=v3(axis_y), direction=v3(direction), radius=v1(radius), angle=v1(angle),
+        radiance=v3(radiance), spot_cos_half=v1(spot_cos_half), spot_smooth=v1(spot_smooth),
+        power=v1(power), visible_camera=np.asarray([bool(visible_camera)]), names=[name],
+    )
+
+
+def _unit(v):
+    v = np.asarray(v, np.float64)
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else np.array([0.0, 0.0, -1.0])
+
+
+def point_light(position, color, energy, radius=0.0, name="Point", visible_camera=True,
+                spot_direction=None, spot_size=None, spot_blend=0.0) -> Lights:
+    """A Blender point light, or a spot light when ``spot_direction`` is given.
+
+    Parameters
+    ----------
+    position : (3,) float
+    color : (3,) float
+    energy : float
+        Power in W (already times 2**exposure).
+    radius : float
+        Blender's ``shadow_soft_size``; 0 makes a delta light.
+    spot_direction : (3,) float or None
+        The spot's local -Z in world space.
+    spot_size, spot_blend : float
+        Full cone angle in radians and blend in [0, 1].
+    """
+    s = np.asarray(color, np.float64) * float(energy)
+    radius = max(float(radius), 0.0)
+    radiance = s / (4 * np.pi**2 * radius**2) if radius > 0 else s / (4 * np.pi)
+    cos_half, smooth, direction = -1.0, np.inf, (0.0, 0.0, -1.0)
+    if spot_direction is not None:
+        cos_half = float(np.cos(0.5 * float(spot_size)))
+        denom = (1.0 - cos_half) * float(spot_blend)
+        smooth = 1.0 / denom if denom > 0 else np.inf
+        direction = _unit(spot_direction)
+    return _row(LIGHT_POINT, name, visible_camera, position=position, direction=direction,
+                radius=radius, radiance=radiance, spot_cos_half=cos_half, spot_smooth=smooth,
+                power=float(LUMINANCE @ s))
+
+
+def sun_light(direction, color, strength, angle=0.0, name="Sun", visible_camera=True) -> Lights:
+    """A Blender sun: ``direction`` is where the light travels (the object's local -Z).
+
+    ``strength`` is the irradiance in W/m^2 on a surface facing the sun; ``angle`` the angular
+    diameter in radians. The power used for light selection is filled in by :class:`LightSampler`
+    from the scene's size.
+    """
+    s = np.asarray(color, np.float64) * float(strength)
+    angle = max(float(angle), 0.0)
+    radiance = s / (np.pi * np.sin(0.5 * angle) ** 2) if angle > 0 else s
+    return _row(LIGHT_SUN, name, visible_camera, direction=_unit(direction), angle=angle,
+                radiance=radiance, power=float(LUMINANCE @ s))
+
+
+def area_light(matrix_world, shape, size_x, size_y, color, energy, name="Area",
+               visible_camera=True) -> Lights:
+    """A Blender area light of ``shape`` in {'SQUARE', 'RECTANGLE', 'DISK', 'ELLIPSE'}.
+
+    Parameters
+    ----------
+    matrix_world : (4, 4) float
+        Object matrix (object scale stretches the light as in Blender).
+    size_x, size_y : float
+        Light size; ``size_y`` is ignored for SQUARE and DISK.
+    energy : float
+        Power in W (already times 2**exposure).
+    """
+    m = np.asarray(matrix_world, np.float64)
+    if shape in ("SQUARE", "DISK"):
+        size_y = size_x
+    axis_x = m[:3, 0] * float(size_x)
+    axis_y = m[:3, 1] * float(size_y)
+    normal = np.cross(axis_x, axis_y)
+    area = float(np.linalg.norm(normal))
+    kind = LIGHT_RECT
+    if shape in ("DISK", "ELLIPSE"):
+        area *= np.pi / 4
+        kind = LIGHT_DISK
+    s = np.asarray(color, np.float64) * float(energy)
+    radiance = s / (np.pi * area) if area > 0 else np.zeros(3)
+    return _row(kind, name, visible_camera, position=m[:3, 3], axis_x=axis_x, axis_y=axis_y,
+                direction=-_unit(normal), radiance=radiance, power=float(LUMINANCE @ s))
+
+
+def spot_attenuation(lights: Lights, index, w_out):
+    """Cycles' smoothstep cone falloff for the lights ``index (n,)`` toward ``w_out (n, 3)``.
+
+    ``w_out`` is the unit direction light travels, from the lamp to the receiver. Point lights
+    (``spot_cos_half == -1``) give one.
+    """
+    cos_half = lights.spot_cos_half[index]
+    smooth = lights.spot_smooth[index]
+    cos = np.einsum("ij,ij->i", w_out, lights.direction[index])
+    with np.errstate(invalid="ignore", over="ignore"):
+        x = np.where(np.isinf(smooth), np.where(cos > cos_half, 1.0, 0.0),
+                     (cos - cos_half) * np.where(np.isinf(smooth), 0.0, smooth))
+    x = np.clip(x, 0.0, 1.0)
+    att = x * x * (3.0 - 2.0 * x)
+    return np.where(cos_half <= -1.0, 1.0, att)
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _normalize(v):
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(n, 1e-300)
+
+
+class LightSampler:
+    """Every emitter of a scene in one selection table.
+
+    Emitter rows are the scene's lights (rows ``0..k-1``), then the emissive triangles, then the
+    world (if its radiance is not black). ``select_prob[i]`` is the probability that next-event
+    estimation chooses emitter ``i``.
+
+    Parameters
+    ----------
+    scene : core.scene.Scene
+    tri_area : (t,) float64
+        Triangle areas.
+    tri_normal : (t, 3) float64
+        Unit geometric normals.
+    """
+
+    def __init__(self, scene, tri_area, tri_normal):
+        self.lights = scene.lights
+        k = len(scene.lights)
+        emission = scene.materials.emission[scene.material].astype(np.float64)
+        tri_power_rgb = emission * (2 * np.pi * tri_area)[:, None]
+        emissive = np.nonzero((emission.max(axis=1) > 0) & (tri_area > 0))[0]
+        self.emissive_tris = emissive
+        self.tri_emitter = np.full(scene.n_triangles, -1, np.int64)
+        self.tri_emitter[emissive] = k + np.arange(emissive.size)
+        self.tri_area = tri_area
+        self.tri_normal = tri_normal
+        self.tri_emission = emission
+        self.vertices = scene.vertices.astype(np.float64)
+        self.triangles = scene.triangles
+        self.world = np.asarray(scene.world_color, np.float64)
+        self.has_world = bool(self.world.max() > 0)
+        self.n_lights = k
+        self.world_index = k + emissive.size if self.has_world else -1
+
+        # Scene radius, for the power of distant emitters.
+        if scene.vertices.size:
+            lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+            radius = 0.5 * float(np.linalg.norm(hi.astype(np.float64) - lo))
+        else:
+            radius = 1.0
+        radius = max(radius, 1e-3)
+        power = np.array(self.lights.power, np.float64)
+        power[self.lights.kind == LIGHT_SUN] *= np.pi * radius**2
+        power = np.concatenate([power, tri_power_rgb[emissive] @ LUMINANCE])
+        if self.has_world:
+            power = np.concatenate([power, [4 * np.pi**2 * radius**2 * (LUMINANCE @ self.world)]])
+        self.n_emitters = power.size
+        self.delta = np.zeros(self.n_emitters, bool)
+        self.delta[:k] = ((self.lights.kind == LIGHT_POINT) & (self.lights.radius <= 0)) | (
+            (self.lights.kind == LIGHT_SUN) & (self.lights.angle <= 0))
+        self.distribution = PiecewiseConstant1D(power) if power.size else None
+        self.select_prob = self.distribution.pmf_table if power.size else np.zeros(0)
+        # Lights a ray can hit: spheres, area lights and sun disks.
+        self.shape_lights = np.nonzero(~self.delta[:k])[0]
+
+    # ------------------------------------------------------------------ next-event estimation
+    def sample(self, p, u_select, u):
+        """Sample an emitter and a point or direction on it, as seen from ``p``.
+
+        Parameters
+        ----------
+        p : (n, 3) float64
+            Receiving points.
+        u_select : (n,) float
+        u : (n, 2) float
+
+        Returns
+        -------
+        wi : (n, 3) float64
+            Unit direction from ``p`` toward the light.
+        dist : (n,) float64
+            Distance to the sampled point (inf for sun and world).
+        radiance : (n, 3) float64
+            Arriving radiance (for delta lights: intensity / dist^2 or irradiance).
+        pdf : (n,) float64
+            Solid-angle density times the selection probability (for delta lights: the
+            selection probability alone). Zero marks a failed sample.
+        delta : (n,) bool
+        light_normal : (n, 3) float64
+            Normal of the sampled emitter point (zero for delta, sun and world), for offsets.
+        """
+        n = p.shape[0]
+        wi = np.zeros((n, 3))
+        wi[:, 2] = 1.0
+        dist = np.full(n, np.inf)
+        radiance = np.zeros((n, 3))
+        pdf = np.zeros(n)
+        light_normal = np.zeros((n, 3))
+        if self.distribution is None or n == 0:
+            return wi, dist, radiance, pdf, np.zeros(n, bool), light_normal
+        index, pmf, _ = self.distribution.sample(u_select)
+        delta = self.delta[index]
+        lights = self.lights
+        k = self.n_lights
+
+        is_light = index < k
+        lidx = np.where(is_light, index, 0)
+        kind = np.where(is_light, lights.kind[lidx] if k else 0, -1)
+
+        # Point and spot lights: delta points or spheres sampled by their cone of directions.
+        m = np.nonzero(kind == LIGHT_POINT)[0]
+        if m.size:
+            li = lidx[m]
+            c = lights.position[li]
+            r = lights.radius[li]
+            to_c = c - p[m]
+            d_c = np.linalg.norm(to_c, axis=1)
+            axis = to_c / np.maximum(d_c, 1e-300)[:, None]
+            point = r <= 0
+            inside = (~point) & (d_c <= r * (1 + 1e-6))
+            sin2 = np.clip((r / np.maximum(d_c, 1e-300)) ** 2, 0.0, 1.0)
+            cos_max = np.sqrt(1.0 - sin2)
+            s_, t_ = warps.frame_from_normal(axis)
+            w_loc = warps.sample_uniform_cone(u[m], cos_max)
+            w = np.where(point[:, None], axis, warps.to_world(w_loc, s_, t_, axis))
+            # Distance to the nearer intersection with the sphere along w.
+            b = _dot(w, to_c)
+            disc = np.maximum(b * b - (d_c * d_c - r * r), 0.0)
+            t_hit = np.where(point, d_c, b - np.sqrt(disc))
+            att = spot_attenuation(lights, li, -w)
+            lum = lights.radiance[li] * att[:, None]
+            lum = np.where(point[:, None], lum / np.maximum(d_c * d_c, 1e-300)[:, None], lum)
+            sa_pdf = np.where(point, 1.0, warps.uniform_cone_pdf(np.minimum(cos_max, 1 - 1e-12)))
+            ok = ~inside & (d_c > 0)
+            wi[m] = w
+            dist[m] = t_hit
+            radiance[m] = np.where(ok[:, None], lum, 0.0)
+            pdf[m] = np.where(ok, sa_pdf * pmf[m], 0.0)
+            light_normal[m] = np.where(point[:, None], 0.0, _normalize(p[m] + w * t_hit[:, None] - c))
+
+        # Suns: a direction, or a cone of directions toward the disk.
+        m = np.nonzero(kind == LIGHT_SUN)[0]
+        if m.size:
+            li = lidx[m]
+            axis = -lights.direction[li]
+            ang = lights.angle[li]
+            cos_max = np.cos(0.5 * ang)
+            s_, t_ = warps.frame_from_normal(axis)
+            w_loc = warps.sample_uniform_cone(u[m], cos_max)
+            is_d = ang <= 0
+            wi[m] = np.where(is_d[:, None], axis, warps.to_world(w_loc, s_, t_, axis))
+            radiance[m] = lights.radiance[li]
+            pdf[m] = np.where(is_d, 1.0, warps.uniform_cone_pdf(np.minimum(cos_max, 1 - 1e-12))) * pmf[m]
+
+        # Area lights, sampled uniformly by area.
+        m = np.nonzero((kind == LIGHT_RECT) | (kind == LIGHT_DISK))[0]
+        if m.size:
+            li = lidx[m]
+            disk = kind[m] == LIGHT_DISK
+            uu = u[m]
+            local = np.where(disk[:, None], 0.5 * warps.sample_uniform_disk_concentric(uu), uu - 0.5)
+            q = (lights.position[li] + local[:, 0:1] * lights.axis_x[li]
+                 + local[:, 1:2] * lights.axis_y[li])
+            area = np.linalg.norm(np.cross(lights.axis_x[li], lights.axis_y[li]), axis=1)
+            area = np.where(disk, area * np.pi / 4, area)
+            self._area_point_sample(m, p, q, lights.direction[li], area, lights.radiance[li], pmf,
+                                    True, wi, dist, radiance, pdf, light_normal)
+
+        # Emissive triangles, sampled uniformly by area; they emit from both faces.
+        m = np.nonzero((index >= k) & (index != self.world_index))[0]
+        if m.size:
+            tri = self.emissive_tris[index[m] - k]
+            b = warps.sample_uniform_triangle(u[m])
+            v = self.vertices[self.triangles[tri]]
+            q = b[:, 0:1] * v[:, 0] + b[:, 1:2] * v[:, 1] + b[:, 2:3] * v[:, 2]
+            self._area_point_sample(m, p, q, self.tri_normal[tri], self.tri_area[tri],
+                                    self.tri_emission[tri], pmf, False, wi, dist, radiance, pdf,
+                                    light_normal)
+
+        # The world: uniform directions on the sphere.
+        if self.has_world:
+            m = np.nonzero(index == self.world_index)[0]
+            wi[m] = warps.sample_uniform_sphere(u[m])
+            radiance[m] = self.world
+            pdf[m] = warps.uniform_sphere_pdf(m.size) * pmf[m]
+        return wi, dist, radiance, pdf, delta, light_normal
+
+    @staticmethod
+    def _area_point_sample(m, p, q, normal, area, emitted, pmf, one_sided, wi, dist, radiance,
+                           pdf, light_normal):
+        d = q - p[m]
+        d2 = _dot(d, d)
+        r = np.sqrt(d2)
+        w = d / np.maximum(r, 1e-300)[:, None]
+        cos_l = -_dot(w, normal)
+        if not one_sided:
+            cos_l = np.abs(cos_l)
+        ok = (cos_l > 1e-12) & (area > 0) & (r > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sa = np.where(ok, d2 / (cos_l * area), 0.0)
+        wi[m] = w
+        dist[m] = r
+        radiance[m] = np.where(ok[:, None], emitted, 0.0)
+        pdf[m] = sa * pmf[m]
+        light_normal[m] = normal
+
+    # ------------------------------------------------------------------ emitters found by rays
+    def triangle_pdf(self, prim, p_prev, dist, cos_light):
+        """Solid-angle pdf with which NEE from ``p_prev`` picks the hit point on triangle ``prim``.
+
+        Parameters
+        ----------
+        prim : (n,) int
+            Hit triangles (emissive ones; others give 0).
+        p_prev : (n, 3) float64
+        dist : (n,) float64
+            Distance from ``p_prev`` to the hit.
+        cos_light : (n,) float64
+            |cos| between the ray and the triangle normal.
+        """
+        e = self.tri_emitter[prim]
+        sel = np.where(e >= 0, self.select_prob[np.maximum(e, 0)] if self.n_emitters else 0.0, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pdf = sel * dist * dist / (np.abs(cos_light) * self.tri_area[prim])
+        return np.where(np.isfinite(pdf), pdf, 0.0)
+
+    def world_radiance(self, d):
+        """Background radiance for escaped rays ``d (n, 3)`` and NEE's pdf for it."""
+        n = d.shape[0]
+        if not self.has_world:
+            return np.zeros((n, 3)), np.zeros(n)
+        pdf = self.select_prob[self.world_index] * warps.uniform_sphere_pdf(n)
+        return np.broadcast_to(self.world, (n, 3)).copy(), pdf
+
+    def hit_shapes(self, o, d, tmax, camera):
+        """Emission from the light shapes (spheres, area lights, sun disks) a ray passes.
+
+        Parameters
+        ----------
+        o, d : (n, 3) float64
+            Ray origins and unit directions.
+        tmax : (n,) float64
+            Distance to the first surface (inf when the ray escapes).
+        camera : bool
+            Camera rays see only lights with ``visible_camera``.
+
+        Yields
+        ------
+        rows : (m,) int
+            Rays that receive light from one lamp.
+        radiance : (m, 3) float64
+        pdf : (m,) float64
+            Solid-angle density of NEE picking the same direction (selection included).
+        """
+        lights = self.lights
+        for li in self.shape_lights:
+            if camera and not lights.visible_camera[li]:
+                continue
+            kind = lights.kind[li]
+            pmf = self.select_prob[li]
+            if kind == LIGHT_POINT:
+                c = lights.position[li]
+                r = lights.radius[li]
+                oc = o - c
+                b = _dot(oc, d)
+                cc = _dot(oc, oc) - r * r
+                disc = b * b - cc
+                t = -b - np.sqrt(np.maximum(disc, 0.0))
+                rows = np.nonzero((disc > 0) & (cc > 0) & (t > 0) & (t < tmax))[0]
+                if rows.size == 0:
+                    continue
+                dc2 = _dot(oc[rows], oc[rows])
+                cos_max = np.sqrt(np.maximum(0.0, 1.0 - r * r / dc2))
+                pdf = pmf * warps.uniform_cone_pdf(np.minimum(cos_max, 1 - 1e-12))
+                att = spot_attenuation(lights, np.full(rows.size, li), -d[rows])
+                yield rows, lights.radiance[li] * att[:, None], pdf
+            elif kind == LIGHT_SUN:
+                cos_max = np.cos(0.5 * lights.angle[li])
+                rows = np.nonzero(np.isinf(tmax) & (_dot(d, -lights.direction[li][None]) > cos_max))[0]
+                if rows.size == 0:
+                    continue
+                pdf = np.full(rows.size, pmf * warps.uniform_cone_pdf(min(cos_max, 1 - 1e-12)))
+                yield rows, np.broadcast_to(lights.radiance[li], (rows.size, 3)), pdf
+            else:
+                n_l = lights.direction[li]
+                ax, ay = lights.axis_x[li], lights.axis_y[li]
+                denom = d @ n_l
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    t = ((lights.position[li] - o) @ n_l) / denom
+                # One-sided: the ray must arrive at the emitting face (travel against its normal).
+                front = denom < 0
+                hit = front & (t > 0) & (t < tmax)
+                q = o + d * np.where(hit, t, 0.0)[:, None] - lights.position[li]
+                x = (q @ ax) / (ax @ ax)
+                y = (q @ ay) / (ay @ ay)
+                if kind == LIGHT_RECT:
+                    inside = (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5)
+                    area = np.linalg.norm(np.cross(ax, ay))
+                else:
+                    inside = x * x + y * y <= 0.25
+                    area = np.linalg.norm(np.cross(ax, ay)) * np.pi / 4
+                rows = np.nonzero(hit & inside)[0]
+                if rows.size == 0:
+                    continue
+                cos_l = -denom[rows]
+                pdf = pmf * t[rows] ** 2 / (cos_l * area)
+                yield rows, np.broadcast_to(lights.radiance[li], (rows.size, 3)), pdf

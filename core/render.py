@@ -1,0 +1,222 @@
+"""The render loop: progressive passes of wavefront batches on worker threads.
+
+A pass adds ``spp_per_pass`` samples to every pixel. Each pass is cut into work units (a range of
+pixels times a range of sample indices) that two worker threads run concurrently; Embree and large
+NumPy operations release the GIL. Units cover disjoint pixels and their results are accumulated in
+unit order, and every random number is a function of (pixel, sample index, dimension, seed), so the
+same seed gives a bit-identical image whatever the thread count or timing.
+
+Halting: after ``spp`` samples per pixel, or when ``time_limit`` seconds have passed (then the pass
+under way is finished unit by unit until the clock runs out), or when ``cancel()`` says so; a
+cancelled render keeps every sample it finished (pixels may then hold different sample counts).
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .film import Film, PixelFilter
+from .integrators import INTEGRATORS
+from .integrators.common import Counters
+from .prepare import prepare
+from .sampling.samplers import make_sampler
+
+# Target number of paths per work unit: large enough for NumPy to amortise Python overhead,
+# small enough that a unit takes well under a second (cancel latency) and fits in memory.
+UNIT_PATHS = 1 << 15
+
+
+@dataclass
+class RenderSettings:
+    """What to render and how. Field names match the add-on's properties and the CLI flags."""
+
+    integrator: str = "path"
+    sampler: str = "independent"
+    spp: int = 16
+    time_limit: float = 0.0
+    seed: int = 0
+    max_bounces: int = 8
+    use_russian_roulette: bool = True
+    rr_min_bounces: int = 3
+    mis_heuristic: str = "power"
+    filter_type: str = "BLACKMAN_HARRIS"
+    filter_width: float = 1.5
+    threads: int = 2
+
+
+@dataclass
+class RenderResult:
+    """A finished (or cancelled) render.
+
+    Attributes
+    ----------
+    film : core.film.Film
+    stats : dict
+        ``time_s``, ``spp`` (completed passes' samples per pixel), ``samples`` (camera samples),
+        ``samples_per_s``, ``rays``, ``rays_per_s``, ``prepare_s``.
+    cancelled : bool
+    messages : list of str
+    """
+
+    film: Film
+    stats: dict = field(default_factory=dict)
+    cancelled: bool = False
+    messages: list = field(default_factory=list)
+
+    def combined(self):
+        """``(h, w, 4)`` float32 RGBA, row 0 at the bottom."""
+        return self.film.combined()
+
+    def variance(self):
+        """``(h, w, 3)`` float32 variance of each pixel estimate."""
+        return self.film.variance().astype(np.float32)
+
+    def sample_count(self):
+        """``(h, w)`` float32 samples per pixel."""
+        return self.film.sample_count()
+
+
+def _units(n_pixels, first_sample, spp_in_pass):
+    """Work units of a pass: (pixel_start, pixel_stop, first_sample, n_samples)."""
+    per_unit = max(1, UNIT_PATHS // spp_in_pass)
+    return [(p, min(p + per_unit, n_pixels), first_sample, spp_in_pass)
+            for p in range(0, n_pixels, per_unit)]
+
+
+def check_settings(scene, settings):
+    """Raise ``ValueError`` with a user-facing message for settings that cannot render."""
+    if scene.camera is None:
+        raise ValueError("the scene has no camera: add one and make it the scene camera")
+    if settings.integrator not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {settings.integrator!r}; choose from "
+                         f"{', '.join(INTEGRATORS)}")
+    if settings.spp <= 0 and settings.time_limit <= 0:
+        raise ValueError("set a sample count or a time limit")
+    if scene.camera.width <= 0 or scene.camera.height <= 0:
+        raise ValueError("the resolution must be at least 1 x 1 pixel")
+
+
+def render(scene, settings: RenderSettings, progress=None, cancel=None, on_update=None):
+    """Render ``scene`` with ``settings``.
+
+    Parameters
+    ----------
+    scene : core.scene.Scene
+    settings : RenderSettings
+    progress : callable(fraction: float, text: str) or None
+        Called after every work unit.
+    cancel : callable() -> bool or None
+        Polled between work units; True stops the render, keeping finished samples.
+    on_update : callable(RenderResult) or None
+        Called after every pass (to show the image so far).
+
+    Returns
+    -------
+    RenderResult
+    """
+    check_settings(scene, settings)
+    t0 = time.perf_counter()
+    prep = prepare(scene)
+    prepare_s = time.perf_counter() - t0
+    cam = scene.camera
+    film = Film(cam.width, cam.height)
+    sampler = make_sampler(settings.sampler, seed=settings.seed,
+                           spp=settings.spp if settings.spp > 0 else None)
+    integrator = INTEGRATORS[settings.integrator]
+    pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
+    result = RenderResult(film, messages=list(scene.messages))
+
+    n_pix = film.n_pixels
+    total_spp = settings.spp if settings.spp > 0 else None
+    spp_per_pass = max(1, min(UNIT_PATHS * max(1, settings.threads) // n_pix, 64))
+    counters = Counters()
+    done_spp = 0
+    t_start = time.perf_counter()
+
+    def elapsed():
+        return time.perf_counter() - t_start
+
+    def out_of_time():
+        return settings.time_limit > 0 and elapsed() >= settings.time_limit
+
+    def run_unit(unit):
+        p0, p1, s0, k = unit
+        pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
+        samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
+        local = Counters()
+        radiance = integrator.render_samples(prep, settings, pixel_filter,
+                                             sampler.stream(pixels, samples), local)
+        return pixels, radiance, local
+
+    def report(fraction):
+        if progress is None:
+            return
+        el = elapsed()
+        sps = counters.camera_samples / el if el > 0 else 0.0
+        spp_txt = f"{done_spp}/{total_spp}" if total_spp else f"{done_spp}"
+        progress(min(fraction, 1.0), f"Sample {spp_txt} | {sps / 1e6:.2f} M samples/s | "
+                                     f"{counters.rays / max(el, 1e-9) / 1e6:.2f} M rays/s")
+
+    cancelled = False
+    with ThreadPoolExecutor(max_workers=max(1, settings.threads)) as pool:
+        while not cancelled:
+            if total_spp is not None and done_spp >= total_spp:
+                break
+            if out_of_time():
+                break
+            k = spp_per_pass if total_spp is None else min(spp_per_pass, total_spp - done_spp)
+            units = _units(n_pix, done_spp, k)
+            # Keep at most `threads` units in flight so cancel and time limits answer quickly.
+            pending = []
+            finished_units = 0
+            i = 0
+            while i < len(units) or pending:
+                while i < len(units) and len(pending) < max(1, settings.threads):
+                    pending.append(pool.submit(run_unit, units[i]))
+                    i += 1
+                pixels, radiance, local = pending.pop(0).result()
+                film.add_samples(pixels, radiance)
+                counters.rays += local.rays
+                counters.camera_samples += local.camera_samples
+                finished_units += 1
+                stop = (cancel is not None and cancel()) or out_of_time()
+                if total_spp:
+                    frac = (done_spp + k * finished_units / len(units)) / total_spp
+                else:
+                    frac = elapsed() / settings.time_limit
+                report(frac)
+                if stop:
+                    cancelled = cancel is not None and cancel()
+                    for f in pending:  # finish what is running; its samples are kept
+                        pixels, radiance, local = f.result()
+                        film.add_samples(pixels, radiance)
+                        counters.rays += local.rays
+                        counters.camera_samples += local.camera_samples
+                    pending = []
+                    i = len(units)
+                    break
+            if finished_units == len(units):
+                done_spp += k
+            if on_update is not None:
+                on_update(result)
+            if i >= len(units) and finished_units < len(units):
+                break
+
+    t = elapsed()
+    result.cancelled = cancelled
+    result.stats = {
+        "time_s": t,
+        "prepare_s": prepare_s,
+        "spp": done_spp,
+        "samples": counters.camera_samples,
+        "samples_per_s": counters.camera_samples / t if t > 0 else 0.0,
+        "rays": counters.rays,
+        "rays_per_s": counters.rays / t if t > 0 else 0.0,
+        "triangles": scene.n_triangles,
+        "emitters": prep.lights.n_emitters,
+    }
+    return result

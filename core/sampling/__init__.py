@@ -1,0 +1,1 @@
+"""Sampling: warps (sample/pdf/invert triples), discrete distributions, sample streams."""

@@ -1,0 +1,86 @@
+"""Sample streams: where every random number of a path comes from.
+
+An integrator asks a :class:`SampleStream` for ``next_1d()`` / ``next_2d()`` and never calls a
+random generator itself. A stream is a deterministic function of (pixel, sample index, dimension,
+seed), so a render is reproducible bit for bit, independent of threads and batch sizes, and a
+sampler (stratified, low-discrepancy, blue noise) or Metropolis (primary sample space) can supply
+the numbers without the integrator changing.
+
+All paths of a batch consume dimensions in lockstep, so the dimension counter is one integer for
+the whole batch; terminated paths leave with :meth:`SampleStream.compact`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_M1 = np.uint32(0x7FEB352D)
+_M2 = np.uint32(0x846CA68B)
+
+
+def hash_u32(x):
+    """Chris Wellons' ``lowbias32`` integer hash on uint32 arrays (wrapping arithmetic)."""
+    x = np.asarray(x, np.uint32)
+    with np.errstate(over="ignore"):
+        x = x ^ (x >> np.uint32(16))
+        x = x * _M1
+        x = x ^ (x >> np.uint32(15))
+        x = x * _M2
+        x = x ^ (x >> np.uint32(16))
+    return x
+
+
+def u32_to_unit_float(x):
+    """Map uint32 to doubles in [0, 1) using the top 24 bits (exactly representable)."""
+    return (np.asarray(x, np.uint32) >> np.uint32(8)).astype(np.float64) * (1.0 / (1 << 24))
+
+
+class SampleStream:
+    """Base class: a batch of sample vectors, one per (pixel, sample index).
+
+    Parameters
+    ----------
+    pixel : (n,) int64
+        Pixel index ``y * width + x``.
+    sample_index : (n,) int64
+        Index of the sample within its pixel.
+    seed : int
+    """
+
+    def __init__(self, pixel, sample_index, seed):
+        self.pixel = np.asarray(pixel, np.int64)
+        self.sample_index = np.asarray(sample_index, np.int64)
+        self.seed = int(seed)
+        self.dimension = 0
+
+    def __len__(self):
+        return self.pixel.shape[0]
+
+    def compact(self, keep):
+        """Keep the paths ``keep`` (index array or boolean mask)."""
+        self.pixel = self.pixel[keep]
+        self.sample_index = self.sample_index[keep]
+        self._compact_state(keep)
+
+    def _compact_state(self, keep):
+        """Subclasses compact their own per-path arrays here."""
+
+    def skip_to(self, dimension):
+        """Jump to ``dimension`` (integrators start each bounce at a fixed dimension)."""
+        self.dimension = int(dimension)
+
+    def next_1d(self):
+        """``(n,)`` float64 in [0, 1)."""
+        u = self.sample(self.dimension, 1)[:, 0]
+        self.dimension += 1
+        return u
+
+    def next_2d(self):
+        """``(n, 2)`` float64 in [0, 1)^2 (one 2-D sample: samplers stratify the pair jointly)."""
+        u = self.sample(self.dimension, 2)
+        self.dimension += 2
+        return u
+
+    def sample(self, dimension, count):
+        """Sample values of dimensions ``dimension .. dimension + count - 1``: ``(n, count)``."""
+        raise NotImplementedError

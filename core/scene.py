@@ -1,0 +1,226 @@
+"""Scene tables: the flat, struct-of-arrays description every integrator reads.
+
+The exporter (``addon/export.py``) and the built-in scenes (``core/scenes.py``) both produce a
+:class:`Scene`. Everything is in world space, in Blender units and Cycles' light units (see
+``DESIGN.md``): lights carry the *radiometric* quantity the integrators need (intensity, radiance or
+irradiance), already converted from Blender's Watts by :func:`core.lights` helpers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Material kinds (one module per family lives in core/materials/).
+MAT_DIFFUSE = 0
+
+# Light kinds.
+LIGHT_POINT = 0   # point or spot, optionally a sphere of `radius`
+LIGHT_SUN = 1     # distant light, optionally a disk of angular diameter `angle`
+LIGHT_RECT = 2    # area light: square or rectangle, one-sided toward its local -Z
+LIGHT_DISK = 3    # area light: disk or ellipse, one-sided toward its local -Z
+
+# Ray visibility bits, as Cycles' object ray visibility.
+VIS_CAMERA = 1
+VIS_DIFFUSE = 2
+VIS_GLOSSY = 4
+VIS_TRANSMISSION = 8
+VIS_SHADOW = 16
+VIS_ALL = 31
+
+
+@dataclass
+class Camera:
+    """Blender's camera (perspective or orthographic) at a resolution.
+
+    Parameters
+    ----------
+    to_world : (4, 4) float64
+        Camera object matrix (orthonormal rotation + translation; the camera looks down its
+        local -Z with +Y up, as in Blender).
+    width, height : int
+        Render resolution in pixels (after the resolution percentage).
+    type : str
+        ``'PERSP'`` or ``'ORTHO'``.
+    lens : float
+        Focal length in mm (perspective).
+    sensor_width, sensor_height : float
+        Sensor size in mm.
+    sensor_fit : str
+        ``'AUTO'``, ``'HORIZONTAL'`` or ``'VERTICAL'``.
+    shift_x, shift_y : float
+        Lens shift in units of the fitted sensor dimension.
+    clip_start, clip_end : float
+        Clipping distances, measured along the view axis (as Cycles does).
+    ortho_scale : float
+        Width of the fitted dimension in Blender units (orthographic).
+    pixel_aspect_x, pixel_aspect_y : float
+        Pixel aspect ratio.
+    """
+
+    to_world: np.ndarray
+    width: int
+    height: int
+    type: str = "PERSP"
+    lens: float = 50.0
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+    sensor_fit: str = "AUTO"
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    clip_start: float = 0.1
+    clip_end: float = 1000.0
+    ortho_scale: float = 6.0
+    pixel_aspect_x: float = 1.0
+    pixel_aspect_y: float = 1.0
+
+
+@dataclass
+class Materials:
+    """Material table, one row per material.
+
+    Attributes
+    ----------
+    kind : (m,) int32
+        ``MAT_*`` code.
+    base_color : (m, 3) float32
+        Diffuse albedo in [0, 1].
+    emission : (m, 3) float32
+        Emitted radiance (W / (sr m^2)), from both faces; zero for non-emitters.
+    names : list of str
+        Material names, for messages.
+    """
+
+    kind: np.ndarray
+    base_color: np.ndarray
+    emission: np.ndarray
+    names: list = field(default_factory=list)
+
+    @staticmethod
+    def from_lists(names, base_colors, emissions, kinds=None) -> "Materials":
+        m = len(names)
+        return Materials(
+            kind=np.zeros(m, np.int32) if kinds is None else np.asarray(kinds, np.int32),
+            base_color=np.asarray(base_colors, np.float32).reshape(m, 3),
+            emission=np.asarray(emissions, np.float32).reshape(m, 3),
+            names=list(names),
+        )
+
+
+@dataclass
+class Lights:
+    """Light table (non-mesh lights), one row per light.
+
+    Attributes
+    ----------
+    kind : (k,) int32
+        ``LIGHT_*`` code.
+    position : (k, 3) float64
+        World position (point, spot, area centre). Unused for suns.
+    axis_x, axis_y : (k, 3) float64
+        Area light edge vectors scaled to the full size (rect: the quad spans
+        ``position ± axis_x/2 ± axis_y/2``; disk/ellipse: semi-axes are half of them).
+    direction : (k, 3) float64
+        Unit emission direction: the area light's and spot's local -Z; for a sun the
+        direction light travels (so ``-direction`` points at the sun).
+    radius : (k,) float64
+        Sphere radius of point / spot lights (0 = delta point).
+    angle : (k,) float64
+        Sun angular diameter in radians (0 = delta direction).
+    radiance : (k, 3) float64
+        Point/spot of radius 0: intensity in W/sr. Sphere point/spot: radiance of the sphere.
+        Sun of angle 0: irradiance in W/m^2; sun with angle: radiance of the disk.
+        Area: radiance of the emitting face.
+    spot_cos_half : (k,) float64
+        cos(spot_size / 2); -1 for a point light (no cone).
+    spot_smooth : (k,) float64
+        1 / ((1 - cos_half) * blend); inf for a hard-edged cone.
+    power : (k,) float64
+        Estimated emitted power (W) for light selection.
+    visible_camera : (k,) bool
+        Whether camera rays see the lamp's own shape.
+    names : list of str
+    """
+
+    kind: np.ndarray
+    position: np.ndarray
+    axis_x: np.ndarray
+    axis_y: np.ndarray
+    direction: np.ndarray
+    radius: np.ndarray
+    angle: np.ndarray
+    radiance: np.ndarray
+    spot_cos_half: np.ndarray
+    spot_smooth: np.ndarray
+    power: np.ndarray
+    visible_camera: np.ndarray
+    names: list = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.kind.shape[0])
+
+    @staticmethod
+    def empty() -> "Lights":
+        z3 = np.zeros((0, 3))
+        z = np.zeros(0)
+        return Lights(np.zeros(0, np.int32), z3, z3, z3, z3, z, z, z3, z, z, z,
+                      np.zeros(0, bool), [])
+
+    @staticmethod
+    def concat(rows: list) -> "Lights":
+        """Build a table from a list of single-light tables (see ``core.lights``)."""
+        if not rows:
+            return Lights.empty()
+        out = {}
+        for name in Lights.__dataclass_fields__:
+            if name == "names":
+                continue
+            out[name] = np.concatenate([getattr(r, name) for r in rows])
+        return Lights(**out, names=sum((r.names for r in rows), []))
+
+
+@dataclass
+class Scene:
+    """Everything a render needs, as flat arrays.
+
+    Attributes
+    ----------
+    vertices : (v, 3) float32
+        World-space vertex positions.
+    triangles : (t, 3) int32
+        Vertex indices per triangle.
+    material : (t,) int32
+        Material row per triangle.
+    visibility : (t,) int32
+        ``VIS_*`` bit mask per triangle (object ray visibility).
+    materials : Materials
+    lights : Lights
+    world_color : (3,) float64
+        Constant background radiance (World Background Color x Strength).
+    camera : Camera or None
+    messages : list of str
+        What the exporter approximated or ignored, said once per render.
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    material: np.ndarray
+    materials: Materials
+    lights: Lights
+    camera: Camera | None
+    world_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    visibility: np.ndarray | None = None
+    messages: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.vertices = np.ascontiguousarray(self.vertices, np.float32).reshape(-1, 3)
+        self.triangles = np.ascontiguousarray(self.triangles, np.int32).reshape(-1, 3)
+        self.material = np.ascontiguousarray(self.material, np.int32).reshape(-1)
+        self.world_color = np.asarray(self.world_color, np.float64).reshape(3)
+        if self.visibility is None:
+            self.visibility = np.full(self.triangles.shape[0], VIS_ALL, np.int32)
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.triangles.shape[0])

@@ -1,0 +1,168 @@
+"""Built-in procedural scenes for demos, tests and benchmarks (no Blender needed).
+
+- :func:`cornell_box`: the Lambertian Cornell box with a ceiling mesh light (or a point or
+  area light), Z up, camera looking down +Y, as one would model it in Blender.
+- :func:`furnace`: a closed sphere of emission ``Le`` and albedo ``rho`` seen from inside; every
+  pixel converges to ``Le (1 - rho^(B + 2)) / (1 - rho)`` for ``B`` bounces.
+- :func:`point_in_sphere`: a point light at the centre of a closed diffuse sphere.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import lights as L
+from .scene import Camera, Lights, Materials, Scene
+
+WHITE = (0.725, 0.71, 0.68)
+RED = (0.63, 0.065, 0.05)
+GREEN = (0.14, 0.45, 0.091)
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)):
+    """Camera ``to_world`` (4, 4) at ``eye`` looking at ``target`` (local -Z forward, +Y up)."""
+    eye = np.asarray(eye, np.float64)
+    f = np.asarray(target, np.float64) - eye
+    f /= np.linalg.norm(f)
+    x = np.cross(f, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(x, f)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, y, -f, eye
+    return m
+
+
+def _quad(p0, p1, p2, p3):
+    """Two triangles of the quad p0-p1-p2-p3 (counter-clockwise seen from the normal side)."""
+    return np.array([p0, p1, p2, p3], np.float64), np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def _box(center, size, angle_z):
+    """Closed axis-aligned box of ``size`` rotated about Z: (8, 3) vertices, (12, 3) faces."""
+    hx, hy, hz = 0.5 * np.asarray(size, np.float64)
+    c, s = np.cos(angle_z), np.sin(angle_z)
+    corners = np.array([[x, y, z] for z in (-hz, hz) for y in (-hy, hy) for x in (-hx, hx)])
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    v = corners @ rot.T + np.asarray(center)
+    faces = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
+                      [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]])
+    return v, faces
+
+
+class _Builder:
+    def __init__(self):
+        self.v, self.f, self.m = [], [], []
+        self.count = 0
+
+    def add(self, verts, faces, mat):
+        self.v.append(np.asarray(verts, np.float64))
+        self.f.append(np.asarray(faces) + self.count)
+        self.m.append(np.full(len(faces), mat, np.int32))
+        self.count += len(verts)
+
+    def arrays(self):
+        return np.concatenate(self.v), np.concatenate(self.f), np.concatenate(self.m)
+
+
+def cornell_box(width=256, height=256, light="mesh", light_power=None):
+    """The Cornell box, 2 x 2 x 2 units, floor at z = 0, open toward the camera at y = -1.
+
+    Parameters
+    ----------
+    width, height : int
+        Resolution.
+    light : str
+        ``'mesh'`` (an emissive quad under the ceiling, radiance 12), ``'point'`` (a 60 W point
+        light of radius 0.05 near the ceiling) or ``'area'`` (a 40 W square area light, 0.5 m).
+    """
+    b = _Builder()
+    y0, y1, x0, x1, z0, z1 = -1.0, 1.0, -1.0, 1.0, 0.0, 2.0
+    b.add(*_quad((x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)), 0)  # floor
+    b.add(*_quad((x0, y0, z1), (x0, y1, z1), (x1, y1, z1), (x1, y0, z1)), 0)  # ceiling
+    b.add(*_quad((x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)), 0)  # back
+    b.add(*_quad((x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)), 1)  # left, red
+    b.add(*_quad((x1, y0, z0), (x1, y0, z1), (x1, y1, z1), (x1, y1, z0)), 2)  # right, green
+    b.add(*_box((0.33, 0.3, 0.6), (0.6, 0.6, 1.2), np.radians(-17)), 0)       # tall box
+    b.add(*_box((-0.35, -0.3, 0.3), (0.6, 0.6, 0.6), np.radians(17)), 0)      # short box
+    names = ["White", "Red", "Green"]
+    colors = [WHITE, RED, GREEN]
+    emissions = [(0, 0, 0)] * 3
+    lights = Lights.empty()
+    if light == "mesh":
+        h = 0.25
+        b.add(*_quad((-h, -h, z1 - 1e-3), (h, -h, z1 - 1e-3), (h, h, z1 - 1e-3),
+                     (-h, h, z1 - 1e-3)), 3)
+        names.append("Light")
+        colors.append((0, 0, 0))
+        emissions.append((12.0, 12.0, 12.0) if light_power is None else light_power)
+    elif light == "point":
+        lights = L.point_light((0, 0, 1.7), (1, 1, 1), light_power or 60.0, radius=0.05,
+                               name="Point")
+    elif light == "area":
+        m = np.eye(4)
+        m[:3, 3] = (0, 0, z1 - 1e-3)
+        lights = L.area_light(m, "SQUARE", 0.5, 0.5, (1, 1, 1), light_power or 40.0, name="Area")
+    else:
+        raise ValueError(f"unknown Cornell box light {light!r}")
+    v, f, m = b.arrays()
+    cam = Camera(to_world=look_at((0, -3.9, 1.0), (0, 0, 1.0)), width=width, height=height,
+                 lens=50.0, sensor_width=36.0, clip_start=0.1, clip_end=100.0)
+    return Scene(v, f, m, Materials.from_lists(names, colors, emissions), lights, cam)
+
+
+def icosphere(subdivisions=3, radius=1.0, inward=False):
+    """Unit icosphere scaled to ``radius``: ``(v, 3)`` vertices, ``(f, 3)`` faces."""
+    t = (1 + 5**0.5) / 2
+    v = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t),
+         (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
+    f = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
+         (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
+         (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    v = np.array(v, np.float64)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    f = np.array(f, np.int64)
+    for _ in range(subdivisions):
+        # Split every edge at its midpoint (shared edges get one vertex) and re-project.
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+        mid = v[uniq[:, 0]] + v[uniq[:, 1]]
+        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+        base = v.shape[0]
+        v = np.concatenate([v, mid])
+        nf = f.shape[0]
+        a, b_, c = (inv[:nf] + base, inv[nf:2 * nf] + base, inv[2 * nf:] + base)
+        f = np.concatenate([np.stack([f[:, 0], a, c], 1), np.stack([f[:, 1], b_, a], 1),
+                            np.stack([f[:, 2], c, b_], 1), np.stack([a, b_, c], 1)])
+    if inward:
+        f = f[:, ::-1]
+    return v * radius, f
+
+
+def _inside_camera(width, height):
+    return Camera(to_world=look_at((0, 0, 0), (0, 1, 0.2)), width=width, height=height,
+                  lens=20.0, clip_start=1e-3, clip_end=100.0)
+
+
+def furnace(emission=1.0, albedo=0.5, radius=1.0, subdivisions=2, width=16, height=16):
+    """Closed sphere of uniform emission and albedo, camera at its centre."""
+    v, f = icosphere(subdivisions, radius)
+    mats = Materials.from_lists(["Furnace"], [(albedo,) * 3], [(emission,) * 3])
+    return Scene(v, f, np.zeros(len(f), np.int32), mats, Lights.empty(),
+                 _inside_camera(width, height))
+
+
+def point_in_sphere(power=100.0, albedo=0.5, radius=1.0, subdivisions=5, width=16, height=16):
+    """A delta point light of ``power`` W at the centre of a closed diffuse sphere."""
+    v, f = icosphere(subdivisions, radius)
+    mats = Materials.from_lists(["Wall"], [(albedo,) * 3], [(0, 0, 0)])
+    lights = L.point_light((0, 0, 0), (1, 1, 1), power, radius=0.0)
+    return Scene(v, f, np.zeros(len(f), np.int32), mats, lights, _inside_camera(width, height))
+
+
+BUILTIN = {
+    "cornell": lambda w, h: cornell_box(w, h, "mesh"),
+    "cornell_point": lambda w, h: cornell_box(w, h, "point"),
+    "cornell_area": lambda w, h: cornell_box(w, h, "area"),
+    "furnace": lambda w, h: furnace(width=w, height=h),
+    "point_in_sphere": lambda w, h: point_in_sphere(width=w, height=h),
+}
