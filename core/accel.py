@@ -120,6 +120,40 @@ class Accel:
                         query="OCCLUDED")
         return res != -1
 
+    def shadow_rays(self, p, ng, prim, wi, dist, light_normal):
+        """Shadow rays from surface points toward sampled light points, both ends pushed off.
+
+        Parameters
+        ----------
+        p, ng : (n, 3) float64
+            Receiving points and their unit geometric normals on triangles ``prim (n,)``.
+        wi : (n, 3) float64
+            Unit directions toward the light samples at distances ``dist (n,)`` (inf for
+            directions to the sun or the world).
+        light_normal : (n, 3) float64
+            Normal at the light sample (zero for points and directions).
+
+        Returns
+        -------
+        origins, directions : (n, 3) float64
+        tmax : (n,) float64
+            The segment stops short of the light sample by the same float32 margin as the
+            origin, so an emitting triangle never shadows its own sample.
+        """
+        origins = self.offset_origin(p, ng, prim, wi)
+        finite = np.isfinite(dist)
+        q = p + wi * np.where(finite, dist, 0.0)[:, None]
+        scale = np.maximum(np.abs(q).max(axis=1), np.abs(p).max(axis=1))
+        eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(scale, 1e-30)
+        toward = np.sign(np.einsum("ij,ij->i", light_normal, origins - q))
+        q = q + light_normal * (toward * eps)[:, None]
+        seg = q - origins
+        length = np.linalg.norm(seg, axis=1)
+        ok = finite & (length > 0)
+        directions = np.where(ok[:, None], seg / np.maximum(length, 1e-300)[:, None], wi)
+        tmax = np.where(finite, np.where(ok, length - eps, 0.0), np.inf)
+        return origins, directions, np.maximum(tmax, 0.0)
+
     def offset_origin(self, p, ng, prim, w):
         """Push points ``p (n, 3)`` off triangles ``prim (n,)`` to the side of ``w (n, 3)``.
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -9,6 +10,36 @@ import numpy as np
 from .accel import Accel
 from .lights import LightSampler
 from .scene import Scene
+
+
+def recentred(scene: Scene):
+    """A copy of ``scene`` translated so that its bounding box is centred on the origin.
+
+    Float32 precision is relative to a coordinate's magnitude, so a compact scene far from the
+    origin loses precision (and needs larger ray offsets) for no reason. Rendering is invariant
+    under translation, so the renderer works in this local frame.
+
+    Returns
+    -------
+    local : Scene
+    shift : (3,) float64
+        What was subtracted from every position.
+    """
+    if scene.n_triangles == 0:
+        return scene, np.zeros(3)
+    v = scene.vertices.astype(np.float64)
+    shift = 0.5 * (v.min(axis=0) + v.max(axis=0))
+    if np.abs(shift).max() == 0:
+        return scene, shift
+    lights = dataclasses.replace(scene.lights, position=scene.lights.position - shift)
+    camera = scene.camera
+    if camera is not None:
+        to_world = np.array(camera.to_world, np.float64)
+        to_world[:3, 3] -= shift
+        camera = dataclasses.replace(camera, to_world=to_world)
+    local = dataclasses.replace(scene, vertices=(v - shift).astype(np.float32), lights=lights,
+                                camera=camera)
+    return local, shift
 
 
 @dataclass
@@ -27,6 +58,9 @@ class PreparedScene:
     tri_emission : (t, 3) float64
         Emitted radiance per triangle.
     lights : LightSampler
+    shift : (3,) float64
+        World position of the local frame's origin: everything above is in world space minus
+        ``shift`` (see :func:`recentred`).
     """
 
     scene: Scene
@@ -36,10 +70,12 @@ class PreparedScene:
     tri_albedo: np.ndarray
     tri_emission: np.ndarray
     lights: LightSampler
+    shift: np.ndarray
 
 
 def prepare(scene: Scene) -> PreparedScene:
-    """Build the acceleration structure and light tables for ``scene``."""
+    """Build the acceleration structure and light tables for ``scene`` (in a recentred frame)."""
+    scene, shift = recentred(scene)
     v = scene.vertices.astype(np.float64)
     tri = v[scene.triangles] if scene.n_triangles else np.zeros((0, 3, 3))
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) if len(tri) else np.zeros((0, 3))
@@ -51,4 +87,4 @@ def prepare(scene: Scene) -> PreparedScene:
     albedo = np.clip(mats.base_color[scene.material].astype(np.float64), 0.0, 1.0)
     emission = np.maximum(mats.emission[scene.material].astype(np.float64), 0.0)
     lights = LightSampler(scene, area, normal)
-    return PreparedScene(scene, accel, normal, area, albedo, emission, lights)
+    return PreparedScene(scene, accel, normal, area, albedo, emission, lights, shift)

@@ -90,14 +90,14 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
         u_sel = stream.next_1d()
         u_light = stream.next_2d()
-        wi, dist, li, pdf_l, delta, _ = prep.lights.sample(si.p, u_sel, u_light)
+        wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(si.p, u_sel, u_light)
         f = eval_lambert(albedo, si.ns, wi)
         ok = (pdf_l > 0) & (f.max(axis=1) > 0) & (li.max(axis=1) > 0)
         cand = np.nonzero(ok)[0]
         if cand.size:
-            origin = prep.accel.offset_origin(si.p[cand], si.ng[cand], si.prim[cand], wi[cand])
-            shadow_tmax = np.where(np.isfinite(dist[cand]), dist[cand] * (1 - 1e-4), np.inf)
-            blocked = prep.accel.occluded(origin, wi[cand], shadow_tmax, VIS_SHADOW)
+            blocked = prep.accel.occluded(*prep.accel.shadow_rays(
+                si.p[cand], si.ng[cand], si.prim[cand], wi[cand], dist[cand], light_normal[cand]),
+                VIS_SHADOW)
             counters.rays += cand.size
             vis = cand[~blocked]
             w = np.where(delta[vis], 1.0,

@@ -1,0 +1,203 @@
+"""Command line: ``python -m sampling_lab render|bench ...``.
+
+``render SCENE -o OUT.exr`` renders a built-in scene (no Blender needed) or a ``.blend`` file (with
+the ``bpy`` module, like ``blender -b file.blend -f N``: the file's camera, resolution and frame
+unless overridden) and writes a multilayer EXR (Combined, Variance, Sample Count) atomically.
+A progress bar goes to stderr; ``--json`` prints one JSON line of figures to stdout.
+
+Usage errors, unknown names and unreadable files exit with code 2 and a one-line message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+
+from ..core import scenes as builtin_scenes
+from ..core.integrators import INTEGRATORS
+from ..core.render import RenderSettings, render
+from ..core.sampling.samplers import SAMPLERS
+
+
+class UsageError(Exception):
+    """A mistake in the command line or its inputs: exit code 2, one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(message)
+
+
+def _resolution(text):
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"resolution must look like 640x480, not {text!r}")
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError("resolution must be at least 1x1")
+    return w, h
+
+
+def _positive_int(text):
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, not {text}")
+    return value
+
+
+def build_parser():
+    parser = _Parser(prog="python -m sampling_lab", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    r = sub.add_parser("render", help="render a built-in scene or a .blend file to EXR")
+    r.add_argument("scene", help=f".blend path or built-in scene: {', '.join(builtin_scenes.BUILTIN)}")
+    r.add_argument("-o", "--output", required=True, help="output .exr path")
+    r.add_argument("--integrator", default="path", help=f"one of: {', '.join(INTEGRATORS)}")
+    r.add_argument("--sampler", default="independent", help=f"one of: {', '.join(SAMPLERS)}")
+    halt = r.add_mutually_exclusive_group()
+    halt.add_argument("--spp", type=_positive_int, help="samples per pixel (default 16)")
+    halt.add_argument("--time", type=float, help="time limit in seconds")
+    r.add_argument("--max-depth", type=_positive_int, default=None,
+                   help="maximum bounces (Cycles' max bounces; default 8)")
+    r.add_argument("--seed", type=int, default=None)
+    r.add_argument("--resolution", type=_resolution, default=None, help="WxH")
+    r.add_argument("--threads", type=_positive_int, default=2)
+    r.add_argument("--frame", type=int, default=None, help="frame of a .blend to render")
+    r.add_argument("--png", action="store_true", help="also write an sRGB PNG preview beside OUT")
+    r.add_argument("--json", action="store_true", help="print one JSON line of figures")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    b = sub.add_parser("bench", help="speed against error on the Cornell box (figures, not tests)")
+    b.add_argument("--resolution", type=_resolution, default=(256, 256))
+    b.add_argument("--seconds", type=float, default=10.0, help="equal-time budget per renderer")
+    b.add_argument("--reference-spp", type=_positive_int, default=1024)
+    b.add_argument("--no-cycles", action="store_true", help="skip the Cycles comparison")
+    b.add_argument("--output", default="bench/results", help="folder for CSV and images")
+    return parser
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr (redrawn in place on a terminal, every 10 % otherwise)."""
+
+    def __init__(self, stream=sys.stderr, quiet=False):
+        self.stream = stream
+        self.quiet = quiet
+        self.tty = stream.isatty()
+        self.last_decile = -1
+
+    def __call__(self, fraction, text):
+        if self.quiet:
+            return
+        fraction = min(max(fraction, 0.0), 1.0)
+        bar = "#" * int(30 * fraction) + "-" * (30 - int(30 * fraction))
+        line = f"[{bar}] {100 * fraction:5.1f}% {text}"
+        if self.tty:
+            self.stream.write("\r" + line)
+        elif int(10 * fraction) > self.last_decile:
+            self.last_decile = int(10 * fraction)
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self):
+        if self.tty and not self.quiet:
+            self.stream.write("\n")
+
+
+def load_scene(args):
+    """Scene and the settings it carries, from a built-in name or a .blend file."""
+    settings = RenderSettings()
+    name = args.scene
+    if name.lower().endswith(".blend") or os.path.sep in name:
+        if not os.path.isfile(name):
+            raise UsageError(f"cannot read scene file {name!r}")
+        from .blendfile import load_blend
+
+        scene, file_settings = load_blend(os.path.abspath(name), frame=args.frame,
+                                          resolution=args.resolution)
+        settings = file_settings
+    else:
+        if name not in builtin_scenes.BUILTIN:
+            raise UsageError(f"unknown scene {name!r}; built-in scenes: "
+                             f"{', '.join(builtin_scenes.BUILTIN)} (or give a .blend path)")
+        w, h = args.resolution or (256, 256)
+        scene = builtin_scenes.BUILTIN[name](w, h)
+    return scene, settings
+
+
+def cmd_render(args):
+    if args.integrator not in INTEGRATORS:
+        raise UsageError(f"unknown integrator {args.integrator!r}; choose from "
+                         f"{', '.join(INTEGRATORS)}")
+    if args.sampler.lower() not in SAMPLERS:
+        raise UsageError(f"unknown sampler {args.sampler!r}; choose from {', '.join(SAMPLERS)}")
+    if not args.output.lower().endswith(".exr"):
+        raise UsageError(f"output must be an .exr file, not {args.output!r}")
+    scene, settings = load_scene(args)
+    settings.integrator = args.integrator
+    settings.sampler = args.sampler.lower()
+    settings.threads = max(1, args.threads)
+    if args.time is not None:
+        settings.spp, settings.time_limit = 0, args.time
+    elif args.spp is not None:
+        settings.spp, settings.time_limit = args.spp, 0.0
+    if args.max_depth is not None:
+        settings.max_bounces = args.max_depth
+    if args.seed is not None:
+        settings.seed = args.seed
+    for message in scene.messages:
+        print(f"note: {message}", file=sys.stderr)
+
+    from ..core.exr import write_multilayer, write_png_preview
+
+    bar = ProgressBar(quiet=args.quiet)
+    interrupted = []
+    # Ctrl-C cancels like Esc in Blender: the samples taken so far are still written.
+    previous = signal.signal(signal.SIGINT, lambda *_: interrupted.append(True))
+    try:
+        result = render(scene, settings, progress=bar, cancel=lambda: bool(interrupted))
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        bar.close()
+    if result.cancelled:
+        print("sampling_lab: cancelled; writing the samples taken", file=sys.stderr)
+    write_multilayer(args.output, {
+        "Combined": result.combined(),
+        "Variance": result.variance(),
+        "Sample Count": result.sample_count()[..., None],
+    })
+    if args.png:
+        write_png_preview(os.path.splitext(args.output)[0] + ".png", result.combined()[..., :3])
+    stats = dict(result.stats)
+    stats.update(output=os.path.abspath(args.output), integrator=settings.integrator,
+                 sampler=settings.sampler, width=scene.camera.width, height=scene.camera.height)
+    if args.json:
+        print(json.dumps(stats))
+    elif not args.quiet:
+        print(f"wrote {args.output}: {stats['spp']} spp in {stats['time_s']:.2f} s, "
+              f"{stats['samples_per_s'] / 1e6:.3f} M samples/s, "
+              f"{stats['rays_per_s'] / 1e6:.2f} M rays/s", file=sys.stderr)
+    return 0
+
+
+def cmd_bench(args):
+    from ..bench.cornell import run
+
+    return run(resolution=args.resolution, seconds=args.seconds,
+               reference_spp=args.reference_spp, cycles=not args.no_cycles, output=args.output)
+
+
+def main(argv=None):
+    try:
+        args = build_parser().parse_args(argv)
+        if args.command == "render":
+            return cmd_render(args)
+        return cmd_bench(args)
+    except UsageError as exc:
+        print(f"sampling_lab: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("sampling_lab: interrupted", file=sys.stderr)
+        return 130
