@@ -201,6 +201,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                     break
             if finished_units == len(units):
                 done_spp += k
+                report(done_spp / total_spp if total_spp else elapsed() / settings.time_limit)
             if on_update is not None:
                 on_update(result)
             if i >= len(units) and finished_units < len(units):

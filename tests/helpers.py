@@ -1,0 +1,515 @@
+"""Shared statistical checkers for the test suite.
+
+Every tolerance here comes from a stated false-failure probability, never from tuning until a
+test passes:
+
+- chi-square goodness-of-fit tests (:func:`chi_square_test`, :func:`chi_square_2d`,
+  :func:`chi_square_directions`) fail when the p-value is at most ``alpha``; cells with small
+  expected counts are pooled (as pbrt's and Mitsuba's ``chi2`` tests do) so the chi-square
+  approximation holds, and a sample in a cell of expected count zero fails at once;
+- confidence-interval checks (:func:`assert_mean_within_ci`, :func:`assert_estimates_agree`)
+  fail when any of ``m`` compared means lies outside its interval, where the interval's
+  quantile is chosen so that all ``m`` pass with probability at least ``1 - p_false`` when the
+  estimator is right (Bonferroni: each comparison gets ``p_false / m``).
+
+All tests seed their generators, so a run is reproducible; ``alpha`` / ``p_false`` is the chance
+that a *correct* implementation fails for a fresh seed. Tests that use a checker should also
+show that it can fail (a wrong pdf must be rejected at the same sample count).
+
+The special functions (chi-square tail, normal and t quantiles) come from
+:mod:`sampling_lab.core.metrics`, so the suite does not need SciPy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sampling_lab.core.metrics import block_means, chi2_sf, normal_quantile, student_t_quantile
+
+TWO_PI = 2.0 * np.pi
+
+
+# --------------------------------------------------------------------------------------------
+# Chi-square goodness of fit
+# --------------------------------------------------------------------------------------------
+
+
+def chi_square_counts(observed, expected, min_expected=5.0, alpha=1e-3, what="samples"):
+    """Chi-square test of observed cell counts against expected counts; assert ``p > alpha``.
+
+    Cells with ``expected == 0`` must be empty. Cells with ``expected < min_expected`` are
+    pooled, smallest first, into one cell; the pool also takes the next smallest cells until its
+    expectation reaches ``min_expected`` (Mitsuba's and pbrt's rule).
+
+    Parameters
+    ----------
+    observed : (k,) int
+        Counts per cell.
+    expected : (k,) float
+        Expected counts per cell (``n * probability``).
+    min_expected : float
+        Smallest expected count a cell may have on its own.
+    alpha : float
+        Significance level: the probability that a correct sampler fails this test.
+    what : str
+        Name of the tested thing, for the failure message.
+
+    Returns
+    -------
+    p_value : float
+    """
+    observed = np.asarray(observed, np.float64).reshape(-1)
+    expected = np.asarray(expected, np.float64).reshape(-1)
+    if observed.shape != expected.shape:
+        raise ValueError("observed and expected differ in length")
+    if np.any(expected < 0) or not np.all(np.isfinite(expected)):
+        raise ValueError("expected counts must be finite and non-negative")
+    impossible = (expected == 0) & (observed > 0)
+    assert not np.any(impossible), (
+        f"{what}: {int(observed[impossible].sum())} samples fell in "
+        f"{int(impossible.sum())} cells of probability zero, e.g. cells "
+        f"{np.flatnonzero(impossible)[:8].tolist()}"
+    )
+    live = np.flatnonzero(expected > 0)
+    order = live[np.argsort(expected[live], kind="stable")]
+    e = expected[order]
+    o = observed[order]
+    n_small = int(np.count_nonzero(e < min_expected))
+    if n_small:
+        # Pool all small cells, plus as many next-smallest as the pool needs to reach the minimum.
+        running = np.cumsum(e)
+        need = max(n_small, int(np.searchsorted(running, min_expected, side="left")) + 1)
+        if need > e.size:
+            raise ValueError(
+                f"{what}: total expected count {running[-1]:.3g} is below min_expected; "
+                "use more samples"
+            )
+        e = np.concatenate([[running[need - 1]], e[need:]])
+        o = np.concatenate([[o[:need].sum()], o[need:]])
+    dof = e.size - 1
+    if dof == 0:
+        return 1.0
+    stat = float(np.sum((o - e) ** 2 / e))
+    p = chi2_sf(stat, dof)
+    if not p > alpha:
+        contrib = np.zeros_like(expected)
+        contrib[live] = (observed[live] - expected[live]) ** 2 / expected[live]
+        worst = np.argsort(contrib)[::-1][:6]
+        cells = ", ".join(
+            f"#{i}: observed {observed[i]:.0f} expected {expected[i]:.1f}" for i in worst
+        )
+        raise AssertionError(
+            f"{what}: chi-square {stat:.1f} with {dof} dof, p = {p:.3g} <= alpha = {alpha:g}; "
+            f"largest deviations {cells}"
+        )
+    return p
+
+
+def chi_square_test(samples_idx, expected_probs, min_expected=5.0, alpha=1e-3, mass_tol=1e-9,
+                    what="samples"):
+    """Chi-square test of sampled cell indices against their probabilities; assert ``p > alpha``.
+
+    Parameters
+    ----------
+    samples_idx : (n,) int
+        Chosen cells, each in ``[0, k)``.
+    expected_probs : (k,) float
+        Probability of each cell; must sum to one within ``mass_tol``.
+    min_expected, alpha, what
+        As in :func:`chi_square_counts`.
+    mass_tol : float
+        Allowed ``|sum(expected_probs) - 1|``.
+
+    Returns
+    -------
+    p_value : float
+    """
+    probs = np.asarray(expected_probs, np.float64).reshape(-1)
+    idx = np.asarray(samples_idx).reshape(-1)
+    if not np.issubdtype(idx.dtype, np.integer):
+        raise TypeError(f"samples_idx must be integers, got {idx.dtype}")
+    assert np.all(probs >= 0), f"{what}: negative probabilities"
+    assert abs(probs.sum() - 1.0) <= mass_tol, f"{what}: probabilities sum to {probs.sum()!r}"
+    assert idx.size > 0 and idx.min() >= 0 and idx.max() < probs.size, (
+        f"{what}: sampled indices outside [0, {probs.size})"
+    )
+    observed = np.bincount(idx, minlength=probs.size)
+    return chi_square_counts(observed, idx.size * probs, min_expected, alpha, what)
+
+
+def histogram_2d(points, bounds, res, edge_tol=1e-12):
+    """Counts of 2-D points in a regular grid of cells.
+
+    Parameters
+    ----------
+    points : (n, 2) float
+    bounds : ((x0, x1), (y0, y1))
+        Closed domain; points within ``edge_tol`` (relative to the extent) outside it are
+        counted in the edge cells, to forgive rounding.
+    res : (nx, ny)
+
+    Returns
+    -------
+    counts : (nx, ny) int64
+    outside : int
+        Number of points outside the domain.
+    """
+    pts = np.asarray(points, np.float64)
+    (x0, x1), (y0, y1) = bounds
+    nx, ny = res
+    fx = (pts[:, 0] - x0) / (x1 - x0)
+    fy = (pts[:, 1] - y0) / (y1 - y0)
+    inside = (fx >= -edge_tol) & (fx <= 1 + edge_tol) & (fy >= -edge_tol) & (fy <= 1 + edge_tol)
+    ix = np.clip((fx[inside] * nx).astype(np.int64), 0, nx - 1)
+    iy = np.clip((fy[inside] * ny).astype(np.int64), 0, ny - 1)
+    counts = np.bincount(ix * ny + iy, minlength=nx * ny).reshape(nx, ny)
+    return counts, int(np.count_nonzero(~inside))
+
+
+def integrate_density_2d(density_fn, bounds, res, subdiv=8):
+    """Integral of a density over each cell of a regular grid (midpoint rule on a sub-grid).
+
+    Parameters
+    ----------
+    density_fn : callable, (m, 2) float -> (m,) float
+        Density with respect to ``dx dy`` of the grid's coordinates.
+    bounds : ((x0, x1), (y0, y1))
+    res : (nx, ny)
+    subdiv : int
+        Sub-cells per cell side.
+
+    Returns
+    -------
+    (nx, ny) float64
+        Probability mass of each cell.
+    """
+    (x0, x1), (y0, y1) = bounds
+    nx, ny = res
+    mx, my = nx * subdiv, ny * subdiv
+    xs = x0 + (np.arange(mx) + 0.5) * ((x1 - x0) / mx)
+    ys = y0 + (np.arange(my) + 0.5) * ((y1 - y0) / my)
+    grid = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+    dens = np.asarray(density_fn(grid), np.float64).reshape(mx, my)
+    cell = (x1 - x0) * (y1 - y0) / (mx * my)
+    return dens.reshape(nx, subdiv, ny, subdiv).sum(axis=(1, 3)) * cell
+
+
+def chi_square_2d(points, density_fn, bounds, res=(16, 16), subdiv=8, min_expected=5.0,
+                  alpha=1e-3, mass_tol=1e-3, what="samples"):
+    """Chi-square test of 2-D points against a density over a rectangular domain.
+
+    Parameters
+    ----------
+    points : (n, 2) float
+        Samples; all must lie in ``bounds``.
+    density_fn : callable, (m, 2) float -> (m,) float
+        The claimed density with respect to ``dx dy``; it must integrate to one over
+        ``bounds`` within ``mass_tol`` (a wrong normalisation fails here).
+    bounds : ((x0, x1), (y0, y1))
+    res : (nx, ny)
+        Histogram cells.
+    subdiv : int
+        Quadrature sub-cells per cell side (see :func:`integrate_density_2d`).
+    min_expected, alpha, what
+        As in :func:`chi_square_counts`.
+    mass_tol : float
+        Allowed deviation of the density's total mass from one (quadrature error).
+
+    Returns
+    -------
+    p_value : float
+    """
+    pts = np.asarray(points, np.float64)
+    assert np.all(np.isfinite(pts)), f"{what}: non-finite samples"
+    counts, outside = histogram_2d(pts, bounds, res)
+    assert outside == 0, f"{what}: {outside} of {len(pts)} samples outside the domain {bounds}"
+    mass = integrate_density_2d(density_fn, bounds, res, subdiv)
+    assert np.all(np.isfinite(mass)) and np.all(mass >= 0), f"{what}: invalid density values"
+    assert abs(mass.sum() - 1.0) <= mass_tol, (
+        f"{what}: density integrates to {mass.sum():.6f} over the domain, not 1"
+    )
+    return chi_square_counts(counts.reshape(-1), len(pts) * mass.reshape(-1), min_expected,
+                             alpha, what)
+
+
+def directions_from_z_phi(zp):
+    """Unit vectors from ``(cos theta, phi)`` pairs. ``zp : (m, 2)`` -> ``(m, 3)``."""
+    z = np.clip(zp[:, 0], -1.0, 1.0)
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    return np.stack([r * np.cos(zp[:, 1]), r * np.sin(zp[:, 1]), z], axis=-1)
+
+
+def z_phi_from_directions(w):
+    """``(cos theta, phi in [0, 2 pi))`` of unit vectors. ``w : (n, 3)`` -> ``(n, 2)``."""
+    phi = np.arctan2(w[:, 1], w[:, 0])
+    phi = np.where(phi < 0, phi + TWO_PI, phi)
+    return np.stack([w[:, 2], phi], axis=-1)
+
+
+def integrate_solid_angle(pdf_fn, z_range=(-1.0, 1.0), res=(256, 256)):
+    """Integral of a solid-angle density over a zone ``z0 <= cos theta <= z1`` of the sphere.
+
+    Midpoint rule in ``(cos theta, phi)``, where ``d omega = d(cos theta) d phi``.
+
+    Parameters
+    ----------
+    pdf_fn : callable, (m, 3) float -> (m,) float
+    z_range : (z0, z1)
+    res : (nz, nphi)
+
+    Returns
+    -------
+    float
+    """
+    mass = integrate_density_2d(lambda zp: pdf_fn(directions_from_z_phi(zp)),
+                                (z_range, (0.0, TWO_PI)), res, subdiv=1)
+    return float(mass.sum())
+
+
+def chi_square_directions(sample_fn, pdf_fn, n=200_000, res=(16, 32), z_range=(-1.0, 1.0),
+                          subdiv=8, seed=0, min_expected=5.0, alpha=1e-3, mass_tol=1e-3,
+                          what="directions"):
+    """Chi-square test of a direction sampler against its solid-angle pdf (Mitsuba's ``chi2``).
+
+    Draws ``u`` uniform in [0, 1)^2, maps it with ``sample_fn``, and histograms the directions
+    in ``(cos theta, phi)`` cells, whose solid angle is ``d(cos theta) d phi``, so the expected
+    count of a cell is ``n`` times the integral of ``pdf_fn`` over it (midpoint rule on a
+    ``subdiv`` x ``subdiv`` sub-grid). Equal-width ``cos theta`` bins have equal solid angle.
+
+    Parameters
+    ----------
+    sample_fn : callable, (n, 2) float -> (n, 3) float
+        The warp; must return unit vectors.
+    pdf_fn : callable, (m, 3) float -> (m,) float
+        Its claimed density per steradian (zero outside the support).
+    n : int
+        Sample count.
+    res : (nz, nphi)
+        Cells in ``cos theta`` and ``phi``.
+    z_range : (z0, z1)
+        The zone of the sphere that holds the support (a cone uses ``(cos_max, 1)`` for
+        resolution); every sample must lie in it.
+    subdiv, min_expected, alpha, mass_tol, what
+        As in :func:`chi_square_2d`.
+    seed : int
+
+    Returns
+    -------
+    p_value : float
+    """
+    rng = np.random.default_rng(seed)
+    w = np.asarray(sample_fn(rng.random((n, 2))), np.float64)
+    assert w.shape == (n, 3), f"{what}: sampler returned shape {w.shape}, expected {(n, 3)}"
+    assert np.all(np.isfinite(w)), f"{what}: non-finite directions"
+    length_err = np.abs(np.linalg.norm(w, axis=1) - 1.0).max()
+    assert length_err < 1e-6, f"{what}: directions not unit length (error {length_err:.2g})"
+    return chi_square_2d(
+        z_phi_from_directions(w),
+        lambda zp: pdf_fn(directions_from_z_phi(zp)),
+        (tuple(z_range), (0.0, TWO_PI)),
+        res, subdiv, min_expected, alpha, mass_tol, what,
+    )
+
+
+def chi_square_uniform_square(u, res=(16, 16), alpha=1e-3, what="points"):
+    """Chi-square test that 2-D points are uniform on the unit square. ``u : (n, 2)``."""
+    return chi_square_2d(u, lambda p: np.ones(len(p)), ((0.0, 1.0), (0.0, 1.0)), res,
+                         subdiv=1, alpha=alpha, what=what)
+
+
+def ks_uniform_test(x, alpha=1e-3, what="values"):
+    """One-sample Kolmogorov-Smirnov test that ``x`` is uniform on [0, 1); assert ``p > alpha``.
+
+    The p-value uses Stephens' finite-n correction of the Kolmogorov distribution,
+    ``Q_KS((sqrt(n) + 0.12 + 0.11 / sqrt(n)) D)``, accurate for n >= 35 or so.
+
+    Parameters
+    ----------
+    x : (n,) float
+
+    Returns
+    -------
+    p_value : float
+    """
+    x = np.sort(np.asarray(x, np.float64).reshape(-1))
+    n = x.size
+    assert n > 0 and x[0] >= 0.0 and x[-1] < 1.0, f"{what}: values outside [0, 1)"
+    i = np.arange(1, n + 1)
+    d = float(max(np.max(i / n - x), np.max(x - (i - 1) / n)))
+    sn = math.sqrt(n)
+    p = _kolmogorov_q((sn + 0.12 + 0.11 / sn) * d)
+    assert p > alpha, f"{what}: KS statistic D = {d:.4g} (n = {n}), p = {p:.3g} <= {alpha:g}"
+    return p
+
+
+def _kolmogorov_q(lam):
+    """Complementary CDF of the Kolmogorov distribution, ``P(K > lam)``."""
+    if lam <= 0:
+        return 1.0
+    j = np.arange(1, 101, dtype=np.float64)
+    if lam < 1.18:
+        # Jacobi-theta form converges fast for small lambda.
+        s = np.sum(np.exp(-((2 * j - 1) ** 2) * np.pi**2 / (8 * lam * lam)))
+        return float(min(1.0, max(0.0, 1.0 - math.sqrt(2 * math.pi) / lam * s)))
+    s = np.sum((-1.0) ** (j - 1) * np.exp(-2.0 * j * j * lam * lam))
+    return float(min(1.0, max(0.0, 2.0 * s)))
+
+
+# --------------------------------------------------------------------------------------------
+# Confidence intervals
+# --------------------------------------------------------------------------------------------
+
+
+def z_for_false_failure(p_false=1e-4, comparisons=1):
+    """Two-sided normal quantile for ``comparisons`` simultaneous checks (Bonferroni).
+
+    With this ``z``, ``comparisons`` correct estimates all fall within ``z`` standard errors with
+    probability at least ``1 - p_false``. E.g. ``p_false=1e-4, comparisons=1`` gives 3.89.
+
+    Parameters
+    ----------
+    p_false : float
+        Allowed probability that a correct implementation fails.
+    comparisons : int
+        Number of means checked together.
+
+    Returns
+    -------
+    float
+    """
+    if not 0 < p_false < 1 or comparisons < 1:
+        raise ValueError("need 0 < p_false < 1 and comparisons >= 1")
+    return -normal_quantile(0.5 * p_false / comparisons)
+
+
+def assert_mean_within_ci(samples, expected, p_false=1e-4, comparisons=None, axis=0,
+                          rtol=1e-12, atol=0.0, what="mean"):
+    """Assert that sample means match ``expected`` within confidence intervals.
+
+    The interval is ``q * s / sqrt(n)`` with ``s`` the sample standard deviation and ``q`` the
+    Student-t quantile (``n - 1`` dof) at two-sided level ``p_false / comparisons``. That is exact
+    for normal samples and relies on the central limit theorem otherwise, so use many samples
+    (or block means) for skewed or heavy-tailed estimators. ``rtol`` only absorbs floating-point
+    rounding when the samples are constant.
+
+    Parameters
+    ----------
+    samples : (n, ...) float
+        Independent samples along ``axis``; n >= 2.
+    expected : float or (...) float
+        Exact values, broadcast against the means.
+    p_false : float
+        Allowed probability that a correct estimator fails this call.
+    comparisons : int, optional
+        Number of simultaneous comparisons for the Bonferroni correction; default the number of
+        means checked in this call.
+    axis : int
+    rtol, atol : float
+        Rounding slack added to the interval.
+
+    Returns
+    -------
+    mean, stderr : float or (...) float64
+    """
+    x = np.asarray(samples, np.float64)
+    n = x.shape[axis]
+    if n < 2:
+        raise ValueError("a confidence interval needs at least two samples")
+    mean = x.mean(axis=axis)
+    se = x.std(axis=axis, ddof=1) / math.sqrt(n)
+    exp = np.broadcast_to(np.asarray(expected, np.float64), mean.shape)
+    m = int(comparisons) if comparisons is not None else max(1, mean.size)
+    q = -student_t_quantile(0.5 * p_false / m, n - 1)
+    _assert_within(mean, exp, q * se, rtol, atol, what, f"t={q:.3g}, n={n}, m={m}")
+    return (float(mean), float(se)) if mean.ndim == 0 else (mean, se)
+
+
+def assert_estimates_agree(mean_a, se_a, mean_b, se_b, p_false=1e-4, comparisons=None,
+                           rtol=1e-12, atol=0.0, what="estimates"):
+    """Assert that two independent estimates agree within their combined standard error.
+
+    ``|a - b| <= z * sqrt(se_a**2 + se_b**2)`` elementwise, ``z`` from
+    :func:`z_for_false_failure` over all compared elements (normal approximation: the standard
+    errors should come from many samples, e.g. block means of two renders).
+
+    Parameters
+    ----------
+    mean_a, se_a, mean_b, se_b : float or (...) float
+        Estimates and their standard errors (broadcast together).
+    p_false, comparisons, rtol, atol, what
+        As in :func:`assert_mean_within_ci`.
+
+    Returns
+    -------
+    z_scores : (...) float64
+        ``(a - b) / sqrt(se_a**2 + se_b**2)``.
+    """
+    a, sa, b, sb = np.broadcast_arrays(*(np.asarray(v, np.float64)
+                                         for v in (mean_a, se_a, mean_b, se_b)))
+    if np.any(sa < 0) or np.any(sb < 0):
+        raise ValueError("standard errors must be non-negative")
+    se = np.sqrt(sa * sa + sb * sb)
+    m = int(comparisons) if comparisons is not None else max(1, a.size)
+    z = z_for_false_failure(p_false, m)
+    _assert_within(a, b, z * se, rtol, atol, what, f"z={z:.3g}, m={m}")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(se > 0, (a - b) / se, 0.0)
+
+
+def assert_samples_agree(samples_a, samples_b, p_false=1e-4, comparisons=None, axis=0,
+                         what="samples"):
+    """Assert that two independent sample sets have the same means (Welch-style z test).
+
+    Parameters
+    ----------
+    samples_a : (n_a, ...) float
+    samples_b : (n_b, ...) float
+        Independent samples along ``axis``; the other axes must match.
+    p_false, comparisons, axis, what
+        As in :func:`assert_mean_within_ci`.
+
+    Returns
+    -------
+    z_scores : (...) float64
+    """
+    a = np.asarray(samples_a, np.float64)
+    b = np.asarray(samples_b, np.float64)
+    sa = a.std(axis=axis, ddof=1) / math.sqrt(a.shape[axis])
+    sb = b.std(axis=axis, ddof=1) / math.sqrt(b.shape[axis])
+    return assert_estimates_agree(a.mean(axis=axis), sa, b.mean(axis=axis), sb, p_false,
+                                  comparisons, what=what)
+
+
+def block_estimates(img, var_of_mean, block=8):
+    """Block means of an image and their standard errors, assuming independent pixels.
+
+    Parameters
+    ----------
+    img : (h, w, c) float
+        Per-pixel Monte Carlo means.
+    var_of_mean : (h, w, c) float
+        Variance of each pixel's mean (sample variance / sample count).
+    block : int
+
+    Returns
+    -------
+    means, stderrs : (h // block, w // block, c) float64
+    """
+    return block_means(img, block), np.sqrt(block_means(var_of_mean, block) / (block * block))
+
+
+def _assert_within(value, target, half_width, rtol, atol, what, detail):
+    tol = half_width + atol + rtol * np.abs(target)
+    err = np.abs(value - target)
+    bad = ~(err <= tol)
+    if np.any(bad):
+        flat = np.flatnonzero(bad.reshape(-1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = (err / np.where(tol > 0, tol, np.nan)).reshape(-1)
+        worst = flat[np.argsort(np.nan_to_num(ratio[flat], nan=np.inf))[::-1][:5]]
+        v, t, h = value.reshape(-1), target.reshape(-1), tol.reshape(-1)
+        cells = "; ".join(f"[{i}] {v[i]:.6g} vs {t[i]:.6g} (+-{h[i]:.3g})" for i in worst)
+        raise AssertionError(f"{what}: {flat.size} of {bad.size} outside the interval ({detail}): "
+                             f"{cells}")
