@@ -4,9 +4,21 @@ from __future__ import annotations
 
 from ..core.render import RenderSettings
 
-# Property names of the add-on's scene settings that map onto RenderSettings fields.
-_SETTING_NAMES = ("spp", "time_limit", "seed", "max_bounces", "use_russian_roulette",
-                  "rr_min_bounces", "filter_width")
+# The add-on's scene properties (``scene.sampling_lab``) and the RenderSettings field of each.
+_SETTING_NAMES = {"samples": "spp", "time_limit": "time_limit", "seed": "seed",
+                  "max_bounces": "max_bounces", "use_russian_roulette": "use_russian_roulette",
+                  "rr_min_bounces": "rr_min_bounces", "filter_width": "filter_width"}
+
+
+# First bytes of a .blend: plain, zstd-compressed (Blender 3+) or gzip-compressed (older).
+_BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")
+
+
+def is_blend_file(path):
+    """Whether ``path`` starts like a .blend file (checked before handing it to Blender)."""
+    with open(path, "rb") as f:
+        head = f.read(7)
+    return head.startswith(_BLEND_MAGIC)
 
 
 def settings_from_scene(bl_scene) -> RenderSettings:
@@ -15,9 +27,9 @@ def settings_from_scene(bl_scene) -> RenderSettings:
     group = bl_scene.get("sampling_lab")
     if group is None:
         return settings
-    for name in _SETTING_NAMES:
-        if name in group:
-            setattr(settings, name, type(getattr(settings, name))(group[name]))
+    for prop, field in _SETTING_NAMES.items():
+        if prop in group:
+            setattr(settings, field, type(getattr(settings, field))(group[prop]))
     return settings
 
 

@@ -109,12 +109,17 @@ def load_scene(args):
     settings = RenderSettings()
     name = args.scene
     if name.lower().endswith(".blend") or os.path.sep in name:
-        if not os.path.isfile(name):
+        if not os.path.isfile(name) or not os.access(name, os.R_OK):
             raise UsageError(f"cannot read scene file {name!r}")
-        from .blendfile import load_blend
+        from .blendfile import is_blend_file, load_blend
 
-        scene, file_settings = load_blend(os.path.abspath(name), frame=args.frame,
-                                          resolution=args.resolution)
+        if not is_blend_file(name):
+            raise UsageError(f"{name!r} is not a .blend file")
+        try:
+            scene, file_settings = load_blend(os.path.abspath(name), frame=args.frame,
+                                              resolution=args.resolution)
+        except (RuntimeError, ValueError) as exc:
+            raise UsageError(f"cannot render {name!r}: {str(exc).strip().splitlines()[-1]}")
         settings = file_settings
     else:
         if name not in builtin_scenes.BUILTIN:

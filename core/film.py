@@ -24,7 +24,7 @@ def blackman_harris(x, width):
 
 
 class PixelFilter:
-    """A separable pixel filter sampled by a tabulated inverse CDF (as Cycles' filter table).
+    """A separable pixel filter sampled through its tabulated CDF (as Cycles' filter table).
 
     Parameters
     ----------
@@ -45,22 +45,20 @@ class PixelFilter:
         if kind == "BOX" or self.support <= 0:
             self.inverse_cdf = None
             return
-        # Tabulate the 1-D inverse CDF on a fine grid (trapezoid rule), as Cycles does.
+        # Tabulate the 1-D CDF on a fine grid (trapezoid rule) and invert it exactly by linear
+        # interpolation: the offsets then follow the piecewise-linear CDF everywhere, tails included.
         x = np.linspace(-0.5 * self.support, 0.5 * self.support, 4 * FILTER_TABLE_SIZE + 1)
         f = np.maximum(blackman_harris(x, self.support), 0.0)
         cdf = np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]))])
-        cdf /= cdf[-1]
-        u = np.linspace(0.0, 1.0, FILTER_TABLE_SIZE)
-        self.inverse_cdf = np.interp(u, cdf, x)
+        self.cdf = cdf / cdf[-1]
+        self.grid = x
+        self.inverse_cdf = True
 
     def sample(self, u):
         """Filter offsets in pixels for ``u : (n, 2)``: ``(n, 2)``, each sample weight one."""
         if self.inverse_cdf is None:
             return (u - 0.5) * self.support
-        pos = u * (FILTER_TABLE_SIZE - 1)
-        i = np.minimum(pos.astype(np.int64), FILTER_TABLE_SIZE - 2)
-        frac = pos - i
-        return self.inverse_cdf[i] * (1 - frac) + self.inverse_cdf[i + 1] * frac
+        return np.interp(u, self.cdf, self.grid)
 
 
 class Film:

@@ -184,11 +184,11 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                 counters.camera_samples += local.camera_samples
                 finished_units += 1
                 stop = (cancel is not None and cancel()) or out_of_time()
-                if total_spp:
-                    frac = (done_spp + k * finished_units / len(units)) / total_spp
-                else:
-                    frac = elapsed() / settings.time_limit
-                report(frac)
+                if finished_units < len(units):  # the end of a pass is reported below
+                    if total_spp:
+                        report((done_spp + k * finished_units / len(units)) / total_spp)
+                    else:
+                        report(elapsed() / settings.time_limit)
                 if stop:
                     cancelled = cancel is not None and cancel()
                     for f in pending:  # finish what is running; its samples are kept

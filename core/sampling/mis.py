@@ -26,21 +26,21 @@ def mis_weight(pdf_a, pdf_b, heuristic="power", beta=2.0, alpha=0.1):
     """
     a = np.asarray(pdf_a, np.float64)
     b = np.asarray(pdf_b, np.float64)
+    # Work with ratios to the larger density, so that no sum or power can overflow.
+    m = np.maximum(a, b)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        ra = np.where(np.isinf(m), np.where(np.isinf(a), 1.0, 0.0), a / m)
+        rb = np.where(np.isinf(m), np.where(np.isinf(b), 1.0, 0.0), b / m)
         if heuristic == "balance":
-            w = a / (a + b)
+            w = ra / (ra + rb)
         elif heuristic == "power":
-            # Divide by the larger density first so that huge pdfs cannot overflow.
-            m = np.maximum(a, b)
-            ra, rb = a / m, b / m
             w = ra**beta / (ra**beta + rb**beta)
         elif heuristic == "maximum":
-            w = np.where(a > b, 1.0, np.where(a == b, 0.5, 0.0))
+            w = np.where(ra > rb, 1.0, np.where(ra == rb, 0.5, 0.0))
         elif heuristic == "cutoff":
-            m = np.maximum(a, b)
-            keep_a = a >= alpha * m
-            keep_b = b >= alpha * m
-            w = np.where(keep_a, a / (a + np.where(keep_b, b, 0.0)), 0.0)
+            keep_a = ra >= alpha
+            keep_b = rb >= alpha
+            w = np.where(keep_a, ra / (ra + np.where(keep_b, rb, 0.0)), 0.0)
         else:
             raise ValueError(f"unknown MIS heuristic {heuristic!r}")
     # Where A cannot produce the sample at all, or B cannot, the answer is exact.

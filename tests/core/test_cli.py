@@ -1,0 +1,193 @@
+"""Command line: ``python -m sampling_lab render`` writes the EXR, PNG and JSON it promises, and
+every usage error exits with code 2 and one line on stderr.
+
+Renders and a few usage errors run as ``sys.executable -m sampling_lab ...``, as a user runs them
+(exit code, stdout and stderr of the real entry point); the other usage errors call
+``addon.cli.main(argv)``, which is what ``__main__`` runs, one after another in a single helper
+process, so the test process never imports the add-on (and with it ``bpy``). All processes start
+together (``cli_runs``) so the suite waits for them once.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+from sampling_lab.core.exr import read_multilayer
+from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.scenes import BUILTIN
+
+W, H, SPP = 32, 24, 2
+RENDER = ["render", "cornell", "--spp", str(SPP), "--resolution", f"{W}x{H}"]
+
+ERROR_CASES = {
+    "unknown option": RENDER + ["-o", "{tmp}/a.exr", "--no-such-option"],
+    "unknown scene": ["render", "no_such_scene", "-o", "{tmp}/a.exr"],
+    "unknown integrator": RENDER + ["-o", "{tmp}/a.exr", "--integrator", "no_such_integrator"],
+    "unknown sampler": RENDER + ["-o", "{tmp}/a.exr", "--sampler", "no_such_sampler"],
+    "missing .blend": ["render", "{tmp}/missing.blend", "-o", "{tmp}/a.exr"],
+    "directory .blend": ["render", "{tmp}/folder.blend", "-o", "{tmp}/a.exr"],
+    "zero resolution": ["render", "cornell", "-o", "{tmp}/a.exr", "--resolution", "0x24"],
+    "malformed resolution": ["render", "cornell", "-o", "{tmp}/a.exr", "--resolution", "32by24"],
+    "incomplete resolution": ["render", "cornell", "-o", "{tmp}/a.exr", "--resolution", "32x"],
+    "missing output": ["render", "cornell"],
+    "no command": [],
+}
+RUNS = {
+    "json": RENDER + ["-o", "{tmp}/out.exr", "--json", "--png"],
+    "plain": RENDER + ["-o", "{tmp}/plain.exr"],
+    "error: unknown scene": ERROR_CASES["unknown scene"],
+    "error: corrupt .blend": ["render", "{tmp}/corrupt.blend", "-o", "{tmp}/a.exr"],
+    "no bpy": RENDER + ["-o", "{tmp}/nobpy.exr", "--quiet"],
+}
+
+# Runs main(argv) for each case with Python-level stdout and stderr captured.
+DRIVER = """
+import contextlib, io, json, sys
+from sampling_lab.addon.cli import main
+results = {}
+for name, argv in json.loads(sys.argv[1]).items():
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(argv)
+        except BaseException as exc:  # a traceback is a failure of the case, not the driver
+            code = f"raised {exc!r}"
+    results[name] = [code, out.getvalue(), err.getvalue()]
+print(json.dumps(results))
+"""
+
+
+@pytest.fixture(scope="module")
+def cli_runs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("cli")
+    (tmp / "corrupt.blend").write_bytes(b"this is not a blend file\n" * 10)
+    (tmp / "folder.blend").mkdir()
+    # A bpy that cannot be imported, for the run that must not need Blender.
+    (tmp / "no_bpy" / "bpy").mkdir(parents=True)
+    (tmp / "no_bpy" / "bpy" / "__init__.py").write_text("raise ImportError('no bpy here')\n")
+
+    def run(args, env=None):
+        argv = [a.format(tmp=tmp) for a in args]
+        return subprocess.run([sys.executable, "-m", "sampling_lab", *argv], cwd=tmp, env=env,
+                              capture_output=True, text=True, timeout=300)
+
+    def drive():
+        cases = {k: [a.format(tmp=tmp) for a in v] for k, v in ERROR_CASES.items()}
+        r = subprocess.run([sys.executable, "-c", DRIVER, json.dumps(cases)], cwd=tmp,
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        return json.loads(r.stdout.splitlines()[-1])
+
+    no_bpy_env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(tmp / "no_bpy")] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        futures = {name: pool.submit(run, args, no_bpy_env if name == "no bpy" else None)
+                   for name, args in RUNS.items()}
+        driven = pool.submit(drive)
+        results = {name: f.result() for name, f in futures.items()}
+        results["main"] = driven.result()
+    return tmp, results
+
+
+def test_render_writes_exr_with_combined_variance_and_sample_count(cli_runs):
+    tmp, runs = cli_runs
+    r = runs["json"]
+    assert r.returncode == 0, r.stderr
+    passes = read_multilayer(tmp / "out.exr")
+    assert set(passes) >= {"Combined", "Variance", "Sample Count"}
+    assert passes["Combined"].shape == (H, W, 4)
+    assert passes["Variance"].shape == (H, W, 3)
+    assert passes["Sample Count"].shape == (H, W, 1)
+    assert np.all(passes["Combined"][..., 3] == 1.0)
+    assert np.all(np.isfinite(passes["Combined"])) and np.all(passes["Variance"] >= 0)
+    assert np.all(passes["Sample Count"] == SPP)
+
+
+def test_render_exr_is_the_image_core_render_makes(cli_runs):
+    """The CLI renders the named scene with the default seed: bit-identical to render()."""
+    tmp, runs = cli_runs
+    assert runs["json"].returncode == 0, runs["json"].stderr
+    expected = render(BUILTIN["cornell"](W, H), RenderSettings(spp=SPP, threads=2))
+    passes = read_multilayer(tmp / "out.exr")
+    np.testing.assert_array_equal(passes["Combined"], expected.combined())
+    assert passes["Combined"][..., :3].max() > 0  # the Cornell box is lit
+
+
+def test_json_flag_prints_one_json_line_of_figures_on_stdout(cli_runs):
+    _, runs = cli_runs
+    r = runs["json"]
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert len(lines) == 1, f"stdout holds {len(lines)} lines: {r.stdout!r}"
+    stats = json.loads(lines[0])
+    assert stats["spp"] == SPP
+    assert stats["samples"] == W * H * SPP
+    for key in ("time_s", "samples_per_s", "rays_per_s"):
+        assert isinstance(stats[key], float) and stats[key] > 0, key
+
+
+def test_png_flag_writes_a_png_preview_beside_the_exr(cli_runs):
+    tmp, runs = cli_runs
+    assert runs["json"].returncode == 0, runs["json"].stderr
+    data = (tmp / "out.png").read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert data[12:16] == b"IHDR"
+    assert struct.unpack(">II", data[16:24]) == (W, H)
+    assert not (tmp / "plain.png").exists(), "a PNG was written without --png"
+
+
+def test_progress_bar_goes_to_stderr_not_stdout(cli_runs):
+    tmp, runs = cli_runs
+    r = runs["plain"]
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == ""
+    assert "100.0%" in r.stderr and "[####" in r.stderr
+    assert (tmp / "plain.exr").is_file()
+    # With --json the bar is still there, on stderr, and stdout carries only the JSON.
+    assert "100.0%" in runs["json"].stderr
+
+
+def test_final_progress_line_reports_every_sample_done(cli_runs):
+    _, runs = cli_runs
+    last = [line for line in runs["plain"].stderr.splitlines() if "%" in line][-1]
+    assert f"Sample {SPP}/{SPP}" in last, last
+
+
+def _assert_usage_error(returncode, stdout, stderr, python_stdout=True):
+    assert returncode == 2, f"exit code {returncode}; stderr: {stderr[-500:]}"
+    lines = stderr.splitlines()
+    assert len(lines) == 1, f"stderr holds {len(lines)} lines: {stderr!r}"
+    assert lines[0].startswith("sampling_lab: error:"), lines[0]
+    if python_stdout:  # (Blender's C code may print its own notes to the process's stdout)
+        assert stdout == ""
+
+
+@pytest.mark.parametrize("case", list(ERROR_CASES))
+def test_usage_errors_exit_2_with_one_line_on_stderr(cli_runs, case):
+    tmp, runs = cli_runs
+    code, out, err = runs["main"][case]
+    _assert_usage_error(code, out, err)
+    assert not (tmp / "a.exr").exists()
+
+
+@pytest.mark.parametrize("case", [
+    "unknown scene", "corrupt .blend"])
+def test_usage_errors_of_the_entry_point_exit_2_with_one_line_on_stderr(cli_runs, case):
+    _, runs = cli_runs
+    r = runs[f"error: {case}"]
+    _assert_usage_error(r.returncode, r.stdout, r.stderr, python_stdout=False)
+
+
+def test_built_in_scenes_render_without_bpy(cli_runs):
+    tmp, runs = cli_runs
+    r = runs["no bpy"]
+    assert r.returncode == 0, r.stderr[-800:]
+    assert read_multilayer(tmp / "nobpy.exr")["Combined"].shape == (H, W, 4)
