@@ -513,3 +513,74 @@ def _assert_within(value, target, half_width, rtol, atol, what, detail):
         cells = "; ".join(f"[{i}] {v[i]:.6g} vs {t[i]:.6g} (+-{h[i]:.3g})" for i in worst)
         raise AssertionError(f"{what}: {flat.size} of {bad.size} outside the interval ({detail}): "
                              f"{cells}")
+
+
+def assert_images_agree(mean_a, var_a, replicates_b, block=8, p_false=1e-4, mean_rtol=0.01,
+                        what="images"):
+    """Assert that two renderers' images of one scene agree: overall and block by block.
+
+    Renderer A reports each pixel's estimate and the variance of that estimate (our Variance
+    pass); renderer B (e.g. Cycles, which reports no variance) is rendered ``m`` times with
+    different seeds. Checks
+
+    1. the image mean per channel: ``|A - B| <= mean_rtol * |B|`` plus its confidence interval;
+    2. every ``block x block`` block mean per channel: ``|A - B|`` within the confidence interval
+       of the difference, Bonferroni-corrected over all blocks and channels.
+
+    B's block variance is estimated from its replicates, pooled over blocks through the ratio to
+    A's variance (B's and A's noise have the same shape when both are path tracers), and never
+    taken below the block's own replicate estimate, which only widens the interval.
+
+    Parameters
+    ----------
+    mean_a, var_a : (h, w, c) float
+    replicates_b : (m, h, w, c) float
+        m >= 2 independent renders of B.
+    """
+    a = np.asarray(mean_a, np.float64)
+    va = np.asarray(var_a, np.float64)
+    reps = np.asarray(replicates_b, np.float64)
+    m = reps.shape[0]
+    if m < 2:
+        raise ValueError("B needs at least two independent renders")
+    h, w, c = a.shape
+    hb, wb = h // block, w // block
+
+    def blocks(img):
+        img = img[..., : hb * block, : wb * block, :]
+        shape = img.shape[:-3] + (hb, block, wb, block, c)
+        return img.reshape(shape).mean(axis=(-4, -2))
+
+    a_b = blocks(a)
+    va_b = blocks(va) / block**2  # the mean of block^2 independent pixel estimates
+    rep_b = blocks(reps)
+    b_b = rep_b.mean(axis=0)
+    vb_rep = rep_b.var(axis=0, ddof=1) / m
+    ratio = vb_rep.sum(axis=(0, 1)) / np.maximum(va_b.sum(axis=(0, 1)), 1e-300)
+    vb_b = np.maximum(ratio * va_b, vb_rep)
+
+    # 1. Image means: B's variance of the image mean from its replicates' image means.
+    img_a = a.mean(axis=(0, 1))
+    img_b_reps = reps.mean(axis=(1, 2))
+    img_b = img_b_reps.mean(axis=0)
+    se = np.sqrt(va.sum(axis=(0, 1)) / (h * w) ** 2 + img_b_reps.var(axis=0, ddof=1) / m)
+    z = z_for_false_failure(p_false, comparisons=c)
+    tol = mean_rtol * np.abs(img_b) + z * se
+    err = np.abs(img_a - img_b)
+    assert (err <= tol).all(), (
+        f"{what}: image means differ: A {img_a} vs B {img_b} (tolerance {tol}, of which "
+        f"{mean_rtol:.0%} relative and {z:.2f} standard errors {se})")
+
+    # 2. Block means.
+    z = z_for_false_failure(p_false, comparisons=hb * wb * c)
+    diff = np.abs(a_b - b_b)
+    # Noise-free blocks (sky only) still differ by float32 accumulation rounding in both renderers.
+    half = z * np.sqrt(va_b + vb_b) + 1e-5 * np.abs(b_b)
+    bad = diff > half
+    if bad.any():
+        i = np.unravel_index(np.argmax(diff / np.maximum(half, 1e-300)), diff.shape)
+        raise AssertionError(
+            f"{what}: {int(bad.sum())} of {bad.size} {block}x{block} block means outside their "
+            f"intervals (z={z:.2f}); worst block {i[:2]} channel {i[2]}: A {a_b[i]:.5g} vs B "
+            f"{b_b[i]:.5g} +- {half[i]:.3g}")
+    return img_a, img_b
