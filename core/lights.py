@@ -162,9 +162,11 @@ class LightSampler:
         Triangle areas.
     tri_normal : (t, 3) float64
         Unit geometric normals.
+    tri_v0, tri_e1, tri_e2 : (t, 3) float64
+        First vertex and edges of every triangle.
     """
 
-    def __init__(self, scene, tri_area, tri_normal):
+    def __init__(self, scene, tri_area, tri_normal, tri_v0, tri_e1, tri_e2):
         self.lights = scene.lights
         k = len(scene.lights)
         emission = scene.materials.emission[scene.material].astype(np.float64)
@@ -176,8 +178,13 @@ class LightSampler:
         self.tri_area = tri_area
         self.tri_normal = tri_normal
         self.tri_emission = emission
-        self.vertices = scene.vertices.astype(np.float64)
-        self.triangles = scene.triangles
+        # Emitters' own copies, so that sampling gathers from small arrays.
+        self.emit_v0 = tri_v0[emissive]
+        self.emit_e1 = tri_e1[emissive]
+        self.emit_e2 = tri_e2[emissive]
+        self.emit_normal = tri_normal[emissive]
+        self.emit_area = tri_area[emissive]
+        self.emit_radiance = emission[emissive]
         self.world = np.asarray(scene.world_color, np.float64)
         self.has_world = bool(self.world.max() > 0)
         self.n_lights = k
@@ -310,12 +317,11 @@ class LightSampler:
         # Emissive triangles, sampled uniformly by area; they emit from both faces.
         m = np.nonzero((index >= k) & (index != self.world_index))[0]
         if m.size:
-            tri = self.emissive_tris[index[m] - k]
+            e = index[m] - k
             b = warps.sample_uniform_triangle(u[m])
-            v = self.vertices[self.triangles[tri]]
-            q = b[:, 0:1] * v[:, 0] + b[:, 1:2] * v[:, 1] + b[:, 2:3] * v[:, 2]
-            self._area_point_sample(m, p, q, self.tri_normal[tri], self.tri_area[tri],
-                                    self.tri_emission[tri], pmf, False, wi, dist, radiance, pdf,
+            q = self.emit_v0[e] + b[:, 1:2] * self.emit_e1[e] + b[:, 2:3] * self.emit_e2[e]
+            self._area_point_sample(m, p, q, self.emit_normal[e], self.emit_area[e],
+                                    self.emit_radiance[e], pmf, False, wi, dist, radiance, pdf,
                                     light_normal)
 
         # The world: uniform directions on the sphere.

@@ -50,6 +50,9 @@ class PreparedScene:
     ----------
     scene : Scene
     accel : Accel
+    tri_v0, tri_e1, tri_e2 : (t, 3) float64
+        First vertex and the two edges from it, so that a hit at barycentrics (u, v) is
+        ``v0 + u e1 + v e2`` without gathering three vertices.
     tri_normal : (t, 3) float64
         Unit geometric normals (right-hand rule on the vertex order; zero for degenerate ones).
     tri_area : (t,) float64
@@ -65,6 +68,9 @@ class PreparedScene:
 
     scene: Scene
     accel: Accel
+    tri_v0: np.ndarray
+    tri_e1: np.ndarray
+    tri_e2: np.ndarray
     tri_normal: np.ndarray
     tri_area: np.ndarray
     tri_albedo: np.ndarray
@@ -78,7 +84,10 @@ def prepare(scene: Scene) -> PreparedScene:
     scene, shift = recentred(scene)
     v = scene.vertices.astype(np.float64)
     tri = v[scene.triangles] if scene.n_triangles else np.zeros((0, 3, 3))
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) if len(tri) else np.zeros((0, 3))
+    v0 = np.ascontiguousarray(tri[:, 0])
+    e1 = np.ascontiguousarray(tri[:, 1] - tri[:, 0])
+    e2 = np.ascontiguousarray(tri[:, 2] - tri[:, 0])
+    cross = np.cross(e1, e2)
     length = np.linalg.norm(cross, axis=1)
     normal = np.where(length[:, None] > 0, cross / np.maximum(length, 1e-300)[:, None], 0.0)
     area = 0.5 * length
@@ -86,5 +95,5 @@ def prepare(scene: Scene) -> PreparedScene:
     mats = scene.materials
     albedo = np.clip(mats.base_color[scene.material].astype(np.float64), 0.0, 1.0)
     emission = np.maximum(mats.emission[scene.material].astype(np.float64), 0.0)
-    lights = LightSampler(scene, area, normal)
-    return PreparedScene(scene, accel, normal, area, albedo, emission, lights, shift)
+    lights = LightSampler(scene, area, normal, v0, e1, e2)
+    return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift)

@@ -59,12 +59,8 @@ class Interaction:
 def surface_interaction(prep, hits, d, rows):
     """Build the :class:`Interaction` of the hit rays ``rows`` for directions ``d (n, 3)``."""
     prim = hits.prim[rows]
-    v = prep.scene.vertices
-    tri = prep.scene.triangles[prim]
-    b1 = hits.u[rows][:, None]
-    b2 = hits.v[rows][:, None]
-    p = ((1 - b1 - b2) * v[tri[:, 0]].astype(np.float64) + b1 * v[tri[:, 1]]
-         + b2 * v[tri[:, 2]])
+    p = (prep.tri_v0[prim] + hits.u[rows][:, None] * prep.tri_e1[prim]
+         + hits.v[rows][:, None] * prep.tri_e2[prim])
     ng = prep.tri_normal[prim]
     wo = -d[rows]
     side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)

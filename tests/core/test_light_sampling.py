@@ -293,7 +293,7 @@ def test_emissive_triangle_directions_match_triangle_pdf(faces, offset):
     scene = make_scene(tris=(TRI + offset, [faces]), emissions=[(2.0, 2.0, 2.0)])
     prep = prepare(scene)
     p = P_WORLD + offset - prep.shift  # the receiving point in the prepared (local) frame
-    verts = prep.lights.vertices[prep.lights.triangles[0]]
+    verts = prep.tri_v0[0] + np.stack([np.zeros(3), prep.tri_e1[0], prep.tri_e2[0]])
     axis = verts.mean(axis=0) - p
     zone, res = polygon_zone(p, axis, verts)
     check_light(prep, p, axis, zone, res, triangle_hit_pdf, seed=14,
