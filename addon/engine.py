@@ -1,0 +1,176 @@
+"""The Sampling Lab render engine: export, render with core, write the passes back.
+
+This is a thin adapter: :mod:`.export` turns the depsgraph into a :class:`core.scene.Scene`,
+:func:`core.render.render` does all the work, and :mod:`.passes` copies its images into the
+render result. Nothing raised here may escape into Blender: every error becomes an ``ERROR``
+report (which also makes ``bpy.ops.render.render`` raise ``RuntimeError`` for scripts).
+"""
+
+import importlib.util
+import time
+import traceback
+
+import bpy
+
+from . import passes
+
+ENGINE_ID = 'SAMPLING_LAB'
+
+# Python modules the core needs besides numpy (which Blender ships).
+REQUIRED_MODULES = ("embreex",)
+
+# Seconds between progressive refreshes of the image in Blender.
+UPDATE_INTERVAL = 0.5
+
+
+def missing_modules():
+    """Names of :data:`REQUIRED_MODULES` that cannot be imported."""
+    return [name for name in REQUIRED_MODULES if importlib.util.find_spec(name) is None]
+
+
+def render_settings(props):
+    """``core.render.RenderSettings`` from the scene's ``SamplingLabSettings``."""
+    from ..core.render import RenderSettings
+
+    return RenderSettings(
+        integrator=props.integrator.lower(),
+        sampler=props.sampler.lower(),
+        spp=int(props.samples),
+        time_limit=float(props.time_limit),
+        seed=int(props.seed),
+        max_bounces=int(props.max_bounces),
+        use_russian_roulette=bool(props.use_russian_roulette),
+        rr_min_bounces=int(props.rr_min_bounces),
+        filter_type=props.filter_type,
+        filter_width=float(props.filter_width),
+    )
+
+
+def render_region(render, width, height, result_width, result_height):
+    """Rows and columns of the full frame that Blender's result covers (Render Region).
+
+    Parameters
+    ----------
+    render : bpy.types.RenderSettings
+    width, height : int
+        Full frame size.
+    result_width, result_height : int
+        Size of the result ``begin_result`` returned (Blender crops it to the region).
+
+    Returns
+    -------
+    (slice, slice) or None
+        ``None`` when the result is the whole frame.
+    """
+    if (result_width, result_height) == (width, height):
+        return None
+    # Blender truncates the region's corner to whole pixels.
+    x0 = min(max(int(render.border_min_x * width), 0), width - result_width)
+    y0 = min(max(int(render.border_min_y * height), 0), height - result_height)
+    return slice(y0, y0 + result_height), slice(x0, x0 + result_width)
+
+
+class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
+    """Sampling Lab: Monte Carlo estimators and samplers on NumPy + Embree."""
+
+    bl_idname = ENGINE_ID
+    bl_label = "Sampling Lab"
+    bl_use_preview = False
+    bl_use_postprocess = True
+    # The viewport's Material Preview uses EEVEE; renders use Blender's own shader nodes.
+    bl_use_eevee_viewport = True
+    bl_use_shading_nodes_custom = False
+
+    def cancel_requested(self):
+        """True once the user cancelled the render (Esc); polled by the core between batches."""
+        return self.test_break()
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        passes.register_passes(self, scene, renderlayer)
+
+    def render(self, depsgraph):
+        try:
+            self._render(depsgraph)
+        except Exception as ex:  # noqa: BLE001 - nothing may take Blender down
+            from .export import ExportError
+
+            if isinstance(ex, ExportError):
+                self.report({'ERROR'}, str(ex))
+            else:
+                traceback.print_exc()
+                self.report({'ERROR'}, f"Sampling Lab: render failed: {type(ex).__name__}: {ex}")
+
+    def _render(self, depsgraph):
+        from . import export
+
+        missing = missing_modules()
+        if missing:
+            raise export.ExportError(
+                f"Sampling Lab needs the Python module(s) {', '.join(missing)}, which are not "
+                f"installed; install the extension build that bundles them, or pip install "
+                f"{' '.join(missing)} into Blender's Python")
+        from ..core.render import render as core_render
+
+        scene = depsgraph.scene
+        self.update_stats("", "Sampling Lab | Exporting scene")
+        t0 = time.perf_counter()
+        sl_scene = export.export_scene(depsgraph, self.camera_override)
+        export_s = time.perf_counter() - t0
+        for message in sl_scene.messages:
+            self.report({'WARNING'}, f"Sampling Lab: {message}")
+        reported = set(sl_scene.messages)
+
+        width, height = sl_scene.camera.width, sl_scene.camera.height
+        result = self.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
+        layer = result.layers[0]
+        region = render_region(scene.render, width, height, result.resolution_x,
+                               result.resolution_y)
+        if region is not None:
+            self.report({'INFO'}, "Sampling Lab: Render Region: the full frame is rendered and "
+                                  "cropped")
+        last_update = [time.perf_counter()]
+
+        def progress(fraction, text):
+            self.update_progress(fraction)
+            self.update_stats("", f"Sampling Lab | {text}")
+
+        def on_update(partial):
+            now = time.perf_counter()
+            if now - last_update[0] < UPDATE_INTERVAL:
+                return
+            last_update[0] = now
+            passes.write_passes(layer, passes.pass_images(partial), region)
+            self.update_result(result)
+
+        try:
+            out = core_render(sl_scene, render_settings(scene.sampling_lab), progress=progress,
+                              cancel=self.cancel_requested, on_update=on_update)
+            passes.write_passes(layer, passes.pass_images(out), region)
+        finally:
+            # A cancelled render keeps the samples it took.
+            self.end_result(result)
+
+        for message in out.messages:
+            if message not in reported:
+                self.report({'WARNING'}, f"Sampling Lab: {message}")
+        stats = out.stats
+        summary = (f"{stats.get('spp', 0)} spp in {stats.get('time_s', 0.0):.2f} s "
+                   f"(export {export_s:.2f} s), "
+                   f"{stats.get('samples_per_s', 0.0) / 1e6:.2f} M samples/s, "
+                   f"{stats.get('rays_per_s', 0.0) / 1e6:.2f} M rays/s"
+                   + (", cancelled" if out.cancelled else ""))
+        self.update_stats("", f"Sampling Lab | {summary}")
+        self.report({'INFO'}, f"Sampling Lab: {summary}")
+
+
+classes = (SAMPLINGLAB_RenderEngine,)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

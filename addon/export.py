@@ -1,0 +1,576 @@
+"""Blender depsgraph -> :class:`core.scene.Scene`.
+
+Everything is read from the evaluated (render) depsgraph: meshes with their modifiers, every
+instance (collection instances, particles, geometry nodes) through
+``depsgraph.object_instances``, lights, the world and the camera. Mesh data is copied with
+``foreach_get`` into NumPy arrays and moved to world space with one matrix product per object;
+there is no Python loop over vertices or triangles.
+
+The exporter maps what a scene uses onto the small closed set of core materials and lights, and
+says once per render, in :attr:`core.scene.Scene.messages`, what it approximated or ignored.
+Unit conversion of lights is left to :mod:`core.lights`; this module only reads Blender's values.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+
+from ..core import lights as core_lights
+from ..core.scene import (
+    VIS_CAMERA,
+    VIS_DIFFUSE,
+    VIS_GLOSSY,
+    VIS_SHADOW,
+    VIS_TRANSMISSION,
+    Camera,
+    Lights,
+    Materials,
+    Scene,
+)
+
+NO_CAMERA_MESSAGE = (
+    "Sampling Lab: the scene has no camera. Add a camera object and set it as the scene "
+    "camera (Scene Properties > Camera)"
+)
+
+# Cycles shades surfaces without a material as a 0.8 grey diffuse.
+DEFAULT_SURFACE_NAME = "Default Surface"
+DEFAULT_SURFACE_COLOR = (0.8, 0.8, 0.8)
+
+# Object types Blender can turn into a triangle mesh.
+MESH_TYPES = {'MESH', 'CURVE', 'SURFACE', 'FONT', 'META'}
+# Object types that neither emit nor occlude anything.
+SKIPPED_TYPES = {'CAMERA', 'EMPTY', 'ARMATURE', 'LATTICE', 'SPEAKER', 'LIGHT_PROBE'}
+
+_BLENDER_5 = bpy.app.version >= (5, 0, 0)
+
+
+class ExportError(Exception):
+    """A scene that cannot be rendered; the message is meant for the user."""
+
+
+class Messages:
+    """What the exporter approximated or ignored: each message once, in order."""
+
+    def __init__(self):
+        self._seen = set()
+        self.items = []
+
+    def add(self, text):
+        if text not in self._seen:
+            self._seen.add(text)
+            self.items.append(text)
+
+
+# --------------------------------------------------------------------------- node trees
+
+
+def _uses_nodes(id_data):
+    # Blender 5 always shades with nodes and deprecates `use_nodes`.
+    return _BLENDER_5 or bool(getattr(id_data, "use_nodes", False))
+
+
+def _node_name(node):
+    return node.label or node.name
+
+
+def _follow_link(socket):
+    """The node and output socket feeding ``socket``, through reroutes and muted nodes.
+
+    Returns ``None`` when nothing valid is connected (the socket's own value then applies).
+    """
+    for _ in range(256):  # bounded: node trees may be cyclic when invalid
+        if not socket.is_linked:
+            return None
+        link = socket.links[0]
+        if not link.is_valid or getattr(link, "is_muted", False):
+            return None
+        node = link.from_node
+        if node.bl_idname == 'NodeReroute':
+            socket = node.inputs[0]
+            continue
+        if node.mute:
+            # A muted node passes its first matching input through, or outputs nothing.
+            passed = [lk.from_socket for lk in node.internal_links
+                      if lk.to_socket == link.from_socket]
+            if not passed:
+                return None
+            socket = passed[0]
+            continue
+        return node, link.from_socket
+    return None
+
+
+def _active_output(tree, idname):
+    """The active output node of type ``idname`` that Cycles would use, or None."""
+    outputs = [n for n in tree.nodes
+               if n.bl_idname == idname and not n.mute
+               and getattr(n, "target", 'ALL') in {'ALL', 'CYCLES'}]
+    for node in outputs:
+        if getattr(node, "is_active_output", False):
+            return node
+    return outputs[0] if outputs else None
+
+
+class _NodeReader:
+    """Reads constant socket values, reporting anything that drives them."""
+
+    def __init__(self, owner, messages):
+        self.owner = owner  # "Material 'Name'" or "World 'Name'"
+        self.messages = messages
+
+    def color(self, node, name, default=(0.0, 0.0, 0.0)):
+        socket = node.inputs.get(name)
+        if socket is None:
+            return np.asarray(default, np.float64)
+        return np.asarray(self._value(node, socket, 3), np.float64)
+
+    def value(self, node, name, default=0.0):
+        socket = node.inputs.get(name)
+        if socket is None:
+            return float(default)
+        return float(self._value(node, socket, 1))
+
+    def _value(self, node, socket, size):
+        source = _follow_link(socket)
+        if source is not None:
+            src_node, out = source
+            # Constant nodes are exact; anything else (textures, math) is approximated.
+            if src_node.bl_idname in {'ShaderNodeRGB', 'ShaderNodeValue'}:
+                return _as_size(out.default_value, size)
+            self.messages.add(
+                f"{self.owner}: input '{socket.name}' of node '{_node_name(node)}' is driven "
+                f"by node '{_node_name(src_node)}', which is not supported yet; using the "
+                f"input's own value")
+        return _as_size(socket.default_value, size)
+
+    def ignored_if_linked(self, node, name, what):
+        socket = node.inputs.get(name)
+        if socket is not None and _follow_link(socket) is not None:
+            self.messages.add(f"{self.owner}: {what} of node '{_node_name(node)}' is not "
+                              f"supported yet; ignored")
+
+
+def _as_size(value, size):
+    try:
+        seq = tuple(value)
+    except TypeError:
+        seq = (float(value),)
+    if size == 1:
+        return seq[0]
+    if len(seq) == 1:
+        return seq * size
+    return seq[:size]
+
+
+# Principled BSDF inputs whose non-zero value adds a lobe the diffuse core does not have.
+_PRINCIPLED_LOBES = (
+    ("Metallic", "metallic"),
+    ("Specular IOR Level", "specular"),
+    ("Transmission Weight", "transmission"),
+    ("Coat Weight", "coat"),
+    ("Sheen Weight", "sheen"),
+    ("Subsurface Weight", "subsurface"),
+)
+
+
+def material_surface(material, messages):
+    """Diffuse albedo and emitted radiance of a Blender material.
+
+    Parameters
+    ----------
+    material : bpy.types.Material or None
+    messages : Messages
+
+    Returns
+    -------
+    base_color : (3,) float64
+    emission : (3,) float64
+        Radiance, emitted from both faces.
+    """
+    if material is None:
+        return np.array(DEFAULT_SURFACE_COLOR), np.zeros(3)
+    owner = f"Material '{material.name}'"
+    if not _uses_nodes(material) or material.node_tree is None:
+        return np.asarray(material.diffuse_color[:3], np.float64), np.zeros(3)
+    tree = material.node_tree
+    output = _active_output(tree, 'ShaderNodeOutputMaterial')
+    if output is None:
+        # Cycles renders a material without an output as black.
+        return np.zeros(3), np.zeros(3)
+    for name in ("Volume", "Displacement"):
+        socket = output.inputs.get(name)
+        if socket is not None and _follow_link(socket) is not None:
+            messages.add(f"{owner}: {name.lower()} is not supported yet; ignored")
+    source = _follow_link(output.inputs["Surface"])
+    if source is None:
+        return np.zeros(3), np.zeros(3)
+    node, _ = source
+    read = _NodeReader(owner, messages)
+    kind = node.bl_idname
+
+    if kind == 'ShaderNodeBsdfDiffuse':
+        if read.value(node, "Roughness") > 0:
+            messages.add(f"{owner}: Oren-Nayar roughness of node '{_node_name(node)}' is not "
+                         f"supported yet; rendered as Lambertian")
+        read.ignored_if_linked(node, "Normal", "the normal input")
+        return read.color(node, "Color"), np.zeros(3)
+
+    if kind == 'ShaderNodeEmission':
+        emission = read.color(node, "Color") * read.value(node, "Strength")
+        return np.zeros(3), emission
+
+    if kind == 'ShaderNodeBsdfPrincipled':
+        base = read.color(node, "Base Color")
+        emission = read.color(node, "Emission Color") * read.value(node, "Emission Strength")
+        lobes = [label for name, label in _PRINCIPLED_LOBES if read.value(node, name) > 0]
+        if lobes:
+            messages.add(f"{owner}: {', '.join(lobes)} of node '{_node_name(node)}' "
+                         f"{'is' if len(lobes) == 1 else 'are'} not supported yet; "
+                         f"rendered as diffuse")
+        if read.value(node, "Alpha", 1.0) < 1.0:
+            messages.add(f"{owner}: alpha of node '{_node_name(node)}' is not supported yet; "
+                         f"rendered opaque")
+        read.ignored_if_linked(node, "Normal", "the normal input")
+        return base, emission
+
+    messages.add(f"{owner}: node '{_node_name(node)}' is not supported yet; rendered as diffuse")
+    if node.inputs.get("Color") is not None and node.inputs["Color"].type == 'RGBA':
+        return read.color(node, "Color"), np.zeros(3)
+    return np.array(DEFAULT_SURFACE_COLOR), np.zeros(3)
+
+
+def world_radiance(world, messages):
+    """Constant background radiance (Background Color x Strength) of a world, or black.
+
+    Returns
+    -------
+    (3,) float64
+    """
+    if world is None:
+        return np.zeros(3)
+    owner = f"World '{world.name}'"
+    if not _uses_nodes(world) or world.node_tree is None:
+        return np.asarray(world.color[:3], np.float64)
+    output = _active_output(world.node_tree, 'ShaderNodeOutputWorld')
+    if output is None:
+        return np.zeros(3)
+    socket = output.inputs.get("Volume")
+    if socket is not None and _follow_link(socket) is not None:
+        messages.add(f"{owner}: volume is not supported yet; ignored")
+    source = _follow_link(output.inputs["Surface"])
+    if source is None:
+        return np.zeros(3)
+    node, _ = source
+    read = _NodeReader(owner, messages)
+    if node.bl_idname in {'ShaderNodeBackground', 'ShaderNodeEmission'}:
+        return read.color(node, "Color") * read.value(node, "Strength")
+    messages.add(f"{owner}: node '{_node_name(node)}' is not supported yet; rendered black")
+    return np.zeros(3)
+
+
+class MaterialTable:
+    """Rows of :class:`core.scene.Materials`, one per distinct Blender material used."""
+
+    def __init__(self, messages):
+        self.messages = messages
+        self._rows = {}
+        self.names = []
+        self.base_colors = []
+        self.emissions = []
+
+    def row(self, material):
+        """Row index of ``material`` (None: Cycles' default surface), adding it if new."""
+        key = material.original.as_pointer() if material is not None else 0
+        index = self._rows.get(key)
+        if index is None:
+            base, emission = material_surface(material, self.messages)
+            index = len(self.names)
+            self._rows[key] = index
+            self.names.append(material.name if material is not None else DEFAULT_SURFACE_NAME)
+            self.base_colors.append(np.clip(base, 0.0, 1.0))
+            self.emissions.append(np.maximum(emission, 0.0))
+        return index
+
+    def build(self):
+        if not self.names:
+            return Materials.from_lists([], np.zeros((0, 3)), np.zeros((0, 3)))
+        return Materials.from_lists(self.names, self.base_colors, self.emissions)
+
+
+# --------------------------------------------------------------------------- meshes
+
+
+def _visibility_bits(ob):
+    bits = 0
+    for attr, bit in (("visible_camera", VIS_CAMERA), ("visible_diffuse", VIS_DIFFUSE),
+                      ("visible_glossy", VIS_GLOSSY), ("visible_transmission", VIS_TRANSMISSION),
+                      ("visible_shadow", VIS_SHADOW)):
+        if getattr(ob, attr, True):
+            bits |= bit
+    return bits
+
+
+def mesh_arrays(ob):
+    """Local-space triangles of an evaluated object.
+
+    Returns
+    -------
+    vertices : (v, 3) float32
+    triangles : (t, 3) int32
+    slot : (t,) int32
+        Material slot index per triangle.
+
+    or None when the object has no triangles.
+    """
+    try:
+        mesh = ob.to_mesh()
+    except RuntimeError:
+        return None
+    if mesh is None:
+        return None
+    try:
+        n_tris = len(mesh.loop_triangles)
+        n_verts = len(mesh.vertices)
+        if n_tris == 0 or n_verts == 0:
+            return None
+        verts = np.empty(n_verts * 3, np.float32)
+        position = mesh.attributes.get("position")
+        if position is not None and position.data_type == 'FLOAT_VECTOR':
+            position.data.foreach_get("vector", verts)
+        else:
+            mesh.vertices.foreach_get("co", verts)
+        tris = np.empty(n_tris * 3, np.int32)
+        mesh.loop_triangles.foreach_get("vertices", tris)
+        slot = np.zeros(n_tris, np.int32)
+        mat_attr = mesh.attributes.get("material_index")
+        if mat_attr is not None and mat_attr.domain == 'FACE' and mat_attr.data_type == 'INT':
+            face_mat = np.empty(len(mesh.polygons), np.int32)
+            mat_attr.data.foreach_get("value", face_mat)
+            tri_face = np.empty(n_tris, np.int32)
+            mesh.loop_triangle_polygons.foreach_get("value", tri_face)
+            slot = face_mat[tri_face]
+        return verts.reshape(-1, 3), tris.reshape(-1, 3), slot
+    finally:
+        ob.to_mesh_clear()
+
+
+def _to_world(verts, matrix):
+    m = np.asarray(matrix, np.float64)
+    return (verts.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+
+
+# --------------------------------------------------------------------------- lights
+
+
+def _light_rows(ob, matrix, messages):
+    """Single-row :class:`core.scene.Lights` for a light object (empty list if it emits nothing)."""
+    light = ob.data
+    owner = f"Light '{ob.name}'"
+    m = np.asarray(matrix, np.float64)
+    color = np.asarray(light.color[:3], np.float64)
+    if getattr(light, "use_temperature", False):
+        color = color * np.asarray(light.temperature_color[:3], np.float64)
+    energy = float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+    visible_camera = bool(getattr(ob, "visible_camera", True))
+    name = ob.name
+
+    if not getattr(light, "normalize", True):
+        messages.add(f"{owner}: 'Normalize' off is not supported yet; rendered normalized")
+    if getattr(light, "use_nodes", False) and light.node_tree is not None:
+        messages.add(f"{owner}: light nodes are not supported yet; ignored")
+    hidden = [label for attr, label in (("visible_diffuse", "diffuse"),
+                                        ("visible_glossy", "glossy"),
+                                        ("visible_transmission", "transmission"))
+              if not getattr(ob, attr, True)]
+    if hidden:
+        messages.add(f"{owner}: ray visibility ({', '.join(hidden)} off) is not supported for "
+                     f"lights yet; ignored")
+    if not getattr(light, "use_shadow", True):
+        messages.add(f"{owner}: lights without shadows are not supported yet; shadows cast")
+
+    # The light shines down its local -Z axis.
+    down = -m[:3, 2]
+    if light.type == 'POINT':
+        return core_lights.point_light(m[:3, 3], color, energy, light.shadow_soft_size, name,
+                                       visible_camera)
+    if light.type == 'SPOT':
+        return core_lights.point_light(m[:3, 3], color, energy, light.shadow_soft_size, name,
+                                       visible_camera, spot_direction=down,
+                                       spot_size=light.spot_size, spot_blend=light.spot_blend)
+    if light.type == 'SUN':
+        return core_lights.sun_light(down, color, energy, light.angle, name, visible_camera)
+    if light.type == 'AREA':
+        if getattr(light, "spread", math.pi) < math.pi - 1e-6:
+            messages.add(f"{owner}: area light spread is not supported yet; rendered with "
+                         f"180 degrees")
+        return core_lights.area_light(m, light.shape, light.size, light.size_y, color, energy,
+                                      name, visible_camera)
+    messages.add(f"{owner}: light type '{light.type}' is not supported; ignored")
+    return None
+
+
+# --------------------------------------------------------------------------- camera
+
+
+def export_camera(scene, camera_object, messages):
+    """:class:`core.scene.Camera` of ``camera_object`` at the scene's render resolution."""
+    render = scene.render
+    cam = camera_object.data
+    width = render.resolution_x * render.resolution_percentage // 100
+    height = render.resolution_y * render.resolution_percentage // 100
+    cam_type = cam.type
+    if cam_type not in {'PERSP', 'ORTHO'}:
+        messages.add(f"Camera '{camera_object.name}': {cam_type} cameras are not supported yet; "
+                     f"rendered as perspective")
+        cam_type = 'PERSP'
+    if getattr(cam, "dof", None) is not None and cam.dof.use_dof:
+        messages.add(f"Camera '{camera_object.name}': depth of field is not supported yet; "
+                     f"rendered with a pinhole camera")
+    m = np.array(camera_object.matrix_world, np.float64)
+    # Object scale must not scale the view: keep only rotation and translation.
+    norms = np.linalg.norm(m[:3, :3], axis=0)
+    m[:3, :3] /= np.where(norms > 0, norms, 1.0)
+    return Camera(
+        to_world=m,
+        width=int(width),
+        height=int(height),
+        type=cam_type,
+        lens=float(cam.lens),
+        sensor_width=float(cam.sensor_width),
+        sensor_height=float(cam.sensor_height),
+        sensor_fit=cam.sensor_fit,
+        shift_x=float(cam.shift_x),
+        shift_y=float(cam.shift_y),
+        clip_start=float(cam.clip_start),
+        clip_end=float(cam.clip_end),
+        ortho_scale=float(cam.ortho_scale),
+        pixel_aspect_x=float(render.pixel_aspect_x),
+        pixel_aspect_y=float(render.pixel_aspect_y),
+    )
+
+
+# --------------------------------------------------------------------------- scene
+
+
+def export_scene(depsgraph, camera_object=None):
+    """Translate an evaluated depsgraph into a :class:`core.scene.Scene`.
+
+    Parameters
+    ----------
+    depsgraph : bpy.types.Depsgraph
+        The render depsgraph (``RenderEngine.render``'s argument) or
+        ``bpy.context.evaluated_depsgraph_get()``.
+    camera_object : bpy.types.Object or None
+        Camera to render from; defaults to the scene camera (pass
+        ``RenderEngine.camera_override`` here).
+
+    Returns
+    -------
+    core.scene.Scene
+        World-space triangles, materials, lights, world color, camera, and the messages about
+        what was approximated or ignored.
+
+    Raises
+    ------
+    ExportError
+        The scene has no camera.
+    """
+    scene = depsgraph.scene
+    messages = Messages()
+    camera_object = camera_object or scene.camera
+    if camera_object is None:
+        raise ExportError(NO_CAMERA_MESSAGE)
+    camera_object = camera_object.evaluated_get(depsgraph)
+    if camera_object.type != 'CAMERA':
+        raise ExportError(f"Sampling Lab: the scene camera '{camera_object.name}' is not a "
+                          f"camera object")
+    camera = export_camera(scene, camera_object, messages)
+
+    render = scene.render
+    if render.use_motion_blur:
+        messages.add("Motion blur is not supported yet; rendered without")
+    if render.film_transparent:
+        messages.add("Transparent film is not supported yet; the background is rendered opaque")
+
+    materials = MaterialTable(messages)
+    vert_chunks, tri_chunks, mat_chunks, vis_chunks = [], [], [], []
+    n_verts = 0
+    light_rows = []
+    # Evaluated geometry shared by instances, keyed by (object, data) pointers.
+    cache = {}
+
+    for inst in depsgraph.object_instances:
+        ob = inst.object
+        if not (inst.is_instance or inst.show_self):
+            continue
+        ob_type = ob.type
+        if ob_type in SKIPPED_TYPES:
+            continue
+        matrix = np.array(inst.matrix_world, np.float64)
+        if ob_type == 'LIGHT':
+            row = _light_rows(ob, matrix, messages)
+            if row is not None:
+                light_rows.append(row)
+            continue
+        if ob_type not in MESH_TYPES:
+            messages.add(f"Object '{ob.name}': {ob_type.lower()} objects are not supported yet; "
+                         f"ignored")
+            continue
+        if getattr(ob, "is_holdout", False):
+            messages.add(f"Object '{ob.name}': holdout is not supported yet; rendered as a "
+                         f"regular object")
+        if getattr(ob, "is_shadow_catcher", False):
+            messages.add(f"Object '{ob.name}': shadow catcher is not supported yet; rendered as "
+                         f"a regular object")
+
+        key = (ob.as_pointer(), ob.data.as_pointer() if ob.data is not None else 0)
+        entry = cache.get(key)
+        if entry is None:
+            arrays = mesh_arrays(ob)
+            if arrays is None:
+                entry = False
+            else:
+                verts, tris, slot = arrays
+                slots = [materials.row(s.material) for s in ob.material_slots]
+                if not slots:
+                    slots = [materials.row(None)]
+                # Blender clamps out-of-range material indices to the last slot.
+                table = np.asarray(slots, np.int32)
+                tri_mat = table[np.clip(slot, 0, len(slots) - 1)]
+                entry = (verts, tris, tri_mat)
+            cache[key] = entry
+        if entry is False:
+            continue
+        verts, tris, tri_mat = entry
+        vert_chunks.append(_to_world(verts, matrix))
+        tri_chunks.append(tris + n_verts)
+        mat_chunks.append(tri_mat)
+        vis_chunks.append(np.full(tris.shape[0], _visibility_bits(ob), np.int32))
+        n_verts += verts.shape[0]
+
+    if vert_chunks:
+        vertices = np.concatenate(vert_chunks)
+        triangles = np.concatenate(tri_chunks)
+        material = np.concatenate(mat_chunks)
+        visibility = np.concatenate(vis_chunks)
+    else:
+        vertices = np.zeros((0, 3), np.float32)
+        triangles = np.zeros((0, 3), np.int32)
+        material = np.zeros(0, np.int32)
+        visibility = np.zeros(0, np.int32)
+
+    return Scene(
+        vertices=vertices,
+        triangles=triangles,
+        material=material,
+        materials=materials.build(),
+        lights=Lights.concat(light_rows),
+        camera=camera,
+        world_color=world_radiance(scene.world, messages),
+        visibility=visibility,
+        messages=messages.items,
+    )

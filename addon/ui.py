@@ -1,0 +1,184 @@
+"""Render Properties panels of Sampling Lab, and Blender's own panels enabled for the engine."""
+
+import bpy
+from bpy.types import Panel
+
+ENGINE_ID = 'SAMPLING_LAB'
+
+
+class SamplingLabButtonsPanel:
+    """Mixin of every Sampling Lab panel in the Render Properties."""
+
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = 'render'
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class SAMPLINGLAB_RENDER_PT_sampling(SamplingLabButtonsPanel, Panel):
+    bl_label = "Sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.sampling_lab
+
+        col = layout.column()
+        col.prop(settings, "integrator")
+        col.prop(settings, "sampler")
+        col.separator()
+        col.prop(settings, "samples")
+        col.prop(settings, "time_limit")
+        col.prop(settings, "seed")
+
+
+class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
+    bl_label = "Light Paths"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.sampling_lab
+
+        col = layout.column()
+        col.prop(settings, "max_bounces")
+        col.prop(settings, "use_russian_roulette")
+        sub = col.column()
+        # The threshold only matters while roulette is on.
+        sub.active = settings.use_russian_roulette
+        sub.prop(settings, "rr_min_bounces")
+
+
+class SAMPLINGLAB_RENDER_PT_film(SamplingLabButtonsPanel, Panel):
+    bl_label = "Film"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.sampling_lab
+
+        col = layout.column()
+        col.prop(settings, "filter_type")
+        col.prop(settings, "filter_width")
+
+
+class SAMPLINGLAB_OBJECT_PT_ray_visibility(Panel):
+    bl_label = "Ray Visibility"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = 'object'
+    bl_parent_id = "OBJECT_PT_visibility"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.object
+        return (context.engine in cls.COMPAT_ENGINES and ob is not None
+                and ob.type in {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT', 'LIGHT'})
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        ob = context.object
+
+        col = layout.column(heading="Visible To")
+        col.prop(ob, "visible_camera", text="Camera", toggle=False)
+        col.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
+        col.prop(ob, "visible_glossy", text="Glossy", toggle=False)
+        col.prop(ob, "visible_transmission", text="Transmission", toggle=False)
+        col.prop(ob, "visible_shadow", text="Shadow", toggle=False)
+
+
+classes = (
+    SAMPLINGLAB_RENDER_PT_sampling,
+    SAMPLINGLAB_RENDER_PT_light_paths,
+    SAMPLINGLAB_RENDER_PT_film,
+    SAMPLINGLAB_OBJECT_PT_ray_visibility,
+)
+
+
+# Blender's own panels that show for "any engine": the generic ones list 'BLENDER_RENDER'.
+_COMPAT_MARKER = 'BLENDER_RENDER'
+# Contexts whose generic panels describe things this engine honours.
+_COMPAT_CONTEXTS = {'render', 'output', 'view_layer', 'data', 'object', 'world', 'material'}
+# Generic panels for features the engine does not render.
+_COMPAT_EXCLUDE_PREFIXES = (
+    "RENDER_PT_freestyle", "VIEWLAYER_PT_freestyle", "MATERIAL_PT_freestyle",
+    "DATA_PT_lightprobe", "DATA_PT_context_lightprobe", "RENDER_PT_gpencil",
+    "RENDER_PT_grease_pencil", "RENDER_PT_simplify_greasepencil", "DATA_PT_preview",
+    # Only the light type; DATA_PT_EEVEE_light below shows it with everything else.
+    "DATA_PT_light",
+)
+# EEVEE-only panels whose content is engine-neutral: the material and world node trees, the
+# material slots and the light settings. Cycles draws its own copies of these.
+_COMPAT_EXTRA = (
+    "EEVEE_MATERIAL_PT_context_material",
+    "EEVEE_MATERIAL_PT_surface",
+    "EEVEE_WORLD_PT_surface",
+    "DATA_PT_EEVEE_light",
+)
+
+# Panels this add-on added itself to, so unregister removes exactly those.
+_compat_added = []
+
+
+def compatible_panels():
+    """Blender's built-in panels that should show for Sampling Lab.
+
+    Returns
+    -------
+    list of type
+        ``bpy.types.Panel`` subclasses from ``bl_ui`` that are drawn for any engine (their
+        ``COMPAT_ENGINES`` list ``'BLENDER_RENDER'``) in the render, output, view layer,
+        object data, object, world and material contexts, plus a few engine-neutral EEVEE
+        panels (material slots and surface, world surface, light settings).
+    """
+    panels = []
+    for name in dir(bpy.types):
+        cls = getattr(bpy.types, name, None)
+        if not (isinstance(cls, type) and issubclass(cls, Panel)):
+            continue
+        engines = getattr(cls, "COMPAT_ENGINES", None)
+        if engines is None or not cls.__module__.startswith("bl_ui"):
+            continue
+        if name in _COMPAT_EXTRA:
+            panels.append(cls)
+        elif (_COMPAT_MARKER in engines
+              and getattr(cls, "bl_context", "") in _COMPAT_CONTEXTS
+              and not name.startswith(_COMPAT_EXCLUDE_PREFIXES)):
+            panels.append(cls)
+    return panels
+
+
+def register_compat_panels():
+    for cls in compatible_panels():
+        if ENGINE_ID not in cls.COMPAT_ENGINES:
+            cls.COMPAT_ENGINES.add(ENGINE_ID)
+            _compat_added.append(cls)
+
+
+def unregister_compat_panels():
+    for cls in _compat_added:
+        cls.COMPAT_ENGINES.discard(ENGINE_ID)
+    _compat_added.clear()
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    register_compat_panels()
+
+
+def unregister():
+    unregister_compat_panels()
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

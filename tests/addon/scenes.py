@@ -1,0 +1,337 @@
+"""Test scenes built with Blender's data API, render settings, and an EXR reader.
+
+Every builder works on the given (normally empty, see the ``empty_scene`` fixture) scene, adds a
+camera and sets it as the scene camera, and returns a dict of the objects it made by role.
+
+Scene units follow ``DESIGN.md``: Cornell box walls span x, y in [-1, 1] and z in [0, 2], open
+toward -y where the camera stands; materials are Lambertian (Diffuse BSDF); lights are given in
+Blender's units (W, W/m^2, Emission strength = radiance).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+_BLENDER_5 = bpy.app.version >= (5, 0, 0)
+
+# Where the add-on comes from and what Blender calls it (see conftest.py).
+REPO_ROOT = Path(__file__).resolve().parents[2]
+EXTENSION_REPO = "sampling_lab_dev"
+ADDON_MODULE = f"bl_ext.{EXTENSION_REPO}.sampling_lab"
+ENGINE_ID = "SAMPLING_LAB"
+
+RED = (0.63, 0.065, 0.05)
+GREEN = (0.14, 0.45, 0.091)
+WHITE = (0.725, 0.71, 0.68)
+
+
+def registered_engines():
+    """``bl_idname`` of every registered RenderEngine subclass (at any depth)."""
+    found, stack = set(), list(bpy.types.RenderEngine.__subclasses__())
+    while stack:
+        cls = stack.pop()
+        stack.extend(cls.__subclasses__())
+        if getattr(cls, "bl_idname", None):
+            found.add(cls.bl_idname)
+    return found
+
+
+# --------------------------------------------------------------------------- building blocks
+
+
+def _new_node_tree_material(name):
+    mat = bpy.data.materials.new(name)
+    if not _BLENDER_5:
+        mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    out.is_active_output = True
+    return mat, out
+
+
+def diffuse_material(name, color, roughness=0.0):
+    """A material made of a single Diffuse BSDF node."""
+    mat, out = _new_node_tree_material(name)
+    node = mat.node_tree.nodes.new("ShaderNodeBsdfDiffuse")
+    node.inputs["Color"].default_value = (*color, 1.0)
+    node.inputs["Roughness"].default_value = roughness
+    mat.node_tree.links.new(node.outputs["BSDF"], out.inputs["Surface"])
+    mat.diffuse_color = (*color, 1.0)
+    return mat
+
+
+def emission_material(name, color, strength):
+    """A material made of a single Emission node (radiance = color x strength, both faces)."""
+    mat, out = _new_node_tree_material(name)
+    node = mat.node_tree.nodes.new("ShaderNodeEmission")
+    node.inputs["Color"].default_value = (*color, 1.0)
+    node.inputs["Strength"].default_value = strength
+    mat.node_tree.links.new(node.outputs["Emission"], out.inputs["Surface"])
+    return mat
+
+
+def shader_material(name, node_type, color=None):
+    """A material made of one shader node of ``node_type`` (e.g. ``'ShaderNodeBsdfGlass'``)."""
+    mat, out = _new_node_tree_material(name)
+    node = mat.node_tree.nodes.new(node_type)
+    if color is not None and "Color" in node.inputs:
+        node.inputs["Color"].default_value = (*color, 1.0)
+    mat.node_tree.links.new(node.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def set_world(scene, color, strength=1.0, name="World"):
+    """Give ``scene`` a world whose Background node has ``color`` x ``strength``."""
+    world = bpy.data.worlds.new(name)
+    if not _BLENDER_5:
+        world.use_nodes = True
+    nodes = world.node_tree.nodes
+    nodes.clear()
+    bg = nodes.new("ShaderNodeBackground")
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+    out = nodes.new("ShaderNodeOutputWorld")
+    out.is_active_output = True
+    world.node_tree.links.new(bg.outputs["Background"], out.inputs["Surface"])
+    scene.world = world
+    return world
+
+
+def add_mesh(scene, name, vertices, faces, material=None, location=(0.0, 0.0, 0.0)):
+    """Link a new mesh object built from ``vertices (v, 3)`` and ``faces`` (index lists)."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([tuple(map(float, v)) for v in vertices], [], [tuple(f) for f in faces])
+    mesh.update()
+    if material is not None:
+        mesh.materials.append(material)
+    ob = bpy.data.objects.new(name, mesh)
+    ob.location = location
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def add_quad(scene, name, corners, material=None):
+    """A single quad from four corners in order."""
+    return add_mesh(scene, name, corners, [(0, 1, 2, 3)], material)
+
+
+def add_block(scene, name, center, size, rotation_z=0.0, material=None):
+    """A closed axis-aligned box of ``size (3,)`` resting at ``center``, turned about z."""
+    sx, sy, sz = (0.5 * s for s in size)
+    v = np.array([(x, y, z) for z in (-sz, sz) for y in (-sy, sy) for x in (-sx, sx)])
+    faces = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    ob = add_mesh(scene, name, v, faces, material, location=center)
+    ob.rotation_euler = (0.0, 0.0, rotation_z)
+    return ob
+
+
+def add_camera(scene, location, rotation_euler, lens=50.0, name="Camera"):
+    """Link a perspective camera and make it the scene camera."""
+    cam = bpy.data.cameras.new(name)
+    cam.lens = lens
+    ob = bpy.data.objects.new(name, cam)
+    ob.location = location
+    ob.rotation_euler = rotation_euler
+    scene.collection.objects.link(ob)
+    scene.camera = ob
+    return ob
+
+
+def add_light(scene, light_type, name, location=(0.0, 0.0, 0.0), rotation_euler=(0.0, 0.0, 0.0),
+              energy=10.0, color=(1.0, 1.0, 1.0), **props):
+    """Link a light object; ``props`` are set on the light data (e.g. ``shadow_soft_size``)."""
+    light = bpy.data.lights.new(name, light_type)
+    light.energy = energy
+    light.color = color
+    for key, value in props.items():
+        setattr(light, key, value)
+    ob = bpy.data.objects.new(name, light)
+    ob.location = location
+    ob.rotation_euler = rotation_euler
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def set_resolution(scene, width, height, percentage=100):
+    scene.render.resolution_x = width
+    scene.render.resolution_y = height
+    scene.render.resolution_percentage = percentage
+    scene.render.pixel_aspect_x = 1.0
+    scene.render.pixel_aspect_y = 1.0
+
+
+# --------------------------------------------------------------------------- scenes
+
+
+def cornell_box(scene, light="mesh", resolution=(32, 32), light_color=(1.0, 1.0, 1.0)):
+    """A Lambertian Cornell box with one light, a camera and a black world.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+    light : str
+        ``'mesh'``: an emissive quad under the ceiling (Emission shader, strength 10);
+        ``'point'``: a 100 W point light of radius 0 at (0, 0, 1.8);
+        ``'area'``: a 0.5 x 0.5 m square area light of 50 W under the ceiling, facing down.
+    resolution : (int, int)
+    light_color : (3,) float
+
+    Returns
+    -------
+    dict
+        ``camera``, ``light``, ``walls`` (list), ``blocks`` (list) objects.
+    """
+    white = diffuse_material("White", WHITE)
+    red = diffuse_material("Red", RED)
+    green = diffuse_material("Green", GREEN)
+    walls = [
+        add_quad(scene, "Floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], white),
+        add_quad(scene, "Ceiling", [(-1, -1, 2), (-1, 1, 2), (1, 1, 2), (1, -1, 2)], white),
+        add_quad(scene, "Back", [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)], white),
+        add_quad(scene, "Left", [(-1, -1, 0), (-1, 1, 0), (-1, 1, 2), (-1, -1, 2)], red),
+        add_quad(scene, "Right", [(1, -1, 0), (1, -1, 2), (1, 1, 2), (1, 1, 0)], green),
+    ]
+    blocks = [
+        add_block(scene, "ShortBlock", (0.33, -0.3, 0.3), (0.6, 0.6, 0.6), math.radians(-17), white),
+        add_block(scene, "TallBlock", (-0.33, 0.35, 0.6), (0.6, 0.6, 1.2), math.radians(17), white),
+    ]
+    if light == "mesh":
+        emit = emission_material("Light", light_color, 10.0)
+        h = 0.25
+        lamp = add_quad(scene, "Lamp", [(-h, -h, 1.98), (h, -h, 1.98), (h, h, 1.98), (-h, h, 1.98)],
+                        emit)
+    elif light == "point":
+        lamp = add_light(scene, 'POINT', "Lamp", (0.0, 0.0, 1.8), energy=100.0, color=light_color,
+                         shadow_soft_size=0.0)
+    elif light == "area":
+        lamp = add_light(scene, 'AREA', "Lamp", (0.0, 0.0, 1.98), energy=50.0, color=light_color,
+                         shape='SQUARE', size=0.5)
+    else:
+        raise ValueError(f"unknown light {light!r}")
+    set_world(scene, (0.0, 0.0, 0.0), 0.0)
+    camera = add_camera(scene, (0.0, -3.9, 1.0), (math.radians(90), 0.0, 0.0), lens=38.0)
+    set_resolution(scene, *resolution)
+    return {"camera": camera, "light": lamp, "walls": walls, "blocks": blocks}
+
+
+def cornell_box_mesh_light(scene, resolution=(32, 32)):
+    """:func:`cornell_box` lit by an emissive mesh (Emission shader)."""
+    return cornell_box(scene, "mesh", resolution)
+
+
+def cornell_box_point_light(scene, resolution=(32, 32)):
+    """:func:`cornell_box` lit by a 100 W point light of radius 0."""
+    return cornell_box(scene, "point", resolution)
+
+
+def cornell_box_area_light(scene, resolution=(32, 32)):
+    """:func:`cornell_box` lit by a 50 W square area light."""
+    return cornell_box(scene, "area", resolution)
+
+
+def plane_under_sun(scene, resolution=(32, 32), strength=3.0, angle_deg=0.526,
+                    world_color=(0.05, 0.07, 0.1)):
+    """A 4 x 4 m grey diffuse plane at z = 0 under a sun tilted 30 degrees, with a dim world.
+
+    Returns
+    -------
+    dict
+        ``camera``, ``sun``, ``plane`` objects.
+    """
+    grey = diffuse_material("Grey", (0.5, 0.5, 0.5))
+    plane = add_quad(scene, "Plane", [(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], grey)
+    sun = add_light(scene, 'SUN', "Sun", (0.0, 0.0, 5.0), (math.radians(30), 0.0, 0.0),
+                    energy=strength, angle=math.radians(angle_deg))
+    set_world(scene, world_color, 1.0)
+    camera = add_camera(scene, (0.0, -3.0, 2.0), (math.radians(60), 0.0, 0.0), lens=35.0)
+    set_resolution(scene, *resolution)
+    return {"camera": camera, "sun": sun, "plane": plane}
+
+
+# --------------------------------------------------------------------------- render settings
+
+
+def set_cycles_unbiased(scene, samples=64, seed=0, max_bounces=8):
+    """Select Cycles with settings under which it is an unbiased path tracer.
+
+    No clamping, no glossy blur, no light threshold, no adaptive sampling, no denoising, CPU,
+    Blackman-Harris 1.5 pixel filter (Cycles' default), equal bounce limits for every ray type.
+    """
+    scene.render.engine = 'CYCLES'
+    c = scene.cycles
+    c.device = 'CPU'
+    c.samples = samples
+    c.seed = seed
+    c.use_animated_seed = False
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    c.light_sampling_threshold = 0.0
+    c.pixel_filter_type = 'BLACKMAN_HARRIS'
+    c.filter_width = 1.5
+    c.max_bounces = max_bounces
+    for attr in ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                 "volume_bounces", "transparent_max_bounces"):
+        setattr(c, attr, max_bounces)
+    if hasattr(c, "use_guiding"):
+        c.use_guiding = False
+    scene.render.film_transparent = False
+    scene.render.use_motion_blur = False
+
+
+def set_sampling_lab(scene, samples=4, seed=0, max_bounces=8, filter_type='BLACKMAN_HARRIS',
+                     filter_width=1.5, time_limit=0.0):
+    """Select Sampling Lab with the given settings (path tracing, independent sampler)."""
+    scene.render.engine = 'SAMPLING_LAB'
+    s = scene.sampling_lab
+    s.integrator = 'PATH'
+    s.sampler = 'INDEPENDENT'
+    s.samples = samples
+    s.seed = seed
+    s.max_bounces = max_bounces
+    s.filter_type = filter_type
+    s.filter_width = filter_width
+    s.time_limit = time_limit
+
+
+# --------------------------------------------------------------------------- EXR output
+
+
+def set_output_multilayer_exr(scene, path):
+    """Make ``render(write_still=True)`` write a 32-bit multilayer EXR exactly at ``path``."""
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):  # Blender 5: multilayer is a media type
+        settings.media_type = 'MULTI_LAYER_IMAGE'
+    else:
+        settings.file_format = 'OPEN_EXR_MULTILAYER'
+    settings.color_depth = '32'
+    settings.exr_codec = 'ZIP'
+    scene.render.use_file_extension = False
+    scene.render.filepath = str(path)
+
+
+def read_blender_exr(path):
+    """Passes of an EXR that Blender wrote: pass name -> (h, w, c) float32, row 0 at the bottom."""
+    from sampling_lab.core.exr import read_multilayer
+
+    return read_multilayer(path)
+
+
+def render_to_exr(scene, path):
+    """Render ``scene`` with its engine, write a multilayer EXR, and read it back.
+
+    Returns
+    -------
+    dict of str -> (h, w, c) float32
+        See :func:`read_blender_exr`.
+    """
+    set_output_multilayer_exr(scene, path)
+    bpy.ops.render.render(write_still=True, scene=scene.name)
+    return read_blender_exr(path)
