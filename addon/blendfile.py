@@ -2,14 +2,6 @@
 
 from __future__ import annotations
 
-from ..core.render import RenderSettings
-
-# The add-on's scene properties (``scene.sampling_lab``) and the RenderSettings field of each.
-_SETTING_NAMES = {"samples": "spp", "time_limit": "time_limit", "seed": "seed",
-                  "max_bounces": "max_bounces", "use_russian_roulette": "use_russian_roulette",
-                  "rr_min_bounces": "rr_min_bounces", "filter_width": "filter_width"}
-
-
 # First bytes of a .blend: plain, zstd-compressed (Blender 3+) or gzip-compressed (older).
 _BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")
 
@@ -21,20 +13,8 @@ def is_blend_file(path):
     return head.startswith(_BLEND_MAGIC)
 
 
-def settings_from_scene(bl_scene) -> RenderSettings:
-    """RenderSettings from the file's Sampling Lab settings (stored even without the add-on)."""
-    settings = RenderSettings()
-    group = bl_scene.get("sampling_lab")
-    if group is None:
-        return settings
-    for prop, field in _SETTING_NAMES.items():
-        if prop in group:
-            setattr(settings, field, type(getattr(settings, field))(group[prop]))
-    return settings
-
-
 def load_blend(path, frame=None, resolution=None):
-    """Export the active scene of the ``.blend`` at ``path``.
+    """Export the active scene of the ``.blend`` at ``path`` with its Sampling Lab settings.
 
     Parameters
     ----------
@@ -46,12 +26,18 @@ def load_blend(path, frame=None, resolution=None):
     Returns
     -------
     scene : core.scene.Scene
-    settings : RenderSettings
+    settings : core.render.RenderSettings
     """
     import bpy
 
-    from .export import export_scene
+    from . import properties
+    from .engine import render_settings
+    from .export import ExportError, export_scene
 
+    # The file stores the add-on's settings as ID properties; registering the property group
+    # (if the add-on is not enabled in this Blender) reads them back with their defaults.
+    if not hasattr(bpy.types.Scene, "sampling_lab"):
+        properties.register()
     bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
     bl_scene = bpy.context.scene
     if frame is not None:
@@ -61,5 +47,8 @@ def load_blend(path, frame=None, resolution=None):
         bl_scene.render.resolution_x, bl_scene.render.resolution_y = resolution
         bl_scene.render.resolution_percentage = 100
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    scene = export_scene(depsgraph)
-    return scene, settings_from_scene(bl_scene)
+    try:
+        scene = export_scene(depsgraph)
+    except ExportError as exc:
+        raise ValueError(str(exc)) from None
+    return scene, render_settings(bl_scene.sampling_lab)
