@@ -19,7 +19,7 @@ import sys
 from ..core import scenes as builtin_scenes
 from ..core.integrators import INTEGRATORS
 from ..core.render import RenderSettings, render
-from ..core.sampling.samplers import SAMPLERS
+from ..core.sampling.samplers import available as available_samplers
 
 
 class UsageError(Exception):
@@ -55,7 +55,7 @@ def build_parser():
     r.add_argument("scene", help=f".blend path or built-in scene: {', '.join(builtin_scenes.BUILTIN)}")
     r.add_argument("-o", "--output", required=True, help="output .exr path")
     r.add_argument("--integrator", default="path", help=f"one of: {', '.join(INTEGRATORS)}")
-    r.add_argument("--sampler", default="independent", help=f"one of: {', '.join(SAMPLERS)}")
+    r.add_argument("--sampler", default="independent", help=f"one of: {', '.join(available_samplers())}")
     halt = r.add_mutually_exclusive_group()
     halt.add_argument("--spp", type=_positive_int, help="samples per pixel (default 16)")
     halt.add_argument("--time", type=float, help="time limit in seconds")
@@ -134,8 +134,8 @@ def cmd_render(args):
     if args.integrator not in INTEGRATORS:
         raise UsageError(f"unknown integrator {args.integrator!r}; choose from "
                          f"{', '.join(INTEGRATORS)}")
-    if args.sampler.lower() not in SAMPLERS:
-        raise UsageError(f"unknown sampler {args.sampler!r}; choose from {', '.join(SAMPLERS)}")
+    if args.sampler.lower() not in available_samplers():
+        raise UsageError(f"unknown sampler {args.sampler!r}; choose from {', '.join(available_samplers())}")
     if not args.output.lower().endswith(".exr"):
         raise UsageError(f"output must be an .exr file, not {args.output!r}")
     scene, settings = load_scene(args)

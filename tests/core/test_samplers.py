@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sampling_lab.core.sampling.samplers import SAMPLERS, make_sampler
+from sampling_lab.core.sampling.samplers import available, make_sampler
 from tests.helpers import chi_square_test, chi_square_uniform_square, ks_uniform_test
 
 N = 200_000
-SAMPLER_NAMES = sorted(SAMPLERS)
+SAMPLER_NAMES = available()
 
 
 PATTERN = (2, 2, 1) * 22  # how an integrator consumes dimensions: 2-D, 2-D, 1-D, ...
