@@ -260,28 +260,13 @@ def set_cycles_unbiased(scene, samples=64, seed=0, max_bounces=8):
     """Select Cycles with settings under which it is an unbiased path tracer.
 
     No clamping, no glossy blur, no light threshold, no adaptive sampling, no denoising, CPU,
-    Blackman-Harris 1.5 pixel filter (Cycles' default), equal bounce limits for every ray type.
+    Blackman-Harris 1.5 pixel filter (Cycles' default), equal bounce limits for every ray type
+    (the benchmark's :func:`sampling_lab.bench.blender_scene.configure_cycles`).
     """
+    from sampling_lab.bench.blender_scene import configure_cycles
+
     scene.render.engine = 'CYCLES'
-    c = scene.cycles
-    c.device = 'CPU'
-    c.samples = samples
-    c.seed = seed
-    c.use_animated_seed = False
-    c.use_adaptive_sampling = False
-    c.use_denoising = False
-    c.sample_clamp_direct = 0.0
-    c.sample_clamp_indirect = 0.0
-    c.blur_glossy = 0.0
-    c.light_sampling_threshold = 0.0
-    c.pixel_filter_type = 'BLACKMAN_HARRIS'
-    c.filter_width = 1.5
-    c.max_bounces = max_bounces
-    for attr in ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
-                 "volume_bounces", "transparent_max_bounces"):
-        setattr(c, attr, max_bounces)
-    if hasattr(c, "use_guiding"):
-        c.use_guiding = False
+    configure_cycles(scene, samples, seed=seed, max_bounces=max_bounces)
     scene.render.film_transparent = False
     scene.render.use_motion_blur = False
 

@@ -1,0 +1,506 @@
+"""Speed against error on the Cornell box: raw embreex, our path tracer and Cycles in one run.
+
+``python -m sampling_lab bench`` calls :func:`run`. On the Cornell box (mesh light, 8 bounces) it
+measures, in this order and in one process:
+
+1. *The ceiling*: raw embreex closest-hit throughput (``EmbreeScene.run(..., output=1)``) on the
+   same triangles, for incoherent rays (origins uniform in the box, directions uniform on the
+   sphere), with 1 and 2 threads each tracing a disjoint part of one batch. Best of 3, repeats
+   interleaved so that a load spike on the machine hits both thread counts alike.
+2. *Our path tracer* at a fixed sample count: rays/s and camera samples/s from its own stats, and
+   its rays/s as a fraction of the 2-thread ceiling.
+3. *Cycles* on the same scene (:mod:`.blender_scene`), same ``bpy`` process, CPU, 2 threads: a
+   cold 1-spp render (kernel loading), warm 1-spp renders (the fixed cost of every render:
+   sync, BVH, film, EXR), and the fixed sample count. Camera samples/s gross
+   (``w * h * spp / wall time``) and net of the fixed cost (the marginal rate). Steps 2 and 3
+   run interleaved, twice, and keep the faster run: the machine may be shared.
+4. *Error at equal time*: both renderers get ``seconds`` of wall clock. Ours through its time
+   limit; Cycles at the sample count its measured rate fits into that time, fixed cost
+   included (a time-limited Cycles render does not report how many samples it took), planned
+   again once if the render misses the budget by more than 15 %. Their relMSE is measured
+   against a reference rendered by our path tracer with another seed, and against a Cycles
+   reference at the same sample count. Reference noise adds to any relMSE measured against
+   it; our reference carries its per-pixel variance, so that part is subtracted ("corrected",
+   an unbiased estimate of the error against the converged image), and the corrected error
+   is scaled by ``time / seconds`` to the exact budget (error ~ 1 / time for unbiased
+   estimators). The two references are compared with each other against what their noise
+   alone would give: a consistency check of the renderers, not only of the bench.
+5. The targets: our rays/s >= 0.5 x raw embreex (2 threads), our samples/s >= 0.5 x Cycles'
+   net samples/s. Reported as figures, never asserted.
+
+Everything printed is also written to ``output/`` as CSV, with a PNG of the four images.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime
+import os
+import platform
+import statistics
+import sys
+import tempfile
+import threading
+import time
+import traceback
+from importlib import metadata
+
+import numpy as np
+
+from ..core.exr import write_png_preview
+from ..core.metrics import rel_mse
+from ..core.render import RenderSettings, render
+from ..core.scenes import cornell_box
+
+# relMSE regulariser (core.metrics.rel_mse's default): (img - ref)^2 / (ref^2 + EPS).
+EPS = 1e-2
+# Rays in the raw embreex batch, and how often each thread count is timed (best is kept).
+EMBREE_RAYS = 1 << 21
+EMBREE_REPEATS = 3
+# The fixed-sample-count runs that measure throughput.
+FIXED_SPP = 16
+# Our reference gets reference_spp samples or this much time, whichever comes first (at least
+# REFERENCE_MIN_SECONDS, else REFERENCE_TIME_FACTOR x the equal-time budget).
+REFERENCE_MIN_SECONDS = 60.0
+REFERENCE_TIME_FACTOR = 6.0
+TARGET_FRACTION = 0.5
+
+
+def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
+        output="bench/results", *, reference_seconds=None, threads=2, max_bounces=8, seed=0):
+    """Run the Cornell box benchmark, print its figures and write them to ``output``.
+
+    Parameters
+    ----------
+    resolution : (int, int)
+        Width and height in pixels.
+    seconds : float
+        Equal-time budget per renderer.
+    reference_spp : int
+        Samples per pixel of the references (a cap: see ``reference_seconds``).
+    cycles : bool
+        Include Cycles (imports ``bpy``).
+    output : str
+        Folder for ``cornell_*.csv`` and ``cornell_images.png`` (created).
+    reference_seconds : float or None
+        Time cap of our reference render; None picks ``max(60, 6 * seconds)``, 0 removes the
+        cap (a 1024-spp reference at 256 x 256 then takes several minutes). The Cycles
+        reference uses the sample count our reference reached.
+    threads, max_bounces, seed : int
+
+    Returns
+    -------
+    int
+        Exit code: 0, 1 if Cycles was asked for and failed, 2 for bad arguments.
+    """
+    width, height = (int(x) for x in resolution)
+    if width < 1 or height < 1 or not seconds > 0 or reference_spp < 1:
+        print("sampling_lab bench: resolution, --seconds and --reference-spp must be positive",
+              file=sys.stderr)
+        return 2
+    if reference_seconds is None:
+        reference_seconds = max(REFERENCE_MIN_SECONDS, REFERENCE_TIME_FACTOR * seconds)
+    os.makedirs(output, exist_ok=True)
+    t_bench = time.perf_counter()
+    pixels = width * height
+    scene = cornell_box(width, height, light="mesh")
+    summary = _machine_summary()
+    summary.update(resolution=f"{width}x{height}", max_bounces=max_bounces, threads=threads,
+                   equal_time_s=seconds, reference_spp_requested=reference_spp,
+                   reference_seconds_cap=reference_seconds, triangles=scene.n_triangles)
+    print(f"Sampling Lab bench: Cornell box (mesh light), {width}x{height}, {max_bounces} bounces, "
+          f"{threads} threads")
+    print(f"machine: {summary['cpu']}, {summary['cpus']} CPUs, load average at start "
+          f"{summary['load_start']}; {summary['date']}")
+
+    # 1. The ceiling: raw embreex on the same triangles.
+    _stage("raw embreex throughput")
+    ceiling = embree_throughput(scene, EMBREE_RAYS, (1, threads) if threads > 1 else (1,),
+                                EMBREE_REPEATS, seed)
+    ceiling_rps = ceiling[threads]["rays_per_s"]
+    print("\n1. Raw embreex closest-hit throughput (incoherent rays, best of "
+          f"{EMBREE_REPEATS}, {EMBREE_RAYS} rays)")
+    for k, row in ceiling.items():
+        print(f"   {k} thread{'s' if k > 1 else ' '}: {row['rays_per_s'] / 1e6:7.2f} M rays/s "
+              f"(median {row['rays'] / row['median_s'] / 1e6:.2f}; hit fraction "
+              f"{row['hit_fraction']:.3f})")
+
+    # 2 and 3. Throughput at a fixed sample count, ours and Cycles interleaved, best of two:
+    # the machine may be shared, and a load spike should not decide the comparison.
+    status = 0
+    cy = None
+    fixed = RenderSettings(spp=FIXED_SPP, seed=seed, max_bounces=max_bounces, threads=threads)
+    _stage(f"our path tracer, {FIXED_SPP} spp")
+    ours_fixed = render(scene, fixed)
+    if cycles:
+        _stage(f"Cycles: kernel loading, fixed cost, {FIXED_SPP} spp")
+        try:
+            cy = _CyclesRunner(scene, threads, max_bounces)
+            cy.measure_fixed_cost(seed)
+            cy.measure_fixed_spp(FIXED_SPP, seed)
+        except Exception:  # noqa: BLE001 - report and carry on with the other figures
+            traceback.print_exc()
+            print("\nCycles failed (traceback above); continuing without it")
+            cy, status = None, 1
+    _stage(f"our path tracer, {FIXED_SPP} spp, again")
+    again = render(scene, fixed)
+    if again.stats["time_s"] < ours_fixed.stats["time_s"]:
+        ours_fixed = again
+    if cy is not None:
+        _stage(f"Cycles, {FIXED_SPP} spp, again")
+        cy.measure_fixed_spp(FIXED_SPP, seed)
+
+    rows = [_ours_row("fixed spp", ours_fixed, pixels)]
+    ours_rps = ours_fixed.stats["rays_per_s"]
+    ours_sps = ours_fixed.stats["samples_per_s"]
+    print(f"\n2. Our path tracer, {FIXED_SPP} spp, {threads} threads (best of 2)")
+    print(f"   {ours_sps / 1e6:.3f} M samples/s, {ours_rps / 1e6:.2f} M rays/s "
+          f"({ours_fixed.stats['rays'] / max(ours_fixed.stats['samples'], 1):.2f} rays per "
+          f"sample), {ours_fixed.stats['time_s']:.2f} s")
+    print(f"   = {ours_rps / ceiling_rps:.3f} x raw embreex ({threads} threads)")
+    if cy is not None:
+        rows.append(_cycles_row("fixed spp", FIXED_SPP, cy.t_fixed, pixels, cy.fixed_image))
+        print(f"\n3. Cycles (bpy {summary.get('bpy', '')}), CPU, {threads} threads, "
+              f"{FIXED_SPP} spp (best of 2)")
+        print(f"   first render in the process (1 spp, kernel loading): {cy.t_cold:.2f} s; "
+              f"fixed cost of a render (1 spp, best of 2): {cy.t_one:.2f} s")
+        print(f"   {cy.gross_sps / 1e6:.3f} M samples/s gross ({cy.t_fixed:.2f} s wall), "
+              f"{cy.net_sps / 1e6:.3f} M net of the fixed cost, "
+              f"{cy.clock_sps / 1e6:.3f} M by Cycles' own render-time clock")
+        ratio = _mean_ratio(ours_fixed.combined(), cy.fixed_image)
+        print(f"   image mean, ours / Cycles at {FIXED_SPP} spp: {ratio:.4f}")
+        summary.update(cycles_cold_s=cy.t_cold, cycles_fixed_cost_s=cy.t_one,
+                       cycles_gross_samples_per_s=cy.gross_sps,
+                       cycles_net_samples_per_s=cy.net_sps,
+                       cycles_clock_samples_per_s=cy.clock_sps,
+                       mean_ratio_ours_over_cycles_fixed_spp=ratio)
+
+    # 4. Equal time, then the references (longest last).
+    _stage(f"equal time, {seconds:g} s each")
+    ours_eq = render(scene, RenderSettings(spp=0, time_limit=seconds, seed=seed,
+                                           max_bounces=max_bounces, threads=threads))
+    rows.append(_ours_row("equal time", ours_eq, pixels))
+    img_cy_eq = None
+    if cy is not None:
+        spp_eq, t_eq, img_cy_eq = cy.equal_time(seconds, seed)
+        rows.append(_cycles_row("equal time", spp_eq, t_eq, pixels, img_cy_eq))
+
+    _stage(f"our reference: {reference_spp} spp or {reference_seconds:g} s")
+    ours_ref = render(scene, RenderSettings(spp=reference_spp, time_limit=reference_seconds,
+                                            seed=seed + 1, max_bounces=max_bounces,
+                                            threads=threads))
+    rows.append(_ours_row("reference", ours_ref, pixels))
+    ref = ours_ref.combined()[..., :3].astype(np.float64)
+    ref_var = ours_ref.variance().astype(np.float64)
+    ref_floor = float(np.mean(ref_var / (ref * ref + EPS)))
+    ref_spp = ours_ref.stats["samples"] / pixels
+    cy_ref = None
+    if cy is not None:
+        spp_ref = max(1, int(ours_ref.stats["samples"] // pixels))
+        if reference_seconds > 0:
+            spp_ref = min(spp_ref, cy.spp_for(reference_seconds))
+        _stage(f"Cycles reference: {spp_ref} spp")
+        t_ref, cy_ref = cy.render(spp_ref, seed + 1)
+        rows.append(_cycles_row("reference", spp_ref, t_ref, pixels, cy_ref))
+        cy_ref = cy_ref[..., :3].astype(np.float64)
+
+    for row in rows:
+        img = row.pop("_image")
+        if row["run"] == "reference":
+            continue
+        row["relmse_vs_pt_ref"] = rel_mse(img, ref, EPS)
+        row["relmse_vs_pt_ref_corrected"] = row["relmse_vs_pt_ref"] - ref_floor
+        # Unbiased Monte Carlo error falls as 1 / time: scale to exactly the budget.
+        row["relmse_at_budget"] = row["relmse_vs_pt_ref_corrected"] * row["time_s"] / seconds
+        if cy_ref is not None:
+            row["relmse_vs_cycles_ref"] = rel_mse(img, cy_ref, EPS)
+
+    print(f"\n4. Error at equal time ({seconds:g} s each; relMSE = mean (x - ref)^2 / "
+          f"(ref^2 + {EPS:g}) over pixels and RGB)")
+    print(f"   PT reference: {ref_spp:.1f} spp in {ours_ref.stats['time_s']:.1f} s (seed "
+          f"{seed + 1}); its own noise (mean variance / (ref^2 + eps)) = {ref_floor:.3e}, "
+          "subtracted in 'corrected'")
+    eq_spp = max(r["spp"] for r in rows if r["run"] == "equal time")
+    if ref_spp < 2 * eq_spp:
+        print(f"   warning: the reference has {ref_spp:.0f} spp, less than twice the {eq_spp:.0f} "
+              "spp of the equal-time images: the corrected errors are noisy")
+    if cy is not None:
+        cy_eq_row = next(r for r in rows if r["renderer"] == "Cycles" and r["run"] == "equal time")
+        consistency = rel_mse(cy_ref, ref, EPS)
+        # Noise alone gives our reference's noise plus the Cycles reference's, estimated from
+        # the equal-time Cycles error scaled by its sample count (variance ~ 1 / spp).
+        noise_only = ref_floor + max(cy_eq_row["relmse_vs_pt_ref_corrected"], 0.0) * (
+            cy_eq_row["spp"] / spp_ref)
+        mean_ratio = _mean_ratio(ref, cy_ref)
+        print(f"   Cycles reference: {spp_ref} spp in {t_ref:.1f} s (seed {seed + 1})")
+        print(f"   consistency of the references: relMSE(Cycles ref, PT ref) = {consistency:.3e}, "
+              f"noise alone ~ {noise_only:.3e}; image mean PT / Cycles = {mean_ratio:.4f}")
+        summary.update(reference_consistency_relmse=consistency,
+                       reference_consistency_noise_only=noise_only,
+                       reference_mean_ratio_pt_over_cycles=mean_ratio, cycles_reference_spp=spp_ref)
+    summary.update(pt_reference_spp=ref_spp, pt_reference_noise=ref_floor)
+    print()
+    _print_table(rows, seconds)
+
+    # 5. Targets (figures, not asserts).
+    print("\n5. Targets")
+    hold = ours_rps >= TARGET_FRACTION * ceiling_rps
+    print(f"   rays/s    >= {TARGET_FRACTION} x raw embreex ({threads} threads): "
+          f"{ours_rps / 1e6:.2f} M vs {TARGET_FRACTION * ceiling_rps / 1e6:.2f} M needed "
+          f"-> {'holds' if hold else 'MISSED'} (ratio {ours_rps / ceiling_rps:.3f})")
+    summary.update(target_rays_ratio=ours_rps / ceiling_rps, target_rays_holds=hold)
+    if cy is not None:
+        hold_s = ours_sps >= TARGET_FRACTION * cy.net_sps
+        print(f"   samples/s >= {TARGET_FRACTION} x Cycles (net): {ours_sps / 1e6:.3f} M vs "
+              f"{TARGET_FRACTION * cy.net_sps / 1e6:.3f} M needed -> "
+              f"{'holds' if hold_s else 'MISSED'} (ratio {ours_sps / cy.net_sps:.3f}; "
+              f"{ours_sps / cy.gross_sps:.3f} of Cycles' gross rate)")
+        pt_eq = next(r for r in rows if r["renderer"] == "ours" and r["run"] == "equal time")
+        if pt_eq["relmse_at_budget"] > 0 and cy_eq_row["relmse_at_budget"] > 0:
+            eff = pt_eq["relmse_at_budget"] / cy_eq_row["relmse_at_budget"]
+            print(f"   (not a target) error at equal time, ours / Cycles = {eff:.2f}")
+            summary.update(equal_time_error_ours_over_cycles=eff)
+        summary.update(target_samples_ratio_net=ours_sps / cy.net_sps,
+                       target_samples_ratio_gross=ours_sps / cy.gross_sps,
+                       target_samples_holds=hold_s)
+
+    # Files.
+    summary.update(load_end=_loadavg(), bench_seconds=time.perf_counter() - t_bench)
+    _write_csv(os.path.join(output, "cornell_embree.csv"),
+               [dict(threads=k, **v) for k, v in ceiling.items()])
+    _write_csv(os.path.join(output, "cornell_renderers.csv"), rows)
+    _write_csv(os.path.join(output, "cornell_summary.csv"),
+               [{"key": k, "value": v} for k, v in summary.items()])
+    images = [ref, cy_ref, ours_eq.combined()[..., :3], img_cy_eq]
+    _write_montage(os.path.join(output, "cornell_images.png"), images)
+    print(f"\nwrote {output}/cornell_{{embree,renderers,summary}}.csv and cornell_images.png "
+          f"(top: PT ref | Cycles ref; bottom: equal time PT | Cycles); bench took "
+          f"{summary['bench_seconds']:.0f} s, load average at end {summary['load_end']}")
+    return status
+
+
+# --------------------------------------------------------------------------- raw embreex
+
+
+def embree_throughput(scene, n_rays, thread_counts=(1, 2), repeats=3, seed=0):
+    """Closest-hit rays/s of raw embreex on ``scene``'s triangles.
+
+    Origins are uniform in the scene's bounding box, directions uniform on the sphere (float32).
+    With ``k`` threads the batch is cut into ``k`` disjoint slices traced concurrently
+    (``EmbreeScene.run`` releases the GIL); the time is from the first start to the last join.
+
+    Returns
+    -------
+    dict of int -> dict
+        Per thread count: ``rays``, ``best_s``, ``median_s``, ``rays_per_s`` (best),
+        ``hit_fraction``.
+    """
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh
+
+    emb = rtcore_scene.EmbreeScene()
+    TriangleMesh(emb, scene.vertices, scene.triangles)
+    lo = scene.vertices.min(axis=0).astype(np.float64)
+    hi = scene.vertices.max(axis=0).astype(np.float64)
+    rng = np.random.default_rng(seed)
+    origins = np.ascontiguousarray(lo + (hi - lo) * rng.random((n_rays, 3)), np.float32)
+    d = rng.standard_normal((n_rays, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    directions = np.ascontiguousarray(d, np.float32)
+    hit_fraction = float(np.mean(emb.run(origins, directions, output=1)["primID"] >= 0))
+
+    times = {k: [] for k in thread_counts}
+    for _ in range(repeats):
+        for k in thread_counts:  # interleaved, so load changes hit every thread count
+            times[k].append(_trace_parallel(emb, origins, directions, k))
+    return {k: {"rays": n_rays, "best_s": min(ts), "median_s": statistics.median(ts),
+                "rays_per_s": n_rays / min(ts), "hit_fraction": hit_fraction}
+            for k, ts in times.items()}
+
+
+def _trace_parallel(emb, origins, directions, k):
+    bounds = np.linspace(0, origins.shape[0], k + 1).astype(int)
+
+    def work(a, b):
+        emb.run(origins[a:b], directions[a:b], output=1)
+
+    workers = [threading.Thread(target=work, args=(bounds[i], bounds[i + 1])) for i in range(k)]
+    t0 = time.perf_counter()
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    return time.perf_counter() - t0
+
+
+# --------------------------------------------------------------------------- Cycles
+
+
+class _CyclesRunner:
+    """The benchmark's Cycles scene and its measured costs: cold start, fixed cost, rate."""
+
+    def __init__(self, core_scene, threads, max_bounces):
+        from . import blender_scene as bs
+
+        self.bs = bs
+        bpy = bs.import_bpy()
+        bpy.ops.wm.read_homefile(use_empty=True)
+        self.scene = bs.build_blender_scene(core_scene)
+        self.threads = threads
+        self.max_bounces = max_bounces
+        self.pixels = core_scene.camera.width * core_scene.camera.height
+        self.tmp = tempfile.TemporaryDirectory(prefix="sampling_lab_bench_")
+        self.t_fixed = np.inf
+        self.last_times = {}
+
+    def render(self, spp, seed):
+        """Render ``spp`` samples: (wall seconds, (h, w, 4) float32 Combined)."""
+        self.bs.configure_cycles(self.scene, spp, seed=seed, threads=self.threads,
+                                 max_bounces=self.max_bounces)
+        t, passes, self.last_times = self.bs.render_cycles(
+            self.scene, os.path.join(self.tmp.name, "cycles.exr"))
+        return t, passes["Combined"]
+
+    def measure_fixed_cost(self, seed):
+        """Cold first render, then the cost of a 1-spp render (sync, BVH, kernels, film, EXR)."""
+        self.t_cold, _ = self.render(1, seed)
+        self.t_one = min(self.render(1, seed)[0] for _ in range(2))
+
+    def measure_fixed_spp(self, spp, seed):
+        """Time ``spp`` samples; the fastest of repeated calls is kept."""
+        t, img = self.render(spp, seed)
+        if t < self.t_fixed:
+            self.fixed_spp, self.t_fixed, self.fixed_image = spp, t, img
+            clock = self.last_times.get("render_time", float("nan"))
+            self.clock_sps = self.pixels * spp / clock if clock > 0 else float("nan")
+
+    @property
+    def gross_sps(self):
+        return self.pixels * self.fixed_spp / self.t_fixed
+
+    @property
+    def net_sps(self):
+        marginal = self.t_fixed - self.t_one
+        return self.pixels * (self.fixed_spp - 1) / marginal if marginal > 0 else self.gross_sps
+
+    def spp_for(self, seconds, rate=None):
+        """Sample count whose render, fixed cost included, should take ``seconds``."""
+        rate = self.net_sps if rate is None else rate
+        return max(1, int(round(1 + (seconds - self.t_one) * rate / self.pixels)))
+
+    def equal_time(self, seconds, seed, tolerance=0.15):
+        """Render about ``seconds`` of wall clock: (spp, seconds taken, image).
+
+        The sample count comes from the measured rate; if the render misses the budget by more
+        than ``tolerance`` (the machine got busier or quieter), it is planned again from the
+        rate that render showed, once, and the render closer to the budget is kept.
+        """
+        spp = self.spp_for(seconds)
+        t, img = self.render(spp, seed)
+        if abs(t / seconds - 1) > tolerance and t > self.t_one and spp > 1:
+            rate = self.pixels * (spp - 1) / (t - self.t_one)
+            spp2 = self.spp_for(seconds, rate)
+            t2, img2 = self.render(spp2, seed)
+            if abs(t2 - seconds) < abs(t - seconds):
+                spp, t, img = spp2, t2, img2
+        return spp, t, img
+
+
+# --------------------------------------------------------------------------- rows and files
+
+
+def _ours_row(run_name, result, pixels):
+    s = result.stats
+    return {"renderer": "ours", "run": run_name, "spp": s["samples"] / pixels,
+            "time_s": s["time_s"], "samples_per_s": s["samples_per_s"],
+            "rays_per_s": s["rays_per_s"], "_image": result.combined()[..., :3]}
+
+
+def _cycles_row(run_name, spp, seconds, pixels, image):
+    return {"renderer": "Cycles", "run": run_name, "spp": float(spp), "time_s": seconds,
+            "samples_per_s": pixels * spp / seconds, "rays_per_s": float("nan"),
+            "_image": image[..., :3]}
+
+
+def _print_table(rows, seconds):
+    head = (f"   {'renderer':<8} {'run':<11} {'spp':>6} {'time s':>7} {'M samp/s':>9} "
+            f"{'M rays/s':>9} {'relMSE':>9} {'corrected':>9} {f'@{seconds:g} s':>9} "
+            f"{'vs Cycles':>9}")
+    print(head)
+    print("   " + "-" * (len(head) - 3))
+
+    def fmt(row, key):
+        v = row.get(key)
+        return "-" if v is None or np.isnan(v) else f"{v:.2e}"
+
+    for r in rows:
+        rays = "-" if np.isnan(r["rays_per_s"]) else f"{r['rays_per_s'] / 1e6:.2f}"
+        print(f"   {r['renderer']:<8} {r['run']:<11} {r['spp']:>6.1f} {r['time_s']:>7.2f} "
+              f"{r['samples_per_s'] / 1e6:>9.3f} {rays:>9} {fmt(r, 'relmse_vs_pt_ref'):>9} "
+              f"{fmt(r, 'relmse_vs_pt_ref_corrected'):>9} {fmt(r, 'relmse_at_budget'):>9} "
+              f"{fmt(r, 'relmse_vs_cycles_ref'):>9}")
+    print("   relMSE: against our reference; corrected: minus that reference's own noise; "
+          f"@{seconds:g} s: corrected x time / {seconds:g} s\n"
+          "   (error scaled to exactly the budget); vs Cycles: raw relMSE against the Cycles "
+          "reference")
+
+
+def _write_csv(path, rows):
+    keys = []
+    for r in rows:
+        keys += [k for k in r if k not in keys and not k.startswith("_")]
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()
+                        if not k.startswith("_")})
+
+
+def _write_montage(path, images):
+    """2 x 2 montage (row 0 at the bottom): ``images`` = [top-left, top-right, bottom-left,
+    bottom-right]; missing images are black."""
+    h, w = images[0].shape[:2]
+    tiles = [np.zeros((h, w, 3)) if im is None else np.asarray(im, np.float64)[..., :3]
+             for im in images]
+    gap_v = np.ones((h, 2, 3))
+    gap_h = np.ones((2, 2 * w + 2, 3))
+    top = np.concatenate([tiles[0], gap_v, tiles[1]], axis=1)
+    bottom = np.concatenate([tiles[2], gap_v, tiles[3]], axis=1)
+    write_png_preview(path, np.concatenate([bottom, gap_h, top], axis=0))
+
+
+def _mean_ratio(a, b):
+    return float(np.mean(np.asarray(a)[..., :3], dtype=np.float64)
+                 / np.mean(np.asarray(b)[..., :3], dtype=np.float64))
+
+
+def _stage(text):
+    print(f"[bench {time.strftime('%H:%M:%S')}] {text} ...", file=sys.stderr, flush=True)
+
+
+def _loadavg():
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
+def _machine_summary():
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            names = [ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")]
+        cpu = names[0] if names else cpu
+    except OSError:
+        pass
+    out = {"date": datetime.datetime.now().astimezone().isoformat(timespec="minutes"),
+           "cpu": cpu, "cpus": os.cpu_count(), "python": platform.python_version(),
+           "numpy": np.__version__, "load_start": _loadavg(),
+           "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "unset")}
+    for package in ("embreex", "bpy"):
+        try:
+            out[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            out[package] = "n/a"
+    return out
