@@ -23,6 +23,12 @@ OFFSET_ULPS = 64.0
 FLOAT32_EPS = float(np.finfo(np.float32).eps)
 
 
+def max_abs_component(v):
+    """Largest absolute coordinate of each row of ``v (n, 3)``, without a slow axis reduction."""
+    a = np.abs(v)
+    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
+
+
 @dataclass
 class Hits:
     """Closest hits of a ray batch.
@@ -143,12 +149,12 @@ class Accel:
         origins = self.offset_origin(p, ng, prim, wi)
         finite = np.isfinite(dist)
         q = p + wi * np.where(finite, dist, 0.0)[:, None]
-        scale = np.maximum(np.abs(q).max(axis=1), np.abs(p).max(axis=1))
+        scale = np.maximum(max_abs_component(q), max_abs_component(p))
         eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(scale, 1e-30)
         toward = np.sign(np.einsum("ij,ij->i", light_normal, origins - q))
         q = q + light_normal * (toward * eps)[:, None]
         seg = q - origins
-        length = np.linalg.norm(seg, axis=1)
+        length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
         ok = finite & (length > 0)
         directions = np.where(ok[:, None], seg / np.maximum(length, 1e-300)[:, None], wi)
         tmax = np.where(finite, np.where(ok, length - eps, 0.0), np.inf)

@@ -59,14 +59,16 @@ def generate_rays(cam: Camera, film_xy):
     n = film_xy.shape[0]
     if cam.type == "ORTHO":
         local_o = np.stack([px, py, np.zeros(n)], axis=-1)
-        origins = pos + local_o @ rot.T
+        origins = pos + np.einsum("ij,kj->ik", local_o, rot)
         d = np.broadcast_to(-rot[:, 2], (n, 3)).copy()
         origins = origins + d * cam.clip_start
         tmax = np.full(n, cam.clip_end - cam.clip_start)
         return origins, d, tmax
     local_d = np.stack([px, py, -np.ones(n)], axis=-1)
-    length = np.linalg.norm(local_d, axis=1)
-    d = (local_d / length[:, None]) @ rot.T
+    # einsum, not `@`: a (n, 3) x (3, 3) product would wake multi-threaded BLAS, whose spinning
+    # threads steal the core the second render thread needs.
+    length = np.sqrt(np.einsum("ij,ij->i", local_d, local_d))
+    d = np.einsum("ij,kj->ik", local_d / length[:, None], rot)
     # Clipping planes are perpendicular to the view axis, as in Cycles.
     t_near = cam.clip_start * length
     origins = pos + d * t_near[:, None]
