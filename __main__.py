@@ -1,7 +1,13 @@
 """``python -m sampling_lab ...``: see :mod:`sampling_lab.addon.cli`."""
 
+import os
 import sys
 
-from .addon.cli import main
+# The renderer runs its own worker threads; BLAS threads spinning beside them only steal cores.
+# This must happen before NumPy is first imported.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+from .addon.cli import main  # noqa: E402
 
 sys.exit(main())
