@@ -4,8 +4,10 @@ A sampler makes :class:`core.sampling.stream.SampleStream` batches: ``sampler.st
 sample_index)`` returns a stream whose ``sample(dimension, count)`` gives the ``count``-dimensional
 point (count is 1 or 2: ``next_1d`` / ``next_2d``) of each (pixel, sample index) for the dimension
 slot starting at ``dimension``, as a deterministic function of (pixel, sample index, dimension,
-seed). Every sampler class has ``name``, ``label``, ``needs_spp`` (it must know the sample count
-ahead of time) and ``__init__(seed=0, spp=None)``.
+seed). Every sampler class has ``name``, ``label`` (UI name), ``description`` (tooltip),
+``needs_spp`` (it must know the sample count ahead of time) and ``__init__(seed=0, spp=None)``.
+A 1-D and a 2-D request at the same dimension are different slots: an integrator must always
+draw a given dimension the same way.
 
 ``SAMPLERS`` lists them in the order the UI shows them; each module is imported on first use.
 """

@@ -49,6 +49,8 @@ class IndependentSampler:
     """Makes :class:`IndependentStream` batches. ``spp`` is accepted and unused."""
 
     name = "independent"
+    label = "Independent"
+    description = "Uniform random numbers, independent across samples, dimensions and pixels"
     needs_spp = False
 
     def __init__(self, seed=0, spp=None):
