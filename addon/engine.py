@@ -41,6 +41,12 @@ def render_settings(props):
         max_bounces=int(props.max_bounces),
         use_russian_roulette=bool(props.use_russian_roulette),
         rr_min_bounces=int(props.rr_min_bounces),
+        mis_heuristic=props.mis_heuristic.lower(),
+        mis_beta=float(props.mis_beta),
+        mis_alpha=float(props.mis_alpha),
+        light_selection=props.light_selection.lower(),
+        light_sampling=props.light_sampling.lower(),
+        distribution=props.distribution.lower(),
         filter_type=props.filter_type,
         filter_width=float(props.filter_width),
     )
@@ -157,7 +163,10 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
         summary = (f"{stats.get('spp', 0)} spp in {stats.get('time_s', 0.0):.2f} s "
                    f"(export {export_s:.2f} s), "
                    f"{stats.get('samples_per_s', 0.0) / 1e6:.2f} M samples/s, "
-                   f"{stats.get('rays_per_s', 0.0) / 1e6:.2f} M rays/s"
+                   f"{stats.get('rays_per_s', 0.0) / 1e6:.2f} M rays/s, "
+                   f"lights by {stats.get('distribution', 'cdf')}: build "
+                   f"{1e3 * stats.get('distribution_build_s', 0.0):.2f} ms, sampling "
+                   f"{1e3 * stats.get('distribution_sample_s', 0.0):.1f} ms"
                    + (", cancelled" if out.cancelled else ""))
         self.update_stats("", f"Sampling Lab | {summary}")
         self.report({'INFO'}, f"Sampling Lab: {summary}")

@@ -14,10 +14,106 @@ INTEGRATOR_ITEMS = (
      "Unbiased and consistent; the reference estimator the others are compared with"),
 )
 
-SAMPLER_ITEMS = (
-    ('INDEPENDENT', "Independent",
-     "Independent uniform random numbers for every sample and dimension (plain Monte Carlo). "
-     "Error falls as 1/sqrt(samples); the baseline other samplers are measured against"),
+# Samplers the UI offers when a sampler class carries no label or description of its own.
+_SAMPLER_FALLBACK = {
+    "independent": (
+        "Independent",
+        "Independent uniform random numbers for every sample and dimension (plain Monte Carlo). "
+        "Error falls as 1/sqrt(samples); the baseline other samplers are measured against"),
+}
+
+
+def sampler_items():
+    """EnumProperty items for every sampler ``core.sampling.samplers.available()`` lists.
+
+    Each item is ``(NAME, label, description)`` from the sampler class's ``label`` and
+    ``description`` (falling back to a known text, the first line of the class or module
+    docstring, then the name). A sampler module that fails to import is left out, so one broken
+    sampler cannot stop the add-on from registering.
+    """
+    import importlib
+
+    from ..core.sampling.samplers import available, sampler_class
+
+    items = []
+    for name in available():
+        try:
+            cls = sampler_class(name)
+        except Exception:  # noqa: BLE001 - a sampler being written must not break the add-on
+            continue
+        fallback_label, fallback_desc = _SAMPLER_FALLBACK.get(name, (None, None))
+        label = getattr(cls, "label", None) or fallback_label or name.replace("_", " ").title()
+        doc = cls.__doc__ or importlib.import_module(cls.__module__).__doc__ or ""
+        description = (getattr(cls, "description", None) or fallback_desc
+                       or doc.strip().split("\n")[0].strip() or f"{label} sampler")
+        items.append((name.upper(), str(label), str(description).strip().rstrip(".")))
+    if not any(item[0] == "INDEPENDENT" for item in items):
+        label, description = _SAMPLER_FALLBACK["independent"]
+        items.insert(0, ("INDEPENDENT", label, description))
+    return tuple(items)
+
+
+SAMPLER_ITEMS = sampler_items()
+
+MIS_ITEMS = (
+    ('POWER', "Power Heuristic",
+     "Multiple importance sampling of light and BSDF samples with weights p^beta / sum p^beta "
+     "(Veach). Unbiased; beta = 2 is the usual choice, cutting noise from both small lights "
+     "and broad reflections"),
+    ('BALANCE', "Balance Heuristic",
+     "MIS with weights proportional to each strategy's density (the power heuristic with "
+     "beta = 1). Unbiased; provably close to the best weights, a little noisier than power"),
+    ('MAXIMUM', "Maximum Heuristic",
+     "MIS where the strategy with the larger density takes the whole sample. Unbiased; "
+     "the limit of the power heuristic for large beta"),
+    ('CUTOFF', "Cutoff Heuristic",
+     "MIS where strategies whose density is below alpha times the largest get weight zero "
+     "and the rest share by the balance heuristic. Unbiased"),
+    ('NONE', "None (Average)",
+     "Both strategies with constant weight 1/2: the unweighted average of light sampling and "
+     "BSDF sampling. Unbiased, but without MIS's variance reduction: each strategy's noisy "
+     "cases are only halved"),
+    ('BSDF', "BSDF Sampling Only",
+     "No light sampling: direct light only where a BSDF-sampled ray happens to hit an emitter "
+     "(weight one). Unbiased for area, mesh, sphere and sun-disk lights, but point, spot and "
+     "sharp sun lights can never be hit and render black: a teaching baseline"),
+    ('LIGHT', "Light Sampling Only",
+     "Next-event estimation only (weight one); emitters found by rays after a bounce are "
+     "dropped where light sampling could have picked them. Unbiased; emitters seen directly "
+     "by the camera still show. Noisy for glossy surfaces and huge lights"),
+)
+
+LIGHT_SELECTION_ITEMS = (
+    ('POWER', "Power",
+     "Choose the light to sample in proportion to its estimated emitted power. Unbiased; "
+     "best when brighter lights contribute more"),
+    ('UNIFORM', "Uniform",
+     "Choose every light with the same probability: each lamp, each emission material (all "
+     "triangles sharing it count as one light, and a triangle inside it is chosen in "
+     "proportion to area times radiance) and the world. Unbiased; lights that emit nothing "
+     "are skipped"),
+)
+
+LIGHT_SAMPLING_ITEMS = (
+    ('AREA', "Area",
+     "Sample points uniformly over the surface of area lights and emissive triangles. "
+     "Unbiased; noisy close to large lights, whose near parts are undersampled"),
+    ('SOLID_ANGLE', "Solid Angle",
+     "Sample directions uniformly over the solid angle that an emitter subtends: spherical "
+     "triangles (Arvo) for emissive triangles, spherical rectangles (Urena et al.) for square "
+     "and rectangular area lights. Unbiased; much less noise near large lights. Disk and "
+     "ellipse lights, and emitters seen under a tiny or near-hemispherical solid angle, stay "
+     "area-sampled"),
+)
+
+DISTRIBUTION_ITEMS = (
+    ('CDF', "CDF Inversion",
+     "Discrete choices (which light, which emissive triangle) by binary search in a "
+     "cumulative distribution: O(log n) per sample, preserves the stratification of the "
+     "sampler's numbers"),
+    ('ALIAS', "Alias Table",
+     "Discrete choices by Walker's alias method (Vose's construction): O(1) per sample after "
+     "an O(n) build, but scrambles the stratification of the sampler's numbers"),
 )
 
 FILTER_ITEMS = (
@@ -85,6 +181,48 @@ class SamplingLabSettings(PropertyGroup):
         description="Number of bounces every path survives before Russian roulette may "
                     "terminate it",
         default=3, min=0, max=1024, soft_max=64,
+    )
+    mis_heuristic: EnumProperty(
+        name="MIS",
+        description="How light sampling (next-event estimation) and BSDF sampling are "
+                    "combined for direct light: a multiple importance sampling heuristic, "
+                    "their plain average, or one strategy alone",
+        items=MIS_ITEMS,
+        default='POWER',
+    )
+    mis_beta: FloatProperty(
+        name="Beta",
+        description="Exponent of the power heuristic: 1 is the balance heuristic, 2 the usual "
+                    "choice, large values approach the maximum heuristic",
+        default=2.0, min=0.01, max=100.0, soft_min=0.5, soft_max=8.0, precision=2,
+    )
+    mis_alpha: FloatProperty(
+        name="Alpha",
+        description="Cutoff of the cutoff heuristic: a strategy whose density is below alpha "
+                    "times the largest one gets weight zero (0 is the balance heuristic, "
+                    "1 the maximum heuristic)",
+        default=0.1, min=0.0, max=1.0, precision=3, subtype='FACTOR',
+    )
+    light_selection: EnumProperty(
+        name="Light Selection",
+        description="How next-event estimation chooses which light to sample",
+        items=LIGHT_SELECTION_ITEMS,
+        default='POWER',
+    )
+    light_sampling: EnumProperty(
+        name="Area Lights",
+        description="How a point on an area light or emissive triangle is sampled: uniformly "
+                    "by area, or uniformly over the solid angle it covers",
+        items=LIGHT_SAMPLING_ITEMS,
+        default='AREA',
+    )
+    distribution: EnumProperty(
+        name="Discrete Sampling",
+        description="Data structure for discrete choices (lights, emissive triangles): CDF "
+                    "inversion or an alias table. Its build and sampling times are shown in "
+                    "the render stats",
+        items=DISTRIBUTION_ITEMS,
+        default='CDF',
     )
     filter_type: EnumProperty(
         name="Pixel Filter",

@@ -37,6 +37,32 @@ class SAMPLINGLAB_RENDER_PT_sampling(SamplingLabButtonsPanel, Panel):
         col.prop(settings, "seed")
 
 
+class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
+    bl_label = "Light Sampling"
+    bl_parent_id = "SAMPLINGLAB_RENDER_PT_sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.sampling_lab
+
+        col = layout.column()
+        col.prop(settings, "mis_heuristic")
+        # Each heuristic's parameter is shown only with the heuristic that reads it.
+        if settings.mis_heuristic == 'POWER':
+            col.prop(settings, "mis_beta")
+        elif settings.mis_heuristic == 'CUTOFF':
+            col.prop(settings, "mis_alpha")
+        col.separator()
+        sub = col.column()
+        # BSDF sampling alone never samples lights, so the light sampler's options do nothing.
+        sub.active = settings.mis_heuristic != 'BSDF'
+        sub.prop(settings, "light_selection")
+        sub.prop(settings, "light_sampling")
+        sub.prop(settings, "distribution")
+
+
 class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
     bl_label = "Light Paths"
 
@@ -100,6 +126,7 @@ class SAMPLINGLAB_OBJECT_PT_ray_visibility(Panel):
 
 classes = (
     SAMPLINGLAB_RENDER_PT_sampling,
+    SAMPLINGLAB_RENDER_PT_light_sampling,
     SAMPLINGLAB_RENDER_PT_light_paths,
     SAMPLINGLAB_RENDER_PT_film,
     SAMPLINGLAB_OBJECT_PT_ray_visibility,

@@ -10,22 +10,30 @@ settings (S = color x energy, in W or W/m^2) into the radiometric quantities of
 - area: radiance S / (pi A), one-sided toward the light's local -Z (A x pi/4 for disk, ellipse).
 
 :class:`LightSampler` gathers every emitter of a scene (these lights, emissive triangles and the
-world) into one table, chooses among them in proportion to estimated power, samples a point or
-direction on the chosen one (next-event estimation), and evaluates the solid-angle density of the
-same choice for emitters found by BSDF sampling, so that the two strategies can be combined by MIS.
+world) into one table, chooses among them (in proportion to estimated power, or uniformly over
+lights; by CDF inversion or an alias table), samples a point or direction on the chosen one
+(next-event estimation; area emitters by area or by solid angle), and evaluates the solid-angle
+density of the same choice for emitters found by BSDF sampling, so that the two strategies can be
+combined by MIS.
 Area and sphere lights are not occluders: as in Cycles, they emit toward rays that pass through
 them and never block light.
 """
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from .sampling import warps
-from .sampling.distributions import PiecewiseConstant1D
+from .sampling.distributions import DISTRIBUTION_METHODS, Segmented1D, make_distribution
 from .scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SUN, Lights
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+# How next-event estimation chooses a light, and how it samples a point on an area emitter.
+LIGHT_SELECTIONS = ("power", "uniform")
+LIGHT_SAMPLINGS = ("area", "solid_angle")
 
 
 def _row(kind, name, visible_camera, position=(0, 0, 0), axis_x=(0, 0, 0), axis_y=(0, 0, 0),
@@ -151,9 +159,30 @@ def _normalize(v):
 class LightSampler:
     """Every emitter of a scene in one selection table.
 
-    Emitter rows are the scene's lights (rows ``0..k-1``), then the emissive triangles, then the
-    world (if its radiance is not black). ``select_prob[i]`` is the probability that next-event
-    estimation chooses emitter ``i``.
+    Emitter rows are the scene's lights (rows ``0..k-1``), then the emissive triangles (grouped
+    by material), then the world (if its radiance is not black). ``select_prob[i]`` is the
+    probability that next-event estimation chooses emitter ``i``.
+
+    The choice is made in two steps, each a discrete distribution built with ``method``
+    (``'cdf'`` or ``'alias'``, see :mod:`core.sampling.distributions`):
+
+    1. a *light*: each lamp, each emission material (all triangles that share it form one light,
+       as an emissive object would) and the world. ``selection='power'`` chooses them in
+       proportion to their estimated power; ``'uniform'`` chooses every light that emits with
+       the same probability;
+    2. for an emission material, one of its triangles in proportion to its power
+       (area x luminance of its radiance), with the remapped random number of step 1.
+
+    With ``'power'`` the product is each emitter's share of the total power, as a single table
+    would give. Both rules are unbiased: the pdfs reported to MIS use the same probabilities.
+
+    ``sampling`` picks how a point on an area emitter is chosen: ``'area'`` (uniform on the
+    surface) or ``'solid_angle'`` (uniform over the solid angle it subtends: spherical triangles,
+    Arvo 1995, for emissive triangles; spherical rectangles, Ureña et al. 2013, for square and
+    rectangular area lights). Disk and ellipse lights, sheared rectangles, and emitters that
+    subtend less than ``MIN_SPHERICAL_SOLID_ANGLE`` or more than ``MAX_SPHERICAL_SOLID_ANGLE``
+    (where the spherical warps lose precision) are sampled by area; the pdfs of emitters found
+    by rays make the same decision from the same point, so MIS sees the density actually used.
 
     Parameters
     ----------
@@ -164,20 +193,46 @@ class LightSampler:
         Unit geometric normals.
     tri_v0, tri_e1, tri_e2 : (t, 3) float64
         First vertex and edges of every triangle.
+    selection : str
+        ``'power'`` or ``'uniform'``.
+    sampling : str
+        ``'area'`` or ``'solid_angle'``.
+    method : str
+        ``'cdf'`` or ``'alias'``.
+
+    Attributes
+    ----------
+    build_s : float
+        Seconds spent building the selection distributions.
     """
 
-    def __init__(self, scene, tri_area, tri_normal, tri_v0, tri_e1, tri_e2):
+    def __init__(self, scene, tri_area, tri_normal, tri_v0, tri_e1, tri_e2, selection="power",
+                 sampling="area", method="cdf"):
+        for value, allowed, what in ((selection, LIGHT_SELECTIONS, "light selection"),
+                                     (sampling, LIGHT_SAMPLINGS, "light sampling"),
+                                     (method, DISTRIBUTION_METHODS, "distribution")):
+            if value not in allowed:
+                raise ValueError(f"unknown {what} {value!r}; choose from {', '.join(allowed)}")
+        self.selection = selection
+        self.sampling = sampling
+        self.solid_angle = sampling == "solid_angle"
+        self.method = method
         self.lights = scene.lights
         k = len(scene.lights)
         emission = scene.materials.emission[scene.material].astype(np.float64)
-        tri_power_rgb = emission * (2 * np.pi * tri_area)[:, None]
+        tri_power = (emission @ LUMINANCE) * (2 * np.pi * tri_area)
         emissive = np.nonzero((emission.max(axis=1) > 0) & (tri_area > 0))[0]
+        # One light per emission material: its triangles are contiguous rows.
+        emissive = emissive[np.argsort(scene.material[emissive], kind="stable")]
+        groups, group_start = np.unique(scene.material[emissive], return_index=True)
+        self.n_groups = groups.size
         self.emissive_tris = emissive
         self.tri_emitter = np.full(scene.n_triangles, -1, np.int64)
         self.tri_emitter[emissive] = k + np.arange(emissive.size)
         self.tri_area = tri_area
         self.tri_normal = tri_normal
         self.tri_emission = emission
+        self.tri_v0, self.tri_e1, self.tri_e2 = tri_v0, tri_e1, tri_e2
         # Emitters' own copies, so that sampling gathers from small arrays.
         self.emit_v0 = tri_v0[emissive]
         self.emit_e1 = tri_e1[emissive]
@@ -185,6 +240,8 @@ class LightSampler:
         self.emit_normal = tri_normal[emissive]
         self.emit_area = tri_area[emissive]
         self.emit_radiance = emission[emissive]
+        self.emit_group = np.repeat(np.arange(groups.size),
+                                    np.diff(np.append(group_start, emissive.size)))
         self.world = np.asarray(scene.world_color, np.float64)
         self.has_world = bool(self.world.max() > 0)
         self.n_lights = k
@@ -199,20 +256,106 @@ class LightSampler:
         radius = max(radius, 1e-3)
         power = np.array(self.lights.power, np.float64)
         power[self.lights.kind == LIGHT_SUN] *= np.pi * radius**2
-        power = np.concatenate([power, tri_power_rgb[emissive] @ LUMINANCE])
+        group_power = (np.add.reduceat(tri_power[emissive], group_start) if emissive.size
+                       else np.zeros(0))
+        power = np.concatenate([power, group_power])
         if self.has_world:
             power = np.concatenate([power, [4 * np.pi**2 * radius**2 * (LUMINANCE @ self.world)]])
-        self.n_emitters = power.size
+        self.n_emitters = k + emissive.size + int(self.has_world)
         self.delta = np.zeros(self.n_emitters, bool)
         self.delta[:k] = ((self.lights.kind == LIGHT_POINT) & (self.lights.radius <= 0)) | (
             (self.lights.kind == LIGHT_SUN) & (self.lights.angle <= 0))
-        self.distribution = PiecewiseConstant1D(power) if power.size else None
-        self.select_prob = self.distribution.pmf_table if power.size else np.zeros(0)
+        # Sheared rectangles are parallelograms: the spherical-rectangle warp does not apply.
+        ax, ay = self.lights.axis_x, self.lights.axis_y
+        cross = np.linalg.norm(ax, axis=1) * np.linalg.norm(ay, axis=1)
+        self.rect_spherical = (self.lights.kind == LIGHT_RECT) & (
+            np.abs(_dot(ax, ay)) <= 1e-6 * cross) & (cross > 0)
+
+        t0 = time.perf_counter()
+        weights = power if selection == "power" else (power > 0).astype(np.float64)
+        self.light_dist = make_distribution(weights, method) if weights.size else None
+        self.triangle_dist = (Segmented1D(tri_power[emissive], np.append(group_start,
+                                                                         emissive.size), method)
+                              if emissive.size else None)
+        self.build_s = time.perf_counter() - t0
+        if self.light_dist is not None:
+            light_pmf = self.light_dist.pmf_table
+            tri_prob = (light_pmf[k + self.emit_group] * self.triangle_dist.pmf_table
+                        if emissive.size else np.zeros(0))
+            self.select_prob = np.concatenate([light_pmf[:k], tri_prob,
+                                               light_pmf[k + groups.size:]])
+        else:
+            self.select_prob = np.zeros(0)
         # Lights a ray can hit: spheres, area lights and sun disks.
         self.shape_lights = np.nonzero(~self.delta[:k])[0]
 
+    # ------------------------------------------------------------------ emitter choice
+    def choose(self, u_select, counters=None):
+        """Choose emitters for next-event estimation.
+
+        Parameters
+        ----------
+        u_select : (n,) float
+            Uniform in [0, 1): picks the light, and its remapped value the triangle.
+        counters : core.integrators.common.Counters or None
+            Receives the time spent and the number of discrete draws.
+
+        Returns
+        -------
+        index : (n,) int64
+            Emitter rows.
+        pmf : (n,) float64
+            Their selection probabilities (``select_prob[index]``).
+        """
+        t0 = time.perf_counter()
+        k = self.n_lights
+        light, pmf, u_next = self.light_dist.sample(u_select)
+        index = light.copy()
+        draws = light.size
+        m = np.nonzero((light >= k) & (light < k + self.n_groups))[0]
+        if m.size:
+            e, pmf_tri, _ = self.triangle_dist.sample(light[m] - k, u_next[m])
+            index[m] = k + e
+            pmf[m] = pmf[m] * pmf_tri
+            draws += m.size
+        if self.has_world:
+            index[light == k + self.n_groups] = self.world_index
+        if counters is not None:
+            counters.distribution_s += time.perf_counter() - t0
+            counters.distribution_samples += draws
+        return index, pmf
+
+    def _use_spherical_triangle(self, a, b, c, p):
+        """Solid angles ``(n,)`` and where the spherical-triangle warp is used, ``(n,)`` bool.
+
+        Area sampling never needs the solid angle: it is not computed then (zeros).
+        """
+        if not self.solid_angle:
+            return np.zeros(p.shape[0]), np.zeros(p.shape[0], bool)
+        omega = warps.spherical_triangle_solid_angle(a, b, c, p)
+        use = ((omega >= warps.MIN_SPHERICAL_SOLID_ANGLE)
+               & (omega <= warps.MAX_SPHERICAL_SOLID_ANGLE))
+        return omega, use
+
+    def _use_spherical_rectangle(self, li, p):
+        """Solid angles ``(n,)`` of area lights ``li`` from ``p`` and where the warp is used."""
+        lights = self.lights
+        corner = lights.position[li] - 0.5 * (lights.axis_x[li] + lights.axis_y[li])
+        # Only rectangles sampled by solid angle need it; the rest skip the arithmetic.
+        use = self.rect_spherical[li] & self.solid_angle
+        omega = np.zeros(p.shape[0])
+        rows = np.nonzero(use)[0]
+        if rows.size:
+            lr = li[rows]
+            omega[rows] = warps.spherical_rectangle_solid_angle(
+                corner[rows], lights.axis_x[lr], lights.axis_y[lr], p[rows])
+        front = _dot(p - lights.position[li], lights.direction[li]) > 0
+        use &= front & (omega >= warps.MIN_SPHERICAL_SOLID_ANGLE) & (
+            omega <= warps.MAX_SPHERICAL_SOLID_ANGLE)
+        return omega, corner, use
+
     # ------------------------------------------------------------------ next-event estimation
-    def sample(self, p, u_select, u):
+    def sample(self, p, u_select, u, counters=None):
         """Sample an emitter and a point or direction on it, as seen from ``p``.
 
         Parameters
@@ -221,6 +364,8 @@ class LightSampler:
             Receiving points.
         u_select : (n,) float
         u : (n, 2) float
+        counters : core.integrators.common.Counters or None
+            Receives the time spent choosing emitters (see :meth:`choose`).
 
         Returns
         -------
@@ -244,9 +389,9 @@ class LightSampler:
         radiance = np.zeros((n, 3))
         pdf = np.zeros(n)
         light_normal = np.zeros((n, 3))
-        if self.distribution is None or n == 0:
+        if self.light_dist is None or n == 0:
             return wi, dist, radiance, pdf, np.zeros(n, bool), light_normal
-        index, pmf, _ = self.distribution.sample(u_select)
+        index, pmf = self.choose(u_select, counters)
         delta = self.delta[index]
         lights = self.lights
         k = self.n_lights
@@ -300,7 +445,7 @@ class LightSampler:
             radiance[m] = lights.radiance[li]
             pdf[m] = np.where(is_d, 1.0, warps.uniform_cone_pdf(np.minimum(cos_max, 1 - 1e-12))) * pmf[m]
 
-        # Area lights, sampled uniformly by area.
+        # Area lights: uniformly by area, or rectangles by solid angle.
         m = np.nonzero((kind == LIGHT_RECT) | (kind == LIGHT_DISK))[0]
         if m.size:
             li = lidx[m]
@@ -311,18 +456,35 @@ class LightSampler:
                  + local[:, 1:2] * lights.axis_y[li])
             area = np.linalg.norm(np.cross(lights.axis_x[li], lights.axis_y[li]), axis=1)
             area = np.where(disk, area * np.pi / 4, area)
+            omega, corner, sph = self._use_spherical_rectangle(li, p[m])
+            if sph.any():
+                q[sph] = warps.sample_spherical_rectangle(uu[sph], corner[sph],
+                                                          lights.axis_x[li[sph]],
+                                                          lights.axis_y[li[sph]], p[m[sph]])
             self._area_point_sample(m, p, q, lights.direction[li], area, lights.radiance[li], pmf,
                                     True, wi, dist, radiance, pdf, light_normal)
+            self._solid_angle_pdf(m, sph, omega, pmf, pdf)
 
-        # Emissive triangles, sampled uniformly by area; they emit from both faces.
+        # Emissive triangles, uniformly by area or by solid angle; they emit from both faces.
         m = np.nonzero((index >= k) & (index != self.world_index))[0]
         if m.size:
             e = index[m] - k
+            v0, e1, e2 = self.emit_v0[e], self.emit_e1[e], self.emit_e2[e]
             b = warps.sample_uniform_triangle(u[m])
-            q = self.emit_v0[e] + b[:, 1:2] * self.emit_e1[e] + b[:, 2:3] * self.emit_e2[e]
+            q = v0 + b[:, 1:2] * e1 + b[:, 2:3] * e2
+            omega, sph = self._use_spherical_triangle(v0, v0 + e1, v0 + e2, p[m])
+            if sph.any():
+                ps, nrm = p[m[sph]], self.emit_normal[e[sph]]
+                w = warps.sample_spherical_triangle(u[m[sph]], v0[sph], v0[sph] + e1[sph],
+                                                    v0[sph] + e2[sph], ps)
+                # The sampled point is where the direction meets the triangle's plane.
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    t = _dot(v0[sph] - ps, nrm) / _dot(w, nrm)
+                q[sph] = ps + w * np.where(np.isfinite(t) & (t > 0), t, 0.0)[:, None]
             self._area_point_sample(m, p, q, self.emit_normal[e], self.emit_area[e],
                                     self.emit_radiance[e], pmf, False, wi, dist, radiance, pdf,
                                     light_normal)
+            self._solid_angle_pdf(m, sph, omega, pmf, pdf)
 
         # The world: uniform directions on the sphere.
         if self.has_world:
@@ -331,6 +493,13 @@ class LightSampler:
             radiance[m] = self.world
             pdf[m] = warps.uniform_sphere_pdf(m.size) * pmf[m]
         return wi, dist, radiance, pdf, delta, light_normal
+
+    @staticmethod
+    def _solid_angle_pdf(m, sph, omega, pmf, pdf):
+        """Replace the area pdf of the rows ``m[sph]`` sampled by solid angle with 1 / omega."""
+        if sph.any():
+            rows = m[sph]
+            pdf[rows] = np.where(pdf[rows] > 0, pmf[rows] / omega[sph], 0.0)
 
     @staticmethod
     def _area_point_sample(m, p, q, normal, area, emitted, pmf, one_sided, wi, dist, radiance,
@@ -369,6 +538,13 @@ class LightSampler:
         sel = np.where(e >= 0, self.select_prob[np.maximum(e, 0)] if self.n_emitters else 0.0, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
             pdf = sel * dist * dist / (np.abs(cos_light) * self.tri_area[prim])
+        if self.solid_angle and prim.size:
+            # The same decision as sample(): by solid angle where the warp is well conditioned.
+            v0 = self.tri_v0[prim]
+            omega, sph = self._use_spherical_triangle(v0, v0 + self.tri_e1[prim],
+                                                      v0 + self.tri_e2[prim], p_prev)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                pdf = np.where(sph, sel / omega, pdf)
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
     def world_radiance(self, d):
@@ -438,8 +614,12 @@ class LightSampler:
                 front = denom < 0
                 hit = front & (t > 0) & (t < tmax)
                 q = o + d * np.where(hit, t, 0.0)[:, None] - lights.position[li]
-                x = (q @ ax) / (ax @ ax)
-                y = (q @ ay) / (ay @ ay)
+                # Coordinates along the two axes by the dual basis, so that sheared lights
+                # (parallelograms, which area sampling covers) are hit where they are.
+                gram = np.array([[ax @ ax, ax @ ay], [ax @ ay, ay @ ay]])
+                if not np.linalg.det(gram) > 0:
+                    continue  # a light of zero size emits nothing
+                x, y = np.linalg.solve(gram, np.stack([q @ ax, q @ ay]))
                 if kind == LIGHT_RECT:
                     inside = (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5)
                     area = np.linalg.norm(np.cross(ax, ay))
@@ -451,4 +631,7 @@ class LightSampler:
                     continue
                 cos_l = -denom[rows]
                 pdf = pmf * t[rows] ** 2 / (cos_l * area)
+                if self.solid_angle and kind == LIGHT_RECT:
+                    omega, _, sph = self._use_spherical_rectangle(np.full(rows.size, li), o[rows])
+                    pdf = np.where(sph, pmf / np.where(sph, omega, 1.0), pdf)
                 yield rows, np.broadcast_to(lights.radiance[li], (rows.size, 3)), pdf

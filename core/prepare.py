@@ -79,8 +79,14 @@ class PreparedScene:
     shift: np.ndarray
 
 
-def prepare(scene: Scene) -> PreparedScene:
-    """Build the acceleration structure and light tables for ``scene`` (in a recentred frame)."""
+def prepare(scene: Scene, light_selection="power", light_sampling="area",
+            distribution="cdf") -> PreparedScene:
+    """Build the acceleration structure and light tables for ``scene`` (in a recentred frame).
+
+    ``light_selection`` (``'power' | 'uniform'``), ``light_sampling`` (``'area' |
+    'solid_angle'``) and ``distribution`` (``'cdf' | 'alias'``) configure the
+    :class:`core.lights.LightSampler`; unknown values raise ``ValueError``.
+    """
     scene, shift = recentred(scene)
     v = scene.vertices.astype(np.float64)
     tri = v[scene.triangles] if scene.n_triangles else np.zeros((0, 3, 3))
@@ -95,5 +101,6 @@ def prepare(scene: Scene) -> PreparedScene:
     mats = scene.materials
     albedo = np.clip(mats.base_color[scene.material].astype(np.float64), 0.0, 1.0)
     emission = np.maximum(mats.emission[scene.material].astype(np.float64), 0.0)
-    lights = LightSampler(scene, area, normal, v0, e1, e2)
+    lights = LightSampler(scene, area, normal, v0, e1, e2, selection=light_selection,
+                          sampling=light_sampling, method=distribution)
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift)

@@ -22,7 +22,10 @@ import numpy as np
 from .film import Film, PixelFilter
 from .integrators import INTEGRATORS
 from .integrators.common import Counters
+from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
 from .prepare import prepare
+from .sampling.distributions import DISTRIBUTION_METHODS
+from .sampling.mis import MIS_SETTINGS
 from .sampling.samplers import make_sampler
 
 # Target number of paths per work unit: large enough for NumPy to amortise Python overhead,
@@ -32,7 +35,15 @@ UNIT_PATHS = 1 << 15
 
 @dataclass
 class RenderSettings:
-    """What to render and how. Field names match the add-on's properties and the CLI flags."""
+    """What to render and how. Field names match the add-on's properties and the CLI flags.
+
+    Sampling strategies of the path tracer (see :mod:`core.sampling.mis` and
+    :class:`core.lights.LightSampler`): ``mis_heuristic`` in ``MIS_SETTINGS`` ('balance',
+    'power', 'maximum', 'cutoff', 'none', 'bsdf', 'light'), ``mis_beta`` (power heuristic
+    exponent, > 0), ``mis_alpha`` (cutoff fraction in [0, 1]), ``light_selection`` ('power' or
+    'uniform'), ``light_sampling`` ('area' or 'solid_angle') and ``distribution`` ('cdf' or
+    'alias': how discrete choices such as the light are drawn).
+    """
 
     integrator: str = "path"
     sampler: str = "independent"
@@ -43,6 +54,11 @@ class RenderSettings:
     use_russian_roulette: bool = True
     rr_min_bounces: int = 3
     mis_heuristic: str = "power"
+    mis_beta: float = 2.0
+    mis_alpha: float = 0.1
+    light_selection: str = "power"
+    light_sampling: str = "area"
+    distribution: str = "cdf"
     filter_type: str = "BLACKMAN_HARRIS"
     filter_width: float = 1.5
     threads: int = 2
@@ -57,7 +73,11 @@ class RenderResult:
     film : core.film.Film
     stats : dict
         ``time_s``, ``spp`` (completed passes' samples per pixel), ``samples`` (camera samples),
-        ``samples_per_s``, ``rays``, ``rays_per_s``, ``prepare_s``.
+        ``samples_per_s``, ``rays``, ``rays_per_s``, ``prepare_s``, ``triangles``,
+        ``emitters``; the light sampler's ``distribution`` ('cdf' or 'alias'),
+        ``distribution_build_s`` (building its tables, once per render),
+        ``distribution_sample_s`` (drawing from them, summed over batches and threads),
+        ``distribution_samples`` (draws) and ``distribution_ns_per_sample``.
     cancelled : bool
     messages : list of str
     """
@@ -98,6 +118,17 @@ def check_settings(scene, settings):
         raise ValueError("set a sample count or a time limit")
     if scene.camera.width <= 0 or scene.camera.height <= 0:
         raise ValueError("the resolution must be at least 1 x 1 pixel")
+    for name, allowed in (("mis_heuristic", MIS_SETTINGS), ("light_selection", LIGHT_SELECTIONS),
+                          ("light_sampling", LIGHT_SAMPLINGS),
+                          ("distribution", DISTRIBUTION_METHODS)):
+        if getattr(settings, name) not in allowed:
+            raise ValueError(f"unknown {name.replace('_', ' ')} {getattr(settings, name)!r}; "
+                             f"choose from {', '.join(allowed)}")
+    if not (np.isfinite(settings.mis_beta) and settings.mis_beta > 0):
+        raise ValueError(f"the MIS power heuristic's beta must be positive, not "
+                         f"{settings.mis_beta!r}")
+    if not 0.0 <= settings.mis_alpha <= 1.0:
+        raise ValueError(f"the MIS cutoff alpha must be in [0, 1], not {settings.mis_alpha!r}")
 
 
 def render(scene, settings: RenderSettings, progress=None, cancel=None, on_update=None):
@@ -120,7 +151,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     """
     check_settings(scene, settings)
     t0 = time.perf_counter()
-    prep = prepare(scene)
+    prep = prepare(scene, settings.light_selection, settings.light_sampling,
+                   settings.distribution)
     prepare_s = time.perf_counter() - t0
     cam = scene.camera
     film = Film(cam.width, cam.height)
@@ -159,7 +191,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         sps = counters.camera_samples / el if el > 0 else 0.0
         spp_txt = f"{done_spp}/{total_spp}" if total_spp else f"{done_spp}"
         progress(min(fraction, 1.0), f"Sample {spp_txt} | {sps / 1e6:.2f} M samples/s | "
-                                     f"{counters.rays / max(el, 1e-9) / 1e6:.2f} M rays/s")
+                                     f"{counters.rays / max(el, 1e-9) / 1e6:.2f} M rays/s | "
+                                     f"{distribution_text(prep.lights, counters)}")
 
     cancelled = False
     with ThreadPoolExecutor(max_workers=max(1, settings.threads)) as pool:
@@ -180,8 +213,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                     i += 1
                 pixels, radiance, local = pending.pop(0).result()
                 film.add_samples(pixels, radiance)
-                counters.rays += local.rays
-                counters.camera_samples += local.camera_samples
+                counters.add(local)
                 finished_units += 1
                 stop = (cancel is not None and cancel()) or out_of_time()
                 if finished_units < len(units):  # the end of a pass is reported below
@@ -194,8 +226,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                     for f in pending:  # finish what is running; its samples are kept
                         pixels, radiance, local = f.result()
                         film.add_samples(pixels, radiance)
-                        counters.rays += local.rays
-                        counters.camera_samples += local.camera_samples
+                        counters.add(local)
                     pending = []
                     i = len(units)
                     break
@@ -219,5 +250,21 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         "rays_per_s": counters.rays / t if t > 0 else 0.0,
         "triangles": scene.n_triangles,
         "emitters": prep.lights.n_emitters,
+        "mis_heuristic": settings.mis_heuristic,
+        "light_selection": settings.light_selection,
+        "light_sampling": settings.light_sampling,
+        "distribution": prep.lights.method,
+        "distribution_build_s": prep.lights.build_s,
+        "distribution_sample_s": counters.distribution_s,
+        "distribution_samples": counters.distribution_samples,
+        "distribution_ns_per_sample": (1e9 * counters.distribution_s
+                                       / max(counters.distribution_samples, 1)),
     }
     return result
+
+
+def distribution_text(lights, counters):
+    """One phrase on the light choice's cost: table kind, build time, sampling time so far."""
+    kind = "alias table" if lights.method == "alias" else "CDF"
+    return (f"lights by {kind}: build {1e3 * lights.build_s:.2f} ms, "
+            f"sampling {1e3 * counters.distribution_s:.1f} ms")

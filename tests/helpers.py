@@ -584,3 +584,37 @@ def assert_images_agree(mean_a, var_a, replicates_b, block=8, p_false=1e-4, mean
             f"intervals (z={z:.2f}); worst block {i[:2]} channel {i[2]}: A {a_b[i]:.5g} vs B "
             f"{b_b[i]:.5g} +- {half[i]:.3g}")
     return img_a, img_b
+
+
+def assert_two_images_agree(mean_a, var_a, mean_b, var_b, block=8, p_false=1e-4,
+                            what="images"):
+    """Assert that two independent renders with variance passes agree, block by block.
+
+    Both renderers report each pixel's estimate and the variance of that estimate (our Variance
+    pass), and their noise is independent (different seeds). Every ``block x block`` block mean
+    per channel, and the image mean per channel, must agree within the confidence interval of
+    the difference (:func:`assert_estimates_agree`, Bonferroni over all blocks, channels and the
+    image means). Pixel estimates are treated as independent, which they are for a pixel filter
+    that is importance sampled (each sample lands in one pixel).
+
+    Parameters
+    ----------
+    mean_a, var_a, mean_b, var_b : (h, w, c) float
+
+    Returns
+    -------
+    z_blocks : (h // block, w // block, c) float64
+        Standardised differences of the block means.
+    """
+    ma, sa = block_estimates(np.asarray(mean_a, np.float64), np.asarray(var_a, np.float64), block)
+    mb, sb = block_estimates(np.asarray(mean_b, np.float64), np.asarray(var_b, np.float64), block)
+    h, w, c = np.shape(mean_a)
+    comparisons = ma.size + c
+    img_a = np.mean(mean_a, axis=(0, 1))
+    img_b = np.mean(mean_b, axis=(0, 1))
+    se_a = np.sqrt(np.sum(var_a, axis=(0, 1))) / (h * w)
+    se_b = np.sqrt(np.sum(var_b, axis=(0, 1))) / (h * w)
+    assert_estimates_agree(img_a, se_a, img_b, se_b, p_false, comparisons,
+                           what=f"{what}: image means")
+    return assert_estimates_agree(ma, sa, mb, sb, p_false, comparisons,
+                                  what=f"{what}: {block}x{block} block means")

@@ -7,15 +7,36 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..camera import generate_rays
-from ..sampling.mis import mis_weight
+from ..sampling.mis import bsdf_weight
 
 
 @dataclass
 class Counters:
-    """Work done by one batch (summed by the render loop)."""
+    """Work done by one batch (summed by the render loop).
+
+    Attributes
+    ----------
+    rays : int
+        Rays traced (camera, bounce and shadow rays).
+    camera_samples : int
+        Camera paths started.
+    distribution_s : float
+        Seconds spent in discrete choices (light and emissive-triangle selection).
+    distribution_samples : int
+        Discrete draws made in that time.
+    """
 
     rays: int = 0
     camera_samples: int = 0
+    distribution_s: float = 0.0
+    distribution_samples: int = 0
+
+    def add(self, other: "Counters"):
+        """Accumulate another batch's counts into this one."""
+        self.rays += other.rays
+        self.camera_samples += other.camera_samples
+        self.distribution_s += other.distribution_s
+        self.distribution_samples += other.distribution_samples
 
 
 def camera_rays(prep, pixel_filter, stream):
@@ -68,13 +89,15 @@ def surface_interaction(prep, hits, d, rows):
 
 
 def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera,
-                            heuristic="power"):
+                            heuristic="power", mis_beta=2.0, mis_alpha=0.1):
     """Stage *handle escaped + handle emission*: light reaching the ray's origin along it.
 
     Adds ``beta * Le * w`` to ``L[rows_of]`` for the world (escaped rays), light shapes before the
     hit, and emissive triangles hit. ``w`` is the MIS weight against next-event estimation from
     the previous vertex (``pdf_prev (n,)`` is the BSDF's solid-angle pdf there); where
     ``use_mis (n,)`` is false (camera rays, previous delta BSDF) the weight is one.
+    ``heuristic`` is any of ``core.sampling.mis.MIS_SETTINGS`` (with ``mis_beta`` for
+    ``'power'`` and ``mis_alpha`` for ``'cutoff'``); see :func:`core.sampling.mis.bsdf_weight`.
 
     Parameters
     ----------
@@ -90,7 +113,7 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
     lights = prep.lights
 
     def weight(rows, pdf_light):
-        w = mis_weight(pdf_prev[rows], pdf_light, heuristic)
+        w = bsdf_weight(pdf_prev[rows], pdf_light, heuristic, mis_beta, mis_alpha)
         return np.where(use_mis[rows], w, 1.0)
 
     escaped = np.nonzero(~hits.hit)[0]

@@ -11,7 +11,13 @@ Bias and consistency
     bias. Light carried by longer paths is missing, as in every renderer with a bounce limit.
 Parameters
     ``max_bounces``, ``use_russian_roulette``, ``rr_min_bounces`` (roulette starts after that many
-    bounces, with survival probability ``min(1, max(throughput))``), ``mis_heuristic``.
+    bounces, with survival probability ``min(1, max(throughput))``); ``mis_heuristic`` in
+    ``balance | power | maximum | cutoff | none | bsdf | light`` with ``mis_beta`` (power) and
+    ``mis_alpha`` (cutoff), see :mod:`core.sampling.mis`: ``bsdf`` skips next-event estimation
+    (and so cannot see point, spot or sharp sun lights), ``light`` drops emitters that BSDF rays
+    find after a bounce where NEE could have sampled them. The light sampler's
+    ``light_selection``, ``light_sampling`` and ``distribution`` are set in
+    :func:`core.prepare.prepare` (see :class:`core.lights.LightSampler`).
 When to use it
     The default for most scenes: diffuse and glossy transport lit by area lights, the sky, or
     lamps seen directly.
@@ -29,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
-from ..sampling.mis import mis_weight
+from ..sampling.mis import light_weight
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
 from .common import Counters, add_emitters_along_rays, camera_rays, surface_interaction
 
@@ -60,6 +66,9 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
     L = np.zeros((n, 3))
     counters.camera_samples += n
     heuristic = settings.mis_heuristic
+    mis_beta, mis_alpha = settings.mis_beta, settings.mis_alpha
+    # BSDF sampling alone never samples lights: skip NEE and its shadow rays altogether.
+    use_nee = heuristic != "bsdf"
     o, d, tmax = camera_rays(prep, pixel_filter, stream)
     rows_of = np.arange(n)
     beta = np.ones((n, 3))
@@ -72,7 +81,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         hits = prep.accel.intersect(o, d, tmax, VIS_CAMERA if camera else VIS_DIFFUSE)
         counters.rays += o.shape[0]
         add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera,
-                                heuristic)
+                                heuristic, mis_beta, mis_alpha)
         if bounce == settings.max_bounces + 1:
             break  # this segment only gathered emission (Cycles' "terminate on next surface")
 
@@ -90,20 +99,24 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
         u_sel = stream.next_1d()
         u_light = stream.next_2d()
-        wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(si.p, u_sel, u_light)
-        f = eval_lambert(albedo, si.ns, wi)
-        ok = (pdf_l > 0) & (f.max(axis=1) > 0) & (li.max(axis=1) > 0)
-        cand = np.nonzero(ok)[0]
-        if cand.size:
-            blocked = prep.accel.occluded(*prep.accel.shadow_rays(
-                si.p[cand], si.ng[cand], si.prim[cand], wi[cand], dist[cand], light_normal[cand]),
-                VIS_SHADOW)
-            counters.rays += cand.size
-            vis = cand[~blocked]
-            w = np.where(delta[vis], 1.0,
-                         mis_weight(pdf_l[vis], pdf_lambert(si.ns[vis], wi[vis]), heuristic))
-            contrib = beta[vis] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
-            L[rows_of[vis]] += contrib
+        if use_nee:
+            wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(si.p, u_sel, u_light,
+                                                                          counters)
+            f = eval_lambert(albedo, si.ns, wi)
+            ok = (pdf_l > 0) & (f.max(axis=1) > 0) & (li.max(axis=1) > 0)
+            cand = np.nonzero(ok)[0]
+            if cand.size:
+                blocked = prep.accel.occluded(*prep.accel.shadow_rays(
+                    si.p[cand], si.ng[cand], si.prim[cand], wi[cand], dist[cand],
+                    light_normal[cand]), VIS_SHADOW)
+                counters.rays += cand.size
+                vis = cand[~blocked]
+                # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
+                w = np.where(delta[vis], 1.0,
+                             light_weight(pdf_l[vis], pdf_lambert(si.ns[vis], wi[vis]), heuristic,
+                                          mis_beta, mis_alpha))
+                contrib = beta[vis] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
+                L[rows_of[vis]] += contrib
 
         # Sample the BSDF for the next segment.
         wi, weight, pdf_b = sample_lambert(albedo, si.ns, stream.next_2d())

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 INV_PI = 1.0 / np.pi
+_ONE_MINUS = np.nextafter(1.0, 0.0)
 
 
 def sample_uniform_disk_concentric(u):
@@ -190,3 +191,327 @@ def frame_from_normal(n):
 def to_world(local, s, t, n):
     """Express local ``(k, 3)`` vectors in the frame (s, t, n)."""
     return local[:, 0:1] * s + local[:, 1:2] * t + local[:, 2:3] * n
+
+
+# --------------------------------------------------------------------------------------------
+# Solid-angle sampling of spherical polygons
+# --------------------------------------------------------------------------------------------
+
+# Below this solid angle (sr) the spherical warps lose precision and a light is sampled by area
+# instead; above MAX_SPHERICAL_SOLID_ANGLE (near a hemisphere, a point almost on the light's
+# plane) the warps are ill-conditioned too. pbrt-v4 uses the same bounds.
+MIN_SPHERICAL_SOLID_ANGLE = 3e-4
+MAX_SPHERICAL_SOLID_ANGLE = 6.22
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _norm(v):
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
+
+
+def _cross(a, b):
+    """Row-wise cross products of ``(n, 3)`` arrays (np.cross is slower on narrow rows)."""
+    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
+
+
+def _normalize(v):
+    """Unit vectors ``(n, 3)``; zero vectors stay zero."""
+    n = _norm(v)
+    with np.errstate(divide="ignore"):
+        inv = np.where(n > 0, 1.0 / n, 0.0)
+    return v * inv[:, None]
+
+
+def _angle_between(a, b):
+    """Angle between unit vectors ``(n, 3)``, accurate near 0 and pi (pbrt's AngleBetween)."""
+    # The half-chord to b (near 0) or to -b (near pi) keeps arcsin well conditioned.
+    far = _dot(a, b) < 0
+    chord = _norm(np.where(far[:, None], a + b, b - a))
+    half = 2.0 * np.arcsin(np.clip(0.5 * chord, 0.0, 1.0))
+    return np.where(far, np.pi - half, half)
+
+
+def _gram_schmidt(v, w):
+    """Unit component of ``v`` orthogonal to unit ``w``."""
+    return _normalize(v - _dot(v, w)[:, None] * w)
+
+
+def spherical_triangle_solid_angle(a, b, c, p):
+    """Solid angle that triangles ``(a, b, c)`` subtend at points ``p`` (Van Oosterom and
+    Strackee 1983), in steradians.
+
+    Parameters
+    ----------
+    a, b, c : (n, 3) float
+        Triangle vertices.
+    p : (n, 3) float
+        Viewpoints.
+
+    Returns
+    -------
+    (n,) float64
+        In [0, 2 pi]; zero for degenerate triangles or a viewpoint in the triangle's plane.
+    """
+    ra, rb, rc = (np.asarray(v, np.float64) - p for v in (a, b, c))
+    la, lb, lc = (_norm(v) for v in (ra, rb, rc))
+    triple = np.abs(_dot(ra, _cross(rb, rc)))
+    # A triple product within rounding of zero is a flat (degenerate or edge-on) triangle.
+    triple = np.where(triple <= 16 * np.finfo(np.float64).eps * la * lb * lc, 0.0, triple)
+    denom = la * lb * lc + _dot(ra, rb) * lc + _dot(ra, rc) * lb + _dot(rb, rc) * la
+    omega = 2.0 * np.arctan2(triple, denom)
+    return np.where(np.isfinite(omega), np.maximum(omega, 0.0), 0.0)
+
+
+def _spherical_triangle(a, b, c, p):
+    """Unit vertex directions, corner angles and area of the spherical triangles."""
+    wa, wb, wc = (_normalize(np.asarray(v, np.float64) - p) for v in (a, b, c))
+    n_ab = _normalize(_cross(wa, wb))
+    n_bc = _normalize(_cross(wb, wc))
+    n_ca = _normalize(_cross(wc, wa))
+    alpha = _angle_between(n_ab, -n_ca)
+    beta = _angle_between(n_bc, -n_ab)
+    gamma = _angle_between(n_ca, -n_bc)
+    return wa, wb, wc, n_ab, alpha, beta, gamma
+
+
+def sample_spherical_triangle(u, a, b, c, p):
+    """Directions uniform over the solid angle of triangles, as seen from ``p`` (Arvo 1995).
+
+    The first coordinate of ``u`` picks the sub-triangle ``(a, b, c')`` whose area is that
+    fraction of the whole (``c'`` on the arc from ``a`` to ``c``); the second picks a point on the
+    arc from ``b`` to ``c'`` by its cosine to ``b``. pbrt-v4's formulation, in float64.
+
+    Parameters
+    ----------
+    u : (n, 2) float
+    a, b, c : (n, 3) float
+        Triangle vertices (either winding; the triangle may face either way).
+    p : (n, 3) float
+        Viewpoints, not in the triangle's plane.
+
+    Returns
+    -------
+    (n, 3) float64
+        Unit directions from ``p``; their density is :func:`spherical_triangle_pdf`.
+    """
+    u = np.asarray(u, np.float64)
+    wa, wb, wc, n_ab, alpha, beta, gamma = _spherical_triangle(a, b, c, p)
+    area = alpha + beta + gamma - np.pi
+    # Area of the sub-triangle (a, b, c') as an angle sum, and c' from the spherical law of
+    # cosines solved for cos(b') (pbrt-v4, eq. of Arvo's sec. 3).
+    ap_pi = np.pi + u[:, 0] * area
+    cos_a, sin_a = np.cos(alpha), np.sin(alpha)
+    sin_phi = np.sin(ap_pi) * cos_a - np.cos(ap_pi) * sin_a
+    cos_phi = np.cos(ap_pi) * cos_a + np.sin(ap_pi) * sin_a
+    k1 = cos_phi + cos_a
+    k2 = sin_phi - sin_a * _dot(wa, wb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos_bp = (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_a) / ((k2 * sin_phi + k1 * cos_phi)
+                                                                 * sin_a)
+    cos_bp = np.clip(np.nan_to_num(cos_bp, nan=1.0), -1.0, 1.0)
+    sin_bp = np.sqrt(np.maximum(0.0, 1.0 - cos_bp * cos_bp))
+    cp = cos_bp[:, None] * wa + sin_bp[:, None] * _gram_schmidt(wc, wa)
+    # Then a point on the arc from b to c', uniform in the cosine to b.
+    cos_t = 1.0 - u[:, 1] * (1.0 - _dot(cp, wb))
+    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    w = cos_t[:, None] * wb + sin_t[:, None] * _gram_schmidt(cp, wb)
+    return _normalize(w)
+
+
+def spherical_triangle_pdf(a, b, c, p):
+    """Solid-angle density of :func:`sample_spherical_triangle`: 1 / solid angle, ``(n,)``.
+
+    Zero where the triangle subtends no solid angle (degenerate, or ``p`` in its plane).
+    """
+    omega = spherical_triangle_solid_angle(a, b, c, p)
+    with np.errstate(divide="ignore"):
+        return np.where(omega > 0, 1.0 / np.where(omega > 0, omega, 1.0), 0.0)
+
+
+def invert_spherical_triangle_sample(w, a, b, c, p):
+    """Inverse of :func:`sample_spherical_triangle`: directions ``w (n, 3)`` -> ``u (n, 2)``."""
+    w = _normalize(np.asarray(w, np.float64))
+    wa, wb, wc, n_ab, alpha, beta, gamma = _spherical_triangle(a, b, c, p)
+    area = alpha + beta + gamma - np.pi
+    # c' is where the great circle through b and w meets the arc from a to c.
+    cp = _normalize(_cross(_cross(wb, w), _cross(wc, wa)))
+    cp = np.where((_dot(cp, wa + wc) < 0)[:, None], -cp, cp)
+    # u0 is the area of the sub-triangle (a, b, c') over the whole: both by the stable
+    # Van Oosterom-Strackee formula, which stays accurate for slivers (c' near a).
+    sub = _unit_triangle_area(wa, wb, cp)
+    whole = _unit_triangle_area(wa, wb, wc)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u0 = sub / whole
+        u1 = (1.0 - _dot(w, wb)) / (1.0 - _dot(cp, wb))
+    u = np.stack([np.nan_to_num(u0), np.nan_to_num(u1)], axis=-1)
+    return np.clip(u, 0.0, 1.0)
+
+
+def _unit_triangle_area(wa, wb, wc):
+    """Area of spherical triangles with unit vertex vectors (Van Oosterom and Strackee)."""
+    triple = np.abs(_dot(wa, _cross(wb, wc)))
+    return 2.0 * np.arctan2(triple, 1.0 + _dot(wa, wb) + _dot(wb, wc) + _dot(wc, wa))
+
+
+def _rectangle_frame(s, ex, ey, p):
+    """Ureña et al.'s local frame: the rectangle at z0 < 0, spanning [x0, x1] x [y0, y1]."""
+    s, ex, ey = (np.asarray(v, np.float64) for v in (s, ex, ey))
+    exl = _norm(ex)
+    eyl = _norm(ey)
+    fx = _normalize(ex)
+    fy = _normalize(ey)
+    fz = _cross(fx, fy)
+    d = s - p
+    z0 = _dot(d, fz)
+    # Flip z so that the rectangle lies below the viewpoint: z0 < 0.
+    flip = z0 > 0
+    fz = np.where(flip[:, None], -fz, fz)
+    z0 = np.where(flip, -z0, z0)
+    x0, y0 = _dot(d, fx), _dot(d, fy)
+    return fx, fy, fz, x0, y0, z0, x0 + exl, y0 + eyl
+
+
+def _rectangle_angles(x0, y0, z0, x1, y1):
+    """Edge-plane normals' z and the corner angles of the spherical rectangle, and its area."""
+    v00 = np.stack([x0, y0, z0], -1)
+    v01 = np.stack([x0, y1, z0], -1)
+    v10 = np.stack([x1, y0, z0], -1)
+    v11 = np.stack([x1, y1, z0], -1)
+    n0 = _normalize(_cross(v00, v10))
+    n1 = _normalize(_cross(v10, v11))
+    n2 = _normalize(_cross(v11, v01))
+    n3 = _normalize(_cross(v01, v00))
+    g0 = _angle_between(-n0, n1)
+    g1 = _angle_between(-n1, n2)
+    g2 = _angle_between(-n2, n3)
+    g3 = _angle_between(-n3, n0)
+    area = g0 + g1 + g2 + g3 - 2.0 * np.pi
+    return n0[:, 2], n2[:, 2], g0, g1, g2, g3, np.maximum(area, 0.0)
+
+
+def spherical_rectangle_solid_angle(s, ex, ey, p):
+    """Solid angle that rectangles subtend at ``p``, in steradians.
+
+    Parameters
+    ----------
+    s : (n, 3) float
+        A corner.
+    ex, ey : (n, 3) float
+        The two edges from it; they must be orthogonal.
+    p : (n, 3) float
+        Viewpoints.
+
+    Returns
+    -------
+    (n,) float64
+        In [0, 2 pi]: the spherical rectangle's area (the sum of its corner angles minus 2 pi),
+        computed as the two triangles' Van Oosterom-Strackee solid angles, which is cheaper.
+    """
+    s, ex, ey = (np.asarray(v, np.float64) for v in (s, ex, ey))
+    far = s + ex + ey
+    return (spherical_triangle_solid_angle(s, s + ex, far, p)
+            + spherical_triangle_solid_angle(s, far, s + ey, p))
+
+
+def sample_spherical_rectangle(u, s, ex, ey, p):
+    """Points on rectangles whose directions from ``p`` are uniform over the solid angle.
+
+    Ureña, Fajardo and King 2013, "An area-preserving parametrization for spherical
+    rectangles": ``u[:, 0]`` picks the x coordinate by the area to its left, ``u[:, 1]`` the y
+    coordinate along that column by the cosine-like parameter ``h``.
+
+    Parameters
+    ----------
+    u : (n, 2) float
+    s, ex, ey : (n, 3) float
+        Corner and orthogonal edges of each rectangle.
+    p : (n, 3) float
+        Viewpoints, not in the rectangle's plane.
+
+    Returns
+    -------
+    (n, 3) float64
+        Points on the rectangles; the directions ``normalize(q - p)`` have density
+        :func:`spherical_rectangle_pdf`.
+    """
+    u = np.asarray(u, np.float64)
+    p = np.asarray(p, np.float64)
+    fx, fy, fz, x0, y0, z0, x1, y1 = _rectangle_frame(s, ex, ey, p)
+    b0, b1, g0, g1, g2, g3, area = _rectangle_angles(x0, y0, z0, x1, y1)
+    # The x coordinate: the sub-rectangle left of it has area u0 * area.
+    au = u[:, 0] * (g0 + g1 - 2.0 * np.pi) + (u[:, 0] - 1.0) * (g2 + g3)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fu = (np.cos(au) * b0 - b1) / np.sin(au)
+        cu = np.copysign(1.0, fu) / np.sqrt(fu * fu + b0 * b0)
+        cu = np.clip(np.nan_to_num(cu), -_ONE_MINUS, _ONE_MINUS)
+        xu = -(cu * z0) / np.sqrt(np.maximum(0.0, 1.0 - cu * cu))
+    xu = np.clip(np.nan_to_num(xu), x0, x1)
+    # The y coordinate: h (the sine of the elevation along the column) is uniform.
+    dd = np.sqrt(xu * xu + z0 * z0)
+    h0 = y0 / np.sqrt(dd * dd + y0 * y0)
+    h1 = y1 / np.sqrt(dd * dd + y1 * y1)
+    hv = h0 + u[:, 1] * (h1 - h0)
+    hv2 = hv * hv
+    with np.errstate(invalid="ignore", divide="ignore"):
+        yv = np.where(hv2 < 1.0 - 1e-12, hv * dd / np.sqrt(np.maximum(1.0 - hv2, 1e-300)), y1)
+    yv = np.clip(np.nan_to_num(yv), y0, y1)
+    return p + xu[:, None] * fx + yv[:, None] * fy + z0[:, None] * fz
+
+
+def spherical_rectangle_pdf(s, ex, ey, p):
+    """Solid-angle density of :func:`sample_spherical_rectangle`: 1 / solid angle, ``(n,)``."""
+    omega = spherical_rectangle_solid_angle(s, ex, ey, p)
+    with np.errstate(divide="ignore"):
+        return np.where(omega > 0, 1.0 / np.where(omega > 0, omega, 1.0), 0.0)
+
+
+def invert_spherical_rectangle_sample(q, s, ex, ey, p):
+    """Inverse of :func:`sample_spherical_rectangle`: points ``q (n, 3)`` -> ``u (n, 2)``.
+
+    ``q`` may also be any point along the ray from ``p`` through the rectangle.
+    """
+    p = np.asarray(p, np.float64)
+    fx, fy, fz, x0, y0, z0, x1, y1 = _rectangle_frame(s, ex, ey, p)
+    b0, b1, g0, g1, g2, g3, area = _rectangle_angles(x0, y0, z0, x1, y1)
+    v = np.asarray(q, np.float64) - p
+    # Project along the ray onto the rectangle's plane z = z0.
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = z0 / _dot(v, fz)
+    xu = np.clip(_dot(v, fx) * scale, x0, x1)
+    yv = np.clip(_dot(v, fy) * scale, y0, y1)
+    # u0: invert cu = xu / sqrt(xu^2 + z0^2) -> fu -> the sub-rectangle's angle sum au.
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cu = xu / np.sqrt(xu * xu + z0 * z0)
+        fu = np.copysign(np.sqrt(np.maximum(0.0, 1.0 / (cu * cu) - b0 * b0)), cu)
+        # Solve b0 cos(au) - fu sin(au) = b1, i.e. R cos(au + phi) = b1: two roots per turn;
+        # the one inside the range that u0 in [0, 1] sweeps is the answer.
+        r = np.sqrt(b0 * b0 + fu * fu)
+        phi = np.arctan2(fu, b0)
+        half = np.arccos(np.clip(b1 / r, -1.0, 1.0))
+    lo, hi = -(g2 + g3), g0 + g1 - 2.0 * np.pi
+    mid = 0.5 * (lo + hi)
+    roots = np.stack([-phi + half, -phi - half], axis=-1)
+    # Bring each root to the turn nearest the range, then keep the nearer one.
+    roots = roots - 2.0 * np.pi * np.round((roots - mid[:, None]) / (2.0 * np.pi))
+    miss = np.maximum(lo[:, None] - roots, 0.0) + np.maximum(roots - hi[:, None], 0.0)
+    au = np.take_along_axis(roots, np.argmin(miss, axis=1)[:, None], axis=1)[:, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u0 = (au + g2 + g3) / area
+    # u1: h of the column is uniform between h0 and h1.
+    dd = np.sqrt(xu * xu + z0 * z0)
+    h0 = y0 / np.sqrt(dd * dd + y0 * y0)
+    h1 = y1 / np.sqrt(dd * dd + y1 * y1)
+    hv = yv / np.sqrt(dd * dd + yv * yv)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u1 = (hv - h0) / (h1 - h0)
+    u = np.stack([np.nan_to_num(u0), np.nan_to_num(u1)], axis=-1)
+    return np.clip(u, 0.0, 1.0)

@@ -140,7 +140,7 @@ def test_area_light_nee_matches_closed_form(shape):
 
 
 def test_area_light_emits_from_one_side_only():
-    m = look_at((0, 0, 1.5), (0, 0, 3.0))  # local -Z points up, away from P
+    m = look_at((0, 0, 1.5), (0, 0, 3.0), up=(0, 1, 0))  # local -Z points up, away from P
     lights = L.area_light(m, "SQUARE", 1.0, 1.0, (1, 1, 1), 30.0)
     x, *_ = nee_irradiance(make_scene(lights), P, NRM)
     assert x.max() == 0.0

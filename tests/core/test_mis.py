@@ -18,7 +18,8 @@ EPS = np.finfo(np.float64).eps
 VARIANTS = ([("balance", {})]
             + [("power", {"beta": b}) for b in (0.5, 1.0, 2.0, 3.0, 8.0)]
             + [("maximum", {})]
-            + [("cutoff", {"alpha": a}) for a in (0.0, 0.05, 0.1, 0.5, 1.0)])
+            + [("cutoff", {"alpha": a}) for a in (0.0, 0.05, 0.1, 0.5, 1.0)]
+            + [("none", {})])
 IDS = [f"{h}-{'-'.join(f'{k}{v:g}' for k, v in kw.items())}".rstrip("-") for h, kw in VARIANTS]
 
 
