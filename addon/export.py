@@ -394,13 +394,16 @@ def _light_rows(ob, matrix, messages):
 
     # The light shines down its local -Z axis.
     down = -m[:3, 2]
+    # Blender 4.1+ point and spot lights have Soft Falloff, on by default.
+    soft = bool(getattr(light, "use_soft_falloff", False))
     if light.type == 'POINT':
         return core_lights.point_light(m[:3, 3], color, energy, light.shadow_soft_size, name,
-                                       visible_camera)
+                                       visible_camera, soft_falloff=soft)
     if light.type == 'SPOT':
         return core_lights.point_light(m[:3, 3], color, energy, light.shadow_soft_size, name,
                                        visible_camera, spot_direction=down,
-                                       spot_size=light.spot_size, spot_blend=light.spot_blend)
+                                       spot_size=light.spot_size, spot_blend=light.spot_blend,
+                                       soft_falloff=soft)
     if light.type == 'SUN':
         return core_lights.sun_light(down, color, energy, light.angle, name, visible_camera)
     if light.type == 'AREA':

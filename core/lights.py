@@ -38,14 +38,15 @@ LIGHT_SAMPLINGS = ("area", "solid_angle")
 
 def _row(kind, name, visible_camera, position=(0, 0, 0), axis_x=(0, 0, 0), axis_y=(0, 0, 0),
          direction=(0, 0, -1), radius=0.0, angle=0.0, radiance=(0, 0, 0), spot_cos_half=-1.0,
-         spot_smooth=np.inf, power=0.0) -> Lights:
+         spot_smooth=np.inf, power=0.0, soft_falloff=False) -> Lights:
     v3 = lambda a: np.asarray(a, np.float64).reshape(1, 3)  # noqa: E731
     v1 = lambda a: np.asarray([a], np.float64)  # noqa: E731
     return Lights(
         kind=np.asarray([kind], np.int32), position=v3(position), axis_x=v3(axis_x),
         axis_y=v3(axis_y), direction=v3(direction), radius=v1(radius), angle=v1(angle),
         radiance=v3(radiance), spot_cos_half=v1(spot_cos_half), spot_smooth=v1(spot_smooth),
-        power=v1(power), visible_camera=np.asarray([bool(visible_camera)]), names=[name],
+        power=v1(power), visible_camera=np.asarray([bool(visible_camera)]),
+        soft_falloff=np.asarray([bool(soft_falloff)]), names=[name],
     )
 
 
@@ -56,8 +57,13 @@ def _unit(v):
 
 
 def point_light(position, color, energy, radius=0.0, name="Point", visible_camera=True,
-                spot_direction=None, spot_size=None, spot_blend=0.0) -> Lights:
+                spot_direction=None, spot_size=None, spot_blend=0.0, soft_falloff=False) -> Lights:
     """A Blender point light, or a spot light when ``spot_direction`` is given.
+
+    With a radius, the lamp is a sphere of radiance S / (4 pi^2 r^2) that also lights points
+    inside it; with ``soft_falloff`` (Blender's default) it is instead a disk of the same radius
+    and radiance facing each receiving point, so light falls off as S / (4 pi (d^2 + r^2)) on its
+    axis rather than rising sharply near the lamp.
 
     Parameters
     ----------
@@ -71,6 +77,8 @@ def point_light(position, color, energy, radius=0.0, name="Point", visible_camer
         The spot's local -Z in world space.
     spot_size, spot_blend : float
         Full cone angle in radians and blend in [0, 1].
+    soft_falloff : bool
+        Blender's ``use_soft_falloff`` (only matters with a radius).
     """
     s = np.asarray(color, np.float64) * float(energy)
     radius = max(float(radius), 0.0)
@@ -83,7 +91,7 @@ def point_light(position, color, energy, radius=0.0, name="Point", visible_camer
         direction = _unit(spot_direction)
     return _row(LIGHT_POINT, name, visible_camera, position=position, direction=direction,
                 radius=radius, radiance=radiance, spot_cos_half=cos_half, spot_smooth=smooth,
-                power=float(LUMINANCE @ s))
+                power=float(LUMINANCE @ s), soft_falloff=soft_falloff and radius > 0)
 
 
 def sun_light(direction, color, strength, angle=0.0, name="Sun", visible_camera=True) -> Lights:
@@ -400,36 +408,58 @@ class LightSampler:
         lidx = np.where(is_light, index, 0)
         kind = np.where(is_light, lights.kind[lidx] if k else 0, -1)
 
-        # Point and spot lights: delta points or spheres sampled by their cone of directions.
+        # Point and spot lights: delta points; spheres sampled by their cone of directions (or
+        # uniformly from inside); soft-falloff disks facing the receiver sampled by area.
         m = np.nonzero(kind == LIGHT_POINT)[0]
         if m.size:
             li = lidx[m]
             c = lights.position[li]
             r = lights.radius[li]
             to_c = c - p[m]
-            d_c = np.linalg.norm(to_c, axis=1)
+            d_c = np.sqrt(_dot(to_c, to_c))
             axis = to_c / np.maximum(d_c, 1e-300)[:, None]
             point = r <= 0
-            inside = (~point) & (d_c <= r * (1 + 1e-6))
-            sin2 = np.clip((r / np.maximum(d_c, 1e-300)) ** 2, 0.0, 1.0)
-            cos_max = np.sqrt(1.0 - sin2)
+            soft = lights.soft_falloff[li] & ~point
+            sphere = ~point & ~soft
+            inside = sphere & (d_c <= r)
             s_, t_ = warps.frame_from_normal(axis)
-            w_loc = warps.sample_uniform_cone(u[m], cos_max)
-            w = np.where(point[:, None], axis, warps.to_world(w_loc, s_, t_, axis))
-            # Distance to the nearer intersection with the sphere along w.
-            b = _dot(w, to_c)
-            disc = np.maximum(b * b - (d_c * d_c - r * r), 0.0)
-            t_hit = np.where(point, d_c, b - np.sqrt(disc))
+            uu = u[m]
+            # Sphere seen from outside: the cone it subtends.
+            sin2 = np.clip((r / np.maximum(d_c, 1e-300)) ** 2, 0.0, 1.0)
+            cos_max = np.minimum(np.sqrt(1.0 - sin2), 1 - 1e-12)
+            w_cone = warps.to_world(warps.sample_uniform_cone(uu, cos_max), s_, t_, axis)
+            b = _dot(w_cone, to_c)
+            t_cone = b - np.sqrt(np.maximum(b * b - (d_c * d_c - r * r), 0.0))
+            # Sphere seen from inside: every direction meets its inner surface.
+            w_in = warps.sample_uniform_sphere(uu)
+            b_in = _dot(w_in, to_c)
+            t_in = b_in + np.sqrt(np.maximum(b_in * b_in - (d_c * d_c - r * r), 0.0))
+            # Soft falloff: a uniform point on the disk of radius r facing the receiver.
+            disk = warps.sample_uniform_disk_concentric(uu) * r[:, None]
+            q = c + disk[:, 0:1] * s_ + disk[:, 1:2] * t_
+            to_q = q - p[m]
+            t_disk = np.sqrt(_dot(to_q, to_q))
+            w_disk = to_q / np.maximum(t_disk, 1e-300)[:, None]
+            cos_disk = _dot(w_disk, axis)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                pdf_disk = t_disk**2 / (np.pi * r * r * cos_disk)
+
+            w = np.where(point[:, None], axis, np.where(soft[:, None], w_disk,
+                         np.where(inside[:, None], w_in, w_cone)))
+            t_hit = np.where(point, d_c, np.where(soft, t_disk, np.where(inside, t_in, t_cone)))
+            sa_pdf = np.where(point, 1.0, np.where(
+                soft, pdf_disk, np.where(inside, warps.uniform_sphere_pdf(m.size),
+                                         warps.uniform_cone_pdf(cos_max))))
             att = spot_attenuation(lights, li, -w)
             lum = lights.radiance[li] * att[:, None]
             lum = np.where(point[:, None], lum / np.maximum(d_c * d_c, 1e-300)[:, None], lum)
-            sa_pdf = np.where(point, 1.0, warps.uniform_cone_pdf(np.minimum(cos_max, 1 - 1e-12)))
-            ok = ~inside & (d_c > 0)
+            ok = (d_c > 0) & np.isfinite(sa_pdf) & (sa_pdf > 0) & ~(soft & (cos_disk <= 0))
             wi[m] = w
             dist[m] = t_hit
             radiance[m] = np.where(ok[:, None], lum, 0.0)
             pdf[m] = np.where(ok, sa_pdf * pmf[m], 0.0)
-            light_normal[m] = np.where(point[:, None], 0.0, _normalize(p[m] + w * t_hit[:, None] - c))
+            # Lamps are not geometry, so shadow rays need no offset at their end.
+            light_normal[m] = 0.0
 
         # Suns: a direction, or a cone of directions toward the disk.
         m = np.nonzero(kind == LIGHT_SUN)[0]
@@ -581,20 +611,43 @@ class LightSampler:
                 continue
             kind = lights.kind[li]
             pmf = self.select_prob[li]
-            if kind == LIGHT_POINT:
+            if kind == LIGHT_POINT and lights.soft_falloff[li]:
+                # The disk of radius r facing the ray's origin, as NEE sampled it from there.
+                c = lights.position[li]
+                r = lights.radius[li]
+                oc = o - c
+                d_o = np.sqrt(_dot(oc, oc))
+                light_n = oc / np.maximum(d_o, 1e-300)[:, None]
+                denom = _dot(d, light_n)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    t = -d_o / denom
+                hit = (denom < 0) & (t > 0) & (t < tmax) & (d_o > 0)
+                h = oc + d * np.where(hit, t, 0.0)[:, None]
+                rows = np.nonzero(hit & (_dot(h, h) <= r * r))[0]
+                if rows.size == 0:
+                    continue
+                pdf = pmf * t[rows] ** 2 / (np.pi * r * r * -denom[rows])
+                att = spot_attenuation(lights, np.full(rows.size, li), -d[rows])
+                yield rows, lights.radiance[li] * att[:, None], pdf
+            elif kind == LIGHT_POINT:
                 c = lights.position[li]
                 r = lights.radius[li]
                 oc = o - c
                 b = _dot(oc, d)
                 cc = _dot(oc, oc) - r * r
                 disc = b * b - cc
-                t = -b - np.sqrt(np.maximum(disc, 0.0))
-                rows = np.nonzero((disc > 0) & (cc > 0) & (t > 0) & (t < tmax))[0]
+                outside = cc > 0
+                # From outside the nearer intersection; from inside the sphere's far wall.
+                t = np.where(outside, -b - np.sqrt(np.maximum(disc, 0.0)),
+                             -b + np.sqrt(np.maximum(disc, 0.0)))
+                rows = np.nonzero((disc > 0) & (t > 0) & (t < tmax))[0]
                 if rows.size == 0:
                     continue
                 dc2 = _dot(oc[rows], oc[rows])
                 cos_max = np.sqrt(np.maximum(0.0, 1.0 - r * r / dc2))
-                pdf = pmf * warps.uniform_cone_pdf(np.minimum(cos_max, 1 - 1e-12))
+                pdf = pmf * np.where(outside[rows],
+                                     warps.uniform_cone_pdf(np.minimum(cos_max, 1 - 1e-12)),
+                                     warps.uniform_sphere_pdf(rows.size))
                 att = spot_attenuation(lights, np.full(rows.size, li), -d[rows])
                 yield rows, lights.radiance[li] * att[:, None], pdf
             elif kind == LIGHT_SUN:

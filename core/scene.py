@@ -140,6 +140,10 @@ class Lights:
         Estimated emitted power (W) for light selection.
     visible_camera : (k,) bool
         Whether camera rays see the lamp's own shape.
+    soft_falloff : (k,) bool
+        Blender's *Soft Falloff* of point and spot lights with a radius (on by default in
+        Blender): the lamp is a disk of ``radius`` facing each receiving point, as Cycles (and
+        Blender up to 3.6) does, instead of a sphere.
     names : list of str
     """
 
@@ -155,6 +159,7 @@ class Lights:
     spot_smooth: np.ndarray
     power: np.ndarray
     visible_camera: np.ndarray
+    soft_falloff: np.ndarray
     names: list = field(default_factory=list)
 
     def __len__(self) -> int:
@@ -165,7 +170,7 @@ class Lights:
         z3 = np.zeros((0, 3))
         z = np.zeros(0)
         return Lights(np.zeros(0, np.int32), z3, z3, z3, z3, z, z, z3, z, z, z,
-                      np.zeros(0, bool), [])
+                      np.zeros(0, bool), np.zeros(0, bool), [])
 
     @staticmethod
     def concat(rows: list) -> "Lights":

@@ -107,6 +107,21 @@ def test_spot_light_nee_applies_cycles_smoothstep_falloff():
     np.testing.assert_allclose(x.mean(), expected, rtol=1e-12)
 
 
+def test_soft_falloff_point_light_matches_a_lambertian_disk_facing_the_receiver():
+    """Blender's Soft Falloff: on the axis, E = S / (4 pi (d^2 + r^2)) (a disk of radiance L)."""
+    r, h = 0.4, 1.2
+    lights = L.point_light(P + (0, 0, h), (1, 1, 1), 100.0, radius=r, soft_falloff=True)
+    x, *_ = nee_irradiance(make_scene(lights), P, NRM)
+    assert_mean_within_ci(x, 100.0 / (4 * np.pi * (h * h + r * r)))
+
+
+def test_point_inside_a_sphere_light_sees_its_radiance_all_around():
+    """Inside the sphere every direction meets its inner wall: E = pi L on a surface."""
+    lights = L.point_light(P + (0.1, 0.0, 0.2), (1, 1, 1), 100.0, radius=0.5)
+    x, *_ = nee_irradiance(make_scene(lights), P, NRM)
+    assert_mean_within_ci(x, np.pi * lights.radiance[0, 0])
+
+
 def test_sphere_light_nee_is_unbiased():
     c, r = np.array([0.3, 0.2, 1.5]), 0.4
     lights = L.point_light(c, (1, 1, 1), 100.0, radius=r)
@@ -178,11 +193,15 @@ def test_light_selection_is_proportional_to_power_and_unbiased():
     assert_mean_within_ci(x, e1 + e2)
 
 
-@pytest.mark.parametrize("which", ["sphere", "rect", "disk", "sun"])
+@pytest.mark.parametrize("which", ["sphere", "inside_sphere", "soft_point", "rect", "disk", "sun"])
 def test_nee_pdf_equals_pdf_of_the_same_direction_found_by_a_ray(which):
     """MIS needs both strategies to agree on the light's density of every direction."""
     if which == "sphere":
         lights = L.point_light((0.3, 0.2, 1.5), (1, 1, 1), 10.0, radius=0.4)
+    elif which == "inside_sphere":
+        lights = L.point_light(P + (0.1, 0.0, 0.2), (1, 1, 1), 10.0, radius=0.5)
+    elif which == "soft_point":
+        lights = L.point_light((0.3, 0.2, 1.5), (1, 1, 1), 10.0, radius=0.4, soft_falloff=True)
     elif which == "sun":
         lights = L.sun_light((0.2, 0.1, -1.0), (1, 1, 1), 3.0, np.radians(15))
     else:

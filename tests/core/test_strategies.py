@@ -129,7 +129,8 @@ def test_every_setting_is_unbiased_for_a_sphere_light_in_a_sphere(setting, kw, c
     light does not block the light reflected across the sphere (Cycles' convention)."""
     rho, power, bounces = 0.5, 100.0, 4
     scene = scenes.point_in_sphere(power=power, albedo=rho, subdivisions=4, width=16, height=16)
-    scene.lights = L.point_light((0, 0, 0), (1, 1, 1), power, radius=0.15)
+    # The camera sits inside the sphere light, which would fill the view: hide it from the camera.
+    scene.lights = L.point_light((0, 0, 0), (1, 1, 1), power, radius=0.15, visible_camera=False)
     res = render(scene, RenderSettings(spp=48, max_bounces=bounces, seed=5,
                                        mis_heuristic=setting, **kw, **LIGHT_CONFIGS[config]))
     lo, hi = _sphere_bracket(scene, power, rho, bounces)
