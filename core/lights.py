@@ -660,9 +660,9 @@ class LightSampler:
             else:
                 n_l = lights.direction[li]
                 ax, ay = lights.axis_x[li], lights.axis_y[li]
-                denom = d @ n_l
+                denom = np.einsum("ij,j->i", d, n_l)
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    t = ((lights.position[li] - o) @ n_l) / denom
+                    t = np.einsum("ij,j->i", lights.position[li] - o, n_l) / denom
                 # One-sided: the ray must arrive at the emitting face (travel against its normal).
                 front = denom < 0
                 hit = front & (t > 0) & (t < tmax)
@@ -672,7 +672,8 @@ class LightSampler:
                 gram = np.array([[ax @ ax, ax @ ay], [ax @ ay, ay @ ay]])
                 if not np.linalg.det(gram) > 0:
                     continue  # a light of zero size emits nothing
-                x, y = np.linalg.solve(gram, np.stack([q @ ax, q @ ay]))
+                x, y = np.linalg.solve(gram, np.stack([np.einsum("ij,j->i", q, ax),
+                                                       np.einsum("ij,j->i", q, ay)]))
                 if kind == LIGHT_RECT:
                     inside = (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5)
                     area = np.linalg.norm(np.cross(ax, ay))

@@ -10,6 +10,11 @@ from ..camera import generate_rays
 from ..sampling.mis import bsdf_weight
 
 
+def max_component(v):
+    """Largest of the three channels of ``v (n, 3)`` (much faster than ``v.max(axis=1)``)."""
+    return np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
+
+
 @dataclass
 class Counters:
     """Work done by one batch (summed by the render loop).

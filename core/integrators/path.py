@@ -37,11 +37,12 @@ import numpy as np
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..sampling.mis import light_weight
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
-from .common import Counters, add_emitters_along_rays, camera_rays, surface_interaction
+from .common import (Counters, add_emitters_along_rays, camera_rays, max_component,
+                     surface_interaction)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce.
 DIMS_CAMERA = 2
-DIMS_PER_BOUNCE = 8
+DIMS_PER_BOUNCE = 6
 
 
 def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
@@ -103,7 +104,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
             wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(si.p, u_sel, u_light,
                                                                           counters)
             f = eval_lambert(albedo, si.ns, wi)
-            ok = (pdf_l > 0) & (f.max(axis=1) > 0) & (li.max(axis=1) > 0)
+            ok = (pdf_l > 0) & (max_component(f) > 0) & (max_component(li) > 0)
             cand = np.nonzero(ok)[0]
             if cand.size:
                 blocked = prep.accel.occluded(*prep.accel.shadow_rays(
@@ -126,10 +127,10 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         # Russian roulette: unbiased termination of low-throughput paths.
         u_rr = stream.next_1d()
         if settings.use_russian_roulette and bounce >= settings.rr_min_bounces:
-            q = np.minimum(1.0, beta.max(axis=1))
+            q = np.minimum(1.0, max_component(beta))
             alive &= u_rr < q
             beta = beta / np.maximum(q, 1e-12)[:, None]
-        alive &= beta.max(axis=1) > 0
+        alive &= max_component(beta) > 0
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
             break

@@ -1,0 +1,409 @@
+"""The BSDF interface: per-row parameters, and eval / pdf / sample over batches of mixed kinds.
+
+Every integrator talks to materials through this module; the families live one per module
+(:mod:`.lambert`, :mod:`.conductor` + :mod:`.mirror`, :mod:`.dielectric`, :mod:`.layered`).
+
+Frames and directions
+    All directions are **local**: ``(k, 3)`` float64 unit vectors in a frame whose +Z is the
+    shading normal *as stored in the mesh* (pointing to the front / exterior, **not** flipped
+    toward the viewer; build it with :func:`.frame.shading_frame` and :func:`.frame.to_local`).
+    ``wo`` points toward the previous vertex (the camera side on camera paths), ``wi`` toward
+    the next one (the light side); both point away from the surface. The sign of ``wo.z`` is
+    the side the path is on: dielectrics use it to tell entering from leaving; reflection-only
+    kinds (diffuse, conductor, layered) are two-sided and mirror everything to ``wo``'s side,
+    as Cycles does by flipping the normal of back faces.
+Functions
+    ``eval_bsdf(params, wo, wi, mode) -> (k, 3)``
+        ``f(wo, wi) |cos theta_i|``, the non-delta part only (zero for delta lobes).
+    ``pdf_bsdf(params, wo, wi) -> (k,)``
+        The solid-angle density with which ``sample_bsdf`` produces ``wi`` as a *non-delta*
+        sample, lobe-selection probabilities included (zero for delta lobes). It integrates to
+        the probability that a sample is non-delta and valid (< 1 where rough microfacet
+        samples can scatter to the wrong side, or a delta lobe can be chosen).
+    ``sample_bsdf(params, wo, u_lobe, u, mode) -> BSDFSample(wi, weight, pdf, delta, lobe)``
+        ``u_lobe (k,)`` chooses a lobe (Fresnel, coat vs base), ``u (k, 2)`` the direction.
+        ``weight = f |cos theta_i| / pdf`` (k, 3). For non-delta samples ``pdf`` is the same
+        density :func:`pdf_bsdf` returns and ``weight == eval_bsdf / pdf_bsdf``. For delta
+        samples (``delta`` True) ``pdf`` is the *discrete* probability of the chosen lobe and
+        ``weight`` the lobe's full contribution over it; never use it for MIS. A failed sample
+        (scattered to the wrong side, ``wo`` in the tangent plane) has ``wi = 0``,
+        ``weight = 0``, ``pdf = 0``.
+        ``lobe (k,) uint8`` labels the sampled lobe with ``LOBE_*`` bits, as Cycles' closure
+        labels: ``REFLECT`` or ``TRANSMIT``, and ``DIFFUSE``, ``GLOSSY`` or ``SINGULAR`` (delta);
+        0 for a failed sample. Integrators use it for per-type bounce limits and for object ray
+        visibility (a diffuse bounce traces with ``VIS_DIFFUSE``, glossy and singular
+        reflections with ``VIS_GLOSSY``, transmissions with ``VIS_TRANSMISSION``).
+    ``is_delta_only(params) -> (k,) bool``
+        Rows whose ``eval``/``pdf`` vanish everywhere (smooth mirrors and glass): next-event
+        estimation can skip them.
+Transport mode
+    ``mode='radiance'`` on camera paths; ``mode='importance'`` on light paths (light tracing,
+    BDPT light subpaths, photons), where ``wo`` points back toward the light. The modes differ
+    for refraction (radiance is scaled by ``1 / etap^2``, see :mod:`.dielectric`) and for the
+    non-reciprocal layered base (importance mode evaluates the adjoint). ``pdf`` and the sampled
+    directions do not depend on the mode.
+Guarantees
+    Outputs are finite for any unit ``wo``, ``wi`` (grazing, tangent, below the surface) and
+    any parameters in range (roughness 0..1, IOR > 0 including exactly 1); ``eval >= 0``,
+    ``pdf >= 0``, ``weight >= 0``.
+Kinds and parameters (:class:`BSDFParams`, one row per shading point)
+    ``KIND_DIFFUSE``: ``color`` = albedo (two-sided Lambert).
+    ``KIND_CONDUCTOR``: ``color`` = F0 (Schlick), ``alpha``; a perfect mirror below the smooth
+    threshold (:data:`.microfacet.ALPHA_SMOOTH`).
+    ``KIND_DIELECTRIC``: ``eta`` (interior / exterior), ``alpha``, ``tint`` = reflection tint,
+    ``color`` = transmission tint (Glass BSDF: both the colour). Smooth below the threshold or
+    for ``|eta - 1| < 1e-4``.
+    ``KIND_LAYERED``: ``color`` = diffuse base, ``alpha`` and ``eta`` of the coat, ``tint`` =
+    coat tint (Principled non-metallic opaque: Specular IOR Level folded into ``eta``).
+    Emission is not a BSDF: it stays a column of the material table.
+In an integrator (one bounce, world-space arrays of the live paths)::
+
+    s, t, n = shading_frame(ng)                      # the stored normal, not flipped
+    params = BSDFParams.from_materials(scene.materials, scene.material[prim])
+    wo = to_local(-d, s, t, n)
+    f = eval_bsdf(params, wo, to_local(wi_light, s, t, n))     # NEE: f cos, MIS with pdf_bsdf
+    smp = sample_bsdf(params, wo, stream.next_1d(), stream.next_2d())
+    wi = to_world(smp.wi, s, t, n)
+    beta *= smp.weight; pdf_prev = smp.pdf; use_mis = ~smp.delta; alive &= smp.pdf > 0
+    o = accel.offset_origin(p, ng, prim, wi)         # to wi's side: through on refraction
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from . import conductor, dielectric, layered
+from .dielectric import IMPORTANCE, RADIANCE, TRANSPORT_MODES, _check_mode, is_smooth_dielectric
+from .fresnel import adjust_ior_for_specular_level
+from .lambert import eval_lambert, pdf_lambert, sample_lambert
+from .microfacet import alpha_from_roughness, is_smooth
+
+__all__ = [
+    "KIND_DIFFUSE", "KIND_CONDUCTOR", "KIND_DIELECTRIC", "KIND_LAYERED", "KINDS", "KIND_NAMES",
+    "RADIANCE", "IMPORTANCE", "TRANSPORT_MODES", "LOBE_REFLECT", "LOBE_TRANSMIT", "LOBE_DIFFUSE",
+    "LOBE_GLOSSY", "LOBE_SINGULAR", "BSDFParams", "BSDFSample", "make_params",
+    "eval_bsdf", "pdf_bsdf", "sample_bsdf", "is_delta_only",
+]
+
+# Kind codes of the material table (scene.MAT_DIFFUSE == KIND_DIFFUSE == 0).
+KIND_DIFFUSE = 0
+KIND_CONDUCTOR = 1
+KIND_DIELECTRIC = 2
+KIND_LAYERED = 3
+KINDS = (KIND_DIFFUSE, KIND_CONDUCTOR, KIND_DIELECTRIC, KIND_LAYERED)
+KIND_NAMES = {KIND_DIFFUSE: "diffuse", KIND_CONDUCTOR: "conductor",
+              KIND_DIELECTRIC: "dielectric", KIND_LAYERED: "layered"}
+
+# Labels of sampled lobes (bits, as Cycles' LABEL_*).
+LOBE_REFLECT = 1
+LOBE_TRANSMIT = 2
+LOBE_DIFFUSE = 4
+LOBE_GLOSSY = 8
+LOBE_SINGULAR = 16
+
+# Blender's defaults for material-table columns a scene does not provide.
+DEFAULT_ROUGHNESS = 0.5
+DEFAULT_IOR = 1.5
+DEFAULT_SPECULAR_IOR_LEVEL = 0.5
+# Indices are clamped to this range: beyond it Fresnel is 0 or 1 to float precision anyway.
+ETA_RANGE = (1e-3, 1e3)
+
+
+@dataclass
+class BSDFParams:
+    """Per-row BSDF parameters, struct-of-arrays; row ``i`` shades the point of ``wo[i]``.
+
+    Attributes
+    ----------
+    kind : (k,) int32
+        ``KIND_*`` code.
+    color : (k, 3) float64
+        Albedo (diffuse, layered base), F0 (conductor) or transmission tint (dielectric), in
+        [0, 1].
+    alpha : (k,) float64
+        GGX alpha = roughness^2, >= ``microfacet.ALPHA_MIN``.
+    eta : (k,) float64
+        Interior over exterior index (dielectric), coat index (layered).
+    tint : (k, 3) float64
+        Reflection tint (dielectric), coat tint (layered), in [0, 1].
+    """
+
+    kind: np.ndarray
+    color: np.ndarray
+    alpha: np.ndarray
+    eta: np.ndarray
+    tint: np.ndarray
+
+    def __len__(self):
+        return self.kind.shape[0]
+
+    def take(self, rows):
+        """The rows ``rows`` (index array or mask) as a new :class:`BSDFParams`."""
+        return BSDFParams(self.kind[rows], self.color[rows], self.alpha[rows], self.eta[rows],
+                          self.tint[rows])
+
+    @staticmethod
+    def from_materials(materials, mat_ids):
+        """Gather the rows ``mat_ids (k,)`` of a material table.
+
+        Reads the table's ``kind`` and ``base_color`` and, when present, ``roughness (m,)``,
+        ``ior (m,)``, ``specular_ior_level (m,)`` and ``specular_tint (m, 3)`` (Blender's
+        defaults otherwise: 0.5, 1.5, 0.5, white). Layered rows fold Specular IOR Level into the
+        coat index; dielectric rows use the IOR as is.
+        """
+        ids = np.asarray(mat_ids, np.int64)
+
+        def column(name, default, shape=()):
+            values = getattr(materials, name, None)
+            if values is None:
+                return np.full((ids.size,) + shape, default, np.float64)
+            return np.asarray(values, np.float64)[ids]
+
+        return make_params(np.asarray(materials.kind, np.int32)[ids],
+                           np.asarray(materials.base_color, np.float64)[ids],
+                           roughness=column("roughness", DEFAULT_ROUGHNESS),
+                           ior=column("ior", DEFAULT_IOR),
+                           specular_ior_level=column("specular_ior_level",
+                                                     DEFAULT_SPECULAR_IOR_LEVEL),
+                           tint=column("specular_tint", 1.0, (3,)), k=ids.size)
+
+
+def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
+                specular_ior_level=DEFAULT_SPECULAR_IOR_LEVEL, tint=1.0, k=None):
+    """Build :class:`BSDFParams` from Blender-style inputs, broadcasting scalars to ``k`` rows.
+
+    Parameters
+    ----------
+    kind : int or (k,) int
+    color : float, (3,) or (k, 3) float
+    roughness, ior, specular_ior_level : float or (k,) float
+        Roughness in [0, 1] (alpha = roughness^2); IOR > 0; Specular IOR Level in [0, 1]
+        (layered rows only; 0.5 keeps the IOR).
+    tint : float, (3,) or (k, 3) float
+    k : int, optional
+        Row count when every input is a scalar.
+    """
+    if k is None:
+        k = max(np.size(kind), np.size(roughness), np.size(ior), np.size(specular_ior_level),
+                np.shape(color)[0] if np.ndim(color) == 2 else 1,
+                np.shape(tint)[0] if np.ndim(tint) == 2 else 1)
+    kind = np.broadcast_to(np.asarray(kind, np.int32), (k,)).copy()
+    color = np.clip(np.broadcast_to(np.asarray(color, np.float64), (k, 3)), 0.0, 1.0)
+    tint = np.clip(np.broadcast_to(np.asarray(tint, np.float64), (k, 3)), 0.0, 1.0)
+    alpha = alpha_from_roughness(np.broadcast_to(np.asarray(roughness, np.float64), (k,)))
+    ior = np.nan_to_num(np.broadcast_to(np.asarray(ior, np.float64), (k,)), nan=DEFAULT_IOR)
+    eta = np.clip(ior, *ETA_RANGE)
+    layered_rows = kind == KIND_LAYERED
+    if layered_rows.any():
+        level = np.broadcast_to(np.asarray(specular_ior_level, np.float64), (k,))
+        eta = np.where(layered_rows, adjust_ior_for_specular_level(eta, level), eta)
+        eta = np.clip(eta, *ETA_RANGE)
+    return BSDFParams(kind, color.copy(), alpha, eta, tint.copy())
+
+
+class BSDFSample(NamedTuple):
+    """Result of :func:`sample_bsdf` (see the module docstring)."""
+
+    wi: np.ndarray      # (k, 3) float64, zero where the sample failed
+    weight: np.ndarray  # (k, 3) float64, f |cos theta_i| / pdf
+    pdf: np.ndarray     # (k,) float64, solid-angle density or discrete lobe probability
+    delta: np.ndarray   # (k,) bool
+    lobe: np.ndarray    # (k,) uint8, LOBE_* bits; 0 where the sample failed
+
+
+# --------------------------------------------------------------------------------------------
+# Families in the common protocol: f(p, wo, wi, mode), pdf(p, wo, wi), sample(p, wo, u_lobe, u,
+# mode) -> (wi, weight, pdf, delta), on the rows of one kind.
+# --------------------------------------------------------------------------------------------
+
+
+def _diffuse_normal(wo):
+    """Two-sided Lambert: the local normal on ``wo``'s side, for :mod:`.lambert`'s functions."""
+    n = np.zeros_like(wo)
+    n[:, 2] = np.where(wo[:, 2] >= 0.0, 1.0, -1.0)
+    return n
+
+
+def _diffuse_eval(p, wo, wi, mode):
+    return eval_lambert(p.color, _diffuse_normal(wo), wi)
+
+
+def _diffuse_pdf(p, wo, wi):
+    return pdf_lambert(_diffuse_normal(wo), wi)
+
+
+def _diffuse_sample(p, wo, u_lobe, u, mode):
+    wi, weight, pdf = sample_lambert(p.color, _diffuse_normal(wo), u)
+    ok = pdf > 0.0
+    return (np.where(ok[:, None], wi, 0.0), weight, pdf, np.zeros(wo.shape[0], bool))
+
+
+def _diffuse_kind(p, wo, u_lobe, delta):
+    return np.full(wo.shape[0], LOBE_DIFFUSE, np.uint8)
+
+
+def _glossy_kind(p, wo, u_lobe, delta):
+    return np.where(delta, LOBE_SINGULAR, LOBE_GLOSSY).astype(np.uint8)
+
+
+def _layered_kind(p, wo, u_lobe, delta):
+    coat = u_lobe < layered.coat_probability(p.color, p.alpha, p.eta, p.tint, wo)
+    return np.where(delta, LOBE_SINGULAR,
+                    np.where(coat, LOBE_GLOSSY, LOBE_DIFFUSE)).astype(np.uint8)
+
+
+def _conductor_eval(p, wo, wi, mode):
+    return conductor.eval_conductor(p.color, p.alpha, wo, wi)
+
+
+def _conductor_pdf(p, wo, wi):
+    return conductor.pdf_conductor(p.alpha, wo, wi)
+
+
+def _conductor_sample(p, wo, u_lobe, u, mode):
+    return conductor.sample_conductor(p.color, p.alpha, wo, u)
+
+
+def _dielectric_eval(p, wo, wi, mode):
+    return dielectric.eval_dielectric(p.eta, p.alpha, p.tint, p.color, wo, wi, mode)
+
+
+def _dielectric_pdf(p, wo, wi):
+    return dielectric.pdf_dielectric(p.eta, p.alpha, wo, wi)
+
+
+def _dielectric_sample(p, wo, u_lobe, u, mode):
+    return dielectric.sample_dielectric(p.eta, p.alpha, p.tint, p.color, wo, u_lobe, u, mode)
+
+
+def _layered_eval(p, wo, wi, mode):
+    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode)
+
+
+def _layered_pdf(p, wo, wi):
+    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi)
+
+
+def _layered_sample(p, wo, u_lobe, u, mode):
+    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode)
+
+
+_FAMILIES = {
+    KIND_DIFFUSE: (_diffuse_eval, _diffuse_pdf, _diffuse_sample, _diffuse_kind),
+    KIND_CONDUCTOR: (_conductor_eval, _conductor_pdf, _conductor_sample, _glossy_kind),
+    KIND_DIELECTRIC: (_dielectric_eval, _dielectric_pdf, _dielectric_sample, _glossy_kind),
+    KIND_LAYERED: (_layered_eval, _layered_pdf, _layered_sample, _layered_kind),
+}
+
+
+def _groups(params):
+    """``(kind, rows)`` per kind present; ``rows`` is None when one kind covers the batch."""
+    kind = params.kind
+    if kind.size == 0:
+        return []
+    unknown = ~np.isin(kind, KINDS)
+    if unknown.any():
+        raise ValueError(f"unknown BSDF kind codes {np.unique(kind[unknown]).tolist()}")
+    first = kind[0]
+    if np.all(kind == first):
+        return [(int(first), None)]
+    return [(int(c), np.nonzero(kind == c)[0]) for c in np.unique(kind)]
+
+
+def _check(params, wo, mode=RADIANCE):
+    _check_mode(mode)
+    if wo.shape != (len(params), 3):
+        raise ValueError(f"wo has shape {wo.shape}, expected ({len(params)}, 3)")
+
+
+def eval_bsdf(params, wo, wi, mode=RADIANCE):
+    """``f(wo, wi) |cos theta_i|`` of the non-delta lobes.
+
+    Parameters
+    ----------
+    params : BSDFParams
+        ``k`` rows.
+    wo, wi : (k, 3) float
+        Unit local directions.
+    mode : {'radiance', 'importance'}
+
+    Returns
+    -------
+    (k, 3) float64, >= 0 and finite.
+    """
+    wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
+    _check(params, wo, mode)
+    out = np.zeros((len(params), 3))
+    for kind, rows in _groups(params):
+        fn = _FAMILIES[kind][0]
+        if rows is None:
+            out = fn(params, wo, wi, mode)
+        else:
+            out[rows] = fn(params.take(rows), wo[rows], wi[rows], mode)
+    return out
+
+
+def pdf_bsdf(params, wo, wi):
+    """Solid-angle density of :func:`sample_bsdf`'s non-delta samples at ``wi``. ``(k,)``."""
+    wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
+    _check(params, wo)
+    out = np.zeros(len(params))
+    for kind, rows in _groups(params):
+        fn = _FAMILIES[kind][1]
+        if rows is None:
+            out = fn(params, wo, wi)
+        else:
+            out[rows] = fn(params.take(rows), wo[rows], wi[rows])
+    return out
+
+
+def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
+    """Sample ``wi`` for every row.
+
+    Parameters
+    ----------
+    params : BSDFParams
+    wo : (k, 3) float
+    u_lobe : (k,) float in [0, 1)
+    u : (k, 2) float in [0, 1)^2
+    mode : {'radiance', 'importance'}
+
+    Returns
+    -------
+    BSDFSample
+        ``wi (k, 3)``, ``weight (k, 3)``, ``pdf (k,)``, ``delta (k,)``, ``lobe (k,)``.
+    """
+    wo = np.asarray(wo, np.float64)
+    _check(params, wo, mode)
+    u_lobe = np.asarray(u_lobe, np.float64).reshape(-1)
+    u = np.asarray(u, np.float64)
+    k = len(params)
+    wi = np.zeros((k, 3))
+    weight = np.zeros((k, 3))
+    pdf = np.zeros(k)
+    delta = np.zeros(k, bool)
+    kind_bits = np.zeros(k, np.uint8)
+    for kind, rows in _groups(params):
+        sample, label = _FAMILIES[kind][2:]
+        if rows is None:
+            wi, weight, pdf, delta = sample(params, wo, u_lobe, u, mode)
+            kind_bits = label(params, wo, u_lobe, delta)
+        else:
+            p = params.take(rows)
+            wi[rows], weight[rows], pdf[rows], delta[rows] = sample(p, wo[rows], u_lobe[rows],
+                                                                    u[rows], mode)
+            kind_bits[rows] = label(p, wo[rows], u_lobe[rows], delta[rows])
+    side = np.where(wi[:, 2] * wo[:, 2] < 0.0, LOBE_TRANSMIT, LOBE_REFLECT).astype(np.uint8)
+    lobe = np.where(pdf > 0.0, side | kind_bits, 0).astype(np.uint8)
+    return BSDFSample(wi, weight, pdf, np.asarray(delta, bool), lobe)
+
+
+def is_delta_only(params):
+    """Rows whose BSDF is a pure delta distribution (``eval`` and ``pdf`` always zero). ``(k,)``."""
+    smooth_conductor = (params.kind == KIND_CONDUCTOR) & is_smooth(params.alpha)
+    smooth_dielectric = (params.kind == KIND_DIELECTRIC) & is_smooth_dielectric(params.eta,
+                                                                                params.alpha)
+    return smooth_conductor | smooth_dielectric
