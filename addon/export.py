@@ -14,6 +14,7 @@ Unit conversion of lights is left to :mod:`core.lights`; this module only reads 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import bpy
 import numpy as np
@@ -25,6 +26,10 @@ from ..core.scene import (
     VIS_GLOSSY,
     VIS_SHADOW,
     VIS_TRANSMISSION,
+    MAT_CONDUCTOR,
+    MAT_DIELECTRIC,
+    MAT_DIFFUSE,
+    MAT_LAYERED,
     Camera,
     Lights,
     Materials,
@@ -166,19 +171,38 @@ def _as_size(value, size):
     return seq[:size]
 
 
-# Principled BSDF inputs whose non-zero value adds a lobe the diffuse core does not have.
+# Principled BSDF inputs whose non-zero value adds a lobe the core materials do not have.
 _PRINCIPLED_LOBES = (
-    ("Metallic", "metallic"),
-    ("Specular IOR Level", "specular"),
-    ("Transmission Weight", "transmission"),
     ("Coat Weight", "coat"),
     ("Sheen Weight", "sheen"),
     ("Subsurface Weight", "subsurface"),
 )
 
 
+class Surface(NamedTuple):
+    """One row of :class:`core.scene.Materials`, as translated from a Blender material."""
+
+    kind: int = MAT_DIFFUSE
+    base_color: np.ndarray = np.array(DEFAULT_SURFACE_COLOR)
+    emission: np.ndarray = np.zeros(3)
+    roughness: float = 0.5
+    ior: float = 1.5
+    metallic: float = 0.0
+    transmission: float = 0.0
+    specular_ior_level: float = 0.5
+    specular_tint: np.ndarray = np.ones(3)
+
+
+def _diffuse(color, emission=None):
+    return Surface(MAT_DIFFUSE, np.asarray(color, np.float64),
+                   np.zeros(3) if emission is None else emission)
+
+
+_BLACK = Surface(MAT_DIFFUSE, np.zeros(3), np.zeros(3))
+
+
 def material_surface(material, messages):
-    """Diffuse albedo and emitted radiance of a Blender material.
+    """Core material (kind, colours, roughness, IOR, ...) and emitted radiance of a material.
 
     Parameters
     ----------
@@ -187,60 +211,142 @@ def material_surface(material, messages):
 
     Returns
     -------
-    base_color : (3,) float64
-    emission : (3,) float64
-        Radiance, emitted from both faces.
+    Surface
+        ``emission`` is radiance, emitted from both faces.
     """
     if material is None:
-        return np.array(DEFAULT_SURFACE_COLOR), np.zeros(3)
+        return _diffuse(DEFAULT_SURFACE_COLOR)
     owner = f"Material '{material.name}'"
     if not _uses_nodes(material) or material.node_tree is None:
-        return np.asarray(material.diffuse_color[:3], np.float64), np.zeros(3)
+        return _diffuse(material.diffuse_color[:3])
     tree = material.node_tree
     output = _active_output(tree, 'ShaderNodeOutputMaterial')
     if output is None:
         # Cycles renders a material without an output as black.
-        return np.zeros(3), np.zeros(3)
+        return _BLACK
     for name in ("Volume", "Displacement"):
         socket = output.inputs.get(name)
         if socket is not None and _follow_link(socket) is not None:
             messages.add(f"{owner}: {name.lower()} is not supported yet; ignored")
-    source = _follow_link(output.inputs["Surface"])
+    return _shader_surface(_follow_link(output.inputs["Surface"]), owner, messages)
+
+
+def _distribution_note(node, read, owner, what="GGX"):
+    """Report a rough microfacet node whose distribution is not single-scattering GGX."""
+    distribution = getattr(node, "distribution", 'GGX')
+    if distribution not in {'GGX', 'SHARP'} and read.value(node, "Roughness") > 0:
+        read.messages.add(f"{owner}: {distribution} distribution of node '{_node_name(node)}' "
+                          f"is not supported yet; rendered as {what}")
+
+
+def _shader_surface(source, owner, messages, depth=0):
+    """Translate the shader node feeding a Surface socket (``source = (node, socket)``)."""
     if source is None:
-        return np.zeros(3), np.zeros(3)
+        return _BLACK
     node, _ = source
     read = _NodeReader(owner, messages)
     kind = node.bl_idname
+    name = _node_name(node)
+    if kind not in {'ShaderNodeMixShader', 'ShaderNodeEmission'}:
+        read.ignored_if_linked(node, "Normal", "the normal input")
 
     if kind == 'ShaderNodeBsdfDiffuse':
         if read.value(node, "Roughness") > 0:
-            messages.add(f"{owner}: Oren-Nayar roughness of node '{_node_name(node)}' is not "
+            messages.add(f"{owner}: Oren-Nayar roughness of node '{name}' is not "
                          f"supported yet; rendered as Lambertian")
-        read.ignored_if_linked(node, "Normal", "the normal input")
-        return read.color(node, "Color"), np.zeros(3)
+        return _diffuse(read.color(node, "Color"))
 
     if kind == 'ShaderNodeEmission':
         emission = read.color(node, "Color") * read.value(node, "Strength")
-        return np.zeros(3), emission
+        return Surface(MAT_DIFFUSE, np.zeros(3), emission)
 
     if kind == 'ShaderNodeBsdfPrincipled':
-        base = read.color(node, "Base Color")
-        emission = read.color(node, "Emission Color") * read.value(node, "Emission Strength")
-        lobes = [label for name, label in _PRINCIPLED_LOBES if read.value(node, name) > 0]
-        if lobes:
-            messages.add(f"{owner}: {', '.join(lobes)} of node '{_node_name(node)}' "
-                         f"{'is' if len(lobes) == 1 else 'are'} not supported yet; "
-                         f"rendered as diffuse")
-        if read.value(node, "Alpha", 1.0) < 1.0:
-            messages.add(f"{owner}: alpha of node '{_node_name(node)}' is not supported yet; "
-                         f"rendered opaque")
-        read.ignored_if_linked(node, "Normal", "the normal input")
-        return base, emission
+        return _principled_surface(node, read, owner)
 
-    messages.add(f"{owner}: node '{_node_name(node)}' is not supported yet; rendered as diffuse")
+    if kind in {'ShaderNodeBsdfGlossy', 'ShaderNodeBsdfAnisotropic'}:
+        _distribution_note(node, read, owner)
+        if read.value(node, "Anisotropy") != 0:
+            messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
+                         f"rendered isotropic")
+        return Surface(MAT_CONDUCTOR, read.color(node, "Color", (1.0, 1.0, 1.0)), np.zeros(3),
+                       roughness=read.value(node, "Roughness", 0.5))
+
+    if kind in {'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction'}:
+        _distribution_note(node, read, owner)
+        if kind == 'ShaderNodeBsdfRefraction':
+            messages.add(f"{owner}: node '{name}' (refraction only) is not supported yet; "
+                         f"rendered as glass (with Fresnel reflection)")
+        color = read.color(node, "Color", (1.0, 1.0, 1.0))
+        return Surface(MAT_DIELECTRIC, color, np.zeros(3),
+                       roughness=read.value(node, "Roughness", 0.0),
+                       ior=read.value(node, "IOR", 1.5), transmission=1.0, specular_tint=color)
+
+    if kind == 'ShaderNodeBsdfTransparent':
+        messages.add(f"{owner}: node '{name}' is not supported yet; rendered as glass of "
+                     f"IOR 1 (a pass-through that still blocks shadow rays and counts as a "
+                     f"transmission bounce)")
+        color = read.color(node, "Color", (1.0, 1.0, 1.0))
+        return Surface(MAT_DIELECTRIC, color, np.zeros(3), roughness=0.0, ior=1.0,
+                       transmission=1.0, specular_tint=color)
+
+    if kind == 'ShaderNodeMixShader' and depth < 16:
+        fac = min(max(read.value(node, "Fac", 0.5), 0.0), 1.0)
+        pick = 2 if fac > 0.5 else 1
+        messages.add(f"{owner}: node '{name}' is not supported yet; rendered as its input "
+                     f"{pick} (the one with the larger factor)")
+        return _shader_surface(_follow_link(node.inputs[pick]), owner, messages, depth + 1)
+
+    messages.add(f"{owner}: node '{name}' is not supported yet; rendered as diffuse")
     if node.inputs.get("Color") is not None and node.inputs["Color"].type == 'RGBA':
-        return read.color(node, "Color"), np.zeros(3)
-    return np.array(DEFAULT_SURFACE_COLOR), np.zeros(3)
+        return _diffuse(read.color(node, "Color"))
+    return _diffuse(DEFAULT_SURFACE_COLOR)
+
+
+def _principled_surface(node, read, owner):
+    """Principled BSDF -> conductor (metallic), dielectric (transmission) or coat over diffuse.
+
+    Fractional Metallic / Transmission Weight render as the lobe of the largest weight (Cycles
+    mixes metal ``m``, glass ``(1 - m) t`` and the opaque dielectric ``(1 - m)(1 - t)``).
+    """
+    messages = read.messages
+    name = _node_name(node)
+    base = read.color(node, "Base Color", DEFAULT_SURFACE_COLOR)
+    emission = read.color(node, "Emission Color") * read.value(node, "Emission Strength")
+    metallic = min(max(read.value(node, "Metallic"), 0.0), 1.0)
+    transmission = min(max(read.value(node, "Transmission Weight"), 0.0), 1.0)
+    roughness = min(max(read.value(node, "Roughness", 0.5), 0.0), 1.0)
+    ior = read.value(node, "IOR", 1.5)
+    level = min(max(read.value(node, "Specular IOR Level", 0.5), 0.0), 1.0)
+    tint = read.color(node, "Specular Tint", (1.0, 1.0, 1.0))
+    lobes = [label for socket, label in _PRINCIPLED_LOBES if read.value(node, socket) > 0]
+    if lobes:
+        messages.add(f"{owner}: {', '.join(lobes)} of node '{name}' "
+                     f"{'is' if len(lobes) == 1 else 'are'} not supported yet; ignored")
+    if read.value(node, "Alpha", 1.0) < 1.0:
+        messages.add(f"{owner}: alpha of node '{name}' is not supported yet; rendered opaque")
+    if read.value(node, "Anisotropic") != 0:
+        messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
+                     f"rendered isotropic")
+    distribution = getattr(node, "distribution", 'GGX')
+    if distribution != 'GGX' and roughness > 0:
+        messages.add(f"{owner}: {distribution} distribution of node '{name}' is not "
+                     f"supported yet; rendered as GGX")
+
+    weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
+               MAT_LAYERED: (1 - metallic) * (1 - transmission)}
+    kind = max(weights, key=weights.get)
+    if weights[kind] < 1.0:
+        what = {MAT_CONDUCTOR: "metal", MAT_DIELECTRIC: "glass",
+                MAT_LAYERED: "opaque dielectric"}[kind]
+        messages.add(f"{owner}: fractional metallic / transmission of node '{name}' is not "
+                     f"supported yet; rendered as {what} (the dominant lobe)")
+    if kind == MAT_CONDUCTOR and np.any(tint != 1.0):
+        messages.add(f"{owner}: metallic specular tint (F82) of node '{name}' is not "
+                     f"supported yet; ignored")
+    if kind == MAT_DIELECTRIC and level != 0.5:
+        messages.add(f"{owner}: specular IOR level of transmissive node '{name}' is not "
+                     f"supported yet; ignored")
+    return Surface(kind, base, emission, roughness, ior, metallic, transmission, level, tint)
 
 
 def world_radiance(world, messages):
@@ -279,26 +385,32 @@ class MaterialTable:
         self.messages = messages
         self._rows = {}
         self.names = []
-        self.base_colors = []
-        self.emissions = []
+        self.surfaces = []
 
     def row(self, material):
         """Row index of ``material`` (None: Cycles' default surface), adding it if new."""
         key = material.original.as_pointer() if material is not None else 0
         index = self._rows.get(key)
         if index is None:
-            base, emission = material_surface(material, self.messages)
+            surface = material_surface(material, self.messages)
             index = len(self.names)
             self._rows[key] = index
             self.names.append(material.name if material is not None else DEFAULT_SURFACE_NAME)
-            self.base_colors.append(np.clip(base, 0.0, 1.0))
-            self.emissions.append(np.maximum(emission, 0.0))
+            self.surfaces.append(surface._replace(
+                base_color=np.clip(surface.base_color, 0.0, 1.0),
+                emission=np.maximum(surface.emission, 0.0),
+                specular_tint=np.clip(surface.specular_tint, 0.0, 1.0)))
         return index
 
     def build(self):
         if not self.names:
             return Materials.from_lists([], np.zeros((0, 3)), np.zeros((0, 3)))
-        return Materials.from_lists(self.names, self.base_colors, self.emissions)
+        col = {field: [getattr(s, field) for s in self.surfaces] for field in Surface._fields}
+        return Materials.from_lists(
+            self.names, col["base_color"], col["emission"], kinds=col["kind"],
+            roughness=col["roughness"], ior=col["ior"], metallic=col["metallic"],
+            transmission=col["transmission"], specular_ior_level=col["specular_ior_level"],
+            specular_tint=col["specular_tint"])
 
 
 # --------------------------------------------------------------------------- meshes

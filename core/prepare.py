@@ -9,6 +9,7 @@ import numpy as np
 
 from .accel import Accel
 from .lights import LightSampler
+from .materials.bsdf import BSDFParams, is_delta_only
 from .scene import Scene
 
 
@@ -60,6 +61,12 @@ class PreparedScene:
         Diffuse albedo per triangle.
     tri_emission : (t, 3) float64
         Emitted radiance per triangle.
+    tri_material : (t,) int64
+        Material row per triangle.
+    material_bsdf : core.materials.bsdf.BSDFParams
+        One row per material; shading gathers ``material_bsdf.take(tri_material[prim])``.
+    material_delta_only : (m,) bool
+        Materials whose BSDF is a pure delta distribution (next-event estimation skips them).
     lights : LightSampler
     shift : (3,) float64
         World position of the local frame's origin: everything above is in world space minus
@@ -77,6 +84,14 @@ class PreparedScene:
     tri_emission: np.ndarray
     lights: LightSampler
     shift: np.ndarray
+    tri_material: np.ndarray = None
+    material_bsdf: BSDFParams = None
+    material_delta_only: np.ndarray = None
+
+    def bsdf(self, prim):
+        """BSDF parameters of the hit triangles ``prim (k,)`` and whether each is delta-only."""
+        rows = self.tri_material[prim]
+        return self.material_bsdf.take(rows), self.material_delta_only[rows]
 
 
 def prepare(scene: Scene, light_selection="power", light_sampling="area",
@@ -103,4 +118,7 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     emission = np.maximum(mats.emission[scene.material].astype(np.float64), 0.0)
     lights = LightSampler(scene, area, normal, v0, e1, e2, selection=light_selection,
                           sampling=light_sampling, method=distribution)
-    return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift)
+    # BSDF parameters per material, gathered by triangle at shading time.
+    bsdf = BSDFParams.from_materials(mats, np.arange(len(mats.kind)))
+    return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
+                         np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf))

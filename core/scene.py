@@ -12,8 +12,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-# Material kinds (one module per family lives in core/materials/).
+# Material kinds: the codes of core/materials/bsdf.py's KIND_* (one module per family).
 MAT_DIFFUSE = 0
+MAT_CONDUCTOR = 1
+MAT_DIELECTRIC = 2
+MAT_LAYERED = 3
+
+# Blender's defaults for the optional material columns.
+DEFAULT_ROUGHNESS = 0.5
+DEFAULT_IOR = 1.5
+DEFAULT_SPECULAR_IOR_LEVEL = 0.5
 
 # Light kinds.
 LIGHT_POINT = 0   # point or spot, optionally a sphere of `radius`
@@ -83,28 +91,70 @@ class Materials:
     Attributes
     ----------
     kind : (m,) int32
-        ``MAT_*`` code.
+        ``MAT_*`` code (equal to :mod:`core.materials.bsdf`'s ``KIND_*``).
     base_color : (m, 3) float32
-        Diffuse albedo in [0, 1].
+        Diffuse albedo (diffuse, layered), F0 (conductor) or transmission tint (dielectric), in
+        [0, 1].
     emission : (m, 3) float32
         Emitted radiance (W / (sr m^2)), from both faces; zero for non-emitters.
     names : list of str
         Material names, for messages.
+    roughness : (m,) float32
+        Blender roughness in [0, 1] (GGX alpha = roughness^2); default 0.5.
+    ior : (m,) float32
+        Index of refraction (dielectric, layered coat); default 1.5.
+    metallic : (m,) float32
+        Principled Metallic as exported (informative: ``kind`` already encodes the lobe); 0.
+    transmission : (m,) float32
+        Principled Transmission Weight as exported (informative, like ``metallic``); 0.
+    specular_ior_level : (m,) float32
+        Principled Specular IOR Level (layered rows); default 0.5 (keeps the IOR).
+    specular_tint : (m, 3) float32
+        Reflection tint (dielectric) or coat tint (layered); default white.
     """
 
     kind: np.ndarray
     base_color: np.ndarray
     emission: np.ndarray
     names: list = field(default_factory=list)
+    roughness: np.ndarray = None
+    ior: np.ndarray = None
+    metallic: np.ndarray = None
+    transmission: np.ndarray = None
+    specular_ior_level: np.ndarray = None
+    specular_tint: np.ndarray = None
+
+    def __post_init__(self):
+        # Absent columns take Blender's defaults, so every table has every column.
+        m = np.shape(self.kind)[0]
+
+        def column(values, default, shape=()):
+            if values is None:
+                return np.full((m,) + shape, default, np.float32)
+            return np.broadcast_to(np.asarray(values, np.float32), (m,) + shape).copy()
+
+        self.roughness = column(self.roughness, DEFAULT_ROUGHNESS)
+        self.ior = column(self.ior, DEFAULT_IOR)
+        self.metallic = column(self.metallic, 0.0)
+        self.transmission = column(self.transmission, 0.0)
+        self.specular_ior_level = column(self.specular_ior_level, DEFAULT_SPECULAR_IOR_LEVEL)
+        self.specular_tint = column(self.specular_tint, 1.0, (3,))
 
     @staticmethod
-    def from_lists(names, base_colors, emissions, kinds=None) -> "Materials":
+    def from_lists(names, base_colors, emissions, kinds=None, roughness=None, ior=None,
+                   metallic=None, transmission=None, specular_ior_level=None,
+                   specular_tint=None) -> "Materials":
+        """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
             kind=np.zeros(m, np.int32) if kinds is None else np.asarray(kinds, np.int32),
             base_color=np.asarray(base_colors, np.float32).reshape(m, 3),
             emission=np.asarray(emissions, np.float32).reshape(m, 3),
             names=list(names),
+            roughness=roughness, ior=ior, metallic=metallic, transmission=transmission,
+            specular_ior_level=specular_ior_level,
+            specular_tint=None if specular_tint is None
+            else np.asarray(specular_tint, np.float32).reshape(-1, 3),
         )
 
 

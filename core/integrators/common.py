@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..accel import Hits
 from ..camera import generate_rays
 from ..sampling.mis import bsdf_weight
 
@@ -56,6 +57,23 @@ def camera_rays(prep, pixel_filter, stream):
     offset = pixel_filter.sample(stream.next_2d())
     film_xy = np.stack([x + 0.5, y + 0.5], axis=-1) + offset
     return generate_rays(cam, film_xy)
+
+
+def intersect_by_class(accel, o, d, tmax, vis):
+    """Closest hits of rays whose object-visibility class ``vis (n,)`` (``VIS_*`` bit) varies.
+
+    Rays of one class are traced together against the triangles visible to that class.
+    """
+    first = vis[0] if vis.size else 0
+    if vis.size == 0 or np.all(vis == first):
+        return accel.intersect(o, d, tmax, int(first) if vis.size else 1)
+    n = o.shape[0]
+    hits = Hits(np.full(n, -1, np.int32), np.full(n, np.inf), np.zeros(n), np.zeros(n))
+    for cls in np.unique(vis):
+        rows = np.nonzero(vis == cls)[0]
+        h = accel.intersect(o[rows], d[rows], None if tmax is None else tmax[rows], int(cls))
+        hits.prim[rows], hits.t[rows], hits.u[rows], hits.v[rows] = h.prim, h.t, h.u, h.v
+    return hits
 
 
 @dataclass

@@ -18,6 +18,13 @@ Parameters
     find after a bounce where NEE could have sampled them. The light sampler's
     ``light_selection``, ``light_sampling`` and ``distribution`` are set in
     :func:`core.prepare.prepare` (see :class:`core.lights.LightSampler`).
+Materials
+    Every BSDF family of :mod:`core.materials.bsdf` (diffuse, conductor and mirror, smooth and
+    rough dielectric, layered coat), in radiance mode, in local frames around the stored
+    geometric normal. NEE skips delta-only surfaces; after a delta bounce the emitter found
+    keeps weight one (no MIS); the sampled lobe sets the next ray's object visibility class
+    (diffuse, glossy or transmission). Scenes whose materials are all diffuse take a
+    world-space Lambert path with the same estimator.
 When to use it
     The default for most scenes: diffuse and glossy transport lit by area lights, the sky, or
     lamps seen directly.
@@ -34,15 +41,73 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..materials.bsdf import (LOBE_DIFFUSE, LOBE_TRANSMIT, RADIANCE, eval_bsdf, pdf_bsdf,
+                              sample_bsdf)
+from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..sampling.mis import light_weight
-from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
-from .common import (Counters, add_emitters_along_rays, camera_rays, max_component,
-                     surface_interaction)
+from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
+from .common import (Counters, add_emitters_along_rays, camera_rays, intersect_by_class,
+                     max_component, surface_interaction)
 
-# Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce.
+# Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
+# light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
 DIMS_CAMERA = 2
-DIMS_PER_BOUNCE = 6
+DIMS_PER_BOUNCE = 7
+
+
+def ray_class(lobe):
+    """Object ray visibility class of rays leaving a vertex by the sampled ``lobe (k,)`` bits.
+
+    As Cycles: transmissions trace with ``VIS_TRANSMISSION``, diffuse reflections with
+    ``VIS_DIFFUSE``, glossy and singular reflections with ``VIS_GLOSSY``.
+    """
+    lobe = np.asarray(lobe)
+    return np.where((lobe & LOBE_TRANSMIT) != 0, VIS_TRANSMISSION,
+                    np.where((lobe & LOBE_DIFFUSE) != 0, VIS_DIFFUSE, VIS_GLOSSY)).astype(np.int32)
+
+
+class _LambertShading:
+    """Shading of a batch when every material of the scene is diffuse (world-space Lambert).
+
+    Same estimator as :class:`_BSDFShading` on diffuse rows, without the local frames.
+    """
+
+    def __init__(self, prep, si):
+        self.albedo = prep.tri_albedo[si.prim]
+        self.ns = si.ns
+        self.nee_rows = None  # every row takes part in next-event estimation
+
+    def eval_pdf(self, rows, wi):
+        return eval_lambert(self.albedo[rows], self.ns[rows], wi), pdf_lambert(self.ns[rows], wi)
+
+    def sample(self, u_lobe, u):
+        wi, weight, pdf = sample_lambert(self.albedo, self.ns, u)
+        k = pdf.shape[0]
+        return wi, weight, pdf, np.zeros(k, bool), np.full(k, VIS_DIFFUSE, np.int32)
+
+
+class _BSDFShading:
+    """Shading of a batch through :mod:`core.materials.bsdf`: local frames around the stored
+    (unflipped) geometric normal, so dielectrics know whether the path is inside or outside."""
+
+    def __init__(self, prep, si):
+        self.params, delta_only = prep.bsdf(si.prim)
+        self.s, self.t, self.n = shading_frame(si.ng)
+        self.wo = to_local(si.wo, self.s, self.t, self.n)
+        # Next-event estimation cannot contribute through smooth mirrors and glass.
+        self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None
+
+    def eval_pdf(self, rows, wi):
+        p = self.params.take(rows)
+        wo = self.wo[rows]
+        wi = to_local(wi, self.s[rows], self.t[rows], self.n[rows])
+        return eval_bsdf(p, wo, wi, RADIANCE), pdf_bsdf(p, wo, wi)
+
+    def sample(self, u_lobe, u):
+        smp = sample_bsdf(self.params, self.wo, u_lobe, u, RADIANCE)
+        wi = to_world(smp.wi, self.s, self.t, self.n)
+        return wi, smp.weight, smp.pdf, smp.delta, ray_class(smp.lobe)
 
 
 def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
@@ -75,11 +140,13 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
     beta = np.ones((n, 3))
     pdf_prev = np.zeros(n)
     use_mis = np.zeros(n, bool)
+    vis = np.full(n, VIS_CAMERA, np.int32)
+    lambert_only = bool(np.all(prep.material_bsdf.kind == 0))
 
     for bounce in range(settings.max_bounces + 2):
         # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
         camera = bounce == 0
-        hits = prep.accel.intersect(o, d, tmax, VIS_CAMERA if camera else VIS_DIFFUSE)
+        hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         counters.rays += o.shape[0]
         add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera,
                                 heuristic, mis_beta, mis_alpha)
@@ -94,35 +161,23 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         si = surface_interaction(prep, hits, d, live)
         stream.compact(live)
         rows_of, beta = rows_of[live], beta[live]
-        albedo = prep.tri_albedo[si.prim]
-        stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
+        shading = _LambertShading(prep, si) if lambert_only else _BSDFShading(prep, si)
 
         # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
+        stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
         u_sel = stream.next_1d()
         u_light = stream.next_2d()
         if use_nee:
-            wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(si.p, u_sel, u_light,
-                                                                          counters)
-            f = eval_lambert(albedo, si.ns, wi)
-            ok = (pdf_l > 0) & (max_component(f) > 0) & (max_component(li) > 0)
-            cand = np.nonzero(ok)[0]
-            if cand.size:
-                blocked = prep.accel.occluded(*prep.accel.shadow_rays(
-                    si.p[cand], si.ng[cand], si.prim[cand], wi[cand], dist[cand],
-                    light_normal[cand]), VIS_SHADOW)
-                counters.rays += cand.size
-                vis = cand[~blocked]
-                # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
-                w = np.where(delta[vis], 1.0,
-                             light_weight(pdf_l[vis], pdf_lambert(si.ns[vis], wi[vis]), heuristic,
-                                          mis_beta, mis_alpha))
-                contrib = beta[vis] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
-                L[rows_of[vis]] += contrib
+            nee = (np.arange(live.size) if shading.nee_rows is None else shading.nee_rows)
+            if nee.size:
+                _next_event(prep, shading, si, nee, u_sel[nee], u_light[nee], beta, L, rows_of,
+                            heuristic, mis_beta, mis_alpha, counters)
 
-        # Sample the BSDF for the next segment.
-        wi, weight, pdf_b = sample_lambert(albedo, si.ns, stream.next_2d())
+        # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
+        u_lobe = stream.next_1d()
+        wi, weight, pdf_b, delta, vis_next = shading.sample(u_lobe, stream.next_2d())
         beta = beta * weight
-        alive = pdf_b > 0
+        alive = (pdf_b > 0) & np.isfinite(beta).all(axis=1)
 
         # Russian roulette: unbiased termination of low-throughput paths.
         u_rr = stream.next_1d()
@@ -140,9 +195,32 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         d = wi[keep]
         tmax = np.full(keep.size, np.inf)
         pdf_prev = pdf_b[keep]
-        use_mis = np.ones(keep.size, bool)
+        use_mis = ~delta[keep]
+        vis = vis_next[keep]
 
     # No NaN or Inf reaches the film: a non-finite estimate is dropped (counted as zero).
     bad = ~np.isfinite(L).all(axis=1)
     L[bad] = 0.0
     return np.maximum(L, 0.0)
+
+
+def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, heuristic, mis_beta,
+                mis_alpha, counters):
+    """Stage *sample lights* on the shading rows ``rows``: adds ``beta f Li w / pdf`` to ``L``."""
+    p = si.p[rows]
+    wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(p, u_sel, u_light, counters)
+    f, pdf_b = shading.eval_pdf(rows, wi)
+    ok = (pdf_l > 0) & (max_component(f) > 0) & (max_component(li) > 0)
+    cand = np.nonzero(ok)[0]
+    if cand.size == 0:
+        return
+    blocked = prep.accel.occluded(*prep.accel.shadow_rays(
+        p[cand], si.ng[rows[cand]], si.prim[rows[cand]], wi[cand], dist[cand],
+        light_normal[cand]), VIS_SHADOW)
+    counters.rays += cand.size
+    vis = cand[~blocked]
+    # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
+    w = np.where(delta[vis], 1.0,
+                 light_weight(pdf_l[vis], pdf_b[vis], heuristic, mis_beta, mis_alpha))
+    contrib = beta[rows[vis]] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
+    L[rows_of[rows[vis]]] += contrib

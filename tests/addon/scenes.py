@@ -85,6 +85,30 @@ def shader_material(name, node_type, color=None):
     return mat
 
 
+def glossy_material(name, color, roughness, distribution='GGX'):
+    """A Glossy BSDF material (single-scattering GGX unless ``distribution`` says otherwise;
+    Blender's own default is Multiscatter GGX)."""
+    mat, out = _new_node_tree_material(name)
+    node = mat.node_tree.nodes.new("ShaderNodeBsdfGlossy")
+    node.distribution = distribution
+    node.inputs["Color"].default_value = (*color, 1.0)
+    node.inputs["Roughness"].default_value = roughness
+    mat.node_tree.links.new(node.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+def glass_material(name, color=(1.0, 1.0, 1.0), ior=1.5, roughness=0.0, distribution='GGX'):
+    """A Glass BSDF material."""
+    mat, out = _new_node_tree_material(name)
+    node = mat.node_tree.nodes.new("ShaderNodeBsdfGlass")
+    node.distribution = distribution
+    node.inputs["Color"].default_value = (*color, 1.0)
+    node.inputs["IOR"].default_value = ior
+    node.inputs["Roughness"].default_value = roughness
+    mat.node_tree.links.new(node.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
 def set_world(scene, color, strength=1.0, name="World"):
     """Give ``scene`` a world whose Background node has ``color`` x ``strength``."""
     world = bpy.data.worlds.new(name)
@@ -111,6 +135,25 @@ def add_mesh(scene, name, vertices, faces, material=None, location=(0.0, 0.0, 0.
         mesh.materials.append(material)
     ob = bpy.data.objects.new(name, mesh)
     ob.location = location
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def add_uv_sphere(scene, name, center, radius, material=None, segments=32, rings=16):
+    """A closed, flat-shaded UV sphere (smooth normals are not supported by Sampling Lab yet)."""
+    import bmesh
+
+    mesh = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
+    bm.to_mesh(mesh)
+    bm.free()
+    mesh.polygons.foreach_set("use_smooth", [False] * len(mesh.polygons))
+    mesh.update()
+    if material is not None:
+        mesh.materials.append(material)
+    ob = bpy.data.objects.new(name, mesh)
+    ob.location = center
     scene.collection.objects.link(ob)
     return ob
 
@@ -168,7 +211,8 @@ def set_resolution(scene, width, height, percentage=100):
 # --------------------------------------------------------------------------- scenes
 
 
-def cornell_box(scene, light="mesh", resolution=(32, 32), light_color=(1.0, 1.0, 1.0)):
+def cornell_box(scene, light="mesh", resolution=(32, 32), light_color=(1.0, 1.0, 1.0),
+                blocks=True, light_size=0.5):
     """A Lambertian Cornell box with one light, a camera and a black world.
 
     Parameters
@@ -177,9 +221,13 @@ def cornell_box(scene, light="mesh", resolution=(32, 32), light_color=(1.0, 1.0,
     light : str
         ``'mesh'``: an emissive quad under the ceiling (Emission shader, strength 10);
         ``'point'``: a 100 W point light of radius 0 at (0, 0, 1.8);
-        ``'area'``: a 0.5 x 0.5 m square area light of 50 W under the ceiling, facing down.
+        ``'area'``: a ``light_size`` square area light of 50 W under the ceiling, facing down.
     resolution : (int, int)
     light_color : (3,) float
+    blocks : bool
+        Whether to add the two white blocks.
+    light_size : float
+        Side of the area light (m).
 
     Returns
     -------
@@ -199,7 +247,7 @@ def cornell_box(scene, light="mesh", resolution=(32, 32), light_color=(1.0, 1.0,
     blocks = [
         add_block(scene, "ShortBlock", (0.33, -0.3, 0.3), (0.6, 0.6, 0.6), math.radians(-17), white),
         add_block(scene, "TallBlock", (-0.33, 0.35, 0.6), (0.6, 0.6, 1.2), math.radians(17), white),
-    ]
+    ] if blocks else []
     if light == "mesh":
         emit = emission_material("Light", light_color, 10.0)
         h = 0.25
@@ -210,7 +258,7 @@ def cornell_box(scene, light="mesh", resolution=(32, 32), light_color=(1.0, 1.0,
                          shadow_soft_size=0.0)
     elif light == "area":
         lamp = add_light(scene, 'AREA', "Lamp", (0.0, 0.0, 1.98), energy=50.0, color=light_color,
-                         shape='SQUARE', size=0.5)
+                         shape='SQUARE', size=light_size)
     else:
         raise ValueError(f"unknown light {light!r}")
     set_world(scene, (0.0, 0.0, 0.0), 0.0)
@@ -251,6 +299,36 @@ def plane_under_sun(scene, resolution=(32, 32), strength=3.0, angle_deg=0.526,
     camera = add_camera(scene, (0.0, -3.0, 2.0), (math.radians(60), 0.0, 0.0), lens=35.0)
     set_resolution(scene, *resolution)
     return {"camera": camera, "sun": sun, "plane": plane}
+
+
+def cornell_sphere(scene, material, resolution=(32, 32), light_size=0.3,
+                   center=(0.0, -0.1, 0.45), radius=0.45):
+    """The Cornell box without blocks, a ``light_size`` 50 W area light, and one flat-shaded
+    UV sphere of ``material`` (a mirror ball, a glass sphere)."""
+    objects = cornell_box(scene, "area", resolution, blocks=False, light_size=light_size)
+    objects["sphere"] = add_uv_sphere(scene, "Sphere", center, radius, material)
+    return objects
+
+
+def glossy_plates(scene, resolution=(32, 32), roughness=(0.1, 0.3, 0.6)):
+    """Three Glossy BSDF (GGX) plates over a grey diffuse floor, under a small (0.1 m, 10 W)
+    and a large (1 m, 50 W) square area light whose reflections the camera sees, black world."""
+    grey = diffuse_material("Grey", (0.4, 0.4, 0.4))
+    floor = add_quad(scene, "Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], grey)
+    plates = []
+    for i, (x, r) in enumerate(zip((-0.7, 0.0, 0.7), roughness)):
+        mat = glossy_material(f"Glossy{i}", (0.9, 0.8, 0.6), r)
+        h = 0.3
+        plates.append(add_quad(scene, f"Plate{i}", [(x - h, -h, 0.01), (x + h, -h, 0.01),
+                                                    (x + h, h, 0.01), (x - h, h, 0.01)], mat))
+    small = add_light(scene, 'AREA', "SmallLamp", (-0.6, 1.1, 1.5), energy=10.0,
+                      shape='SQUARE', size=0.1)
+    large = add_light(scene, 'AREA', "LargeLamp", (0.6, 1.1, 1.5), energy=50.0,
+                      shape='SQUARE', size=1.0)
+    set_world(scene, (0.0, 0.0, 0.0), 0.0)
+    camera = add_camera(scene, (0.0, -2.5, 1.5), (math.radians(61), 0.0, 0.0), lens=35.0)
+    set_resolution(scene, *resolution)
+    return {"camera": camera, "floor": floor, "plates": plates, "lights": [small, large]}
 
 
 # --------------------------------------------------------------------------- render settings

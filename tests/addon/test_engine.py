@@ -173,23 +173,23 @@ def test_same_seed_same_image(empty_scene, tmp_path):
 
 def test_unsupported_material_warns_but_renders(empty_scene, tmp_path):
     scenes.cornell_box_mesh_light(empty_scene, resolution=(8, 8))
-    glass = scenes.shader_material("Glass", "ShaderNodeBsdfGlass")
-    bpy.data.objects["TallBlock"].data.materials[0] = glass
+    toon = scenes.shader_material("Toon", "ShaderNodeBsdfToon")
+    bpy.data.objects["TallBlock"].data.materials[0] = toon
     scenes.set_sampling_lab(empty_scene, samples=1)
-    rgb = scenes.render_to_exr(empty_scene, tmp_path / "glass.exr")["Combined"]
+    rgb = scenes.render_to_exr(empty_scene, tmp_path / "toon.exr")["Combined"]
     assert np.isfinite(rgb).all()
 
 
 def test_approximations_are_reported_once_per_render(empty_scene, tmp_path, capfd):
     scenes.cornell_box_mesh_light(empty_scene, resolution=(8, 8))
-    glass = scenes.shader_material("Glass", "ShaderNodeBsdfGlass")
+    toon = scenes.shader_material("Toon", "ShaderNodeBsdfToon")
     for name in ("TallBlock", "ShortBlock"):
-        bpy.data.objects[name].data.materials[0] = glass
+        bpy.data.objects[name].data.materials[0] = toon
     scenes.set_sampling_lab(empty_scene, samples=1)
     capfd.readouterr()
     scenes.render_to_exr(empty_scene, tmp_path / "once.exr")
     out = capfd.readouterr().out
-    assert out.count("Material 'Glass': node 'Glass BSDF' is not supported yet") == 1, out
+    assert out.count("Material 'Toon': node 'Toon BSDF' is not supported yet") == 1, out
 
 
 def test_every_view_layer_gets_its_passes(empty_scene, tmp_path):

@@ -162,35 +162,105 @@ def test_one_million_triangle_mesh_exports(empty_scene, export):
 
 
 def test_unsupported_node_is_reported_once(empty_scene, export):
-    glass = scenes.shader_material("Glass", "ShaderNodeBsdfGlass", color=(0.9, 0.9, 0.9))
+    toon = scenes.shader_material("Toon", "ShaderNodeBsdfToon", color=(0.9, 0.9, 0.9))
     for i in range(3):
         scenes.add_quad(empty_scene, f"Pane{i}",
-                        [(0, 0, i), (1, 0, i), (1, 1, i), (0, 1, i)], glass)
+                        [(0, 0, i), (1, 0, i), (1, 1, i), (0, 1, i)], toon)
     scenes.add_camera(empty_scene, (0, 0, 10), (0, 0, 0))
     s = export_current(export)
     assert s.messages == [
-        "Material 'Glass': node 'Glass BSDF' is not supported yet; rendered as diffuse"]
-    row = s.materials.names.index("Glass")
+        "Material 'Toon': node 'Toon BSDF' is not supported yet; rendered as diffuse"]
+    row = s.materials.names.index("Toon")
+    assert s.materials.kind[row] == 0
     np.testing.assert_allclose(s.materials.base_color[row], 0.9, rtol=1e-6)
 
 
-def test_principled_bsdf_gives_base_color_emission_and_reports_lobes(empty_scene, export):
-    mat = bpy.data.materials.new("Gold")
+def _principled(name, **inputs):
+    mat = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
     bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-    bsdf.inputs["Base Color"].default_value = (1.0, 0.8, 0.3, 1.0)
-    bsdf.inputs["Metallic"].default_value = 1.0
-    bsdf.inputs["Emission Color"].default_value = (1.0, 0.5, 0.25, 1.0)
-    bsdf.inputs["Emission Strength"].default_value = 4.0
-    scenes.add_quad(empty_scene, "Q", [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], mat)
+    bsdf.distribution = 'GGX'
+    for key, value in inputs.items():
+        bsdf.inputs[key].default_value = value
+    return mat
+
+
+def _export_materials(empty_scene, export, *materials):
+    for i, mat in enumerate(materials):
+        scenes.add_quad(empty_scene, f"Q{i}", [(0, 0, i), (1, 0, i), (1, 1, i), (0, 1, i)], mat)
     scenes.add_camera(empty_scene, (0, 0, 10), (0, 0, 0))
     s = export_current(export)
-    np.testing.assert_allclose(s.materials.base_color[0], [1.0, 0.8, 0.3], rtol=1e-6)
-    np.testing.assert_allclose(s.materials.emission[0], [4.0, 2.0, 1.0], rtol=1e-6)
-    assert len(s.messages) == 1
-    assert "Material 'Gold'" in s.messages[0] and "metallic" in s.messages[0]
-    assert "rendered as diffuse" in s.messages[0]
+    return s, {name: i for i, name in enumerate(s.materials.names)}
+
+
+def test_principled_bsdf_maps_metal_glass_and_coat_with_their_inputs(empty_scene, export):
+    gold = _principled("Gold", **{"Base Color": (1.0, 0.8, 0.3, 1.0), "Metallic": 1.0,
+                                  "Roughness": 0.2, "Emission Color": (1.0, 0.5, 0.25, 1.0),
+                                  "Emission Strength": 4.0})
+    glass = _principled("Glass", **{"Transmission Weight": 1.0, "IOR": 1.33, "Roughness": 0.0})
+    plastic = _principled("Plastic", **{"Base Color": (0.2, 0.4, 0.6, 1.0), "Roughness": 0.3,
+                                        "Specular IOR Level": 0.7,
+                                        "Specular Tint": (1.0, 0.9, 0.8, 1.0)})
+    s, row = _export_materials(empty_scene, export, gold, glass, plastic)
+    m = s.materials
+    assert s.messages == []
+    assert [m.kind[row[k]] for k in ("Gold", "Glass", "Plastic")] == [1, 2, 3]
+    np.testing.assert_allclose(m.base_color[row["Gold"]], [1.0, 0.8, 0.3], rtol=1e-6)
+    np.testing.assert_allclose(m.emission[row["Gold"]], [4.0, 2.0, 1.0], rtol=1e-6)
+    np.testing.assert_allclose(m.roughness[[row["Gold"], row["Glass"], row["Plastic"]]],
+                               [0.2, 0.0, 0.3], rtol=1e-6)
+    assert m.metallic[row["Gold"]] == 1.0 and m.transmission[row["Glass"]] == 1.0
+    np.testing.assert_allclose(m.ior[row["Glass"]], 1.33, rtol=1e-6)
+    np.testing.assert_allclose(m.specular_ior_level[row["Plastic"]], 0.7, rtol=1e-6)
+    np.testing.assert_allclose(m.specular_tint[row["Plastic"]], [1.0, 0.9, 0.8], rtol=1e-6)
+
+
+def test_fractional_principled_lobes_render_the_dominant_one_and_are_reported(empty_scene,
+                                                                              export):
+    mat = _principled("Half", **{"Metallic": 0.7, "Coat Weight": 0.5})
+    s, row = _export_materials(empty_scene, export, mat)
+    assert s.materials.kind[row["Half"]] == 1
+    assert len(s.messages) == 2, s.messages
+    assert any("coat" in msg and "ignored" in msg for msg in s.messages)
+    assert any("fractional metallic" in msg and "rendered as metal" in msg for msg in s.messages)
+
+
+def test_glossy_glass_refraction_transparent_and_mix_nodes_map_to_core_kinds(empty_scene,
+                                                                             export):
+    glossy = scenes.shader_material("Glossy", "ShaderNodeBsdfGlossy", color=(0.9, 0.8, 0.7))
+    glossy.node_tree.nodes["Glossy BSDF"].inputs["Roughness"].default_value = 0.3
+    glass = scenes.shader_material("Glass", "ShaderNodeBsdfGlass", color=(0.9, 0.9, 0.9))
+    glass.node_tree.nodes["Glass BSDF"].inputs["Roughness"].default_value = 0.0
+    glass.node_tree.nodes["Glass BSDF"].inputs["IOR"].default_value = 1.45
+    refraction = scenes.shader_material("Refr", "ShaderNodeBsdfRefraction")
+    refraction.node_tree.nodes["Refraction BSDF"].inputs["Roughness"].default_value = 0.0
+    clear = scenes.shader_material("Clear", "ShaderNodeBsdfTransparent")
+    mix = scenes.shader_material("Mix", "ShaderNodeMixShader")
+    tree = mix.node_tree
+    shader = tree.nodes["Mix Shader"]
+    shader.inputs["Fac"].default_value = 0.8
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    metal = tree.nodes.new("ShaderNodeBsdfGlossy")
+    metal.distribution = 'GGX'
+    tree.links.new(diffuse.outputs[0], shader.inputs[1])
+    tree.links.new(metal.outputs[0], shader.inputs[2])
+    s, row = _export_materials(empty_scene, export, glossy, glass, refraction, clear, mix)
+    m = s.materials
+    assert [m.kind[row[k]] for k in ("Glossy", "Glass", "Refr", "Clear", "Mix")] == \
+        [1, 2, 2, 2, 1]
+    np.testing.assert_allclose(m.base_color[row["Glossy"]], [0.9, 0.8, 0.7], rtol=1e-6)
+    np.testing.assert_allclose(m.ior[row["Glass"]], 1.45, rtol=1e-6)
+    assert m.ior[row["Clear"]] == 1.0 and m.roughness[row["Clear"]] == 0.0
+    text = "\n".join(s.messages)
+    # Multiscatter GGX (the Glossy default), refraction-only, transparent and mix: one each.
+    assert "Material 'Glossy': MULTI_GGX distribution" in text
+    assert "Material 'Glass'" not in text
+    assert "Material 'Refr': node 'Refraction BSDF' (refraction only)" in text
+    assert "Material 'Clear': node 'Transparent BSDF'" in text
+    assert "Material 'Mix': node 'Mix Shader' is not supported yet; rendered as its input 2" \
+        in text
+    assert len(s.messages) == 4, s.messages
 
 
 def test_texture_driven_color_uses_socket_value_and_is_reported(empty_scene, export):
