@@ -8,10 +8,10 @@ that import ``bpy`` are imported only when Blender registers the add-on.
 
 
 def _modules():
-    from . import engine, properties, ui
+    from . import engine, operators, presets, properties, ui
 
     # Registration order: properties before the panels that draw them; reverse to unregister.
-    return (properties, engine, ui)
+    return (properties, engine, operators, presets, ui)
 
 
 def register():

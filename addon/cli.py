@@ -19,6 +19,9 @@ import sys
 from ..core import scenes as builtin_scenes
 from ..core.integrators import INTEGRATORS
 from ..core.render import RenderSettings, render
+from ..core.lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
+from ..core.sampling.distributions import DISTRIBUTION_METHODS
+from ..core.sampling.mis import MIS_SETTINGS
 from ..core.sampling.samplers import available as available_samplers
 
 
@@ -48,6 +51,26 @@ def _positive_int(text):
     return value
 
 
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, not {text!r}")
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, not {text}")
+    return value
+
+
+def _unit_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], not {text!r}")
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], not {text}")
+    return value
+
+
 def build_parser():
     parser = _Parser(prog="python -m sampling_lab", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -61,6 +84,18 @@ def build_parser():
     halt.add_argument("--time", type=float, help="time limit in seconds")
     r.add_argument("--max-depth", type=_positive_int, default=None,
                    help="maximum bounces (Cycles' max bounces; default 8)")
+    r.add_argument("--mis", choices=MIS_SETTINGS, default=None,
+                   help="how light and BSDF samples are combined (default power)")
+    r.add_argument("--mis-beta", type=_positive_float, default=None,
+                   help="power heuristic exponent (default 2)")
+    r.add_argument("--mis-alpha", type=_unit_float, default=None,
+                   help="cutoff heuristic fraction in [0, 1] (default 0.1)")
+    r.add_argument("--light-selection", choices=LIGHT_SELECTIONS, default=None,
+                   help="choose lights by power or uniformly (default power)")
+    r.add_argument("--light-sampling", choices=LIGHT_SAMPLINGS, default=None,
+                   help="sample area emitters by area or solid angle (default area)")
+    r.add_argument("--distribution", choices=DISTRIBUTION_METHODS, default=None,
+                   help="discrete sampling by CDF inversion or alias table (default cdf)")
     r.add_argument("--seed", type=int, default=None)
     r.add_argument("--resolution", type=_resolution, default=None, help="WxH")
     r.add_argument("--threads", type=_positive_int, default=2)
@@ -74,6 +109,19 @@ def build_parser():
     b.add_argument("--reference-spp", type=_positive_int, default=1024)
     b.add_argument("--no-cycles", action="store_true", help="skip the Cycles comparison")
     b.add_argument("--output", default="bench/results", help="folder for CSV and images")
+    from ..core.sampling.lab import build_parser as lab_parser
+
+    lab_parser(sub.add_parser("samplers", help="sampler lab: points, spectra, star discrepancy "
+                              "and checkerboard variance of every sampler (CSV, PNG, markdown)"))
+    bs = sub.add_parser("bench-strategies",
+                        help="equal-time error of every sampler and MIS setting (figures)")
+    bs.add_argument("--quick", action="store_true", help="tiny smoke run (seconds, not minutes)")
+    bs.add_argument("--resolution", type=_resolution, default=None, help="WxH (default 128x128)")
+    bs.add_argument("--seconds", type=float, default=None,
+                    help="equal-time budget in CPU seconds (default: the baseline's 64-spp time)")
+    bs.add_argument("--output", default="bench/results", help="folder for CSV, cache and plots")
+    bs.add_argument("--docs", default=None,
+                    help="markdown report to write (default docs/STRATEGIES.md unless --quick)")
     return parser
 
 
@@ -150,6 +198,11 @@ def cmd_render(args):
         settings.max_bounces = args.max_depth
     if args.seed is not None:
         settings.seed = args.seed
+    for flag, field in (("mis", "mis_heuristic"), ("mis_beta", "mis_beta"),
+                        ("mis_alpha", "mis_alpha"), ("light_selection", "light_selection"),
+                        ("light_sampling", "light_sampling"), ("distribution", "distribution")):
+        if getattr(args, flag) is not None:
+            setattr(settings, field, getattr(args, flag))
     for message in scene.messages:
         print(f"note: {message}", file=sys.stderr)
 
@@ -177,7 +230,8 @@ def cmd_render(args):
         write_png_preview(os.path.splitext(args.output)[0] + ".png", result.combined()[..., :3])
     stats = dict(result.stats)
     stats.update(output=os.path.abspath(args.output), integrator=settings.integrator,
-                 sampler=settings.sampler, width=scene.camera.width, height=scene.camera.height)
+                 sampler=settings.sampler, width=scene.camera.width, height=scene.camera.height,
+                 mis_beta=settings.mis_beta, mis_alpha=settings.mis_alpha)
     if args.json:
         print(json.dumps(stats))
     elif not args.quiet:
@@ -194,11 +248,27 @@ def cmd_bench(args):
                reference_spp=args.reference_spp, cycles=not args.no_cycles, output=args.output)
 
 
+def cmd_bench_strategies(args):
+    from ..bench.strategies import run
+
+    return run(quick=args.quick, resolution=args.resolution, seconds=args.seconds,
+               output=args.output, docs=args.docs)
+
+
 def main(argv=None):
     try:
         args = build_parser().parse_args(argv)
         if args.command == "render":
             return cmd_render(args)
+        if args.command == "bench-strategies":
+            return cmd_bench_strategies(args)
+        if args.command == "samplers":
+            from ..core.sampling.lab import main as lab_main
+
+            try:
+                return lab_main(args=args)
+            except ValueError as exc:
+                raise UsageError(str(exc)) from None
         return cmd_bench(args)
     except UsageError as exc:
         print(f"sampling_lab: error: {exc}", file=sys.stderr)

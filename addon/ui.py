@@ -3,6 +3,8 @@
 import bpy
 from bpy.types import Panel
 
+from .presets import draw_preset_row
+
 ENGINE_ID = 'SAMPLING_LAB'
 
 
@@ -28,9 +30,11 @@ class SAMPLINGLAB_RENDER_PT_sampling(SamplingLabButtonsPanel, Panel):
         layout.use_property_decorate = False
         settings = context.scene.sampling_lab
 
+        draw_preset_row(layout)
         col = layout.column()
         col.prop(settings, "integrator")
         col.prop(settings, "sampler")
+        col.operator("samplinglab.sampler_lab", icon='GRAPH')
         col.separator()
         col.prop(settings, "samples")
         col.prop(settings, "time_limit")

@@ -1,0 +1,622 @@
+"""Sampler lab: every sampler's points, spectrum, discrepancy and variance, measured side by side.
+
+``python -m sampling_lab samplers [--n 256] [--output docs/samplers] [--quick]`` (or the
+"Sampler Lab" operator in Blender) runs :func:`run` over every sampler that
+:func:`core.sampling.samplers.available` lists and writes, into the output folder:
+
+``points_<name>.csv`` / ``.png``
+    The first N 2-D points of pixel 0, dimension 0 (``stream.sample(0, 2)`` for sample indices
+    ``0 .. N-1``, the sampler made with ``spp = N``) and their scatter plot.
+``spectrum_<name>.csv`` / ``.png``
+    The radially averaged periodogram ``P(k) = |sum_j exp(-2 pi i k . x_j)|^2 / N`` over integer
+    frequencies ``k``, averaged over ``realizations`` pixels (independent randomizations of the
+    sampler), with its standard error. White noise has ``E[P(k)] = 1`` for every ``k != 0``;
+    blue noise is below 1 at low frequencies. Frequencies are also given in units of
+    ``sqrt(N)`` (the mean point spacing's frequency). A sampler whose set is only shifted from
+    pixel to pixel (the blue-noise samplers) has the same periodogram in every pixel: its
+    average shows one set's spectrum and its spread is zero.
+``checkerboard.csv`` / ``.png``
+    The variance of a pixel's estimate of the checkerboard integral (:func:`checkerboard`)
+    against the sample count n, over ``pixels`` independent pixels for each n (a different
+    seed for each n, so the points of one n are independent of the others'), with fitted
+    log-log slopes.
+``summary.csv``, ``points.png``, ``spectra.png`` and the markdown table (``SAMPLERS.md``
+    beside the output folder unless given): per sampler the star discrepancy of the N points
+    (pixel 0, and the mean over realizations), the checkerboard slope with its standard error
+    (:func:`core.metrics.convergence_slope`), and the mean periodogram in the low-frequency
+    band ``0 < |k| <= sqrt(N) / 2``.
+
+The checkerboard integrand
+    The lecture's example, ``f = 1`` where ``floor(x) + floor(y)`` is even, tilted: here
+    ``f(u, v) = 1`` where ``floor(3u + v) + floor(3v - u)`` is even, on the unit square. That
+    is a checkerboard of 10 squares of side ``1/sqrt(10)`` turned by ``atan(1/3)`` (18.4
+    degrees); it is periodic on the torus and shifting it by ``(3/10, 1/10)`` swaps black and
+    white, so its integral is exactly 1/2 and independent sampling has variance ``1/(4n)``.
+    The tilt is the lecture's warning made concrete: Koksma-Hlawka's bound holds for
+    axis-aligned boxes only, and edges that no sampler's strata line up with are what a
+    renderer meets. (An axis-aligned board with dyadic edges is integrated exactly by
+    (0, 2)-nets at n = 4, 16, ..., which says nothing about edges in general.)
+
+Matplotlib (Agg) draws the PNGs when it is installed; without it (Blender does not ship it) the
+CSV files and the table are still written and the result says that the plots were skipped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import time
+
+import numpy as np
+
+from ..metrics import convergence_slope
+from .samplers import available, make_sampler, sampler_class
+
+CHECKERBOARD_INTEGRAL = 0.5
+STAR_MAX_POINTS = 8192
+LOW_BAND = 0.5  # the low-frequency band is 0 < |k| <= LOW_BAND * sqrt(N)
+
+
+# ---------------------------------------------------------------------------------------------
+# Measures
+# ---------------------------------------------------------------------------------------------
+
+
+def checkerboard(u):
+    """The tilted checkerboard (module docstring): ``(n, 2)`` points -> ``(n,)`` float64 in {0, 1}.
+
+    Its integral over the unit square is :data:`CHECKERBOARD_INTEGRAL` = 1/2.
+    """
+    u = np.asarray(u, np.float64)
+    a = np.floor(3.0 * u[:, 0] + u[:, 1])
+    b = np.floor(3.0 * u[:, 1] - u[:, 0])
+    return ((a + b) % 2 == 0).astype(np.float64)
+
+
+def periodogram(points, k_max):
+    """Periodogram ``|sum_j exp(-2 pi i k . x_j)|^2 / N`` on the integer grid ``|k_x|, |k_y| <= k_max``.
+
+    Parameters
+    ----------
+    points : (N, 2) or (r, N, 2) float
+        One point set or ``r`` of them.
+    k_max : int
+
+    Returns
+    -------
+    (2 k_max + 1, 2 k_max + 1) or (r, 2 k_max + 1, 2 k_max + 1) float64
+        Indexed ``[k_y + k_max, k_x + k_max]``; the centre is ``k = 0`` (where the value is N).
+    """
+    p = np.asarray(points, np.float64)
+    single = p.ndim == 2
+    p = p.reshape((-1,) + p.shape[-2:])
+    k = np.arange(-int(k_max), int(k_max) + 1, dtype=np.float64)
+    out = np.empty((p.shape[0], k.size, k.size))
+    for r in range(p.shape[0]):
+        # The 2-D sum factorises per point: S[ky, kx] = sum_j ey[ky, j] ex[kx, j], a matrix product.
+        ex = np.exp(-2j * np.pi * np.outer(k, p[r, :, 0]))
+        ey = np.exp(-2j * np.pi * np.outer(k, p[r, :, 1]))
+        s = ey @ ex.T
+        out[r] = (s.real ** 2 + s.imag ** 2) / p.shape[1]
+    return out[0] if single else out
+
+
+def _radius_grid(k_max):
+    k = np.arange(-int(k_max), int(k_max) + 1)
+    return np.hypot(k[:, None], k[None, :])
+
+
+def radial_average(power, k_max):
+    """Mean of ``power`` over rings ``|k|`` in ``[r - 1/2, r + 1/2)``, ``r = 1 .. k_max``.
+
+    Parameters
+    ----------
+    power : (..., 2 k_max + 1, 2 k_max + 1) float
+        From :func:`periodogram`.
+
+    Returns
+    -------
+    radius : (k_max,) float64
+    mean : (..., k_max) float64
+    count : (k_max,) int64
+        Frequencies per ring.
+    """
+    rad = _radius_grid(k_max)
+    ring = np.rint(rad).astype(np.int64)
+    radius = np.arange(1, int(k_max) + 1)
+    p = np.asarray(power, np.float64)
+    flat = p.reshape(p.shape[:-2] + (-1,))
+    mean = np.empty(p.shape[:-2] + (radius.size,))
+    count = np.empty(radius.size, np.int64)
+    for i, r in enumerate(radius):
+        sel = (ring == r).ravel()
+        count[i] = sel.sum()
+        mean[..., i] = flat[..., sel].mean(axis=-1)
+    return radius.astype(np.float64), mean, count
+
+
+def low_frequency_power(power, n, band=LOW_BAND):
+    """Mean periodogram over ``0 < |k| <= band * sqrt(n)`` (at least the ring ``|k| = 1``).
+
+    Parameters
+    ----------
+    power : (..., 2 k_max + 1, 2 k_max + 1) float
+    n : int
+        Points per set.
+
+    Returns
+    -------
+    float or (...) float64
+    """
+    p = np.asarray(power, np.float64)
+    k_max = (p.shape[-1] - 1) // 2
+    rad = _radius_grid(k_max)
+    limit = max(band * math.sqrt(n), 1.0)
+    if limit > k_max:
+        raise ValueError(f"the periodogram reaches |k| = {k_max}; the band needs {limit:.1f}")
+    sel = ((rad > 0) & (rad <= limit)).ravel()
+    out = p.reshape(p.shape[:-2] + (-1,))[..., sel].mean(axis=-1)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def star_discrepancy(points, block=512):
+    """Exact star discrepancy ``sup_{a, b} |#{x < a, y < b} / N - a b|`` of 2-D points.
+
+    The supremum over anchored boxes is reached at corners on the grid of the points'
+    coordinates (plus 1): approached from above with closed boxes (count ``#{x <= a, y <= b}``,
+    excess points) and from below with open ones (count ``#{x < a, y < b}``, missing points).
+    Both counts come from one 2-D cumulative histogram over coordinate ranks, so the cost is
+    ``O(N^2)`` time and ``O(N)`` memory per block of rows; up to :data:`STAR_MAX_POINTS` points
+    (about a second at 8192).
+
+    Parameters
+    ----------
+    points : (N, 2) float in [0, 1)
+
+    Returns
+    -------
+    float
+    """
+    p = np.asarray(points, np.float64)
+    n = p.shape[0]
+    if n == 0:
+        return 0.0
+    if n > STAR_MAX_POINTS:
+        raise ValueError(f"exact star discrepancy is limited to {STAR_MAX_POINTS} points, got {n}")
+    if p.min() < 0 or p.max() >= 1:
+        raise ValueError("points must lie in [0, 1)^2")
+    xs = np.unique(np.concatenate([p[:, 0], [1.0]]))
+    ys = np.unique(np.concatenate([p[:, 1], [1.0]]))
+    rx = np.searchsorted(xs, p[:, 0])
+    ry = np.searchsorted(ys, p[:, 1])
+    # Row cumulative counts for each y rank, built block by block with a running carry.
+    order = np.argsort(ry, kind="stable")
+    rx, ry = rx[order], ry[order]
+    carry = np.zeros(xs.size, np.int64)  # closed counts of the previous row: #{x <= xs[k], y <= ys[l-1]}
+    upper = lower = 0.0
+    starts = np.searchsorted(ry, np.arange(0, ys.size + block, block))
+    for b, l0 in enumerate(range(0, ys.size, block)):
+        l1 = min(l0 + block, ys.size)
+        sel = slice(starts[b], starts[b + 1])
+        hist = np.bincount((ry[sel] - l0) * xs.size + rx[sel],
+                           minlength=(l1 - l0) * xs.size).reshape(l1 - l0, xs.size)
+        closed = np.cumsum(np.cumsum(hist, axis=1), axis=0) + carry[None, :]
+        vol = ys[l0:l1, None] * xs[None, :]
+        upper = max(upper, float((closed / n - vol).max()))
+        # Open box [0, xs[k]) x [0, ys[l]): closed count at (k - 1, l - 1).
+        prev = np.concatenate([carry[None, :], closed[:-1]], axis=0)
+        opened = np.concatenate([np.zeros((l1 - l0, 1), np.int64), prev[:, :-1]], axis=1)
+        lower = max(lower, float((vol - opened / n).max()))
+        carry = closed[-1]
+    return max(upper, lower)
+
+
+def sample_points(name, n, pixels, seed=0, dimension=0, spp=None):
+    """The first ``n`` 2-D points of each of ``pixels`` pixels: ``(len(pixels), n, 2)``.
+
+    The sampler is made with ``spp = n`` (or ``spp``) and asked for dimensions
+    ``dimension, dimension + 1`` of sample indices ``0 .. n-1``.
+    """
+    pixels = np.asarray(pixels, np.int64)
+    sampler = make_sampler(name, seed=seed, spp=n if spp is None else spp)
+    stream = sampler.stream(np.repeat(pixels, n), np.tile(np.arange(n, dtype=np.int64), pixels.size))
+    return stream.sample(dimension, 2).reshape(pixels.size, n, 2)
+
+
+def variance_and_se(estimates):
+    """Sample variance (``ddof=1``) of independent estimates and its standard error.
+
+    The standard error uses the sample fourth central moment,
+    ``Var(s^2) ~ (m4 - s^4 (P - 3) / (P - 1)) / P``, so it holds for the skewed, discrete
+    estimates of a 0/1 integrand too.
+    """
+    x = np.asarray(estimates, np.float64)
+    p = x.size
+    s2 = float(x.var(ddof=1))
+    m4 = float(np.mean((x - x.mean()) ** 4))
+    se = math.sqrt(max(m4 - s2 * s2 * (p - 3) / (p - 1), 0.0) / p)
+    return s2, se
+
+
+def checkerboard_estimates(name, n, pixels, seed=0, max_batch=1 << 20):
+    """Estimates of the checkerboard integral, one per pixel ``0 .. pixels-1``, with ``n``
+    samples each (sampler made with ``spp = n``, dimensions 0-1): ``(pixels,)`` float64."""
+    sampler = make_sampler(name, seed=seed, spp=n)
+    out = np.empty(int(pixels))
+    step = max(1, max_batch // n)
+    idx = np.arange(n, dtype=np.int64)
+    for a in range(0, int(pixels), step):
+        pix = np.arange(a, min(a + step, int(pixels)), dtype=np.int64)
+        u = sampler.stream(np.repeat(pix, n), np.tile(idx, pix.size)).sample(0, 2)
+        out[a:a + pix.size] = checkerboard(u).reshape(pix.size, n).mean(axis=1)
+    return out
+
+
+def fit_slope(ns, variances, variance_se):
+    """Log-log slope of variance against n with two standard errors.
+
+    Returns
+    -------
+    slope : float
+    se_fit : float
+        :func:`core.metrics.convergence_slope`'s (scatter about the line; includes curvature).
+    se_sampling : float
+        Propagated from each variance's own standard error (independent across n): how far the
+        slope can move from sampling noise alone.
+    """
+    x = np.log(np.asarray(ns, np.float64))
+    v = np.asarray(variances, np.float64)
+    slope, se_fit = convergence_slope(ns, v)
+    c = (x - x.mean()) / float(((x - x.mean()) ** 2).sum())
+    rel = np.asarray(variance_se, np.float64) / v
+    return slope, se_fit, float(math.sqrt(float(np.sum((c * rel) ** 2))))
+
+
+def checkerboard_study(name, ns, pixels, seed=0):
+    """Variance of the checkerboard estimate for each n: list of dict rows, and the slope fit.
+
+    Each n uses its own seed (``seed + 7919 i``), so the variances are independent.
+    """
+    rows = []
+    for i, n in enumerate(ns):
+        est = checkerboard_estimates(name, int(n), pixels, seed=seed + 7919 * i)
+        var, se = variance_and_se(est)
+        rows.append({"sampler": name, "n": int(n), "pixels": int(pixels),
+                     "mean": float(est.mean()), "variance": var, "variance_se": se,
+                     "independent_variance": CHECKERBOARD_INTEGRAL * (1 - CHECKERBOARD_INTEGRAL) / n})
+    good = [r for r in rows if r["variance"] > 0]
+    fit = (math.nan, math.nan, math.nan)
+    if len(good) >= 3:
+        fit = fit_slope([r["n"] for r in good], [r["variance"] for r in good],
+                        [r["variance_se"] for r in good])
+    return rows, fit
+
+
+# ---------------------------------------------------------------------------------------------
+# The lab run: CSV, PNG, markdown
+# ---------------------------------------------------------------------------------------------
+
+QUICK = {"n": 64, "realizations": 8, "star_realizations": 4, "pixels": 256,
+         "ns": (4, 16, 64, 256), "progressive_ns": ()}
+FULL = {"n": 256, "realizations": 64, "star_realizations": 16, "pixels": 1024,
+        "ns": (4, 16, 64, 256, 1024), "progressive_ns": (4096,)}
+
+
+def _write_csv(path, header, rows):
+    tmp = path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for r in rows:
+            w.writerow([_fmt(v) for v in r])
+    os.replace(tmp, path)
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return f"{v:.9g}"
+    return v
+
+
+def _pyplot():
+    try:
+        import matplotlib
+    except ImportError:
+        return None
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _label(name):
+    try:
+        return getattr(sampler_class(name), "label", name)
+    except ValueError:
+        return name
+
+
+def measure_sampler(name, cfg, seed=0):
+    """All measures of one sampler (a dict); see :func:`run`."""
+    n = cfg["n"]
+    t0 = time.perf_counter()
+    pts = sample_points(name, n, np.arange(cfg["realizations"]), seed=seed)
+    k_max = max(int(math.ceil(3 * math.sqrt(n))), 4)
+    power = periodogram(pts, k_max)
+    radius, radial, count = radial_average(power, k_max)
+    low = low_frequency_power(power, n)
+    r = cfg["realizations"]
+    star = [star_discrepancy(pts[i]) for i in range(min(cfg["star_realizations"], r))]
+    try:
+        progressive = not sampler_class(name).needs_spp
+    except (ValueError, AttributeError):
+        progressive = False
+    ns = tuple(cfg["ns"]) + (tuple(cfg["progressive_ns"]) if progressive else ())
+    rows, fit = checkerboard_study(name, ns, cfg["pixels"], seed=seed + 1)
+    return {
+        "name": name, "label": _label(name), "n": n, "points": pts[0],
+        "power_mean": power.mean(axis=0), "k_max": k_max, "radius": radius,
+        "radial_mean": radial.mean(axis=0),
+        "radial_se": radial.std(axis=0, ddof=1) / math.sqrt(r) if r > 1 else np.zeros_like(radius),
+        "ring_count": count,
+        "low_power": float(np.mean(low)),
+        "low_power_se": float(np.std(low, ddof=1) / math.sqrt(r)) if r > 1 else 0.0,
+        "star_pixel0": star[0], "star_mean": float(np.mean(star)),
+        "star_se": float(np.std(star, ddof=1) / math.sqrt(len(star))) if len(star) > 1 else 0.0,
+        "checkerboard": rows, "slope": fit[0], "slope_se": fit[1], "slope_se_sampling": fit[2],
+        "seconds": time.perf_counter() - t0,
+    }
+
+
+def _plot_points(plt, m, path):
+    fig, ax = plt.subplots(figsize=(4, 4.3))
+    _draw_points(ax, m)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _draw_points(ax, m):
+    p = m["points"]
+    ax.scatter(p[:, 0], p[:, 1], s=max(2.0, 600.0 / m["n"]), c="k", linewidths=0)
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    ax.set_aspect("equal")
+    ax.set_xticks([0, 0.5, 1])
+    ax.set_yticks([0, 0.5, 1])
+    ax.set_title(f"{m['label']} (N={m['n']})", fontsize=9)
+
+
+def _plot_spectrum(plt, m, path):
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(9, 4))
+    k = m["k_max"]
+    img = m["power_mean"].copy()
+    img[k, k] = np.nan  # k = 0 holds N, not noise
+    a0.imshow(img, origin="lower", extent=(-k - 0.5, k + 0.5, -k - 0.5, k + 0.5),
+              cmap="magma", vmin=0, vmax=2.5)
+    a0.set_title(f"{m['label']}: periodogram (mean)", fontsize=9)
+    a0.set_xlabel("k_x")
+    a0.set_ylabel("k_y")
+    f = m["radius"] / math.sqrt(m["n"])
+    a1.plot(f, m["radial_mean"], "k-", lw=1)
+    a1.fill_between(f, m["radial_mean"] - 2 * m["radial_se"], m["radial_mean"] + 2 * m["radial_se"],
+                    color="0.7", lw=0)
+    a1.axhline(1.0, color="tab:red", lw=0.8, ls="--", label="white noise")
+    a1.axvline(LOW_BAND, color="tab:blue", lw=0.8, ls=":", label="low band edge")
+    a1.set_xlabel("|k| / sqrt(N)")
+    a1.set_ylabel("radially averaged power")
+    a1.set_ylim(0, max(2.5, float(np.nanmax(m["radial_mean"])) * 1.05))
+    a1.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _plot_overview(plt, results, out):
+    cols = min(5, len(results))
+    rows = -(-len(results) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(2.6 * cols, 2.8 * rows), squeeze=False)
+    for ax in axes.ravel():
+        ax.axis("off")
+    for ax, m in zip(axes.ravel(), results):
+        ax.axis("on")
+        _draw_points(ax, m)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "points.png"), dpi=100)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for m in results:
+        ax.plot(m["radius"] / math.sqrt(m["n"]), m["radial_mean"], lw=1, label=m["label"])
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_xlabel("|k| / sqrt(N)")
+    ax.set_ylabel("radially averaged power")
+    ax.set_ylim(0, 3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "spectra.png"), dpi=100)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for m in results:
+        rs = [r for r in m["checkerboard"] if r["variance"] > 0]
+        ns = np.array([r["n"] for r in rs], float)
+        v = np.array([r["variance"] for r in rs])
+        e = np.array([r["variance_se"] for r in rs])
+        ax.errorbar(ns, v, yerr=2 * e, marker="o", ms=3, lw=1, capsize=2,
+                    label=f"{m['label']} ({m['slope']:.2f})")
+    ns = np.array(sorted({r["n"] for m in results for r in m["checkerboard"]}), float)
+    ax.plot(ns, 0.25 / ns, "k--", lw=0.8, label="1/(4n): independent")
+    ax.plot(ns, 0.25 / ns[0] ** -0.5 * ns ** -1.5, "k:", lw=0.8, label="slope -1.5")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("samples per pixel n")
+    ax.set_ylabel("variance of the pixel estimate")
+    ax.set_title("tilted checkerboard (I = 1/2)", fontsize=9)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "checkerboard.png"), dpi=100)
+    plt.close(fig)
+
+
+def _markdown(results, failures, cfg, quick, out, md_path):
+    rel = os.path.relpath(out, os.path.dirname(os.path.abspath(md_path)))
+    n = cfg["n"]
+    lines = [
+        "# Samplers measured",
+        "",
+        "Written by `python -m sampling_lab samplers` (`core/sampling/lab.py`; "
+        f"{'quick' if quick else 'full'} settings). N = {n} points of pixel 0, dimension 0; "
+        f"star discrepancy exact (pixel 0, and mean over {cfg['star_realizations']} pixels); "
+        "checkerboard: variance of the pixel estimate of the tilted checkerboard "
+        f"(I = 1/2) over {cfg['pixels']} pixels for n = {', '.join(map(str, cfg['ns']))}"
+        + (f" (and {', '.join(map(str, cfg['progressive_ns']))} for progressive samplers)"
+           if cfg["progressive_ns"] else "")
+        + ", log-log slope ± its standard error (independent sampling: -1); low-frequency "
+        f"power: mean periodogram over 0 < |k| <= sqrt(N)/2 and {cfg['realizations']} pixels "
+        "(white noise: 1).",
+        "",
+        f"| sampler | star discrepancy (N={n}) | checkerboard slope ± se | variance × n at n={cfg['ns'][-1]} | low-frequency power |",
+        "|---|---|---|---|---|",
+    ]
+    for m in results:
+        last = [r for r in m["checkerboard"] if r["n"] == cfg["ns"][-1]]
+        vn = f"{last[0]['variance'] * last[0]['n']:.3g}" if last else "-"
+        slope = "-" if math.isnan(m["slope"]) else f"{m['slope']:.2f} ± {m['slope_se']:.2f}"
+        lines.append(f"| {m['label']} (`{m['name']}`) | {m['star_pixel0']:.4f} "
+                     f"(mean {m['star_mean']:.4f}) | {slope} | {vn} | "
+                     f"{m['low_power']:.3f} ± {m['low_power_se']:.3f} |")
+    for name, err in failures:
+        lines.append(f"| `{name}` | failed: {err} | | | |")
+    lines += ["", f"![points]({rel}/points.png)", "", f"![spectra]({rel}/spectra.png)", "",
+              f"![checkerboard]({rel}/checkerboard.png)", ""]
+    tmp = md_path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write("\n".join(lines))
+    os.replace(tmp, md_path)
+
+
+def run(output="docs/samplers", n=None, quick=False, markdown=None, samplers=None, seed=0,
+        log=print):
+    """Measure every available sampler and write the files listed in the module docstring.
+
+    Parameters
+    ----------
+    output : str
+        Folder for CSV and PNG files (created).
+    n : int or None
+        Points per set (default 256, or 64 with ``quick``).
+    quick : bool
+        Fewer realizations, pixels and sample counts (for tests and previews).
+    markdown : str or None
+        Path of the markdown table; default ``SAMPLERS.md`` in the output folder's parent.
+    samplers : list of str or None
+        Names to measure (default: all available).
+    seed : int
+    log : callable(str)
+
+    Returns
+    -------
+    dict
+        ``results`` (per-sampler measures), ``failures`` (name, message), ``files``,
+        ``plots`` (False when matplotlib is missing), ``markdown``.
+    """
+    cfg = dict(QUICK if quick else FULL)
+    if n is not None:
+        if int(n) < 2:
+            raise ValueError("the lab needs at least 2 points per set")
+        if int(n) > STAR_MAX_POINTS:
+            raise ValueError(f"at most {STAR_MAX_POINTS} points (exact star discrepancy)")
+        cfg["n"] = int(n)
+    out = os.path.abspath(output)
+    os.makedirs(out, exist_ok=True)
+    md_path = os.path.abspath(markdown) if markdown else os.path.join(os.path.dirname(out),
+                                                                       "SAMPLERS.md")
+    plt = _pyplot()
+    if plt is None:
+        log("sampler lab: matplotlib is not installed; writing CSV files and the table only")
+    names = list(samplers) if samplers else available()
+    results, failures, files = [], [], []
+    for name in names:
+        try:
+            m = measure_sampler(name, cfg, seed=seed)
+        except Exception as exc:  # one broken sampler must not hide the others' results
+            failures.append((name, f"{type(exc).__name__}: {exc}"))
+            log(f"sampler lab: {name}: {type(exc).__name__}: {exc}")
+            continue
+        results.append(m)
+        log(f"sampler lab: {name}: star {m['star_pixel0']:.4f}, slope {m['slope']:.2f} ± "
+            f"{m['slope_se']:.2f}, low power {m['low_power']:.3f} ({m['seconds']:.1f} s)")
+        p = os.path.join(out, f"points_{name}.csv")
+        _write_csv(p, ["i", "x", "y"], [(i, float(x), float(y)) for i, (x, y) in enumerate(m["points"])])
+        files.append(p)
+        p = os.path.join(out, f"spectrum_{name}.csv")
+        _write_csv(p, ["k", "k_over_sqrt_n", "power", "power_se", "frequencies"],
+                   [(float(k), float(k / math.sqrt(m["n"])), float(v), float(e), int(c))
+                    for k, v, e, c in zip(m["radius"], m["radial_mean"], m["radial_se"],
+                                          m["ring_count"])])
+        files.append(p)
+        if plt is not None:
+            for kind, fn in (("points", _plot_points), ("spectrum", _plot_spectrum)):
+                p = os.path.join(out, f"{kind}_{name}.png")
+                fn(plt, m, p)
+                files.append(p)
+    p = os.path.join(out, "checkerboard.csv")
+    _write_csv(p, ["sampler", "n", "pixels", "mean", "variance", "variance_se",
+                   "independent_variance"],
+               [(r["sampler"], r["n"], r["pixels"], r["mean"], r["variance"], r["variance_se"],
+                 r["independent_variance"]) for m in results for r in m["checkerboard"]])
+    files.append(p)
+    p = os.path.join(out, "summary.csv")
+    _write_csv(p, ["sampler", "n", "star_discrepancy", "star_discrepancy_mean",
+                   "star_discrepancy_se", "checkerboard_slope", "checkerboard_slope_se",
+                   "checkerboard_slope_se_sampling", "low_frequency_power",
+                   "low_frequency_power_se", "seconds"],
+               [(m["name"], m["n"], m["star_pixel0"], m["star_mean"], m["star_se"], m["slope"],
+                 m["slope_se"], m["slope_se_sampling"], m["low_power"], m["low_power_se"],
+                 m["seconds"]) for m in results])
+    files.append(p)
+    if plt is not None and results:
+        _plot_overview(plt, results, out)
+        files += [os.path.join(out, f) for f in ("points.png", "spectra.png", "checkerboard.png")]
+    _markdown(results, failures, cfg, quick, out, md_path)
+    files.append(md_path)
+    return {"results": results, "failures": failures, "files": files, "plots": plt is not None,
+            "markdown": md_path}
+
+
+def build_parser(parser=None):
+    """Arguments of the ``samplers`` command (added to ``parser`` if given)."""
+    p = parser or argparse.ArgumentParser(prog="python -m sampling_lab samplers",
+                                          description=__doc__.splitlines()[0])
+    p.add_argument("--n", type=int, default=None,
+                   help="points per set (default 256; 64 with --quick)")
+    p.add_argument("--output", default="docs/samplers", help="folder for CSV and PNG files")
+    p.add_argument("--markdown", default=None,
+                   help="markdown table path (default: SAMPLERS.md beside the output folder)")
+    p.add_argument("--quick", action="store_true", help="small sizes (seconds, for tests)")
+    p.add_argument("--sampler", action="append", default=None,
+                   help="measure only this sampler (repeatable; default: all available)")
+    p.add_argument("--seed", type=int, default=0)
+    return p
+
+
+def main(argv=None, args=None):
+    """Entry point of ``python -m sampling_lab samplers``: returns the exit code.
+
+    Give either ``argv`` (the command's own arguments) or ``args`` (an ``argparse`` namespace
+    made by :func:`build_parser`, as ``addon/cli.py`` does).
+    """
+    if args is None:
+        args = build_parser().parse_args(argv)
+    unknown = [s for s in (args.sampler or []) if s not in available()]
+    if unknown:
+        raise ValueError(f"unknown sampler(s) {', '.join(unknown)}; choose from "
+                         f"{', '.join(available())}")
+    res = run(output=args.output, n=args.n, quick=args.quick, markdown=args.markdown,
+              samplers=args.sampler, seed=args.seed)
+    print(f"sampler lab: wrote {len(res['files'])} files to {os.path.abspath(args.output)} "
+          f"and {res['markdown']}")
+    return 1 if res["failures"] else 0

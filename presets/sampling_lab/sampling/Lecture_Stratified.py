@@ -1,0 +1,16 @@
+import bpy
+settings = bpy.context.scene.sampling_lab
+
+settings.integrator = 'PATH'
+settings.sampler = 'STRATIFIED'
+settings.samples = 64
+settings.time_limit = 0.0
+settings.max_bounces = 8
+settings.use_russian_roulette = True
+settings.rr_min_bounces = 3
+settings.mis_heuristic = 'POWER'
+settings.mis_beta = 2.0
+settings.mis_alpha = 0.1
+settings.light_selection = 'POWER'
+settings.light_sampling = 'AREA'
+settings.distribution = 'CDF'
