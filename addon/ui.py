@@ -8,6 +8,14 @@ from .presets import draw_preset_row
 ENGINE_ID = 'SAMPLING_LAB'
 
 
+def settings_layout(panel, context):
+    """A panel's property-split layout and the scene's Sampling Lab settings."""
+    layout = panel.layout
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout, context.scene.sampling_lab
+
+
 class SamplingLabButtonsPanel:
     """Mixin of every Sampling Lab panel in the Render Properties."""
 
@@ -25,10 +33,7 @@ class SAMPLINGLAB_RENDER_PT_sampling(SamplingLabButtonsPanel, Panel):
     bl_label = "Sampling"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.sampling_lab
+        layout, settings = settings_layout(self, context)
 
         draw_preset_row(layout)
         col = layout.column()
@@ -46,10 +51,7 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
     bl_parent_id = "SAMPLINGLAB_RENDER_PT_sampling"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.sampling_lab
+        layout, settings = settings_layout(self, context)
 
         col = layout.column()
         col.prop(settings, "mis_heuristic")
@@ -71,10 +73,7 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
     bl_label = "Light Paths"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.sampling_lab
+        layout, settings = settings_layout(self, context)
 
         col = layout.column()
         col.prop(settings, "max_bounces")
@@ -90,10 +89,7 @@ class SAMPLINGLAB_RENDER_PT_film(SamplingLabButtonsPanel, Panel):
     bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.sampling_lab
+        layout, settings = settings_layout(self, context)
 
         col = layout.column()
         col.prop(settings, "filter_type")
