@@ -158,6 +158,9 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     film = Film(cam.width, cam.height)
     sampler = make_sampler(settings.sampler, seed=settings.seed,
                            spp=settings.spp if settings.spp > 0 else None)
+    if hasattr(sampler, "width"):
+        # Screen-space samplers (blue-noise masks) need the image width to find vertical neighbours.
+        sampler.width = cam.width
     integrator = INTEGRATORS[settings.integrator]
     pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
     result = RenderResult(film, messages=list(scene.messages))
