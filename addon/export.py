@@ -350,32 +350,104 @@ def _principled_surface(node, read, owner):
 
 
 def world_radiance(world, messages):
-    """Constant background radiance (Background Color x Strength) of a world, or black.
+    """Background radiance of a world: a constant (Background Color x Strength) or a map.
+
+    A Background (or Emission) node whose Color is linked to an Environment Texture node with
+    an image (equirectangular projection, nothing linked to its Vector) gives an environment
+    map: the image's RGB x Strength, rows bottom first as Blender stores them (see
+    :attr:`core.scene.Scene.world_map`). Anything else linked to the Color is reported once
+    and replaced by the socket's own colour.
 
     Returns
     -------
-    (3,) float64
+    color : (3,) float64
+        Constant radiance (zero when a map is returned).
+    world_map : (h, w, 3) float32 or None
     """
     if world is None:
-        return np.zeros(3)
+        return np.zeros(3), None
     owner = f"World '{world.name}'"
     if not _uses_nodes(world) or world.node_tree is None:
-        return np.asarray(world.color[:3], np.float64)
+        return np.asarray(world.color[:3], np.float64), None
     output = _active_output(world.node_tree, 'ShaderNodeOutputWorld')
     if output is None:
-        return np.zeros(3)
+        return np.zeros(3), None
     socket = output.inputs.get("Volume")
     if socket is not None and _follow_link(socket) is not None:
         messages.add(f"{owner}: volume is not supported yet; ignored")
     source = _follow_link(output.inputs["Surface"])
     if source is None:
-        return np.zeros(3)
+        return np.zeros(3), None
     node, _ = source
     read = _NodeReader(owner, messages)
     if node.bl_idname in {'ShaderNodeBackground', 'ShaderNodeEmission'}:
-        return read.color(node, "Color") * read.value(node, "Strength")
+        strength = read.value(node, "Strength")
+        color_source = _follow_link(node.inputs["Color"])
+        if color_source is not None and color_source[0].bl_idname == 'ShaderNodeTexEnvironment':
+            pixels = _environment_pixels(color_source[0], owner, messages)
+            if pixels is not None:
+                return np.zeros(3), (pixels * np.float32(strength)).astype(np.float32)
+            return _as_color(node.inputs["Color"].default_value) * strength, None
+        return read.color(node, "Color") * strength, None
     messages.add(f"{owner}: node '{_node_name(node)}' is not supported yet; rendered black")
-    return np.zeros(3)
+    return np.zeros(3), None
+
+
+def _as_color(value):
+    return np.asarray(_as_size(value, 3), np.float64)
+
+
+# Colour spaces whose float values are scene-linear Rec.709 (Blender's working space) already.
+_LINEAR_COLORSPACES = {'Linear Rec.709', 'Linear', 'Non-Color'}
+
+
+def _environment_pixels(node, owner, messages):
+    """RGB ``(h, w, 3)`` float32 of an Environment Texture node's image, or None (reported).
+
+    Only what Cycles computes without a Mapping: equirectangular projection, nothing linked to
+    the Vector input. Images in a linear Rec.709 colour space are used as they are; 8-bit sRGB
+    images are decoded with the sRGB transfer function; other colour spaces are used as stored
+    (reported once). Interpolation other than Linear (Cycles' default) is reported.
+    """
+    name = _node_name(node)
+    fallback = "; using the Background colour"
+    if node.image is None:
+        messages.add(f"{owner}: environment texture '{name}' has no image{fallback}")
+        return None
+    if getattr(node, "projection", 'EQUIRECTANGULAR') != 'EQUIRECTANGULAR':
+        messages.add(f"{owner}: {node.projection.lower().replace('_', ' ')} projection of "
+                     f"environment texture '{name}' is not supported yet{fallback}")
+        return None
+    vector = node.inputs.get("Vector")
+    if vector is not None and _follow_link(vector) is not None:
+        messages.add(f"{owner}: the Vector input of environment texture '{name}' (a mapping) "
+                     f"is not supported yet{fallback}")
+        return None
+    image = node.image
+    w, h = (int(x) for x in image.size)
+    channels = int(image.channels)
+    if w <= 0 or h <= 0 or channels <= 0:
+        messages.add(f"{owner}: image '{image.name}' of environment texture '{name}' has no "
+                     f"pixels{fallback}")
+        return None
+    interpolation = getattr(node, "interpolation", 'Linear')
+    if interpolation != 'Linear':
+        messages.add(f"{owner}: {interpolation} interpolation of environment texture '{name}' "
+                     f"is not supported yet; rendered with Linear")
+    buf = np.empty(w * h * channels, np.float32)
+    image.pixels.foreach_get(buf)
+    buf = buf.reshape(h, w, channels)
+    rgb = buf[..., :3] if channels >= 3 else np.repeat(buf[..., :1], 3, axis=2)
+    rgb = np.ascontiguousarray(rgb)
+    space = image.colorspace_settings.name
+    if not image.is_float and space == 'sRGB':
+        # 8-bit sRGB pixels are stored encoded; Cycles decodes them to linear.
+        rgb = np.where(rgb <= 0.04045, rgb / 12.92,
+                       ((np.maximum(rgb, 0.04045) + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    elif space not in _LINEAR_COLORSPACES:
+        messages.add(f"{owner}: colour space '{space}' of image '{image.name}' is not "
+                     f"converted yet; its values are used as linear Rec.709")
+    return rgb
 
 
 class MaterialTable:
@@ -678,6 +750,7 @@ def export_scene(depsgraph, camera_object=None):
         material = np.zeros(0, np.int32)
         visibility = np.zeros(0, np.int32)
 
+    world_color, world_map = world_radiance(scene.world, messages)
     return Scene(
         vertices=vertices,
         triangles=triangles,
@@ -685,7 +758,8 @@ def export_scene(depsgraph, camera_object=None):
         materials=materials.build(),
         lights=Lights.concat(light_rows),
         camera=camera,
-        world_color=world_radiance(scene.world, messages),
+        world_color=world_color,
+        world_map=world_map,
         visibility=visibility,
         messages=messages.items,
     )

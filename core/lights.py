@@ -15,6 +15,10 @@ lights; by CDF inversion or an alias table), samples a point or direction on the
 (next-event estimation; area emitters by area or by solid angle), and evaluates the solid-angle
 density of the same choice for emitters found by BSDF sampling, so that the two strategies can be
 combined by MIS.
+The world is one emitter: a constant background is sampled uniformly on the sphere; an
+equirectangular environment map (:attr:`core.scene.Scene.world_map`) is importance-sampled by a
+:class:`~core.sampling.distributions.PiecewiseConstant2D` over its luminance x sin(theta)
+(:func:`environment_importance`), with the solid-angle pdf ``pdf_uv / (2 pi^2 sin theta)``.
 Area and sphere lights are not occluders: as in Cycles, they emit toward rays that pass through
 them and never block light.
 """
@@ -26,7 +30,12 @@ import time
 import numpy as np
 
 from .sampling import warps
-from .sampling.distributions import DISTRIBUTION_METHODS, Segmented1D, make_distribution
+from .sampling.distributions import (
+    DISTRIBUTION_METHODS,
+    PiecewiseConstant2D,
+    Segmented1D,
+    make_distribution,
+)
 from .scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SUN, Lights
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -164,6 +173,82 @@ def _normalize(v):
     return v / np.maximum(n, 1e-300)
 
 
+# ------------------------------------------------------------------ environment maps
+def equirect_uv(d):
+    """Cycles' ``direction_to_equirectangular``: world directions to map coordinates.
+
+    ``u = 0.5 - atan2(y, x) / (2 pi)`` (u = 0.5 faces +X, 0.25 faces +Y, 0 and 1 face -X) and
+    ``v = 0.5 + atan2(z, hypot(x, y)) / pi`` (v = 1 is the zenith +Z, v = 0 the nadir).
+
+    Parameters
+    ----------
+    d : (n, 3) float
+        Directions (need not be unit length).
+
+    Returns
+    -------
+    uv : (n, 2) float64
+        In [0, 1)^2 for u, [0, 1] for v.
+    """
+    d = np.asarray(d, np.float64)
+    rho = np.hypot(d[:, 0], d[:, 1])
+    u = np.mod(0.5 - np.arctan2(d[:, 1], d[:, 0]) / (2 * np.pi), 1.0)
+    v = 0.5 + np.arctan2(d[:, 2], rho) / np.pi
+    return np.stack([u, np.clip(v, 0.0, 1.0)], axis=-1)
+
+
+def equirect_direction(uv):
+    """Inverse of :func:`equirect_uv`: ``uv (n, 2)`` -> unit ``d (n, 3)``, ``sin_theta (n,)``."""
+    uv = np.asarray(uv, np.float64)
+    phi = np.pi - 2 * np.pi * uv[:, 0]
+    theta = np.pi * (1.0 - uv[:, 1])
+    sin_t = np.sin(theta)
+    d = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), np.cos(theta)], axis=-1)
+    return d, sin_t
+
+
+def environment_lookup(world_map, uv):
+    """Radiance of an equirectangular map at ``uv (n, 2)``: ``(n, 3)`` float64.
+
+    Bilinear between pixel centres with wrap-around on both axes, as Cycles' Environment
+    Texture with its default Linear interpolation and Repeat extension (so the half row next
+    to each pole blends with the opposite pole's row, as in Cycles). Row 0 of ``world_map
+    (h, w, 3)`` is v = 0 (the nadir).
+    """
+    h, w = world_map.shape[:2]
+    x = np.asarray(uv[:, 0], np.float64) * w - 0.5
+    y = np.asarray(uv[:, 1], np.float64) * h - 0.5
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    fx = (x - x0)[:, None]
+    fy = (y - y0)[:, None]
+    ix0 = np.mod(x0.astype(np.int64), w)
+    iy0 = np.mod(y0.astype(np.int64), h)
+    ix1 = np.mod(ix0 + 1, w)
+    iy1 = np.mod(iy0 + 1, h)
+    m = world_map
+    bottom = (1 - fx) * m[iy0, ix0] + fx * m[iy0, ix1]
+    top = (1 - fx) * m[iy1, ix0] + fx * m[iy1, ix1]
+    return (1 - fy) * bottom + fy * top
+
+
+def environment_importance(world_map):
+    """Sampling weights ``(h, w)`` of a map's cells: mean luminance of the interpolated map
+    over each pixel's cell, times sin(theta) at the row's centre.
+
+    The cell mean of the bilinear interpolant weighs the pixel by 3/4 and each neighbour by
+    1/8 per axis (wrapping as :func:`environment_lookup`), so every cell where the looked-up
+    radiance is non-zero has a non-zero weight: sampling stays unbiased around a single bright
+    pixel. sin(theta) makes the density uniform in solid angle for a constant map.
+    """
+    lum = np.asarray(world_map, np.float64) @ LUMINANCE
+    lum = 0.75 * lum + 0.125 * (np.roll(lum, 1, axis=1) + np.roll(lum, -1, axis=1))
+    lum = 0.75 * lum + 0.125 * (np.roll(lum, 1, axis=0) + np.roll(lum, -1, axis=0))
+    h = lum.shape[0]
+    sin_row = np.sin(np.pi * (np.arange(h) + 0.5) / h)
+    return np.maximum(lum, 0.0) * sin_row[:, None]
+
+
 class LightSampler:
     """Every emitter of a scene in one selection table.
 
@@ -206,12 +291,17 @@ class LightSampler:
     sampling : str
         ``'area'`` or ``'solid_angle'``.
     method : str
-        ``'cdf'`` or ``'alias'``.
+        ``'cdf'`` or ``'alias'`` (also for the environment map's 2D distribution).
 
     Attributes
     ----------
     build_s : float
         Seconds spent building the selection distributions.
+    world_map : (h, w, 3) float32 or None
+        The scene's environment map (non-finite and negative texels set to 0), or None for a
+        constant (or black) world.
+    world_dist : core.sampling.distributions.PiecewiseConstant2D or None
+        Over :func:`environment_importance` of ``world_map``; u along columns, v along rows.
     """
 
     def __init__(self, scene, tri_area, tri_normal, tri_v0, tri_e1, tri_e2, selection="power",
@@ -251,7 +341,24 @@ class LightSampler:
         self.emit_group = np.repeat(np.arange(groups.size),
                                     np.diff(np.append(group_start, emissive.size)))
         self.world = np.asarray(scene.world_color, np.float64)
-        self.has_world = bool(self.world.max() > 0)
+        self.world_map = None
+        self.world_dist = None
+        world_map = getattr(scene, "world_map", None)
+        if world_map is not None:
+            world_map = np.asarray(world_map, np.float32)
+            # No NaN reaches the film, and negative radiance is not light.
+            world_map = np.where(np.isfinite(world_map), np.maximum(world_map, 0.0),
+                                 0.0).astype(np.float32)
+            importance = environment_importance(world_map)
+            # A black map is no emitter: no environment sampling for a black world.
+            self.has_world = bool(importance.max() > 0)
+            if self.has_world:
+                self.world_map = world_map
+                t0 = time.perf_counter()
+                self.world_dist = PiecewiseConstant2D(importance, method)
+                world_build_s = time.perf_counter() - t0
+        else:
+            self.has_world = bool(self.world.max() > 0)
         self.n_lights = k
         self.world_index = k + emissive.size if self.has_world else -1
 
@@ -267,8 +374,13 @@ class LightSampler:
         group_power = (np.add.reduceat(tri_power[emissive], group_start) if emissive.size
                        else np.zeros(0))
         power = np.concatenate([power, group_power])
+        if self.world_dist is not None:
+            # Mean luminance over the sphere: (1 / 4 pi) sum f 2 pi^2 / (h w) = pi / 2 mean(f).
+            world_lum = 0.5 * np.pi * self.world_dist.integral
+        else:
+            world_lum = float(LUMINANCE @ self.world)
         if self.has_world:
-            power = np.concatenate([power, [4 * np.pi**2 * radius**2 * (LUMINANCE @ self.world)]])
+            power = np.concatenate([power, [4 * np.pi**2 * radius**2 * world_lum]])
         self.n_emitters = k + emissive.size + int(self.has_world)
         self.delta = np.zeros(self.n_emitters, bool)
         self.delta[:k] = ((self.lights.kind == LIGHT_POINT) & (self.lights.radius <= 0)) | (
@@ -286,6 +398,8 @@ class LightSampler:
                                                                          emissive.size), method)
                               if emissive.size else None)
         self.build_s = time.perf_counter() - t0
+        if self.world_dist is not None:
+            self.build_s += world_build_s
         if self.light_dist is not None:
             light_pmf = self.light_dist.pmf_table
             tri_prob = (light_pmf[k + self.emit_group] * self.triangle_dist.pmf_table
@@ -516,13 +630,56 @@ class LightSampler:
                                     light_normal)
             self._solid_angle_pdf(m, sph, omega, pmf, pdf)
 
-        # The world: uniform directions on the sphere.
+        # The world: an environment map by its importance, a constant one uniformly.
         if self.has_world:
             m = np.nonzero(index == self.world_index)[0]
-            wi[m] = warps.sample_uniform_sphere(u[m])
-            radiance[m] = self.world
-            pdf[m] = warps.uniform_sphere_pdf(m.size) * pmf[m]
+            if self.world_dist is not None:
+                t0 = time.perf_counter()
+                w, le, sa_pdf = self._sample_world_map(u[m])
+                if counters is not None:
+                    # The map's row and column draws count as the distributions' work.
+                    counters.distribution_s += time.perf_counter() - t0
+                    counters.distribution_samples += 2 * m.size
+                wi[m] = w
+                radiance[m] = le
+                pdf[m] = sa_pdf * pmf[m]
+            else:
+                wi[m] = warps.sample_uniform_sphere(u[m])
+                radiance[m] = self.world
+                pdf[m] = warps.uniform_sphere_pdf(m.size) * pmf[m]
         return wi, dist, radiance, pdf, delta, light_normal
+
+    def _sample_world_map(self, u):
+        """Directions ``(k, 3)``, radiance ``(k, 3)`` and solid-angle pdf ``(k,)`` (selection
+        excluded) drawn from the environment map's distribution with ``u (k, 2)``.
+
+        The pdf is ``pdf_uv / (2 pi^2 sin theta)`` (d omega = 2 pi^2 sin theta du dv); a
+        direction exactly at a pole (sin theta = 0) is a failed sample (pdf 0, no radiance).
+        """
+        uv, pdf_uv = self.world_dist.sample_continuous(u)
+        w, sin_t = equirect_direction(uv)
+        ok = sin_t > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sa_pdf = np.where(ok, pdf_uv / (2 * np.pi**2 * sin_t), 0.0)
+        ok &= np.isfinite(sa_pdf) & (sa_pdf > 0)
+        le = np.where(ok[:, None], environment_lookup(self.world_map, uv), 0.0)
+        return w, le, np.where(ok, sa_pdf, 0.0)
+
+    def world_pdf(self, d):
+        """Solid-angle density ``(n,)`` of NEE choosing the world and then direction ``d (n, 3)``
+        (selection included); zero without a world."""
+        n = d.shape[0]
+        if not self.has_world:
+            return np.zeros(n)
+        sel = self.select_prob[self.world_index]
+        if self.world_dist is None:
+            return sel * warps.uniform_sphere_pdf(n)
+        d = np.asarray(d, np.float64)
+        sin_t = np.hypot(d[:, 0], d[:, 1]) / np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+        pdf_uv = self.world_dist.pdf(equirect_uv(d))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pdf = np.where(sin_t > 0, sel * pdf_uv / (2 * np.pi**2 * sin_t), 0.0)
+        return np.where(np.isfinite(pdf), pdf, 0.0)
 
     @staticmethod
     def _solid_angle_pdf(m, sph, omega, pmf, pdf):
@@ -578,12 +735,26 @@ class LightSampler:
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
     def world_radiance(self, d):
-        """Background radiance for escaped rays ``d (n, 3)`` and NEE's pdf for it."""
+        """Background radiance for escaped rays and NEE's pdf for the same direction.
+
+        Parameters
+        ----------
+        d : (n, 3) float64
+            Ray directions.
+
+        Returns
+        -------
+        radiance : (n, 3) float64
+            The environment map's looked-up radiance, or the constant world colour.
+        pdf : (n,) float64
+            Solid-angle density with which :meth:`sample` picks ``d`` (selection included).
+        """
         n = d.shape[0]
         if not self.has_world:
             return np.zeros((n, 3)), np.zeros(n)
-        pdf = self.select_prob[self.world_index] * warps.uniform_sphere_pdf(n)
-        return np.broadcast_to(self.world, (n, 3)).copy(), pdf
+        if self.world_dist is None:
+            return np.broadcast_to(self.world, (n, 3)).copy(), self.world_pdf(d)
+        return environment_lookup(self.world_map, equirect_uv(d)), self.world_pdf(d)
 
     def hit_shapes(self, o, d, tmax, camera):
         """Emission from the light shapes (spheres, area lights, sun disks) a ray passes.

@@ -252,7 +252,17 @@ class Scene:
     materials : Materials
     lights : Lights
     world_color : (3,) float64
-        Constant background radiance (World Background Color x Strength).
+        Constant background radiance (World Background Color x Strength); unused when
+        ``world_map`` is given.
+    world_map : (h, w, 3) float32 or None
+        Equirectangular environment radiance (an Environment Texture into the Background node:
+        image RGB x Strength), or None for a constant world. Row 0 is the bottom row (the
+        nadir), as Blender stores images. Cycles' mapping (``direction_to_equirectangular``):
+        a world direction d = (x, y, z) looks up ``u = 0.5 - atan2(y, x) / (2 pi)``,
+        ``v = 0.5 + atan2(z, hypot(x, y)) / pi`` (u = 0.5 faces +X, u = 0.25 faces +Y,
+        v = 1 is the zenith), with bilinear interpolation between pixel centres, wrapping on
+        both axes (Cycles' default Linear interpolation and Repeat extension); see
+        :func:`core.lights.environment_lookup`.
     camera : Camera or None
     messages : list of str
         What the exporter approximated or ignored, said once per render.
@@ -265,6 +275,7 @@ class Scene:
     lights: Lights
     camera: Camera | None
     world_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    world_map: np.ndarray | None = None
     visibility: np.ndarray | None = None
     messages: list = field(default_factory=list)
 
@@ -273,6 +284,12 @@ class Scene:
         self.triangles = np.ascontiguousarray(self.triangles, np.int32).reshape(-1, 3)
         self.material = np.ascontiguousarray(self.material, np.int32).reshape(-1)
         self.world_color = np.asarray(self.world_color, np.float64).reshape(3)
+        if self.world_map is not None:
+            self.world_map = np.ascontiguousarray(self.world_map, np.float32)
+            if self.world_map.ndim != 3 or self.world_map.shape[2] != 3 \
+                    or 0 in self.world_map.shape:
+                raise ValueError(f"world_map must be a non-empty (h, w, 3) array, got shape "
+                                 f"{self.world_map.shape}")
         if self.visibility is None:
             self.visibility = np.full(self.triangles.shape[0], VIS_ALL, np.int32)
 

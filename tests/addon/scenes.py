@@ -126,6 +126,33 @@ def set_world(scene, color, strength=1.0, name="World"):
     return world
 
 
+def set_environment_world(scene, image, strength=1.0, name="World"):
+    """Give ``scene`` a world: Environment Texture (``image``) -> Background -> World Output.
+
+    Returns
+    -------
+    world, env_node, background_node
+    """
+    world = set_world(scene, (0.0, 0.0, 0.0), strength, name)
+    nodes = world.node_tree.nodes
+    bg = next(n for n in nodes if n.bl_idname == "ShaderNodeBackground")
+    env = nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    world.node_tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    return world, env, bg
+
+
+def float_image(name, rgb):
+    """A float image from ``rgb (h, w, 3)`` (row 0 is the bottom row, as Blender stores it)."""
+    rgb = np.asarray(rgb, np.float32)
+    h, w = rgb.shape[:2]
+    image = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
+    rgba = np.concatenate([rgb, np.ones((h, w, 1), np.float32)], axis=2)
+    image.pixels.foreach_set(np.ascontiguousarray(rgba).reshape(-1))
+    image.update()
+    return image
+
+
 def add_mesh(scene, name, vertices, faces, material=None, location=(0.0, 0.0, 0.0)):
     """Link a new mesh object built from ``vertices (v, 3)`` and ``faces`` (index lists)."""
     mesh = bpy.data.meshes.new(name)
