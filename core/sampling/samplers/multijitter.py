@@ -47,7 +47,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..lowdiscrepancy import ONE_MINUS_EPSILON, hash_combine, jitter, permutation_element, sub_key
-from .padded import PaddedStream, split_epochs
+from .padded import PaddedStream, sample_set_size, split_epochs
 
 DEFAULT_COUNT = 64
 
@@ -123,9 +123,7 @@ class MultiJitterSampler:
     def __init__(self, seed=0, spp=None):
         self.seed = int(seed)
         self.spp = None if spp is None else int(spp)
-        if self.spp is not None and self.spp < 1:
-            raise ValueError("the sample count must be at least 1")
-        self.count = self.spp if self.spp is not None else DEFAULT_COUNT
+        self.count = sample_set_size(spp, DEFAULT_COUNT)
 
     def stream(self, pixel, sample_index):
         return MultiJitterStream(pixel, sample_index, self.seed, self.count)

@@ -62,6 +62,16 @@ class PaddedStream(SampleStream):
         raise NotImplementedError
 
 
+def sample_set_size(spp, default):
+    """Samples per pixel a fixed-count pattern is built for: ``spp``, or ``default`` when the
+    render has no sample count (time-limited), in which case the pattern repeats in sets."""
+    if spp is None:
+        return default
+    if int(spp) < 1:
+        raise ValueError("the sample count must be at least 1")
+    return int(spp)
+
+
 def split_epochs(sample_index, count):
     """Split sample indices into (epoch, index within a point set of ``count`` points).
 
