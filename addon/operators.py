@@ -19,6 +19,7 @@ class SAMPLINGLAB_OT_sampler_lab(Operator):
         description="Folder the CSV files, PNG plots and SAMPLERS.md are written to ('//' is "
                     "the folder of the .blend file)",
         subtype='DIR_PATH',
+        options={'PATH_SUPPORTS_BLEND_RELATIVE'},
         default="//sampler_lab",
     )
     points: IntProperty(
