@@ -146,6 +146,10 @@ class _NodeReader:
             # Constant nodes are exact; anything else (textures, math) is approximated.
             if src_node.bl_idname in {'ShaderNodeRGB', 'ShaderNodeValue'}:
                 return _as_size(out.default_value, size)
+            if _TEXTURED_SOCKETS.get(node.bl_idname) == socket.name \
+                    and src_node.bl_idname == 'ShaderNodeTexImage':
+                # Read by _surface_texture, which reports what it cannot translate.
+                return _as_size(socket.default_value, size)
             self.messages.add(
                 f"{self.owner}: input '{socket.name}' of node '{_node_name(node)}' is driven "
                 f"by node '{_node_name(src_node)}', which is not supported yet; using the "
@@ -191,6 +195,7 @@ class Surface(NamedTuple):
     transmission: float = 0.0
     specular_ior_level: float = 0.5
     specular_tint: np.ndarray = np.ones(3)
+    texture: np.ndarray = None  # (h, w, 3) float32 base colour image, see _surface_texture
 
 
 def _diffuse(color, emission=None):
@@ -228,7 +233,93 @@ def material_surface(material, messages):
         socket = output.inputs.get(name)
         if socket is not None and _follow_link(socket) is not None:
             messages.add(f"{owner}: {name.lower()} is not supported yet; ignored")
-    return _shader_surface(_follow_link(output.inputs["Surface"]), owner, messages)
+    source = _follow_link(output.inputs["Surface"])
+    surface = _shader_surface(source, owner, messages)
+    return surface._replace(texture=_surface_texture(source, owner, messages))
+
+
+# The colour input of each BSDF node that an Image Texture may drive (the base colour).
+_TEXTURED_SOCKETS = {
+    'ShaderNodeBsdfPrincipled': "Base Color",
+    'ShaderNodeBsdfDiffuse': "Color",
+    'ShaderNodeBsdfGlossy': "Color",
+    'ShaderNodeBsdfAnisotropic': "Color",
+    'ShaderNodeBsdfGlass': "Color",
+    'ShaderNodeBsdfRefraction': "Color",
+}
+
+
+def _surface_texture(source, owner, messages, depth=0):
+    """Pixels of the Image Texture driving the base colour of the BSDF that
+    :func:`_shader_surface` translates for ``source``, or None (unsupported ones reported)."""
+    if source is None or depth >= 16:
+        return None
+    node, _ = source
+    if node.bl_idname == 'ShaderNodeMixShader':
+        # The same input _shader_surface picks.
+        fac = min(max(_NodeReader(owner, messages).value(node, "Fac", 0.5), 0.0), 1.0)
+        pick = 2 if fac > 0.5 else 1
+        return _surface_texture(_follow_link(node.inputs[pick]), owner, messages, depth + 1)
+    name = _TEXTURED_SOCKETS.get(node.bl_idname)
+    socket = node.inputs.get(name) if name else None
+    link = _follow_link(socket) if socket is not None else None
+    if link is None or link[0].bl_idname != 'ShaderNodeTexImage':
+        return None
+    return _image_texture_pixels(link[0], link[1], owner, messages)
+
+
+def _image_texture_pixels(node, out, owner, messages):
+    """RGB ``(h, w, 3)`` float32 of an Image Texture node's image, or None (reported).
+
+    What the core's lookup models: the Color output, flat projection of the active UV map
+    (Vector unlinked, or from a UV Map node of the default map or a Texture Coordinate's UV),
+    Linear interpolation, Repeat extension. Closest / Extend are reported and rendered as
+    Linear / Repeat; anything else falls back to the socket's own colour.
+    """
+    name = _node_name(node)
+    fallback = "; using the input's own colour"
+    image = node.image
+    if image is None:
+        messages.add(f"{owner}: image texture '{name}' has no image{fallback}")
+        return None
+    if out.identifier != "Color":
+        messages.add(f"{owner}: the {out.name} output of image texture '{name}' is not "
+                     f"supported yet{fallback}")
+        return None
+    if getattr(node, "projection", 'FLAT') != 'FLAT':
+        messages.add(f"{owner}: {node.projection.lower()} projection of image texture '{name}' "
+                     f"is not supported yet{fallback}")
+        return None
+    vector = node.inputs.get("Vector")
+    coords = _follow_link(vector) if vector is not None else None
+    if coords is not None:
+        src, socket = coords
+        default_uv = ((src.bl_idname == 'ShaderNodeUVMap' and not src.uv_map
+                       and not getattr(src, "from_instancer", False))
+                      or (src.bl_idname == 'ShaderNodeTexCoord' and socket.identifier == "UV"
+                          and not getattr(src, "from_instancer", False)))
+        if not default_uv:
+            messages.add(f"{owner}: the Vector input of image texture '{name}' (node "
+                         f"'{_node_name(src)}') is not supported yet{fallback}")
+            return None
+    w, h = (int(x) for x in image.size)
+    if w <= 0 or h <= 0 or int(image.channels) <= 0:
+        messages.add(f"{owner}: image '{image.name}' of image texture '{name}' has no "
+                     f"pixels{fallback}")
+        return None
+    interpolation = getattr(node, "interpolation", 'Linear')
+    if interpolation != 'Linear':
+        messages.add(f"{owner}: {interpolation} interpolation of image texture '{name}' is "
+                     f"not supported yet; rendered with Linear")
+    extension = getattr(node, "extension", 'REPEAT')
+    if extension not in {'REPEAT', 'EXTEND'}:
+        messages.add(f"{owner}: {extension.lower()} extension of image texture '{name}' is "
+                     f"not supported yet{fallback}")
+        return None
+    if extension == 'EXTEND':
+        messages.add(f"{owner}: extend extension of image texture '{name}' is not supported "
+                     f"yet; rendered with Repeat")
+    return _image_rgb(image, owner, messages)
 
 
 def _distribution_note(node, read, owner, what="GGX"):
@@ -434,6 +525,14 @@ def _environment_pixels(node, owner, messages):
     if interpolation != 'Linear':
         messages.add(f"{owner}: {interpolation} interpolation of environment texture '{name}' "
                      f"is not supported yet; rendered with Linear")
+    return _image_rgb(image, owner, messages)
+
+
+def _image_rgb(image, owner, messages):
+    """Linear RGB ``(h, w, 3)`` float32 of an image (row 0 at the bottom), read with
+    ``foreach_get``: linear colour spaces as they are, 8-bit sRGB decoded, others reported."""
+    w, h = (int(x) for x in image.size)
+    channels = int(image.channels)
     buf = np.empty(w * h * channels, np.float32)
     image.pixels.foreach_get(buf)
     buf = buf.reshape(h, w, channels)
@@ -482,7 +581,21 @@ class MaterialTable:
             self.names, col["base_color"], col["emission"], kinds=col["kind"],
             roughness=col["roughness"], ior=col["ior"], metallic=col["metallic"],
             transmission=col["transmission"], specular_ior_level=col["specular_ior_level"],
-            specular_tint=col["specular_tint"])
+            specular_tint=col["specular_tint"], texture=self.texture_rows())
+
+    @property
+    def textures(self):
+        """Base colour images of the textured rows, in row order (``Scene.textures``)."""
+        return [s.texture for s in self.surfaces if s.texture is not None]
+
+    def texture_rows(self):
+        """``(m,) int32`` index into :attr:`textures` per row, -1 for untextured rows."""
+        textured = np.array([s.texture is not None for s in self.surfaces], bool)
+        return np.where(textured, np.cumsum(textured) - 1, -1).astype(np.int32)
+
+    def textured(self, rows):
+        """Whether any of the material rows ``rows`` has a texture."""
+        return any(self.surfaces[int(r)].texture is not None for r in np.unique(rows))
 
 
 # --------------------------------------------------------------------------- meshes
@@ -540,6 +653,111 @@ def mesh_arrays(ob):
         return verts.reshape(-1, 3), tris.reshape(-1, 3), slot
     finally:
         ob.to_mesh_clear()
+
+
+def mesh_corner_normals(ob):
+    """Object-space shading normals at the corners of an evaluated object's loop triangles.
+
+    Blender 4.1+ ``Mesh.corner_normals`` (smooth faces, sharp edges, custom normals), gathered by
+    ``loop_triangles`` loops. Returns a ``(t, 3, 3)`` float32 array, or None when the mesh is
+    flat-shaded throughout (``normals_domain == 'FACE'``: the geometric normal is the shading
+    normal) or the Blender version has no corner normals.
+    """
+    try:
+        mesh = ob.to_mesh()
+    except RuntimeError:
+        return None
+    if mesh is None:
+        return None
+    try:
+        n_tris = len(mesh.loop_triangles)
+        if n_tris == 0 or not hasattr(mesh, "corner_normals"):
+            return None
+        if getattr(mesh, "normals_domain", 'CORNER') == 'FACE':
+            return None
+        normals = np.empty(len(mesh.corner_normals) * 3, np.float32)
+        mesh.corner_normals.foreach_get("vector", normals)
+        loops = np.empty(n_tris * 3, np.int32)
+        mesh.loop_triangles.foreach_get("loops", loops)
+        return normals.reshape(-1, 3)[loops].reshape(n_tris, 3, 3)
+    finally:
+        ob.to_mesh_clear()
+
+
+def _normals_to_world(normals, matrix):
+    """Object-space normals ``(..., 3)`` to world space (inverse transpose), unit length."""
+    m = np.asarray(matrix, np.float64)[:3, :3]
+    try:
+        inv_t = np.linalg.inv(m).T
+    except np.linalg.LinAlgError:
+        inv_t = m
+    n = normals.astype(np.float64) @ inv_t.T
+    length = np.linalg.norm(n, axis=-1, keepdims=True)
+    return (n / np.where(length > 0, length, 1.0)).astype(np.float32)
+
+
+def _concat_corner_normals(chunks, vertices, triangles):
+    """One ``(t, 3, 3)`` corner-normal table for the scene, or None if every mesh is flat.
+
+    ``chunks`` holds one entry per exported object (world-space normals or None); flat objects
+    get their face normals at every corner.
+    """
+    if all(c is None for c, _ in chunks):
+        return None
+    tri = vertices.astype(np.float64)[triangles]
+    face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float32)
+    out = np.repeat(face[:, None, :], 3, axis=1)
+    start = 0
+    for c, count in chunks:
+        if c is not None:
+            out[start:start + count] = c
+        start += count
+    return out
+
+
+def mesh_corner_uvs(ob, messages):
+    """``(t, 3, 2) float32`` active-UV-map coordinates at the corners of an evaluated object's
+    loop triangles (the order of :func:`mesh_arrays`), or None without triangles."""
+    try:
+        mesh = ob.to_mesh()
+    except RuntimeError:
+        return None
+    if mesh is None:
+        return None
+    try:
+        n_tris = len(mesh.loop_triangles)
+        if n_tris == 0:
+            return None
+        layer = mesh.uv_layers.active
+        if layer is None:
+            messages.add(f"Object '{ob.name}': no UV map for its image textures; they are "
+                         f"looked up at (0, 0)")
+            return np.zeros((n_tris, 3, 2), np.float32)
+        loops = np.empty(n_tris * 3, np.int32)
+        mesh.loop_triangles.foreach_get("loops", loops)
+        uv = np.empty(len(mesh.loops) * 2, np.float32)
+        layer.uv.foreach_get("vector", uv)
+        return uv.reshape(-1, 2)[loops].reshape(n_tris, 3, 2)
+    finally:
+        ob.to_mesh_clear()
+
+
+def _instance_uvs(ob, key, tri_mat, materials, uv_cache, messages):
+    """Corner UVs of one instance when its materials use textures, else None (cached)."""
+    if not materials.textured(tri_mat):
+        return None
+    if key not in uv_cache:
+        uv_cache[key] = mesh_corner_uvs(ob, messages)
+    uvs = uv_cache[key]
+    return uvs if uvs is not None and uvs.shape[0] == tri_mat.shape[0] else None
+
+
+def _concat_uvs(uv_chunks, tri_counts):
+    """``Scene.corner_uvs``: the instances' UVs (zero where untextured), or None if none."""
+    if all(c is None for c in uv_chunks):
+        return None
+    return np.concatenate([np.zeros((n, 3, 2), np.float32) if c is None else c
+                           for c, n in zip(uv_chunks, tri_counts)])
 
 
 def _to_world(verts, matrix):
@@ -689,6 +907,11 @@ def export_scene(depsgraph, camera_object=None):
     light_rows = []
     # Evaluated geometry shared by instances, keyed by (object, data) pointers.
     cache = {}
+    # Corner UVs of meshes whose materials use image textures, keyed as `cache`.
+    uv_cache, uv_chunks = {}, []
+    # Smooth shading: world corner normals per exported object (None when flat), see
+    # mesh_corner_normals.
+    normal_cache, normal_chunks = {}, []
 
     for inst in depsgraph.object_instances:
         ob = inst.object
@@ -737,7 +960,13 @@ def export_scene(depsgraph, camera_object=None):
         tri_chunks.append(tris + n_verts)
         mat_chunks.append(tri_mat)
         vis_chunks.append(np.full(tris.shape[0], _visibility_bits(ob), np.int32))
+        uv_chunks.append(_instance_uvs(ob, key, tri_mat, materials, uv_cache, messages))
         n_verts += verts.shape[0]
+        if key not in normal_cache:
+            normal_cache[key] = mesh_corner_normals(ob)
+        corner = normal_cache[key]
+        normal_chunks.append((None if corner is None else _normals_to_world(corner, matrix),
+                              tris.shape[0]))
 
     if vert_chunks:
         vertices = np.concatenate(vert_chunks)
@@ -762,4 +991,7 @@ def export_scene(depsgraph, camera_object=None):
         world_map=world_map,
         visibility=visibility,
         messages=messages.items,
+        textures=materials.textures,
+        corner_uvs=_concat_uvs(uv_chunks, [t.shape[0] for t in tri_chunks]),
+        corner_normals=_concat_corner_normals(normal_chunks, vertices, triangles),
     )

@@ -11,6 +11,7 @@ from .accel import Accel
 from .lights import LightSampler
 from .materials.bsdf import BSDFParams, is_delta_only
 from .scene import Scene
+from .textures import textured_base_color
 
 
 def recentred(scene: Scene):
@@ -92,6 +93,11 @@ class PreparedScene:
         """BSDF parameters of the hit triangles ``prim (k,)`` and whether each is delta-only."""
         rows = self.tri_material[prim]
         return self.material_bsdf.take(rows), self.material_delta_only[rows]
+
+    def textured_base_color(self, prim, u, v):
+        """Base colour of hits ``prim, u, v (k,)`` on textured materials: ``rows (j,)`` into
+        ``prim`` and ``color (j, 3)`` (see :func:`core.textures.textured_base_color`)."""
+        return textured_base_color(self.scene, self.tri_material, prim, u, v)
 
 
 def prepare(scene: Scene, light_selection="power", light_sampling="area",

@@ -84,6 +84,13 @@ class Camera:
     pixel_aspect_y: float = 1.0
 
 
+def texture_column(values, m):
+    """The ``(m,) int32`` texture index column of a material table (-1 = untextured)."""
+    if values is None:
+        return np.full(m, -1, np.int32)
+    return np.broadcast_to(np.asarray(values, np.int32), (m,)).copy()
+
+
 @dataclass
 class Materials:
     """Material table, one row per material.
@@ -111,6 +118,9 @@ class Materials:
         Principled Specular IOR Level (layered rows); default 0.5 (keeps the IOR).
     specular_tint : (m, 3) float32
         Reflection tint (dielectric) or coat tint (layered); default white.
+    texture : (m,) int32
+        Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
+        (an Image Texture into the base colour); -1 (the default) for none.
     """
 
     kind: np.ndarray
@@ -123,6 +133,7 @@ class Materials:
     transmission: np.ndarray = None
     specular_ior_level: np.ndarray = None
     specular_tint: np.ndarray = None
+    texture: np.ndarray = None
 
     def __post_init__(self):
         # Absent columns take Blender's defaults, so every table has every column.
@@ -139,11 +150,12 @@ class Materials:
         self.transmission = column(self.transmission, 0.0)
         self.specular_ior_level = column(self.specular_ior_level, DEFAULT_SPECULAR_IOR_LEVEL)
         self.specular_tint = column(self.specular_tint, 1.0, (3,))
+        self.texture = texture_column(self.texture, m)
 
     @staticmethod
     def from_lists(names, base_colors, emissions, kinds=None, roughness=None, ior=None,
                    metallic=None, transmission=None, specular_ior_level=None,
-                   specular_tint=None) -> "Materials":
+                   specular_tint=None, texture=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -155,6 +167,7 @@ class Materials:
             specular_ior_level=specular_ior_level,
             specular_tint=None if specular_tint is None
             else np.asarray(specular_tint, np.float32).reshape(-1, 3),
+            texture=texture,
         )
 
 
@@ -263,9 +276,20 @@ class Scene:
         v = 1 is the zenith), with bilinear interpolation between pixel centres, wrapping on
         both axes (Cycles' default Linear interpolation and Repeat extension); see
         :func:`core.lights.environment_lookup`.
+    textures : list of (h, w, 3) float32
+        Base colour images (row 0 at the bottom, v = 0), indexed by ``Materials.texture``;
+        looked up bilinearly with wrap-around (Cycles' Linear interpolation, Repeat extension)
+        at the hit's interpolated UV, see :func:`core.textures.texture_lookup`.
+    corner_uvs : (t, 3, 2) float32 or None
+        UV (active UV map) at each triangle corner, in vertex order; None when no material
+        is textured. Rows of untextured meshes are zero.
     camera : Camera or None
     messages : list of str
         What the exporter approximated or ignored, said once per render.
+    corner_normals : (t, 3, 3) float32 or None
+        Unit world-space shading normals at each triangle's three corners (Blender's corner
+        normals, smooth shading), or None when every face is flat (shading normal = geometric
+        normal). See :func:`core.integrators.common.shading_normals`.
     """
 
     vertices: np.ndarray
@@ -278,8 +302,12 @@ class Scene:
     world_map: np.ndarray | None = None
     visibility: np.ndarray | None = None
     messages: list = field(default_factory=list)
+    textures: list = field(default_factory=list)
+    corner_uvs: np.ndarray | None = None
+    corner_normals: np.ndarray | None = None
 
     def __post_init__(self):
+        self._check_corner_normals()
         self.vertices = np.ascontiguousarray(self.vertices, np.float32).reshape(-1, 3)
         self.triangles = np.ascontiguousarray(self.triangles, np.int32).reshape(-1, 3)
         self.material = np.ascontiguousarray(self.material, np.int32).reshape(-1)
@@ -292,6 +320,33 @@ class Scene:
                                  f"{self.world_map.shape}")
         if self.visibility is None:
             self.visibility = np.full(self.triangles.shape[0], VIS_ALL, np.int32)
+        self._check_textures()
+
+    def _check_textures(self):
+        """Normalise ``textures`` and ``corner_uvs`` (textured scenes need both)."""
+        self.textures = [np.ascontiguousarray(t, np.float32) for t in self.textures]
+        for t in self.textures:
+            if t.ndim != 3 or t.shape[2] != 3 or 0 in t.shape:
+                raise ValueError(f"textures must be non-empty (h, w, 3) arrays, got {t.shape}")
+        if self.corner_uvs is not None:
+            self.corner_uvs = np.ascontiguousarray(self.corner_uvs, np.float32).reshape(
+                self.triangles.shape[0], 3, 2)
+        if np.any(self.materials.texture >= len(self.textures)):
+            raise ValueError("a material's texture index is past the end of textures")
+        if self.textures and self.corner_uvs is None:
+            raise ValueError("textured scenes need corner_uvs")
+
+    def _check_corner_normals(self):
+        """Normalise ``corner_normals`` to unit (t, 3, 3) float32 (zero stays zero)."""
+        if self.corner_normals is None:
+            return
+        n = np.asarray(self.corner_normals, np.float64).reshape(-1, 3, 3)
+        if n.shape[0] != np.asarray(self.triangles).reshape(-1, 3).shape[0]:
+            raise ValueError(f"corner_normals must have one (3, 3) row per triangle, got shape "
+                             f"{n.shape}")
+        length = np.linalg.norm(n, axis=2, keepdims=True)
+        n = np.where(length > 0, n / np.maximum(length, 1e-300), 0.0)
+        self.corner_normals = np.ascontiguousarray(np.nan_to_num(n), np.float32)
 
     @property
     def n_triangles(self) -> int:

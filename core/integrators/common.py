@@ -87,7 +87,9 @@ class Interaction:
     ng : (k, 3) float64
         Unit geometric normals.
     ns : (k, 3) float64
-        Shading normals, flipped toward the side the ray came from (two-sided surfaces).
+        Shading normals, flipped toward the side the ray came from (two-sided surfaces):
+        ``ng`` itself for flat meshes, else the interpolated corner normals
+        (:func:`shading_normals`). ``ns . wo > 0`` wherever ``ng . wo != 0``.
     wo : (k, 3) float64
         Unit direction back along the incoming ray.
     prim : (k,) int32
@@ -108,7 +110,50 @@ def surface_interaction(prep, hits, d, rows):
     ng = prep.tri_normal[prim]
     wo = -d[rows]
     side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
-    return Interaction(p, ng, ng * side[:, None], wo, prim)
+    ns = shading_normals(prep, prim, hits.u[rows], hits.v[rows], ng, wo)
+    return Interaction(p, ng, ns * side[:, None], wo, prim)
+
+
+def shading_normals(prep, prim, u, v, ng, wo):
+    """Smooth-shading normals at hits, on the front side of the stored geometric normal.
+
+    The corner normals of ``prep.scene.corner_normals`` are interpolated with the hit
+    barycentrics (weights ``1 - u - v, u, v`` for corners 0, 1, 2, as Embree's ``u, v``) and
+    normalised; a normal pointing behind ``ng`` is mirrored to its side. Where ``wo`` sees the
+    geometric front but the shading back (or the reverse, near silhouettes of coarse meshes),
+    or the interpolation vanishes, the geometric normal is used instead: BSDFs then never see an
+    incoming direction from the "wrong" side of their frame, and the geometric-side test of the
+    integrators (see :mod:`.path`) keeps shading normals from leaking light through surfaces.
+    Returns ``ng`` itself when the scene has no corner normals (every face flat).
+
+    Parameters
+    ----------
+    prim : (k,) int
+    u, v : (k,) float
+    ng : (k, 3) float64
+        Unit geometric normals as stored (not flipped).
+    wo : (k, 3) float64
+
+    Returns
+    -------
+    (k, 3) float64
+        Unit normals ``n`` with ``n . ng >= 0``.
+    """
+    corner = prep.scene.corner_normals
+    if corner is None:
+        return ng
+    c = corner[prim].astype(np.float64)
+    u = np.asarray(u, np.float64)[:, None]
+    v = np.asarray(v, np.float64)[:, None]
+    n = (1.0 - u - v) * c[:, 0] + u * c[:, 1] + v * c[:, 2]
+    length = np.linalg.norm(n, axis=1)
+    good = length > 1e-12
+    n = n / np.where(good, length, 1.0)[:, None]
+    n *= np.where(np.einsum("ij,ij->i", n, ng) < 0, -1.0, 1.0)[:, None]
+    cos_g = np.einsum("ij,ij->i", ng, wo)
+    cos_s = np.einsum("ij,ij->i", n, wo)
+    good &= cos_g * cos_s > 0
+    return np.where(good[:, None], n, ng)
 
 
 def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera,

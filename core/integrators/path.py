@@ -77,12 +77,24 @@ class _LambertShading:
         self.albedo = prep.tri_albedo[si.prim]
         self.ns = si.ns
         self.nee_rows = None  # every row takes part in next-event estimation
+        # Smooth shading: reflections must stay on wo's side of the geometric surface.
+        self.ng = si.ng if prep.scene.corner_normals is not None else None
+        self.wo = si.wo
+
+    def set_base_color(self, rows, color):
+        """Replace the albedo of ``rows`` (textured hits) by ``color (j, 3)``."""
+        self.albedo[rows] = color
 
     def eval_pdf(self, rows, wi):
-        return eval_lambert(self.albedo[rows], self.ns[rows], wi), pdf_lambert(self.ns[rows], wi)
+        f = eval_lambert(self.albedo[rows], self.ns[rows], wi)
+        if self.ng is not None:
+            f *= geometric_side_valid(self.ng[rows], self.wo[rows], wi, False)[:, None]
+        return f, pdf_lambert(self.ns[rows], wi)
 
     def sample(self, u_lobe, u):
         wi, weight, pdf = sample_lambert(self.albedo, self.ns, u)
+        if self.ng is not None:
+            weight *= geometric_side_valid(self.ng, self.wo, wi, False)[:, None]
         k = pdf.shape[0]
         return wi, weight, pdf, np.zeros(k, bool), np.full(k, VIS_DIFFUSE, np.int32)
 
@@ -93,21 +105,60 @@ class _BSDFShading:
 
     def __init__(self, prep, si):
         self.params, delta_only = prep.bsdf(si.prim)
-        self.s, self.t, self.n = shading_frame(si.ng)
+        self.ng = None
+        if prep.scene.corner_normals is None:
+            self.s, self.t, self.n = shading_frame(si.ng)
+        else:
+            # Smooth shading: the frame's +Z is the shading normal on the stored front side
+            # (si.ns is flipped toward wo exactly when ng is), plus the geometric-side test.
+            front = np.where(np.einsum("ij,ij->i", si.ns, si.ng) < 0, -1.0, 1.0)
+            self.s, self.t, self.n = shading_frame(si.ns * front[:, None])
+            self.ng, self.wo_world = si.ng, si.wo
         self.wo = to_local(si.wo, self.s, self.t, self.n)
         # Next-event estimation cannot contribute through smooth mirrors and glass.
         self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None
 
+    def set_base_color(self, rows, color):
+        """Replace the base colour (diffuse albedo, conductor F0, coat base, glass tint) of
+        ``rows`` (textured hits) by ``color (j, 3)``."""
+        self.params.color[rows] = color
+
     def eval_pdf(self, rows, wi):
         p = self.params.take(rows)
         wo = self.wo[rows]
-        wi = to_local(wi, self.s[rows], self.t[rows], self.n[rows])
-        return eval_bsdf(p, wo, wi, RADIANCE), pdf_bsdf(p, wo, wi)
+        wi_local = to_local(wi, self.s[rows], self.t[rows], self.n[rows])
+        f = eval_bsdf(p, wo, wi_local, RADIANCE)
+        if self.ng is not None:
+            transmit = wo[:, 2] * wi_local[:, 2] < 0
+            f *= geometric_side_valid(self.ng[rows], self.wo_world[rows], wi, transmit)[:, None]
+        return f, pdf_bsdf(p, wo, wi_local)
 
     def sample(self, u_lobe, u):
         smp = sample_bsdf(self.params, self.wo, u_lobe, u, RADIANCE)
         wi = to_world(smp.wi, self.s, self.t, self.n)
-        return wi, smp.weight, smp.pdf, smp.delta, ray_class(smp.lobe)
+        weight = smp.weight
+        if self.ng is not None:
+            transmit = (smp.lobe & LOBE_TRANSMIT) != 0
+            weight = weight * geometric_side_valid(self.ng, self.wo_world, wi, transmit)[:, None]
+        return wi, weight, smp.pdf, smp.delta, ray_class(smp.lobe)
+
+
+def geometric_side_valid(ng, wo, wi, transmit):
+    """Whether ``wi (k, 3)`` leaves on the intended side of the *geometric* surface.
+
+    Shading normals tilt BSDF lobes away from the true surface, so a direction can be above the
+    shading hemisphere yet below the geometry: light would leak through, or paths continue
+    inside closed objects (pbrt's and Cycles' light-leak rule). A reflection (``transmit``
+    false) is valid only if ``wi . ng`` has the sign of ``wo . ng``, a transmission only if the
+    opposite sign. ``wo`` may be any vector on the viewer's side of ``ng`` (the incoming
+    direction, or ``ns`` already flipped toward it). Contributions of invalid directions are
+    zeroed; pdfs are left as they are (MIS weights of other strategies are unaffected).
+    """
+    cos_o = np.einsum("ij,ij->i", ng, wo)
+    cos_i = np.einsum("ij,ij->i", ng, wi)
+    same = cos_o * cos_i > 0
+    opposite = cos_o * cos_i < 0
+    return np.where(transmit, opposite, same)
 
 
 def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
@@ -162,6 +213,9 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         stream.compact(live)
         rows_of, beta = rows_of[live], beta[live]
         shading = _LambertShading(prep, si) if lambert_only else _BSDFShading(prep, si)
+        if prep.scene.textures:
+            shading.set_base_color(*prep.textured_base_color(si.prim, hits.u[live],
+                                                             hits.v[live]))
 
         # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
         stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)

@@ -167,7 +167,7 @@ def add_mesh(scene, name, vertices, faces, material=None, location=(0.0, 0.0, 0.
 
 
 def add_uv_sphere(scene, name, center, radius, material=None, segments=32, rings=16):
-    """A closed, flat-shaded UV sphere (smooth normals are not supported by Sampling Lab yet)."""
+    """A closed, flat-shaded UV sphere (see :func:`cornell_smooth_sphere` for smooth shading)."""
     import bmesh
 
     mesh = bpy.data.meshes.new(name)
@@ -334,6 +334,19 @@ def cornell_sphere(scene, material, resolution=(32, 32), light_size=0.3,
     UV sphere of ``material`` (a mirror ball, a glass sphere)."""
     objects = cornell_box(scene, "area", resolution, blocks=False, light_size=light_size)
     objects["sphere"] = add_uv_sphere(scene, "Sphere", center, radius, material)
+    return objects
+
+
+def cornell_smooth_sphere(scene, material, resolution=(32, 32), light_size=0.3,
+                          center=(0.0, -0.1, 0.45), radius=0.45, segments=16, rings=8):
+    """:func:`cornell_sphere` with a coarse smooth-shaded UV sphere (Shade Smooth): shading
+    normals differ visibly from the facets, so the corner-normal export and the geometric-side
+    rule are both exercised."""
+    objects = cornell_box(scene, "area", resolution, blocks=False, light_size=light_size)
+    ob = add_uv_sphere(scene, "Sphere", center, radius, material, segments, rings)
+    ob.data.polygons.foreach_set("use_smooth", [True] * len(ob.data.polygons))
+    ob.data.update()
+    objects["sphere"] = ob
     return objects
 
 
