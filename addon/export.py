@@ -14,6 +14,7 @@ Unit conversion of lights is left to :mod:`core.lights`; this module only reads 
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from typing import NamedTuple
 
 import bpy
@@ -611,8 +612,26 @@ def _visibility_bits(ob):
     return bits
 
 
-def mesh_arrays(ob):
-    """Local-space triangles of an evaluated object.
+@contextmanager
+def evaluated_mesh(ob):
+    """The evaluated mesh of ``ob`` (modifiers applied), or None; freed when the block ends.
+
+    Every per-mesh array (positions, corner normals, corner UVs) is read from this one
+    evaluation, so a mesh is never evaluated twice.
+    """
+    try:
+        mesh = ob.to_mesh()
+    except RuntimeError:
+        mesh = None
+    try:
+        yield mesh
+    finally:
+        if mesh is not None:
+            ob.to_mesh_clear()
+
+
+def mesh_arrays(mesh):
+    """Local-space triangles of an evaluated mesh.
 
     Returns
     -------
@@ -621,67 +640,49 @@ def mesh_arrays(ob):
     slot : (t,) int32
         Material slot index per triangle.
 
-    or None when the object has no triangles.
+    or None when the mesh has no triangles.
     """
-    try:
-        mesh = ob.to_mesh()
-    except RuntimeError:
+    n_tris = len(mesh.loop_triangles)
+    n_verts = len(mesh.vertices)
+    if n_tris == 0 or n_verts == 0:
         return None
-    if mesh is None:
-        return None
-    try:
-        n_tris = len(mesh.loop_triangles)
-        n_verts = len(mesh.vertices)
-        if n_tris == 0 or n_verts == 0:
-            return None
-        verts = np.empty(n_verts * 3, np.float32)
-        position = mesh.attributes.get("position")
-        if position is not None and position.data_type == 'FLOAT_VECTOR':
-            position.data.foreach_get("vector", verts)
-        else:
-            mesh.vertices.foreach_get("co", verts)
-        tris = np.empty(n_tris * 3, np.int32)
-        mesh.loop_triangles.foreach_get("vertices", tris)
-        slot = np.zeros(n_tris, np.int32)
-        mat_attr = mesh.attributes.get("material_index")
-        if mat_attr is not None and mat_attr.domain == 'FACE' and mat_attr.data_type == 'INT':
-            face_mat = np.empty(len(mesh.polygons), np.int32)
-            mat_attr.data.foreach_get("value", face_mat)
-            tri_face = np.empty(n_tris, np.int32)
-            mesh.loop_triangle_polygons.foreach_get("value", tri_face)
-            slot = face_mat[tri_face]
-        return verts.reshape(-1, 3), tris.reshape(-1, 3), slot
-    finally:
-        ob.to_mesh_clear()
+    verts = np.empty(n_verts * 3, np.float32)
+    position = mesh.attributes.get("position")
+    if position is not None and position.data_type == 'FLOAT_VECTOR':
+        position.data.foreach_get("vector", verts)
+    else:
+        mesh.vertices.foreach_get("co", verts)
+    tris = np.empty(n_tris * 3, np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    slot = np.zeros(n_tris, np.int32)
+    mat_attr = mesh.attributes.get("material_index")
+    if mat_attr is not None and mat_attr.domain == 'FACE' and mat_attr.data_type == 'INT':
+        face_mat = np.empty(len(mesh.polygons), np.int32)
+        mat_attr.data.foreach_get("value", face_mat)
+        tri_face = np.empty(n_tris, np.int32)
+        mesh.loop_triangle_polygons.foreach_get("value", tri_face)
+        slot = face_mat[tri_face]
+    return verts.reshape(-1, 3), tris.reshape(-1, 3), slot
 
 
-def mesh_corner_normals(ob):
-    """Object-space shading normals at the corners of an evaluated object's loop triangles.
+def mesh_corner_normals(mesh):
+    """Object-space shading normals at the corners of an evaluated mesh's loop triangles.
 
     Blender 4.1+ ``Mesh.corner_normals`` (smooth faces, sharp edges, custom normals), gathered by
     ``loop_triangles`` loops. Returns a ``(t, 3, 3)`` float32 array, or None when the mesh is
     flat-shaded throughout (``normals_domain == 'FACE'``: the geometric normal is the shading
     normal) or the Blender version has no corner normals.
     """
-    try:
-        mesh = ob.to_mesh()
-    except RuntimeError:
+    n_tris = len(mesh.loop_triangles)
+    if n_tris == 0 or not hasattr(mesh, "corner_normals"):
         return None
-    if mesh is None:
+    if getattr(mesh, "normals_domain", 'CORNER') == 'FACE':
         return None
-    try:
-        n_tris = len(mesh.loop_triangles)
-        if n_tris == 0 or not hasattr(mesh, "corner_normals"):
-            return None
-        if getattr(mesh, "normals_domain", 'CORNER') == 'FACE':
-            return None
-        normals = np.empty(len(mesh.corner_normals) * 3, np.float32)
-        mesh.corner_normals.foreach_get("vector", normals)
-        loops = np.empty(n_tris * 3, np.int32)
-        mesh.loop_triangles.foreach_get("loops", loops)
-        return normals.reshape(-1, 3)[loops].reshape(n_tris, 3, 3)
-    finally:
-        ob.to_mesh_clear()
+    normals = np.empty(len(mesh.corner_normals) * 3, np.float32)
+    mesh.corner_normals.foreach_get("vector", normals)
+    loops = np.empty(n_tris * 3, np.int32)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    return normals.reshape(-1, 3)[loops].reshape(n_tris, 3, 3)
 
 
 def _normals_to_world(normals, matrix):
@@ -715,40 +716,28 @@ def _concat_corner_normals(chunks, vertices, triangles):
     return out
 
 
-def mesh_corner_uvs(ob, messages):
-    """``(t, 3, 2) float32`` active-UV-map coordinates at the corners of an evaluated object's
+def mesh_corner_uvs(mesh, name, messages):
+    """``(t, 3, 2) float32`` active-UV-map coordinates at the corners of an evaluated mesh's
     loop triangles (the order of :func:`mesh_arrays`), or None without triangles."""
-    try:
-        mesh = ob.to_mesh()
-    except RuntimeError:
+    n_tris = len(mesh.loop_triangles)
+    if n_tris == 0:
         return None
-    if mesh is None:
-        return None
-    try:
-        n_tris = len(mesh.loop_triangles)
-        if n_tris == 0:
-            return None
-        layer = mesh.uv_layers.active
-        if layer is None:
-            messages.add(f"Object '{ob.name}': no UV map for its image textures; they are "
-                         f"looked up at (0, 0)")
-            return np.zeros((n_tris, 3, 2), np.float32)
-        loops = np.empty(n_tris * 3, np.int32)
-        mesh.loop_triangles.foreach_get("loops", loops)
-        uv = np.empty(len(mesh.loops) * 2, np.float32)
-        layer.uv.foreach_get("vector", uv)
-        return uv.reshape(-1, 2)[loops].reshape(n_tris, 3, 2)
-    finally:
-        ob.to_mesh_clear()
+    layer = mesh.uv_layers.active
+    if layer is None:
+        messages.add(f"Object '{name}': no UV map for its image textures; they are "
+                     f"looked up at (0, 0)")
+        return np.zeros((n_tris, 3, 2), np.float32)
+    loops = np.empty(n_tris * 3, np.int32)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    layer.uv.foreach_get("vector", uv)
+    return uv.reshape(-1, 2)[loops].reshape(n_tris, 3, 2)
 
 
-def _instance_uvs(ob, key, tri_mat, materials, uv_cache, messages):
-    """Corner UVs of one instance when its materials use textures, else None (cached)."""
+def _instance_uvs(tri_mat, materials, uvs):
+    """Corner UVs of one instance when its materials use textures, else None."""
     if not materials.textured(tri_mat):
         return None
-    if key not in uv_cache:
-        uv_cache[key] = mesh_corner_uvs(ob, messages)
-    uvs = uv_cache[key]
     return uvs if uvs is not None and uvs.shape[0] == tri_mat.shape[0] else None
 
 
@@ -905,13 +894,11 @@ def export_scene(depsgraph, camera_object=None):
     vert_chunks, tri_chunks, mat_chunks, vis_chunks = [], [], [], []
     n_verts = 0
     light_rows = []
-    # Evaluated geometry shared by instances, keyed by (object, data) pointers.
+    # Evaluated geometry shared by instances, keyed by (object, data) pointers: positions,
+    # material rows, corner normals (None when flat) and corner UVs (None when untextured).
     cache = {}
-    # Corner UVs of meshes whose materials use image textures, keyed as `cache`.
-    uv_cache, uv_chunks = {}, []
-    # Smooth shading: world corner normals per exported object (None when flat), see
-    # mesh_corner_normals.
-    normal_cache, normal_chunks = {}, []
+    # Per exported instance: corner UVs, and world corner normals with the triangle count.
+    uv_chunks, normal_chunks = [], []
 
     for inst in depsgraph.object_instances:
         ob = inst.object
@@ -940,31 +927,30 @@ def export_scene(depsgraph, camera_object=None):
         key = (ob.as_pointer(), ob.data.as_pointer() if ob.data is not None else 0)
         entry = cache.get(key)
         if entry is None:
-            arrays = mesh_arrays(ob)
-            if arrays is None:
-                entry = False
-            else:
-                verts, tris, slot = arrays
-                slots = [materials.row(s.material) for s in ob.material_slots]
-                if not slots:
-                    slots = [materials.row(None)]
-                # Blender clamps out-of-range material indices to the last slot.
-                table = np.asarray(slots, np.int32)
-                tri_mat = table[np.clip(slot, 0, len(slots) - 1)]
-                entry = (verts, tris, tri_mat)
+            entry = False
+            with evaluated_mesh(ob) as mesh:
+                arrays = None if mesh is None else mesh_arrays(mesh)
+                if arrays is not None:
+                    verts, tris, slot = arrays
+                    slots = [materials.row(s.material) for s in ob.material_slots]
+                    if not slots:
+                        slots = [materials.row(None)]
+                    # Blender clamps out-of-range material indices to the last slot.
+                    table = np.asarray(slots, np.int32)
+                    tri_mat = table[np.clip(slot, 0, len(slots) - 1)]
+                    uvs = (mesh_corner_uvs(mesh, ob.name, messages)
+                           if materials.textured(tri_mat) else None)
+                    entry = (verts, tris, tri_mat, mesh_corner_normals(mesh), uvs)
             cache[key] = entry
         if entry is False:
             continue
-        verts, tris, tri_mat = entry
+        verts, tris, tri_mat, corner, uvs = entry
         vert_chunks.append(_to_world(verts, matrix))
         tri_chunks.append(tris + n_verts)
         mat_chunks.append(tri_mat)
         vis_chunks.append(np.full(tris.shape[0], _visibility_bits(ob), np.int32))
-        uv_chunks.append(_instance_uvs(ob, key, tri_mat, materials, uv_cache, messages))
+        uv_chunks.append(_instance_uvs(tri_mat, materials, uvs))
         n_verts += verts.shape[0]
-        if key not in normal_cache:
-            normal_cache[key] = mesh_corner_normals(ob)
-        corner = normal_cache[key]
         normal_chunks.append((None if corner is None else _normals_to_world(corner, matrix),
                               tris.shape[0]))
 
