@@ -438,3 +438,25 @@ def render_to_exr(scene, path):
     set_output_multilayer_exr(scene, path)
     bpy.ops.render.render(write_still=True, scene=scene.name)
     return read_blender_exr(path)
+
+
+def render_ours_and_cycles(scene, folder, our_spp, cycles_spp, cycles_runs, bounces, our_seed,
+                           cycles_seed):
+    """Render ``scene`` ``cycles_runs`` times with unbiased Cycles (seeds ``cycles_seed + run``)
+    and once with Sampling Lab, both read back from the EXR files Blender writes in ``folder``.
+
+    Returns
+    -------
+    ours : dict of str -> (h, w, c) float32
+        Every pass of our render.
+    cycles : (cycles_runs, h, w, 3) float32
+        Cycles' Combined RGB of each run.
+    """
+    cycles = []
+    for run in range(cycles_runs):
+        set_cycles_unbiased(scene, samples=cycles_spp, seed=cycles_seed + run,
+                            max_bounces=bounces)
+        cycles.append(render_to_exr(scene, folder / f"cycles_{run}.exr")["Combined"][..., :3])
+    set_sampling_lab(scene, samples=our_spp, seed=our_seed, max_bounces=bounces)
+    ours = render_to_exr(scene, folder / "ours.exr")
+    return ours, np.stack(cycles)

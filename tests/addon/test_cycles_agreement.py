@@ -32,18 +32,13 @@ def test_render_agrees_with_cycles(empty_scene, tmp_path, name):
     scene = empty_scene
     SCENES[name](scene)
 
-    cycles = []
-    for run in range(CYCLES_RUNS):
-        S.set_cycles_unbiased(scene, samples=CYCLES_SPP, seed=101 + run, max_bounces=BOUNCES)
-        cycles.append(S.render_to_exr(scene, tmp_path / f"cycles_{run}.exr")["Combined"][..., :3])
-
-    S.set_sampling_lab(scene, samples=OUR_SPP, seed=7, max_bounces=BOUNCES)
-    ours = S.render_to_exr(scene, tmp_path / "ours.exr")
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
+                                            BOUNCES, our_seed=7, cycles_seed=101)
     assert set(ours) >= {"Combined", "Variance", "Sample Count"}
     assert (ours["Sample Count"] == OUR_SPP).all()
-    for img in list(ours.values()) + cycles:
+    for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
 
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], np.stack(cycles),
+    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
                                what=name)
     print(f"{name}: image mean ours {a} cycles {b} ratio {a / b}")

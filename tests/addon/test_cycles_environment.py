@@ -91,15 +91,10 @@ def test_diffuse_objects_under_an_environment_map_agree_with_cycles(empty_scene,
     # Cycles importance-samples the world at the image's own resolution (unbiased either way).
     world.cycles.sampling_method = 'AUTOMATIC'
 
-    cycles = []
-    for run in range(CYCLES_RUNS):
-        S.set_cycles_unbiased(scene, samples=CYCLES_SPP, seed=201 + run, max_bounces=BOUNCES)
-        cycles.append(S.render_to_exr(scene, tmp_path / f"cycles_{run}.exr")["Combined"][..., :3])
-
-    S.set_sampling_lab(scene, samples=OUR_SPP, seed=9, max_bounces=BOUNCES)
-    ours = S.render_to_exr(scene, tmp_path / "ours.exr")
-    for img in list(ours.values()) + cycles:
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
+                                            BOUNCES, our_seed=9, cycles_seed=201)
+    for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], np.stack(cycles),
+    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
                                what="environment map")
     print(f"environment map: image mean ours {a} cycles {b} ratio {a / b}")

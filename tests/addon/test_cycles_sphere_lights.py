@@ -43,12 +43,8 @@ def test_radius_light_agrees_with_cycles(empty_scene, tmp_path, name):
     lamp.data.shadow_soft_size = radius
     lamp.data.use_soft_falloff = soft
 
-    cycles = []
-    for run in range(CYCLES_RUNS):
-        S.set_cycles_unbiased(scene, samples=CYCLES_SPP, seed=301 + run, max_bounces=BOUNCES)
-        cycles.append(S.render_to_exr(scene, tmp_path / f"c{run}.exr")["Combined"][..., :3])
-    S.set_sampling_lab(scene, samples=OUR_SPP, seed=3, max_bounces=BOUNCES)
-    ours = S.render_to_exr(scene, tmp_path / "ours.exr")
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], np.stack(cycles),
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
+                                            BOUNCES, our_seed=3, cycles_seed=301)
+    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
                                what=name)
     print(f"{name}: image mean ours {a} cycles {b} ratio {a / b}")

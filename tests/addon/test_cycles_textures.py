@@ -126,15 +126,10 @@ def test_textured_plane_agrees_with_cycles(empty_scene, tmp_path):
     S.add_camera(scene, (0.0, 0.0, 2.8), (0.0, 0.0, 0.0), lens=35.0)
     S.set_resolution(scene, *RESOLUTION)
 
-    cycles = []
-    for run in range(CYCLES_RUNS):
-        S.set_cycles_unbiased(scene, samples=CYCLES_SPP, seed=301 + run, max_bounces=BOUNCES)
-        cycles.append(S.render_to_exr(scene, tmp_path / f"cycles_{run}.exr")["Combined"][..., :3])
-
-    S.set_sampling_lab(scene, samples=OUR_SPP, seed=11, max_bounces=BOUNCES)
-    ours = S.render_to_exr(scene, tmp_path / "ours.exr")
-    for img in list(ours.values()) + cycles:
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
+                                            BOUNCES, our_seed=11, cycles_seed=301)
+    for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], np.stack(cycles),
+    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
                                what="textured plane")
     print(f"textured plane: image mean ours {a} cycles {b} ratio {a / b}")
