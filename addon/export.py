@@ -303,15 +303,8 @@ def _image_texture_pixels(node, out, owner, messages):
             messages.add(f"{owner}: the Vector input of image texture '{name}' (node "
                          f"'{_node_name(src)}') is not supported yet{fallback}")
             return None
-    w, h = (int(x) for x in image.size)
-    if w <= 0 or h <= 0 or int(image.channels) <= 0:
-        messages.add(f"{owner}: image '{image.name}' of image texture '{name}' has no "
-                     f"pixels{fallback}")
+    if not _image_usable(node, image, "image texture", name, owner, fallback, messages):
         return None
-    interpolation = getattr(node, "interpolation", 'Linear')
-    if interpolation != 'Linear':
-        messages.add(f"{owner}: {interpolation} interpolation of image texture '{name}' is "
-                     f"not supported yet; rendered with Linear")
     extension = getattr(node, "extension", 'REPEAT')
     if extension not in {'REPEAT', 'EXTEND'}:
         messages.add(f"{owner}: {extension.lower()} extension of image texture '{name}' is "
@@ -321,6 +314,21 @@ def _image_texture_pixels(node, out, owner, messages):
         messages.add(f"{owner}: extend extension of image texture '{name}' is not supported "
                      f"yet; rendered with Repeat")
     return _image_rgb(image, owner, messages)
+
+
+def _image_usable(node, image, what, name, owner, fallback, messages):
+    """Whether ``image`` of texture node ``node`` has pixels (else reported with ``fallback``);
+    reports interpolations other than Linear, which are rendered as Linear."""
+    w, h = (int(x) for x in image.size)
+    if w <= 0 or h <= 0 or int(image.channels) <= 0:
+        messages.add(f"{owner}: image '{image.name}' of {what} '{name}' has no "
+                     f"pixels{fallback}")
+        return False
+    interpolation = getattr(node, "interpolation", 'Linear')
+    if interpolation != 'Linear':
+        messages.add(f"{owner}: {interpolation} interpolation of {what} '{name}' is "
+                     f"not supported yet; rendered with Linear")
+    return True
 
 
 def _distribution_note(node, read, owner, what="GGX"):
@@ -516,16 +524,8 @@ def _environment_pixels(node, owner, messages):
                      f"is not supported yet{fallback}")
         return None
     image = node.image
-    w, h = (int(x) for x in image.size)
-    channels = int(image.channels)
-    if w <= 0 or h <= 0 or channels <= 0:
-        messages.add(f"{owner}: image '{image.name}' of environment texture '{name}' has no "
-                     f"pixels{fallback}")
+    if not _image_usable(node, image, "environment texture", name, owner, fallback, messages):
         return None
-    interpolation = getattr(node, "interpolation", 'Linear')
-    if interpolation != 'Linear':
-        messages.add(f"{owner}: {interpolation} interpolation of environment texture '{name}' "
-                     f"is not supported yet; rendered with Linear")
     return _image_rgb(image, owner, messages)
 
 
