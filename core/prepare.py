@@ -94,6 +94,22 @@ class PreparedScene:
         rows = self.tri_material[prim]
         return self.material_bsdf.take(rows), self.material_delta_only[rows]
 
+    def choose_bsdf(self, prim, u_lobe):
+        """BSDF of the hit triangles ``prim (k,)`` for one path vertex each.
+
+        Materials that mix several BSDF kinds choose one per vertex with ``u_lobe (k,)``; the
+        remapped number is returned for the chosen BSDF's own lobe choice. Every integrator
+        calls this once per vertex and uses the chosen BSDF for all its evaluations there.
+
+        Returns
+        -------
+        params : core.materials.bsdf.BSDFParams
+        delta_only : (k,) bool
+        u_lobe : (k,) float64
+        """
+        params, delta_only = self.bsdf(prim)
+        return params, delta_only, np.asarray(u_lobe, np.float64)
+
     def textured_base_color(self, prim, u, v):
         """Base colour of hits ``prim, u, v (k,)`` on textured materials: ``rows (j,)`` into
         ``prim`` and ``color (j, 3)`` (see :func:`core.textures.textured_base_color`)."""
