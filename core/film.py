@@ -7,7 +7,13 @@ its variance the variance of that mean, and samples never spill into neighbourin
 keeps per-pixel statistics exact and threads independent.
 
 Light-path contributions (light tracing, BDPT's t = 1) go to :meth:`Film.splat` at any film
-position; they are divided by the number of light paths traced (``splat_paths``).
+position. A splat at film position ``x`` adds ``value * h(x - c_j)`` to every pixel ``j`` whose
+filter ``h`` (the same normalised filter the camera samples are drawn from, centred on the pixel
+centre ``c_j``) covers ``x``, so splatted and camera estimates of a pixel measure the same
+integral. Splat sums are divided by the number of light paths traced (``splat_paths``).
+
+Extra layers (BDPT's per-strategy images) accumulate the same way under a name: per camera
+sample with :meth:`Film.add_layer`, splatted with :meth:`Film.splat_layer`.
 """
 
 from __future__ import annotations
@@ -60,6 +66,28 @@ class PixelFilter:
             return (u - 0.5) * self.support
         return np.interp(u, self.cdf, self.grid)
 
+    def pdf_1d(self, x):
+        """Density ``(k,)`` with which :meth:`sample` draws the 1-D offset ``x (k,)`` (pixels).
+
+        The 2-D density of an offset ``(x, y)`` is ``pdf_1d(x) * pdf_1d(y)``; it integrates to
+        one, and it is the filter weight a splat at that offset gives the pixel.
+        """
+        x = np.asarray(x, np.float64)
+        half = 0.5 * self.support
+        if self.inverse_cdf is None:
+            return np.where(np.abs(x) < half, 1.0 / max(self.support, 1e-300), 0.0)
+        # The derivative of the piecewise-linear CDF: constant between grid points.
+        step = self.grid[1] - self.grid[0]
+        i = np.clip(np.floor((x + half) / step).astype(np.int64), 0, self.grid.size - 2)
+        density = (self.cdf[i + 1] - self.cdf[i]) / step
+        return np.where(np.abs(x) < half, density, 0.0)
+
+    def taps(self):
+        """Pixel offsets ``(m,)`` int a splat must visit: every pixel whose filter can cover a
+        film position lies within ``floor(x) + taps`` along each axis."""
+        reach = int(np.ceil(0.5 * self.support + 0.5))
+        return np.arange(-reach, reach + 1)
+
 
 class Film:
     """Accumulation buffers for a ``width`` x ``height`` image (row 0 at the bottom).
@@ -86,6 +114,8 @@ class Film:
         self.splat_sum = np.zeros((n, 3))
         self.splat_sum_sq = np.zeros((n, 3))
         self.splat_paths = 0
+        # Extra layers: name -> [camera-sample sum (n, 3), splat sum (n, 3)].
+        self.layers = {}
 
     @property
     def n_pixels(self):
@@ -99,23 +129,76 @@ class Film:
             self.sum_sq[:, c] += np.bincount(pixel, radiance[:, c] ** 2, minlength=n)
         self.count += np.bincount(pixel, minlength=n)
 
-    def splat(self, film_xy, value):
+    def splat(self, film_xy, value, pixel_filter=None):
         """Add light-path contributions ``value (k, 3)`` at film positions ``film_xy (k, 2)``.
 
-        Positions outside the image are dropped. Call :meth:`add_splat_paths` once per batch with
-        the number of light paths that batch traced.
+        With ``pixel_filter`` (a :class:`PixelFilter`) each contribution is spread over the
+        pixels whose filter covers its position, weighted by the filter's normalised density;
+        without, it goes to the pixel that contains it (a 1-pixel box). Non-finite values and
+        positions outside the image are dropped. Call :meth:`add_splat_paths` once per batch
+        with the number of light paths that batch traced.
         """
-        x = np.floor(film_xy[:, 0]).astype(np.int64)
-        y = np.floor(film_xy[:, 1]).astype(np.int64)
-        ok = (x >= 0) & (x < self.width) & (y >= 0) & (y < self.height) & np.isfinite(value).all(1)
-        pixel = (y * self.width + x)[ok]
+        pixel, weighted = self._splat_taps(film_xy, value, pixel_filter)
         n = self.n_pixels
         for c in range(3):
-            self.splat_sum[:, c] += np.bincount(pixel, value[ok, c], minlength=n)
-            self.splat_sum_sq[:, c] += np.bincount(pixel, value[ok, c] ** 2, minlength=n)
+            self.splat_sum[:, c] += np.bincount(pixel, weighted[:, c], minlength=n)
+            self.splat_sum_sq[:, c] += np.bincount(pixel, weighted[:, c] ** 2, minlength=n)
+
+    def _splat_taps(self, film_xy, value, pixel_filter):
+        """Pixels ``(m,)`` and filter-weighted values ``(m, 3)`` of a batch of splats."""
+        film_xy = np.asarray(film_xy, np.float64).reshape(-1, 2)
+        value = np.asarray(value, np.float64).reshape(-1, 3)
+        ok = np.isfinite(value).all(axis=1) & np.isfinite(film_xy).all(axis=1)
+        film_xy, value = film_xy[ok], value[ok]
+        if pixel_filter is None:
+            x = np.floor(film_xy[:, 0]).astype(np.int64)
+            y = np.floor(film_xy[:, 1]).astype(np.int64)
+            inside = (x >= 0) & (x < self.width) & (y >= 0) & (y < self.height)
+            return (y * self.width + x)[inside], value[inside]
+        taps = pixel_filter.taps()
+        x0 = np.floor(film_xy[:, 0]).astype(np.int64)
+        y0 = np.floor(film_xy[:, 1]).astype(np.int64)
+        pixels, values = [], []
+        for dx in taps:
+            px = x0 + dx
+            wx = pixel_filter.pdf_1d(film_xy[:, 0] - (px + 0.5))
+            for dy in taps:
+                py = y0 + dy
+                w = wx * pixel_filter.pdf_1d(film_xy[:, 1] - (py + 0.5))
+                keep = (w > 0) & (px >= 0) & (px < self.width) & (py >= 0) & (py < self.height)
+                pixels.append((py * self.width + px)[keep])
+                values.append(value[keep] * w[keep, None])
+        return np.concatenate(pixels), np.concatenate(values)
 
     def add_splat_paths(self, k):
         self.splat_paths += int(k)
+
+    def _layer(self, name):
+        if name not in self.layers:
+            self.layers[name] = [np.zeros((self.n_pixels, 3)), np.zeros((self.n_pixels, 3))]
+        return self.layers[name]
+
+    def add_layer(self, name, pixel, value):
+        """Accumulate per-camera-sample values ``value (k, 3)`` of layer ``name`` (created on
+        first use) into pixels ``pixel (k,)``; divided by the pixels' camera sample counts."""
+        acc = self._layer(name)[0]
+        for c in range(3):
+            acc[:, c] += np.bincount(pixel, value[:, c], minlength=self.n_pixels)
+
+    def splat_layer(self, name, film_xy, value, pixel_filter=None):
+        """Splat ``value (k, 3)`` at ``film_xy (k, 2)`` into layer ``name`` (as :meth:`splat`)."""
+        pixel, weighted = self._splat_taps(film_xy, value, pixel_filter)
+        acc = self._layer(name)[1]
+        for c in range(3):
+            acc[:, c] += np.bincount(pixel, weighted[:, c], minlength=self.n_pixels)
+
+    def layer_mean(self, name):
+        """Estimate ``(h, w, 3)`` float64 of layer ``name`` (zeros if nothing was added)."""
+        camera, splats = self._layer(name)
+        img = camera / np.maximum(self.count, 1)[:, None]
+        if self.splat_paths:
+            img = img + splats / self.splat_paths
+        return img.reshape(self.height, self.width, 3)
 
     def mean(self):
         """Pixel estimates ``(h, w, 3)`` float64: camera mean plus splats per light path."""

@@ -21,7 +21,7 @@ import numpy as np
 
 from .film import Film, PixelFilter
 from .integrators import INTEGRATORS
-from .integrators.common import Counters
+from .integrators.common import BatchOutput, Counters, strategy_pass_names
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
 from .prepare import prepare
 from .sampling.distributions import DISTRIBUTION_METHODS
@@ -43,6 +43,10 @@ class RenderSettings:
     exponent, > 0), ``mis_alpha`` (cutoff fraction in [0, 1]), ``light_selection`` ('power' or
     'uniform'), ``light_sampling`` ('area' or 'solid_angle') and ``distribution`` ('cdf' or
     'alias': how discrete choices such as the light are drawn).
+
+    ``strategy_views`` asks BDPT for one image per strategy ``(s, t)`` (its own estimate and its
+    MIS-weighted share) for path lengths up to ``strategy_max_length`` segments, see
+    :func:`core.integrators.common.strategy_pass_names`.
     """
 
     integrator: str = "path"
@@ -62,6 +66,8 @@ class RenderSettings:
     filter_type: str = "BLACKMAN_HARRIS"
     filter_width: float = 1.5
     threads: int = 2
+    strategy_views: bool = False
+    strategy_max_length: int = 3
 
 
 @dataclass
@@ -86,6 +92,7 @@ class RenderResult:
     stats: dict = field(default_factory=dict)
     cancelled: bool = False
     messages: list = field(default_factory=list)
+    layer_names: list = field(default_factory=list)
 
     def combined(self):
         """``(h, w, 4)`` float32 RGBA, row 0 at the bottom."""
@@ -98,6 +105,12 @@ class RenderResult:
     def sample_count(self):
         """``(h, w)`` float32 samples per pixel."""
         return self.film.sample_count()
+
+    def layers(self):
+        """Extra images by pass name, ``(h, w, 3)`` float32 each (BDPT's per-strategy views,
+        in :func:`core.integrators.common.strategy_pass_names` order); empty if none."""
+        return {name: self.film.layer_mean(name).astype(np.float32)
+                for name in self.layer_names}
 
 
 def _units(n_pixels, first_sample, spp_in_pass):
@@ -164,6 +177,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     integrator = INTEGRATORS[settings.integrator]
     pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
     result = RenderResult(film, messages=list(scene.messages))
+    if settings.strategy_views and getattr(integrator, "HAS_STRATEGY_VIEWS", False):
+        result.layer_names = strategy_pass_names(settings.strategy_max_length)
 
     n_pix = film.n_pixels
     total_spp = settings.spp if settings.spp > 0 else None
@@ -183,9 +198,25 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
         samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
         local = Counters()
-        radiance = integrator.render_samples(prep, settings, pixel_filter,
-                                             sampler.stream(pixels, samples), local)
-        return pixels, radiance, local
+        out = integrator.render_samples(prep, settings, pixel_filter,
+                                        sampler.stream(pixels, samples), local)
+        return pixels, out, local
+
+    def accumulate(pixels, out, local):
+        """Add one unit's output to the film (in unit order: the image is deterministic)."""
+        counters.add(local)
+        if not isinstance(out, BatchOutput):
+            film.add_samples(pixels, out)
+            return
+        film.add_samples(pixels, out.radiance)
+        if out.splat_xy is not None and len(out.splat_xy):
+            film.splat(out.splat_xy, out.splat_value, pixel_filter)
+        film.add_splat_paths(out.light_paths)
+        for name, entry in (out.layers or {}).items():
+            if entry[0] == "camera":
+                film.add_layer(name, pixels, entry[1])
+            else:
+                film.splat_layer(name, entry[1], entry[2], pixel_filter)
 
     def report(fraction):
         if progress is None:
@@ -214,9 +245,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                 while i < len(units) and len(pending) < max(1, settings.threads):
                     pending.append(pool.submit(run_unit, units[i]))
                     i += 1
-                pixels, radiance, local = pending.pop(0).result()
-                film.add_samples(pixels, radiance)
-                counters.add(local)
+                accumulate(*pending.pop(0).result())
                 finished_units += 1
                 stop = (cancel is not None and cancel()) or out_of_time()
                 if finished_units < len(units):  # the end of a pass is reported below
@@ -227,9 +256,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                 if stop:
                     cancelled = cancel is not None and cancel()
                     for f in pending:  # finish what is running; its samples are kept
-                        pixels, radiance, local = f.result()
-                        film.add_samples(pixels, radiance)
-                        counters.add(local)
+                        accumulate(*f.result())
                     pending = []
                     i = len(units)
                     break

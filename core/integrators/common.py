@@ -45,6 +45,58 @@ class Counters:
         self.distribution_samples += other.distribution_samples
 
 
+@dataclass
+class BatchOutput:
+    """What an integrator returns for one batch when it does more than one radiance per sample.
+
+    Attributes
+    ----------
+    radiance : (n, 3) float64
+        Camera-sample estimates, one per entry of the batch's stream (may be all zero).
+    splat_xy : (m, 2) float64 or None
+        Film positions (pixels, y up) of light-path contributions.
+    splat_value : (m, 3) float64 or None
+        Their values, for :meth:`core.film.Film.splat` with the render's pixel filter.
+    light_paths : int
+        Light paths traced (the splat estimator's denominator).
+    layers : dict
+        Extra images by pass name (see :func:`strategy_pass_names`): ``name -> ('camera',
+        values (n, 3))`` per camera sample, or ``name -> ('splat', xy (m, 2), values (m, 3))``.
+    """
+
+    radiance: np.ndarray
+    splat_xy: np.ndarray = None
+    splat_value: np.ndarray = None
+    light_paths: int = 0
+    layers: dict = None
+
+
+def strategies(max_length):
+    """BDPT strategies ``(s, t)`` shown as images, for path lengths 1..``max_length`` segments.
+
+    A path of ``k`` segments has ``k + 1`` vertices, ``s`` from the light and ``t`` from the
+    camera. Every ``s = 0..k-1`` with ``t = k + 1 - s >= 2`` is listed, and ``t = 1`` (light
+    subpath connected to the camera) for ``k >= 2``; emitters seen directly (``k = 1``) are
+    always found from the camera (``s = 0, t = 2``).
+    """
+    out = []
+    for k in range(1, int(max_length) + 1):
+        out += [(s, k + 1 - s) for s in range(k)]
+        if k >= 2:
+            out.append((k, 1))
+    return out
+
+
+def strategy_pass_names(max_length):
+    """Render pass names of the per-strategy images: for every :func:`strategies` ``(s, t)``
+    the strategy's own estimate ``"Strategy s<s> t<t>"`` (as if it were the only one) and its
+    MIS-weighted share of the image ``"Strategy s<s> t<t> weighted"``."""
+    names = []
+    for s, t in strategies(max_length):
+        names += [f"Strategy s{s} t{t}", f"Strategy s{s} t{t} weighted"]
+    return names
+
+
 def camera_rays(prep, pixel_filter, stream):
     """Stage *generate camera rays*: filter-importance-sampled film positions -> rays.
 
