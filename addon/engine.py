@@ -49,6 +49,8 @@ def render_settings(props):
         distribution=props.distribution.lower(),
         filter_type=props.filter_type,
         filter_width=float(props.filter_width),
+        strategy_views=bool(props.use_strategy_views),
+        strategy_max_length=int(props.strategy_max_length),
     )
 
 

@@ -12,6 +12,16 @@ INTEGRATOR_ITEMS = (
     ('PATH', "Path Tracing",
      "Unidirectional path tracing with next-event estimation and multiple importance sampling. "
      "Unbiased and consistent; the reference estimator the others are compared with"),
+    ('LIGHT', "Light Tracing",
+     "Particles traced from the lights, each vertex connected to the camera and splatted onto "
+     "the film. Unbiased; good for caustics seen directly (light through glass or off a mirror "
+     "onto a diffuse surface), but it cannot find paths the camera sees through a specular "
+     "surface (mirrors and glass in view render black). No MIS: one strategy per path"),
+    ('BDPT', "Bidirectional",
+     "Bidirectional path tracing: a camera subpath and a light subpath, joined by every "
+     "connection strategy (s light vertices, t camera vertices) and combined by multiple "
+     "importance sampling with the Light Sampling panel's MIS heuristic. Unbiased; robust for caustics and "
+     "indirectly lit scenes, where one strategy's noise is another's strength"),
 )
 
 # Samplers the UI offers when a sampler class carries no label or description of its own.
@@ -126,6 +136,14 @@ FILTER_ITEMS = (
 )
 
 
+def _update_render_passes(self, context):
+    """Let Blender ask the engine for its passes again (compositor sockets, render result),
+    as Cycles does when a pass setting changes."""
+    view_layer = getattr(context, "view_layer", None)
+    if view_layer is not None:
+        view_layer.update_render_passes()
+
+
 class SamplingLabSettings(PropertyGroup):
     """Per-scene render settings of the Sampling Lab engine."""
 
@@ -135,6 +153,7 @@ class SamplingLabSettings(PropertyGroup):
                     "equation computes each pixel",
         items=INTEGRATOR_ITEMS,
         default='PATH',
+        update=_update_render_passes,
     )
     sampler: EnumProperty(
         name="Sampler",
@@ -186,7 +205,8 @@ class SamplingLabSettings(PropertyGroup):
         name="MIS",
         description="How light sampling (next-event estimation) and BSDF sampling are "
                     "combined for direct light: a multiple importance sampling heuristic, "
-                    "their plain average, or one strategy alone",
+                    "their plain average, or one strategy alone. Bidirectional weights all its "
+                    "connection strategies with the same heuristic. Light tracing has no MIS",
         items=MIS_ITEMS,
         default='POWER',
     )
@@ -223,6 +243,25 @@ class SamplingLabSettings(PropertyGroup):
                     "the render stats",
         items=DISTRIBUTION_ITEMS,
         default='CDF',
+    )
+    use_strategy_views: BoolProperty(
+        name="Strategy Views",
+        description="Bidirectional only: write two render passes per BDPT strategy (s, t) with "
+                    "s light and t camera vertices, for paths up to Max Path Length: the "
+                    "strategy's own estimate (as if it were the only one) and its MIS-weighted "
+                    "share of the image (the weighted shares of one path length add up to that length's "
+                    "part of Combined)",
+        default=False,
+        update=_update_render_passes,
+    )
+    strategy_max_length: IntProperty(
+        name="Max Path Length",
+        description="Longest path, in segments, that gets strategy views: 1 is emitters seen "
+                    "directly, 2 direct light, 3 one indirect bounce, and so on. A path of k "
+                    "segments has k + 1 strategies, so the number of passes grows "
+                    "quadratically",
+        default=3, min=1, max=8,
+        update=_update_render_passes,
     )
     filter_type: EnumProperty(
         name="Pixel Filter",

@@ -53,20 +53,47 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
     def draw(self, context):
         layout, settings = settings_layout(self, context)
 
+        light_tracing = settings.integrator == 'LIGHT'
         col = layout.column()
-        col.prop(settings, "mis_heuristic")
+        mis = col.column()
+        # Light tracing has one strategy per path: nothing to weight.
+        mis.active = not light_tracing
+        mis.prop(settings, "mis_heuristic")
         # Each heuristic's parameter is shown only with the heuristic that reads it.
         if settings.mis_heuristic == 'POWER':
-            col.prop(settings, "mis_beta")
+            mis.prop(settings, "mis_beta")
         elif settings.mis_heuristic == 'CUTOFF':
-            col.prop(settings, "mis_alpha")
+            mis.prop(settings, "mis_alpha")
         col.separator()
         sub = col.column()
-        # BSDF sampling alone never samples lights, so the light sampler's options do nothing.
-        sub.active = settings.mis_heuristic != 'BSDF'
+        # BSDF sampling alone never samples lights, so the light sampler's options do nothing;
+        # light tracing always starts at a light.
+        sub.active = light_tracing or settings.mis_heuristic != 'BSDF'
         sub.prop(settings, "light_selection")
-        sub.prop(settings, "light_sampling")
+        area = sub.column()
+        # Solid-angle sampling needs a receiving point; light tracing samples emitters by area.
+        area.active = sub.active and not light_tracing
+        area.prop(settings, "light_sampling")
         sub.prop(settings, "distribution")
+
+
+class SAMPLINGLAB_RENDER_PT_strategy_views(SamplingLabButtonsPanel, Panel):
+    bl_label = "Strategy Views"
+    bl_parent_id = "SAMPLINGLAB_RENDER_PT_sampling"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw_header(self, context):
+        settings = context.scene.sampling_lab
+        # Only Bidirectional writes per-strategy images.
+        self.layout.active = settings.integrator == 'BDPT'
+        self.layout.prop(settings, "use_strategy_views", text="")
+
+    def draw(self, context):
+        layout, settings = settings_layout(self, context)
+
+        col = layout.column()
+        col.active = settings.integrator == 'BDPT' and settings.use_strategy_views
+        col.prop(settings, "strategy_max_length")
 
 
 class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
@@ -127,6 +154,7 @@ class SAMPLINGLAB_OBJECT_PT_ray_visibility(Panel):
 classes = (
     SAMPLINGLAB_RENDER_PT_sampling,
     SAMPLINGLAB_RENDER_PT_light_sampling,
+    SAMPLINGLAB_RENDER_PT_strategy_views,
     SAMPLINGLAB_RENDER_PT_light_paths,
     SAMPLINGLAB_RENDER_PT_film,
     SAMPLINGLAB_OBJECT_PT_ray_visibility,
