@@ -1,4 +1,9 @@
-"""Render passes: which ones the engine writes, and copying core images into Blender results."""
+"""Render passes: which ones the engine writes, and copying core images into Blender results.
+
+Besides :data:`PASSES`, Bidirectional renders with Strategy Views on get two RGB passes per
+strategy ``(s, t)`` (:func:`core.integrators.common.strategy_pass_names`), named as core's
+``RenderResult.layers()`` names them, so every layer lands in the pass of the same name.
+"""
 
 import numpy as np
 
@@ -10,10 +15,35 @@ PASSES = (
 )
 
 
+# Integrators (property identifiers) that write per-strategy images.
+STRATEGY_VIEW_INTEGRATORS = {'BDPT'}
+
+
+def strategy_passes(settings):
+    """Names of the per-strategy passes the scene's ``SamplingLabSettings`` ask for.
+
+    Returns
+    -------
+    list of str
+        :func:`core.integrators.common.strategy_pass_names` of ``strategy_max_length`` when
+        ``use_strategy_views`` is on and the integrator writes views (Bidirectional), else [].
+    """
+    if settings is None or not settings.use_strategy_views:
+        return []
+    if settings.integrator not in STRATEGY_VIEW_INTEGRATORS:
+        return []
+    from ..core.integrators.common import strategy_pass_names
+
+    return strategy_pass_names(settings.strategy_max_length)
+
+
 def register_passes(engine, scene, view_layer):
-    """Declare every pass of :data:`PASSES` for ``view_layer`` (``update_render_passes``)."""
+    """Declare every pass of :data:`PASSES`, and the strategy views the scene asks for, for
+    ``view_layer`` (``update_render_passes``)."""
     for name, channels, chan_id, pass_type in PASSES:
         engine.register_pass(scene, view_layer, name, channels, chan_id, pass_type)
+    for name in strategy_passes(getattr(scene, "sampling_lab", None)):
+        engine.register_pass(scene, view_layer, name, 3, "RGB", 'COLOR')
 
 
 def pass_images(result):
@@ -22,13 +52,17 @@ def pass_images(result):
     Returns
     -------
     dict of str -> (h, w, c) float32
-        Row 0 is the bottom row, as Blender stores render results.
+        Combined, Variance, Sample Count and every extra layer of ``result.layers()`` (BDPT's
+        strategy views); row 0 is the bottom row, as Blender stores render results.
     """
-    return {
+    images = {
         "Combined": result.combined(),
         "Variance": result.variance(),
         "Sample Count": result.sample_count()[..., None],
     }
+    for name, image in result.layers().items():
+        images.setdefault(name, image)
+    return images
 
 
 def write_passes(layer, images, window=None):
