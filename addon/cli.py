@@ -2,7 +2,8 @@
 
 ``render SCENE -o OUT.exr`` renders a built-in scene (no Blender needed) or a ``.blend`` file (with
 the ``bpy`` module, like ``blender -b file.blend -f N``: the file's camera, resolution and frame
-unless overridden) and writes a multilayer EXR (Combined, Variance, Sample Count) atomically.
+unless overridden) and writes a multilayer EXR (Combined, Variance, Sample Count, and with
+``--strategy-views`` BDPT's per-strategy layers) atomically.
 A progress bar goes to stderr; ``--json`` prints one JSON line of figures to stdout.
 
 Usage errors, unknown names and unreadable files exit with code 2 and a one-line message.
@@ -71,6 +72,21 @@ def _unit_float(text):
     return value
 
 
+# Longest path with strategy views (the add-on's Max Path Length allows the same).
+MAX_STRATEGY_LENGTH = 8
+
+
+def _path_length(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a path length in segments, not {text!r}")
+    if not 1 <= value <= MAX_STRATEGY_LENGTH:
+        raise argparse.ArgumentTypeError(
+            f"expected a path length from 1 to {MAX_STRATEGY_LENGTH} segments, not {text}")
+    return value
+
+
 def build_parser():
     parser = _Parser(prog="python -m sampling_lab", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -96,6 +112,12 @@ def build_parser():
                    help="sample area emitters by area or solid angle (default area)")
     r.add_argument("--distribution", choices=DISTRIBUTION_METHODS, default=None,
                    help="discrete sampling by CDF inversion or alias table (default cdf)")
+    r.add_argument("--strategy-views", action="store_true", default=None,
+                   help="bdpt: also write two EXR layers per strategy (s, t), its own estimate "
+                        "and its MIS-weighted share")
+    r.add_argument("--strategy-max-length", type=_path_length, default=None, metavar="K",
+                   help=f"longest path (segments) with strategy views, 1..{MAX_STRATEGY_LENGTH} "
+                        f"(default 3)")
     r.add_argument("--seed", type=int, default=None)
     r.add_argument("--resolution", type=_resolution, default=None, help="WxH")
     r.add_argument("--threads", type=_positive_int, default=2)
@@ -200,9 +222,15 @@ def cmd_render(args):
         settings.seed = args.seed
     for flag, field in (("mis", "mis_heuristic"), ("mis_beta", "mis_beta"),
                         ("mis_alpha", "mis_alpha"), ("light_selection", "light_selection"),
-                        ("light_sampling", "light_sampling"), ("distribution", "distribution")):
+                        ("light_sampling", "light_sampling"), ("distribution", "distribution"),
+                        ("strategy_views", "strategy_views"),
+                        ("strategy_max_length", "strategy_max_length")):
         if getattr(args, flag) is not None:
             setattr(settings, field, getattr(args, flag))
+    if settings.strategy_views and not getattr(INTEGRATORS[settings.integrator],
+                                               "HAS_STRATEGY_VIEWS", False):
+        print(f"note: the {settings.integrator} integrator writes no strategy views "
+              f"(only bdpt does)", file=sys.stderr)
     for message in scene.messages:
         print(f"note: {message}", file=sys.stderr)
 
@@ -221,17 +249,23 @@ def cmd_render(args):
         bar.close()
     if result.cancelled:
         print("sampling_lab: cancelled; writing the samples taken", file=sys.stderr)
+    # BDPT's strategy views (empty unless asked for) go into the same file as extra layers.
+    layers = result.layers()
     write_multilayer(args.output, {
         "Combined": result.combined(),
         "Variance": result.variance(),
         "Sample Count": result.sample_count()[..., None],
+        **layers,
     })
     if args.png:
         write_png_preview(os.path.splitext(args.output)[0] + ".png", result.combined()[..., :3])
     stats = dict(result.stats)
     stats.update(output=os.path.abspath(args.output), integrator=settings.integrator,
                  sampler=settings.sampler, width=scene.camera.width, height=scene.camera.height,
-                 mis_beta=settings.mis_beta, mis_alpha=settings.mis_alpha)
+                 mis_beta=settings.mis_beta, mis_alpha=settings.mis_alpha,
+                 strategy_views=settings.strategy_views,
+                 strategy_max_length=settings.strategy_max_length,
+                 layers=list(layers))
     if args.json:
         print(json.dumps(stats))
     elif not args.quiet:
