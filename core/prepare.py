@@ -11,7 +11,10 @@ from .accel import Accel
 from .lights import LightSampler
 from .materials.bsdf import BSDFParams, is_delta_only
 from .scene import Scene
-from .textures import textured_base_color
+from .textures import material_base_color, textured_base_color
+
+# Largest float64 below one: remapped sample numbers stay in [0, 1).
+_ONE_MINUS_EPSILON = float(np.nextafter(1.0, 0.0))
 
 
 def recentred(scene: Scene):
@@ -68,6 +71,14 @@ class PreparedScene:
         One row per material; shading gathers ``material_bsdf.take(tri_material[prim])``.
     material_delta_only : (m,) bool
         Materials whose BSDF is a pure delta distribution (next-event estimation skips them).
+    material_mix_rows : (m, c) int64
+        Component rows of each material (``Materials.mix_rows``; a single row is its own).
+    material_mix_cdf : (m, c) float64
+        Cumulative mixing weights per material, the last positive one (and the padding after
+        it) exactly 1.
+    lambert_only : bool
+        Every material a triangle uses is a single diffuse BSDF (no mixtures): integrators may
+        take a world-space Lambert path.
     lights : LightSampler
     shift : (3,) float64
         World position of the local frame's origin: everything above is in world space minus
@@ -88,27 +99,70 @@ class PreparedScene:
     tri_material: np.ndarray = None
     material_bsdf: BSDFParams = None
     material_delta_only: np.ndarray = None
+    material_mix_rows: np.ndarray = None
+    material_mix_cdf: np.ndarray = None
+    lambert_only: bool = False
 
     def bsdf(self, prim):
-        """BSDF parameters of the hit triangles ``prim (k,)`` and whether each is delta-only."""
+        """BSDF parameters of the hit triangles' own material rows ``(k,)`` and whether each
+        is delta-only. A mixture row's own parameters are not what shades it: integrators use
+        :meth:`choose_bsdf`."""
         rows = self.tri_material[prim]
         return self.material_bsdf.take(rows), self.material_delta_only[rows]
 
-    def choose_bsdf(self, prim, u_lobe):
+    def choose_material(self, prim, u_lobe):
+        """Material row shading each hit ``prim (k,)``: a mixture's component, chosen with
+        probability its weight by ``u_lobe (k,)`` in [0, 1).
+
+        Returns
+        -------
+        material : (k,) int64
+        u_lobe : (k,) float64
+            ``(u - cdf_lo) / weight`` of the chosen component: uniform in [0, 1) again, and
+            independent of the choice, for the chosen BSDF's own lobe choice. Unchanged on
+            single-component rows.
+        """
+        rows = self.tri_material[prim]
+        u = np.asarray(u_lobe, np.float64).reshape(-1)
+        if self.material_mix_rows.shape[1] == 1:
+            return self.material_mix_rows[rows, 0], u
+        cdf = self.material_mix_cdf[rows]
+        # The first component whose cumulative weight exceeds u (zero weights are never chosen).
+        j = np.minimum((u[:, None] >= cdf).sum(axis=1), cdf.shape[1] - 1)
+        k = np.arange(u.size)
+        hi = cdf[k, j]
+        lo = np.where(j > 0, cdf[k, np.maximum(j - 1, 0)], 0.0)
+        remapped = (u - lo) / np.maximum(hi - lo, 1e-300)
+        remapped = np.clip(remapped, 0.0, _ONE_MINUS_EPSILON)
+        return self.material_mix_rows[rows, j], remapped
+
+    def choose_bsdf(self, prim, u_lobe, u=None, v=None):
         """BSDF of the hit triangles ``prim (k,)`` for one path vertex each.
 
-        Materials that mix several BSDF kinds choose one per vertex with ``u_lobe (k,)``; the
-        remapped number is returned for the chosen BSDF's own lobe choice. Every integrator
-        calls this once per vertex and uses the chosen BSDF for all its evaluations there.
+        Materials that mix several BSDF kinds choose one component per vertex with ``u_lobe
+        (k,)`` (probability = its mixing weight, see :meth:`choose_material`); the remapped
+        number is returned for the chosen BSDF's own lobe choice. Every integrator calls this
+        once per vertex and uses the chosen BSDF for all its evaluations there (next-event
+        estimation and BSDF sampling alike): the expectation over the choice of the chosen
+        ``f_k`` is the mixture, so estimates stay unbiased.
+
+        Given the hits' barycentrics ``u, v (k,)``, textured components get their looked-up
+        base colour (a texture belongs to the component it feeds, so mixtures need this
+        rather than :meth:`textured_base_color`).
 
         Returns
         -------
         params : core.materials.bsdf.BSDFParams
         delta_only : (k,) bool
+            Whether the chosen BSDF is a pure delta distribution.
         u_lobe : (k,) float64
         """
-        params, delta_only = self.bsdf(prim)
-        return params, delta_only, np.asarray(u_lobe, np.float64)
+        material, u_lobe = self.choose_material(prim, u_lobe)
+        params = self.material_bsdf.take(material)
+        if u is not None and self.scene.textures:
+            rows, color = material_base_color(self.scene, material, prim, u, v)
+            params.color[rows] = color
+        return params, self.material_delta_only[material], u_lobe
 
     def textured_base_color(self, prim, u, v):
         """Base colour of hits ``prim, u, v (k,)`` on textured materials: ``rows (j,)`` into
@@ -142,5 +196,27 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
                           sampling=light_sampling, method=distribution)
     # BSDF parameters per material, gathered by triangle at shading time.
     bsdf = BSDFParams.from_materials(mats, np.arange(len(mats.kind)))
+    mix_rows, mix_cdf = mixture_table(mats.mix_weights, mats.mix_rows)
+    used = np.unique(scene.material)
+    lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used]))
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
-                         np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf))
+                         np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
+                         mix_rows, mix_cdf, lambert_only)
+
+
+def mixture_table(weights, rows):
+    """Component rows ``(m, c) int64`` and cumulative weights ``(m, c) float64`` of a
+    material table's mixtures, trimmed to the widest mixture. The cdf reaches exactly 1 at
+    each row's last positive weight and stays there, so a draw in [0, 1) never picks a
+    zero-weight component or the padding."""
+    w = np.asarray(weights, np.float64)
+    rows = np.asarray(rows, np.int64)
+    if w.size == 0:
+        return rows.reshape(0, 1), np.ones((0, 1))
+    positive = w > 0
+    width = max(1, int(np.max(np.where(positive, np.arange(w.shape[1]) + 1, 0))))
+    w, rows, positive = w[:, :width], rows[:, :width], positive[:, :width]
+    cdf = np.cumsum(w, axis=1) / np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
+    last = np.max(np.where(positive, np.arange(width), 0), axis=1)
+    cdf[np.arange(width)[None, :] >= last[:, None]] = 1.0
+    return rows, cdf

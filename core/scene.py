@@ -91,6 +91,19 @@ def texture_column(values, m):
     return np.broadcast_to(np.asarray(values, np.int32), (m,)).copy()
 
 
+# Image texture lookups modelled (Cycles' Image Texture node's interpolation and extension).
+TEXTURE_INTERPOLATIONS = ("Linear", "Closest")
+TEXTURE_EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
+
+
+def _texture_modes(values, n, default, allowed):
+    """One mode per texture (``default`` when ``values`` is None), checked against ``allowed``."""
+    modes = [default] * n if values is None else list(values)
+    if len(modes) != n or any(m not in allowed for m in modes):
+        raise ValueError(f"expected {n} texture modes among {allowed}, got {modes}")
+    return modes
+
+
 @dataclass
 class Materials:
     """Material table, one row per material.
@@ -121,6 +134,17 @@ class Materials:
     texture : (m,) int32
         Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
         (an Image Texture into the base colour); -1 (the default) for none.
+    mix_rows : (m, c) int32
+        Component rows of each material: a row whose ``mix_rows`` is more than itself is a
+        *mixture* (a Principled BSDF with fractional Metallic, Transmission or Alpha, a Mix
+        Shader between different kinds) of the BSDFs of those rows, one chosen per shading
+        point with probability ``mix_weights`` (see :meth:`core.prepare.PreparedScene.
+        choose_bsdf`). Components are plain rows (their own ``mix_rows`` is themselves);
+        short mixtures are padded with weight 0. Default: every row is its own single
+        component. A mixture row's own BSDF columns are unused; its ``emission`` is the
+        mixture's. Components carry no emission.
+    mix_weights : (m, c) float32
+        Mixing weights, >= 0, summing to 1 per row.
     """
 
     kind: np.ndarray
@@ -134,6 +158,8 @@ class Materials:
     specular_ior_level: np.ndarray = None
     specular_tint: np.ndarray = None
     texture: np.ndarray = None
+    mix_rows: np.ndarray = None
+    mix_weights: np.ndarray = None
 
     def __post_init__(self):
         # Absent columns take Blender's defaults, so every table has every column.
@@ -151,11 +177,41 @@ class Materials:
         self.specular_ior_level = column(self.specular_ior_level, DEFAULT_SPECULAR_IOR_LEVEL)
         self.specular_tint = column(self.specular_tint, 1.0, (3,))
         self.texture = texture_column(self.texture, m)
+        self._check_mix(m)
+
+    def _check_mix(self, m):
+        """Normalise the mixture table (default: each row its own component) and check it."""
+        if self.mix_rows is None:
+            self.mix_rows = np.arange(m, dtype=np.int32)[:, None]
+            self.mix_weights = np.ones((m, 1), np.float32)
+            return
+        rows = np.asarray(self.mix_rows, np.int32).reshape(m, -1)
+        weights = np.asarray(self.mix_weights, np.float32).reshape(rows.shape)
+        if rows.size and (rows.min() < 0 or rows.max() >= m):
+            raise ValueError("mix_rows must index rows of the material table")
+        if np.any(~np.isfinite(weights)) or np.any(weights < 0):
+            raise ValueError("mix_weights must be finite and >= 0")
+        total = weights.sum(axis=1)
+        if m and np.any(np.abs(total - 1.0) > 1e-4):
+            raise ValueError("mix_weights must sum to 1 per material")
+        component = np.unique(rows[weights > 0])
+        own = np.arange(m)
+        flat = (rows[component] == own[component, None]) | (weights[component] == 0)
+        if not flat.all():
+            raise ValueError("mixture components must be single rows, not mixtures")
+        self.mix_rows = np.ascontiguousarray(rows)
+        self.mix_weights = np.ascontiguousarray(weights)
+
+    @property
+    def mixed(self):
+        """``(m,) bool``: rows that are mixtures of more than one component."""
+        return (self.mix_weights > 0).sum(axis=1) > 1
 
     @staticmethod
     def from_lists(names, base_colors, emissions, kinds=None, roughness=None, ior=None,
                    metallic=None, transmission=None, specular_ior_level=None,
-                   specular_tint=None, texture=None) -> "Materials":
+                   specular_tint=None, texture=None, mix_rows=None,
+                   mix_weights=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -167,7 +223,7 @@ class Materials:
             specular_ior_level=specular_ior_level,
             specular_tint=None if specular_tint is None
             else np.asarray(specular_tint, np.float32).reshape(-1, 3),
-            texture=texture,
+            texture=texture, mix_rows=mix_rows, mix_weights=mix_weights,
         )
 
 
@@ -277,9 +333,14 @@ class Scene:
         both axes (Cycles' default Linear interpolation and Repeat extension); see
         :func:`core.lights.environment_lookup`.
     textures : list of (h, w, 3) float32
-        Base colour images (row 0 at the bottom, v = 0), indexed by ``Materials.texture``;
-        looked up bilinearly with wrap-around (Cycles' Linear interpolation, Repeat extension)
-        at the hit's interpolated UV, see :func:`core.textures.texture_lookup`.
+        Base colour images (row 0 at the bottom, v = 0), indexed by ``Materials.texture``,
+        looked up at the hit's interpolated UV as Cycles' Image Texture node does with
+        ``texture_interpolation`` and ``texture_extension``, see
+        :func:`core.textures.texture_lookup`.
+    texture_interpolation : list of str
+        Per texture, ``'Linear'`` (the default) or ``'Closest'``.
+    texture_extension : list of str
+        Per texture, ``'REPEAT'`` (the default), ``'EXTEND'``, ``'CLIP'`` or ``'MIRROR'``.
     corner_uvs : (t, 3, 2) float32 or None
         UV (active UV map) at each triangle corner, in vertex order; None when no material
         is textured. Rows of untextured meshes are zero.
@@ -305,6 +366,8 @@ class Scene:
     textures: list = field(default_factory=list)
     corner_uvs: np.ndarray | None = None
     corner_normals: np.ndarray | None = None
+    texture_interpolation: list = None
+    texture_extension: list = None
 
     def __post_init__(self):
         self._check_corner_normals()
@@ -331,6 +394,11 @@ class Scene:
         if self.corner_uvs is not None:
             self.corner_uvs = np.ascontiguousarray(self.corner_uvs, np.float32).reshape(
                 self.triangles.shape[0], 3, 2)
+        n = len(self.textures)
+        self.texture_interpolation = _texture_modes(self.texture_interpolation, n, "Linear",
+                                                    TEXTURE_INTERPOLATIONS)
+        self.texture_extension = _texture_modes(self.texture_extension, n, "REPEAT",
+                                                TEXTURE_EXTENSIONS)
         if np.any(self.materials.texture >= len(self.textures)):
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:

@@ -21,7 +21,10 @@ Parameters
 Materials
     Every BSDF family of :mod:`core.materials.bsdf` (diffuse, conductor and mirror, smooth and
     rough dielectric, layered coat), in radiance mode, in local frames around the stored
-    geometric normal. NEE skips delta-only surfaces; after a delta bounce the emitter found
+    geometric normal. Mixed materials (fractional Metallic, Transmission or Alpha, Mix
+    Shaders) choose one component per vertex with the lobe number
+    (:meth:`core.prepare.PreparedScene.choose_bsdf`), which both NEE and BSDF sampling use.
+    NEE skips delta-only surfaces; after a delta bounce the emitter found
     keeps weight one (no MIS); the sampled lobe sets the next ray's object visibility class
     (diffuse, glossy or transmission). Scenes whose materials are all diffuse take a
     world-space Lambert path with the same estimator.
@@ -91,7 +94,7 @@ class _LambertShading:
             f *= geometric_side_valid(self.ng[rows], self.wo[rows], wi, False)[:, None]
         return f, pdf_lambert(self.ns[rows], wi)
 
-    def sample(self, u_lobe, u):
+    def sample(self, u):
         wi, weight, pdf = sample_lambert(self.albedo, self.ns, u)
         if self.ng is not None:
             weight *= geometric_side_valid(self.ng, self.wo, wi, False)[:, None]
@@ -103,8 +106,9 @@ class _BSDFShading:
     """Shading of a batch through :mod:`core.materials.bsdf`: local frames around the stored
     (unflipped) geometric normal, so dielectrics know whether the path is inside or outside."""
 
-    def __init__(self, prep, si):
-        self.params, delta_only = prep.bsdf(si.prim)
+    def __init__(self, prep, si, u_lobe, u, v):
+        # One component of mixed materials per vertex, used for NEE and BSDF sampling alike.
+        self.params, delta_only, self.u_lobe = prep.choose_bsdf(si.prim, u_lobe, u, v)
         self.ng = None
         if prep.scene.corner_normals is None:
             self.s, self.t, self.n = shading_frame(si.ng)
@@ -118,11 +122,6 @@ class _BSDFShading:
         # Next-event estimation cannot contribute through smooth mirrors and glass.
         self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None
 
-    def set_base_color(self, rows, color):
-        """Replace the base colour (diffuse albedo, conductor F0, coat base, glass tint) of
-        ``rows`` (textured hits) by ``color (j, 3)``."""
-        self.params.color[rows] = color
-
     def eval_pdf(self, rows, wi):
         p = self.params.take(rows)
         wo = self.wo[rows]
@@ -133,8 +132,8 @@ class _BSDFShading:
             f *= geometric_side_valid(self.ng[rows], self.wo_world[rows], wi, transmit)[:, None]
         return f, pdf_bsdf(p, wo, wi_local)
 
-    def sample(self, u_lobe, u):
-        smp = sample_bsdf(self.params, self.wo, u_lobe, u, RADIANCE)
+    def sample(self, u):
+        smp = sample_bsdf(self.params, self.wo, self.u_lobe, u, RADIANCE)
         wi = to_world(smp.wi, self.s, self.t, self.n)
         weight = smp.weight
         if self.ng is not None:
@@ -192,7 +191,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
     pdf_prev = np.zeros(n)
     use_mis = np.zeros(n, bool)
     vis = np.full(n, VIS_CAMERA, np.int32)
-    lambert_only = bool(np.all(prep.material_bsdf.kind == 0))
+    lambert_only = prep.lambert_only
 
     for bounce in range(settings.max_bounces + 2):
         # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
@@ -212,15 +211,23 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         si = surface_interaction(prep, hits, d, live)
         stream.compact(live)
         rows_of, beta = rows_of[live], beta[live]
-        shading = _LambertShading(prep, si) if lambert_only else _BSDFShading(prep, si)
-        if prep.scene.textures:
-            shading.set_base_color(*prep.textured_base_color(si.prim, hits.u[live],
-                                                             hits.v[live]))
-
-        # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
+        # This bounce's numbers, all drawn up front in the order of their dimensions: the BSDF
+        # lobe number also chooses the component of mixed materials before NEE needs it.
         stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
         u_sel = stream.next_1d()
         u_light = stream.next_2d()
+        u_lobe = stream.next_1d()
+        u_bsdf = stream.next_2d()
+        u_rr = stream.next_1d()
+        if lambert_only:
+            shading = _LambertShading(prep, si)
+            if prep.scene.textures:
+                shading.set_base_color(*prep.textured_base_color(si.prim, hits.u[live],
+                                                                 hits.v[live]))
+        else:
+            shading = _BSDFShading(prep, si, u_lobe, hits.u[live], hits.v[live])
+
+        # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
         if use_nee:
             nee = (np.arange(live.size) if shading.nee_rows is None else shading.nee_rows)
             if nee.size:
@@ -228,13 +235,11 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
                             heuristic, mis_beta, mis_alpha, counters)
 
         # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
-        u_lobe = stream.next_1d()
-        wi, weight, pdf_b, delta, vis_next = shading.sample(u_lobe, stream.next_2d())
+        wi, weight, pdf_b, delta, vis_next = shading.sample(u_bsdf)
         beta = beta * weight
         alive = (pdf_b > 0) & np.isfinite(beta).all(axis=1)
 
         # Russian roulette: unbiased termination of low-throughput paths.
-        u_rr = stream.next_1d()
         if settings.use_russian_roulette and bounce >= settings.rr_min_bounces:
             q = np.minimum(1.0, max_component(beta))
             alive &= u_rr < q
