@@ -31,6 +31,8 @@ from ..core.scene import (
     MAT_DIELECTRIC,
     MAT_DIFFUSE,
     MAT_LAYERED,
+    TEXTURE_EXTENSIONS,
+    TEXTURE_INTERPOLATIONS,
     Camera,
     Lights,
     Materials,
@@ -197,6 +199,14 @@ class Surface(NamedTuple):
     specular_ior_level: float = 0.5
     specular_tint: np.ndarray = np.ones(3)
     texture: np.ndarray = None  # (h, w, 3) float32 base colour image, see _surface_texture
+    texture_mode: tuple = ("Linear", "REPEAT")  # the image node's interpolation, extension
+    # A mixture: ((weight, Surface), ...) of plain surfaces (see mix_surfaces); this row's own
+    # BSDF fields are then unused, its emission is the mixture's.
+    components: tuple = ()
+
+
+# Most components a mixture keeps (the largest weights, renormalised; reported beyond).
+MAX_COMPONENTS = 8
 
 
 def _diffuse(color, emission=None):
@@ -234,9 +244,7 @@ def material_surface(material, messages):
         socket = output.inputs.get(name)
         if socket is not None and _follow_link(socket) is not None:
             messages.add(f"{owner}: {name.lower()} is not supported yet; ignored")
-    source = _follow_link(output.inputs["Surface"])
-    surface = _shader_surface(source, owner, messages)
-    return surface._replace(texture=_surface_texture(source, owner, messages))
+    return _shader_surface(_follow_link(output.inputs["Surface"]), owner, messages)
 
 
 # The colour input of each BSDF node that an Image Texture may drive (the base colour).
@@ -250,17 +258,9 @@ _TEXTURED_SOCKETS = {
 }
 
 
-def _surface_texture(source, owner, messages, depth=0):
-    """Pixels of the Image Texture driving the base colour of the BSDF that
-    :func:`_shader_surface` translates for ``source``, or None (unsupported ones reported)."""
-    if source is None or depth >= 16:
-        return None
-    node, _ = source
-    if node.bl_idname == 'ShaderNodeMixShader':
-        # The same input _shader_surface picks.
-        fac = min(max(_NodeReader(owner, messages).value(node, "Fac", 0.5), 0.0), 1.0)
-        pick = 2 if fac > 0.5 else 1
-        return _surface_texture(_follow_link(node.inputs[pick]), owner, messages, depth + 1)
+def _surface_texture(node, owner, messages):
+    """``(pixels, (interpolation, extension))`` of the Image Texture driving the base colour
+    of BSDF node ``node``, or None (unsupported ones reported)."""
     name = _TEXTURED_SOCKETS.get(node.bl_idname)
     socket = node.inputs.get(name) if name else None
     link = _follow_link(socket) if socket is not None else None
@@ -270,12 +270,14 @@ def _surface_texture(source, owner, messages, depth=0):
 
 
 def _image_texture_pixels(node, out, owner, messages):
-    """RGB ``(h, w, 3)`` float32 of an Image Texture node's image, or None (reported).
+    """``(pixels, (interpolation, extension))`` of an Image Texture node: RGB ``(h, w, 3)``
+    float32 and the lookup modes, or None (reported).
 
     What the core's lookup models: the Color output, flat projection of the active UV map
     (Vector unlinked, or from a UV Map node of the default map or a Texture Coordinate's UV),
-    Linear interpolation, Repeat extension. Closest / Extend are reported and rendered as
-    Linear / Repeat; anything else falls back to the socket's own colour.
+    Linear or Closest interpolation (Cubic and Smart are reported and rendered as Linear),
+    every extension (Repeat, Extend, Clip, Mirror); anything else falls back to the socket's
+    own colour.
     """
     name = _node_name(node)
     fallback = "; using the input's own colour"
@@ -303,29 +305,31 @@ def _image_texture_pixels(node, out, owner, messages):
             messages.add(f"{owner}: the Vector input of image texture '{name}' (node "
                          f"'{_node_name(src)}') is not supported yet{fallback}")
             return None
-    if not _image_usable(node, image, "image texture", name, owner, fallback, messages):
+    if not _image_usable(node, image, "image texture", name, owner, fallback, messages,
+                         TEXTURE_INTERPOLATIONS):
         return None
     extension = getattr(node, "extension", 'REPEAT')
-    if extension not in {'REPEAT', 'EXTEND'}:
+    if extension not in TEXTURE_EXTENSIONS:
         messages.add(f"{owner}: {extension.lower()} extension of image texture '{name}' is "
                      f"not supported yet{fallback}")
         return None
-    if extension == 'EXTEND':
-        messages.add(f"{owner}: extend extension of image texture '{name}' is not supported "
-                     f"yet; rendered with Repeat")
-    return _image_rgb(image, owner, messages)
+    interpolation = getattr(node, "interpolation", 'Linear')
+    if interpolation not in TEXTURE_INTERPOLATIONS:
+        interpolation = 'Linear'
+    return _image_rgb(image, owner, messages), (interpolation, extension)
 
 
-def _image_usable(node, image, what, name, owner, fallback, messages):
+def _image_usable(node, image, what, name, owner, fallback, messages,
+                  interpolations=("Linear",)):
     """Whether ``image`` of texture node ``node`` has pixels (else reported with ``fallback``);
-    reports interpolations other than Linear, which are rendered as Linear."""
+    reports interpolations not in ``interpolations``, which are rendered as Linear."""
     w, h = (int(x) for x in image.size)
     if w <= 0 or h <= 0 or int(image.channels) <= 0:
         messages.add(f"{owner}: image '{image.name}' of {what} '{name}' has no "
                      f"pixels{fallback}")
         return False
     interpolation = getattr(node, "interpolation", 'Linear')
-    if interpolation != 'Linear':
+    if interpolation not in interpolations:
         messages.add(f"{owner}: {interpolation} interpolation of {what} '{name}' is "
                      f"not supported yet; rendered with Linear")
     return True
@@ -346,6 +350,27 @@ def _shader_surface(source, owner, messages, depth=0):
     node, _ = source
     read = _NodeReader(owner, messages)
     kind = node.bl_idname
+    if kind == 'ShaderNodeMixShader' and depth < 16:
+        # Cycles weighs input 1 by 1 - Fac and input 2 by Fac (nested mixes multiply).
+        fac = min(max(read.value(node, "Fac", 0.5), 0.0), 1.0)
+        parts = [(1.0 - fac, _shader_surface(_follow_link(node.inputs[1]), owner, messages,
+                                             depth + 1)),
+                 (fac, _shader_surface(_follow_link(node.inputs[2]), owner, messages,
+                                       depth + 1))]
+        return mix_surfaces(parts, owner, messages)
+    texture = _surface_texture(node, owner, messages)
+    if kind == 'ShaderNodeBsdfPrincipled':
+        read.ignored_if_linked(node, "Normal", "the normal input")
+        return _principled_surface(node, read, owner, texture)
+    surface = _node_surface(node, read, owner, messages)
+    if texture is not None:
+        surface = surface._replace(texture=texture[0], texture_mode=texture[1])
+    return surface
+
+
+def _node_surface(node, read, owner, messages):
+    """Translate one shader node other than a Mix Shader or a Principled BSDF."""
+    kind = node.bl_idname
     name = _node_name(node)
     if kind not in {'ShaderNodeMixShader', 'ShaderNodeEmission'}:
         read.ignored_if_linked(node, "Normal", "the normal input")
@@ -359,9 +384,6 @@ def _shader_surface(source, owner, messages, depth=0):
     if kind == 'ShaderNodeEmission':
         emission = read.color(node, "Color") * read.value(node, "Strength")
         return Surface(MAT_DIFFUSE, np.zeros(3), emission)
-
-    if kind == 'ShaderNodeBsdfPrincipled':
-        return _principled_surface(node, read, owner)
 
     if kind in {'ShaderNodeBsdfGlossy', 'ShaderNodeBsdfAnisotropic'}:
         _distribution_note(node, read, owner)
@@ -382,19 +404,8 @@ def _shader_surface(source, owner, messages, depth=0):
                        ior=read.value(node, "IOR", 1.5), transmission=1.0, specular_tint=color)
 
     if kind == 'ShaderNodeBsdfTransparent':
-        messages.add(f"{owner}: node '{name}' is not supported yet; rendered as glass of "
-                     f"IOR 1 (a pass-through that still blocks shadow rays and counts as a "
-                     f"transmission bounce)")
-        color = read.color(node, "Color", (1.0, 1.0, 1.0))
-        return Surface(MAT_DIELECTRIC, color, np.zeros(3), roughness=0.0, ior=1.0,
-                       transmission=1.0, specular_tint=color)
-
-    if kind == 'ShaderNodeMixShader' and depth < 16:
-        fac = min(max(read.value(node, "Fac", 0.5), 0.0), 1.0)
-        pick = 2 if fac > 0.5 else 1
-        messages.add(f"{owner}: node '{name}' is not supported yet; rendered as its input "
-                     f"{pick} (the one with the larger factor)")
-        return _shader_surface(_follow_link(node.inputs[pick]), owner, messages, depth + 1)
+        _transparent_note(owner, messages, f"node '{name}'")
+        return _transparent(read.color(node, "Color", (1.0, 1.0, 1.0)))
 
     messages.add(f"{owner}: node '{name}' is not supported yet; rendered as diffuse")
     if node.inputs.get("Color") is not None and node.inputs["Color"].type == 'RGBA':
@@ -402,11 +413,73 @@ def _shader_surface(source, owner, messages, depth=0):
     return _diffuse(DEFAULT_SURFACE_COLOR)
 
 
-def _principled_surface(node, read, owner):
-    """Principled BSDF -> conductor (metallic), dielectric (transmission) or coat over diffuse.
+def _transparent(color):
+    """Transparent BSDF: a smooth dielectric of IOR 1 (straight through, tinted by ``color``)."""
+    color = np.asarray(color, np.float64)
+    return Surface(MAT_DIELECTRIC, color, np.zeros(3), roughness=0.0, ior=1.0,
+                   transmission=1.0, specular_tint=color)
 
-    Fractional Metallic / Transmission Weight render as the lobe of the largest weight (Cycles
-    mixes metal ``m``, glass ``(1 - m) t`` and the opaque dielectric ``(1 - m)(1 - t)``).
+
+def _transparent_note(owner, messages, what):
+    messages.add(f"{owner}: {what} is rendered as a pass-through (glass of IOR 1) that still "
+                 f"blocks shadow rays and counts as a transmission bounce")
+
+
+def _surface_key(surface):
+    """What makes two plain surfaces the same BSDF (to merge equal mixture components)."""
+    return (surface.kind, tuple(np.round(surface.base_color, 9)), surface.roughness,
+            surface.ior, surface.specular_ior_level, tuple(np.round(surface.specular_tint, 9)),
+            id(surface.texture), surface.texture_mode)
+
+
+def mix_surfaces(parts, owner, messages):
+    """The mixture of ``parts = [(weight, Surface), ...]`` (weights summing to 1).
+
+    Nested mixtures are flattened (their weights multiply); emission is the weighted sum;
+    components of zero weight are dropped and equal ones merged. A mixture of untextured
+    diffuse surfaces is the diffuse surface of the blended colour (Lambert is linear in its
+    albedo); a mixture left with one component is that component.
+    """
+    flat = []
+    emission = np.zeros(3)
+    for weight, surface in parts:
+        emission = emission + weight * np.asarray(surface.emission, np.float64)
+        inner = surface.components or ((1.0, surface),)
+        for w, component in inner:
+            if weight * w > 0:
+                flat.append((weight * w, component._replace(emission=np.zeros(3),
+                                                            components=())))
+    merged = {}
+    for w, component in flat:
+        key = _surface_key(component)
+        w0, _ = merged.get(key, (0.0, component))
+        merged[key] = (w0 + w, component)
+    flat = sorted(merged.values(), key=lambda wc: -wc[0])
+    if not flat:
+        return _BLACK._replace(emission=emission)
+    if all(c.kind == MAT_DIFFUSE and c.texture is None for _, c in flat):
+        color = sum(w * np.asarray(c.base_color, np.float64) for w, c in flat)
+        return _diffuse(color / sum(w for w, _ in flat), emission)
+    if len(flat) == 1:
+        return flat[0][1]._replace(emission=emission)
+    if len(flat) > MAX_COMPONENTS:
+        messages.add(f"{owner}: mixtures of more than {MAX_COMPONENTS} BSDFs are not "
+                     f"supported yet; the {MAX_COMPONENTS} largest are kept")
+        flat = flat[:MAX_COMPONENTS]
+    total = sum(w for w, _ in flat)
+    components = tuple((w / total, c) for w, c in flat)
+    main = components[0][1]
+    return main._replace(emission=emission, texture=None, components=components)
+
+
+def _principled_surface(node, read, owner, texture=None):
+    """Principled BSDF -> a mixture of conductor (metallic), dielectric (transmission), coat
+    over diffuse and, for Alpha < 1, a transparent pass-through.
+
+    Weights as Cycles' Principled: transparent ``1 - a``, then of the rest ``a``: metal ``m``,
+    glass ``(1 - m) t`` and the opaque dielectric ``(1 - m)(1 - t)``; emission is scaled by
+    ``a`` too. ``texture`` (pixels, modes) drives the base colour of every component but the
+    transparent one.
     """
     messages = read.messages
     name = _node_name(node)
@@ -422,8 +495,7 @@ def _principled_surface(node, read, owner):
     if lobes:
         messages.add(f"{owner}: {', '.join(lobes)} of node '{name}' "
                      f"{'is' if len(lobes) == 1 else 'are'} not supported yet; ignored")
-    if read.value(node, "Alpha", 1.0) < 1.0:
-        messages.add(f"{owner}: alpha of node '{name}' is not supported yet; rendered opaque")
+    alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
     if read.value(node, "Anisotropic") != 0:
         messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
                      f"rendered isotropic")
@@ -434,19 +506,24 @@ def _principled_surface(node, read, owner):
 
     weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
                MAT_LAYERED: (1 - metallic) * (1 - transmission)}
-    kind = max(weights, key=weights.get)
-    if weights[kind] < 1.0:
-        what = {MAT_CONDUCTOR: "metal", MAT_DIELECTRIC: "glass",
-                MAT_LAYERED: "opaque dielectric"}[kind]
-        messages.add(f"{owner}: fractional metallic / transmission of node '{name}' is not "
-                     f"supported yet; rendered as {what} (the dominant lobe)")
-    if kind == MAT_CONDUCTOR and np.any(tint != 1.0):
+    if metallic > 0 and np.any(tint != 1.0):
         messages.add(f"{owner}: metallic specular tint (F82) of node '{name}' is not "
                      f"supported yet; ignored")
-    if kind == MAT_DIELECTRIC and level != 0.5:
+    if weights[MAT_DIELECTRIC] > 0 and level != 0.5:
         messages.add(f"{owner}: specular IOR level of transmissive node '{name}' is not "
                      f"supported yet; ignored")
-    return Surface(kind, base, emission, roughness, ior, metallic, transmission, level, tint)
+    pixels, mode = texture if texture is not None else (None, ("Linear", "REPEAT"))
+    parts = [(w, Surface(kind, base, np.zeros(3), roughness, ior,
+                         float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
+                         tint, pixels, mode))
+             for kind, w in weights.items() if w > 0]
+    parts = [(alpha * w, surface) for w, surface in parts]
+    if alpha < 1.0:
+        _transparent_note(owner, messages, f"alpha of node '{name}'")
+        parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
+    surface = mix_surfaces(parts, owner, messages)
+    return surface._replace(emission=alpha * emission, metallic=metallic,
+                            transmission=transmission)
 
 
 def world_radiance(world, messages):
@@ -551,13 +628,15 @@ def _image_rgb(image, owner, messages):
 
 
 class MaterialTable:
-    """Rows of :class:`core.scene.Materials`, one per distinct Blender material used."""
+    """Rows of :class:`core.scene.Materials`: one per distinct Blender material used, plus the
+    component rows of the mixtures among them (after their mixture row)."""
 
     def __init__(self, messages):
         self.messages = messages
         self._rows = {}
         self.names = []
         self.surfaces = []
+        self.mixes = []  # per row: ((component row, weight), ...)
 
     def row(self, material):
         """Row index of ``material`` (None: Cycles' default surface), adding it if new."""
@@ -565,38 +644,78 @@ class MaterialTable:
         index = self._rows.get(key)
         if index is None:
             surface = material_surface(material, self.messages)
-            index = len(self.names)
+            name = material.name if material is not None else DEFAULT_SURFACE_NAME
+            index = self._add(name, surface)
             self._rows[key] = index
-            self.names.append(material.name if material is not None else DEFAULT_SURFACE_NAME)
-            self.surfaces.append(surface._replace(
-                base_color=np.clip(surface.base_color, 0.0, 1.0),
-                emission=np.maximum(surface.emission, 0.0),
-                specular_tint=np.clip(surface.specular_tint, 0.0, 1.0)))
+            if surface.components:
+                self.mixes[index] = tuple(
+                    (self._add(f"{name} [{i}]", component), weight)
+                    for i, (weight, component) in enumerate(surface.components))
+        return index
+
+    def _add(self, name, surface):
+        index = len(self.names)
+        self.names.append(name)
+        self.surfaces.append(surface._replace(
+            base_color=np.clip(surface.base_color, 0.0, 1.0),
+            emission=np.maximum(surface.emission, 0.0),
+            specular_tint=np.clip(surface.specular_tint, 0.0, 1.0)))
+        self.mixes.append(((index, 1.0),))
         return index
 
     def build(self):
         if not self.names:
             return Materials.from_lists([], np.zeros((0, 3)), np.zeros((0, 3)))
         col = {field: [getattr(s, field) for s in self.surfaces] for field in Surface._fields}
+        width = max(len(mix) for mix in self.mixes)
+        mix_rows = np.zeros((len(self.names), width), np.int32)
+        mix_weights = np.zeros((len(self.names), width), np.float32)
+        for index, mix in enumerate(self.mixes):
+            rows, weights = zip(*mix)
+            mix_rows[index] = rows[0]  # padding: the first component, of weight 0
+            mix_rows[index, :len(rows)] = rows
+            mix_weights[index, :len(rows)] = np.asarray(weights) / np.sum(weights)
         return Materials.from_lists(
             self.names, col["base_color"], col["emission"], kinds=col["kind"],
             roughness=col["roughness"], ior=col["ior"], metallic=col["metallic"],
             transmission=col["transmission"], specular_ior_level=col["specular_ior_level"],
-            specular_tint=col["specular_tint"], texture=self.texture_rows())
+            specular_tint=col["specular_tint"], texture=self._texture_index()[0],
+            mix_rows=mix_rows, mix_weights=mix_weights)
+
+    def _texture_index(self):
+        """``(m,) int32`` index into the distinct textures per row (-1 for untextured rows),
+        and those textures as ``[(pixels, (interpolation, extension)), ...]``."""
+        index, distinct, found = [], [], {}
+        for s in self.surfaces:
+            if s.texture is None:
+                index.append(-1)
+                continue
+            key = (id(s.texture), s.texture_mode)
+            if key not in found:
+                found[key] = len(distinct)
+                distinct.append((s.texture, s.texture_mode))
+            index.append(found[key])
+        return np.asarray(index, np.int32), distinct
 
     @property
     def textures(self):
-        """Base colour images of the textured rows, in row order (``Scene.textures``)."""
-        return [s.texture for s in self.surfaces if s.texture is not None]
+        """Distinct base colour images in order of first use (``Scene.textures``)."""
+        return [pixels for pixels, _ in self._texture_index()[1]]
+
+    @property
+    def texture_modes(self):
+        """``(interpolations, extensions)`` of :attr:`textures` (``Scene.texture_*``)."""
+        modes = [mode for _, mode in self._texture_index()[1]]
+        return [m[0] for m in modes], [m[1] for m in modes]
 
     def texture_rows(self):
         """``(m,) int32`` index into :attr:`textures` per row, -1 for untextured rows."""
-        textured = np.array([s.texture is not None for s in self.surfaces], bool)
-        return np.where(textured, np.cumsum(textured) - 1, -1).astype(np.int32)
+        return self._texture_index()[0]
 
     def textured(self, rows):
-        """Whether any of the material rows ``rows`` has a texture."""
-        return any(self.surfaces[int(r)].texture is not None for r in np.unique(rows))
+        """Whether any of the material rows ``rows`` (or their components) has a texture."""
+        return any(self.surfaces[c].texture is not None
+                   for r in np.unique(rows) for c, _ in self.mixes[int(r)])
 
 
 # --------------------------------------------------------------------------- meshes
@@ -978,6 +1097,8 @@ def export_scene(depsgraph, camera_object=None):
         visibility=visibility,
         messages=messages.items,
         textures=materials.textures,
+        texture_interpolation=materials.texture_modes[0],
+        texture_extension=materials.texture_modes[1],
         corner_uvs=_concat_uvs(uv_chunks, [t.shape[0] for t in tri_chunks]),
         corner_normals=_concat_corner_normals(normal_chunks, vertices, triangles),
     )

@@ -90,7 +90,39 @@ def test_byte_srgb_texture_is_decoded_to_linear(empty_scene, export):
     np.testing.assert_allclose(s.textures[0], linear, rtol=1e-5, atol=1e-6)
 
 
-@pytest.mark.parametrize("case", ["mapping", "alpha_output", "box_projection", "clip"])
+@pytest.mark.parametrize("interpolation,extension", [("Closest", 'EXTEND'), ("Linear", 'CLIP'),
+                                                     ("Closest", 'MIRROR')])
+def test_closest_interpolation_and_every_extension_export_without_messages(
+        empty_scene, export, interpolation, extension):
+    mat, tex = textured_material("Tex", S.float_image("Known", checker_pixels(4)))
+    tex.interpolation = interpolation
+    tex.extension = extension
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert s.messages == []
+    assert s.texture_interpolation == [interpolation] and s.texture_extension == [extension]
+
+
+def test_principled_mixture_components_share_the_base_colour_texture(empty_scene, export):
+    mat, _ = textured_material("Tex", S.float_image("Known", checker_pixels(4)),
+                               "ShaderNodeBsdfPrincipled", "Base Color")
+    bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Metallic"].default_value = 0.5
+    bsdf.inputs["Alpha"].default_value = 0.5
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    m = s.materials
+    assert len(s.textures) == 1 and s.corner_uvs is not None
+    row = m.names.index("Tex")
+    components = m.mix_rows[row][m.mix_weights[row] > 0]
+    # Metal and opaque dielectric take the texture; the transparent pass-through does not.
+    textured = {int(m.kind[c]): int(m.texture[c]) for c in components}
+    assert textured == {1: 0, 3: 0, 2: -1}, textured
+
+
+@pytest.mark.parametrize("case", ["mapping", "alpha_output", "box_projection"])
 def test_unsupported_image_textures_fall_back_to_the_socket_colour(empty_scene, export, case):
     scene = empty_scene
     mat, tex = textured_material("Tex", S.float_image("Known", checker_pixels(4)))
@@ -102,10 +134,8 @@ def test_unsupported_image_textures_fall_back_to_the_socket_colour(empty_scene, 
         tree.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
     elif case == "alpha_output":
         tree.links.new(tex.outputs["Alpha"], bsdf.inputs["Color"])
-    elif case == "box_projection":
-        tex.projection = 'BOX'
     else:
-        tex.extension = 'CLIP'
+        tex.projection = 'BOX'
     add_uv_quad(scene, "Quad", 1.0, mat)
     S.add_camera(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
     s = export.export_scene(bpy.context.evaluated_depsgraph_get())

@@ -216,14 +216,54 @@ def test_principled_bsdf_maps_metal_glass_and_coat_with_their_inputs(empty_scene
     np.testing.assert_allclose(m.specular_tint[row["Plastic"]], [1.0, 0.9, 0.8], rtol=1e-6)
 
 
-def test_fractional_principled_lobes_render_the_dominant_one_and_are_reported(empty_scene,
-                                                                              export):
-    mat = _principled("Half", **{"Metallic": 0.7, "Coat Weight": 0.5})
+def _mixture(m, row):
+    """``{kind: weight}`` of the components of material row ``row``."""
+    out = {}
+    for r, w in zip(m.mix_rows[row], m.mix_weights[row]):
+        if w > 0:
+            out[int(m.kind[r])] = out.get(int(m.kind[r]), 0.0) + float(w)
+    return out
+
+
+def test_fractional_principled_exports_a_mixture_with_cycles_weights(empty_scene, export):
+    mat = _principled("Half", **{"Metallic": 0.7, "Transmission Weight": 0.4, "Alpha": 0.5,
+                                 "Coat Weight": 0.5, "Emission Strength": 2.0,
+                                 "Emission Color": (1.0, 1.0, 1.0, 1.0)})
     s, row = _export_materials(empty_scene, export, mat)
-    assert s.materials.kind[row["Half"]] == 1
+    m = s.materials
+    # Transparent 1 - a; of the rest a: metal m, glass (1 - m) t, opaque (1 - m)(1 - t).
+    mix = _mixture(m, row["Half"])
+    assert set(mix) == {1, 2, 3}
+    np.testing.assert_allclose(mix[1], 0.5 * 0.7, rtol=1e-6)
+    np.testing.assert_allclose(mix[3], 0.5 * 0.3 * 0.6, rtol=1e-6)
+    np.testing.assert_allclose(mix[2], 0.5 + 0.5 * 0.3 * 0.4, rtol=1e-6)
+    clear = [r for r, w in zip(m.mix_rows[row["Half"]], m.mix_weights[row["Half"]])
+             if w > 0 and m.kind[r] == 2 and m.ior[r] == 1.0]
+    assert len(clear) == 1 and m.roughness[clear[0]] == 0.0
+    np.testing.assert_allclose(m.emission[row["Half"]], 0.5 * 2.0, rtol=1e-6)
+    assert m.mixed[row["Half"]]
+    components = m.mix_rows[row["Half"]]
+    np.testing.assert_allclose(m.emission[components], 0.0)
     assert len(s.messages) == 2, s.messages
     assert any("coat" in msg and "ignored" in msg for msg in s.messages)
-    assert any("fractional metallic" in msg and "rendered as metal" in msg for msg in s.messages)
+    assert any("alpha" in msg and "blocks shadow rays" in msg for msg in s.messages)
+
+
+def test_mix_of_diffuse_shaders_is_the_diffuse_of_the_blended_colour(empty_scene, export):
+    mix = scenes.shader_material("Blend", "ShaderNodeMixShader")
+    tree = mix.node_tree
+    shader = tree.nodes["Mix Shader"]
+    shader.inputs["Fac"].default_value = 0.25
+    a = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    a.inputs["Color"].default_value = (1.0, 0.0, 0.0, 1.0)
+    b = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    b.inputs["Color"].default_value = (0.0, 0.0, 1.0, 1.0)
+    tree.links.new(a.outputs[0], shader.inputs[1])
+    tree.links.new(b.outputs[0], shader.inputs[2])
+    s, row = _export_materials(empty_scene, export, mix)
+    m = s.materials
+    assert s.messages == [] and not m.mixed.any() and len(m.kind) == 1
+    np.testing.assert_allclose(m.base_color[row["Blend"]], [0.75, 0.0, 0.25], rtol=1e-6)
 
 
 def test_glossy_glass_refraction_transparent_and_mix_nodes_map_to_core_kinds(empty_scene,
@@ -253,14 +293,16 @@ def test_glossy_glass_refraction_transparent_and_mix_nodes_map_to_core_kinds(emp
     np.testing.assert_allclose(m.ior[row["Glass"]], 1.45, rtol=1e-6)
     assert m.ior[row["Clear"]] == 1.0 and m.roughness[row["Clear"]] == 0.0
     text = "\n".join(s.messages)
-    # Multiscatter GGX (the Glossy default), refraction-only, transparent and mix: one each.
+    # Multiscatter GGX (the Glossy default), refraction-only and transparent: one each.
     assert "Material 'Glossy': MULTI_GGX distribution" in text
     assert "Material 'Glass'" not in text
     assert "Material 'Refr': node 'Refraction BSDF' (refraction only)" in text
     assert "Material 'Clear': node 'Transparent BSDF'" in text
-    assert "Material 'Mix': node 'Mix Shader' is not supported yet; rendered as its input 2" \
-        in text
-    assert len(s.messages) == 4, s.messages
+    assert "Mix Shader" not in text
+    assert len(s.messages) == 3, s.messages
+    # Mix: diffuse 1 - Fac, glossy Fac.
+    mix = _mixture(m, row["Mix"])
+    np.testing.assert_allclose([mix[0], mix[1]], [0.2, 0.8], rtol=1e-6)
 
 
 def test_texture_driven_color_uses_socket_value_and_is_reported(empty_scene, export):
