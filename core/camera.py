@@ -74,3 +74,75 @@ def generate_rays(cam: Camera, film_xy):
     origins = pos + d * t_near[:, None]
     tmax = (cam.clip_end - cam.clip_start) * length
     return origins, d, tmax
+
+
+def film_plane_area(cam: Camera):
+    """Area of the whole film on the plane at unit distance (perspective), tangent units^2."""
+    half_x, half_y, _, _ = view_extent(cam)
+    return 4.0 * half_x * half_y
+
+
+def camera_position(cam: Camera):
+    """The pinhole's world position ``(3,)`` float64."""
+    return np.asarray(cam.to_world, np.float64)[:3, 3].copy()
+
+
+def project(cam: Camera, p):
+    """Where points ``p (n, 3)`` land on the film of a perspective camera (inverse of
+    :func:`generate_rays`).
+
+    Returns
+    -------
+    film_xy : (n, 2) float64
+        Film position in pixels (x from the left, y from the bottom); may lie outside.
+    visible : (n,) bool
+        In front of the camera, between the clipping planes and inside the film's extent.
+    cos_theta : (n,) float64
+        Cosine between the view axis and the direction to the point.
+    dist : (n,) float64
+        Distance from the pinhole.
+    """
+    if cam.type != "PERSP":
+        raise ValueError("only perspective cameras can be reached from light paths")
+    half_x, half_y, sx, sy = view_extent(cam)
+    m = np.asarray(cam.to_world, np.float64)
+    rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0, keepdims=True)
+    local = np.einsum("ij,jk->ik", p - m[:3, 3], rot)
+    depth = -local[:, 2]
+    dist = np.sqrt(np.einsum("ij,ij->i", local, local))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tx = local[:, 0] / depth
+        ty = local[:, 1] / depth
+        cos_theta = depth / dist
+    fx = ((tx - sx) / (2.0 * half_x) + 0.5) * cam.width
+    fy = ((ty - sy) / (2.0 * half_y) + 0.5) * cam.height
+    film_xy = np.stack([fx, fy], axis=-1)
+    visible = ((depth > 0) & (depth >= cam.clip_start) & (depth <= cam.clip_end)
+               & (fx >= 0) & (fx < cam.width) & (fy >= 0) & (fy < cam.height)
+               & np.isfinite(fx) & np.isfinite(fy))
+    return np.where(np.isfinite(film_xy), film_xy, -1.0), visible, np.where(
+        visible, cos_theta, 0.0), dist
+
+
+def importance(cam: Camera, cos_theta):
+    """Importance ``W_e`` per pixel of a pinhole toward a direction at ``cos_theta (n,)`` from
+    the view axis, before the pixel filter: ``1 / (A_pixel cos^3 theta)``, with ``A_pixel`` a
+    pixel's area on the plane at unit distance. A light-path vertex at distance ``r`` seen
+    through it adds ``beta f |cos| W_e / r^2`` times the filter's weight to a pixel (see
+    :meth:`core.film.Film.splat`); camera samples of the same pixel estimate the same integral.
+
+    The density of camera rays in that direction, one per light path, is
+    ``1 / (A_film cos^3 theta)`` (:func:`camera_pdf`).
+    """
+    a_pixel = film_plane_area(cam) / (cam.width * cam.height)
+    c = np.asarray(cos_theta, np.float64)
+    with np.errstate(divide="ignore"):
+        return np.where(c > 0, 1.0 / (a_pixel * c**3), 0.0)
+
+
+def camera_pdf(cam: Camera, cos_theta):
+    """Solid-angle density ``(n,)`` of a camera ray in a direction at ``cos_theta`` from the
+    view axis (uniform over the film): ``1 / (A_film cos^3 theta)``; zero behind the camera."""
+    c = np.asarray(cos_theta, np.float64)
+    with np.errstate(divide="ignore"):
+        return np.where(c > 0, 1.0 / (film_plane_area(cam) * c**3), 0.0)

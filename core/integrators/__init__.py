@@ -1,5 +1,5 @@
 """Integrators: one module per estimator. ``INTEGRATORS`` maps names to modules."""
 
-from . import path
+from . import bdpt, light, path
 
-INTEGRATORS = {"path": path}
+INTEGRATORS = {"path": path, "light": light, "bdpt": bdpt}

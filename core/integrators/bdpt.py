@@ -1,0 +1,822 @@
+"""Bidirectional path tracing: every connection strategy (s, t), combined by MIS.
+
+What it estimates
+    The same pixel measurement as :mod:`.path`. For each sample it traces a camera subpath
+    ``z_0 (camera), z_1, ...`` and a light subpath ``y_0 (on an emitter), y_1, ...`` and forms
+    every path of ``k`` segments from ``s`` light and ``t`` camera vertices, ``s + t = k + 1``:
+    ``s = 0`` (the camera subpath hits an emitter), ``s = 1`` (a fresh point on an emitter is
+    connected to ``z_{t-1}``: next-event estimation), ``s >= 2, t >= 2`` (``y_{s-1}`` is
+    connected to ``z_{t-1}`` by a shadow ray) and ``t = 1`` (``y_{s-1}`` is connected to the
+    pinhole and splatted onto the film where it lands). Emitters seen directly are always
+    found from the camera (``s = 0, t = 2``; ``s = 1, t = 1`` is not used).
+Bias and consistency
+    Unbiased for paths of up to ``max_bounces + 1`` scattering vertices, as the path tracer.
+    MIS weights are computed from each path's per-vertex densities, in area measure (solid angle
+    toward infinite emitters), as Veach's ratio recurrence (pbrt's ``MISWeight``): the weights of
+    all strategies that can make a path sum to one for every heuristic, so every setting of
+    ``mis_heuristic`` is unbiased: ``balance``, ``power`` (``mis_beta``), ``maximum``,
+    ``cutoff`` (``mis_alpha``), or ``none`` (every strategy that can make the path gets the same
+    weight). Strategies next to a delta BSDF vertex, and ``s = 0`` for delta lights, cannot make
+    a path and get weight zero; so do strategies whose density is zero.
+    Densities used for MIS ignore Russian roulette, and light points for ``s = 1`` are sampled
+    by area (not by solid angle as the path tracer's ``solid_angle`` setting does).
+Parameters
+    ``max_bounces``, ``use_russian_roulette``, ``rr_min_bounces``, ``mis_heuristic``,
+    ``mis_beta``, ``mis_alpha``; light selection and the world's importance map as
+    :class:`core.lights.LightSampler`; ``strategy_views`` and ``strategy_max_length`` write one
+    image per strategy (its own estimate, and its MIS-weighted share).
+Limitations
+    Perspective cameras only (light subpaths must be able to reach the film). Object ray
+    visibility is honoured for camera rays and shadow rays; light subpath rays trace every
+    object. Soft Falloff point lights are rendered as spheres, and sphere lights shine on
+    points inside them only through ``s <= 1`` strategies (:mod:`core.emitters`).
+When to use it
+    Caustics (small lights seen through glass or mirrors on diffuse receivers) and scenes lit
+    indirectly, where camera paths rarely find the light and light paths rarely find the
+    camera but connections between them do.
+
+Stages: generate camera subpath (with ``s = 0`` emission) -> generate light subpath ->
+connect ``s = 1`` -> connect ``s, t >= 2`` -> connect ``t = 1`` (splat).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import camera_pdf, camera_position, importance, project
+from ..emitters import Emission
+from ..materials.bsdf import (IMPORTANCE, LOBE_TRANSMIT, RADIANCE, BSDFParams, eval_bsdf,
+                              pdf_bsdf, sample_bsdf)
+from ..materials.frame import shading_frame, to_local, to_world
+from ..scene import LIGHT_POINT, LIGHT_SUN, VIS_CAMERA, VIS_SHADOW
+from .common import (BatchOutput, camera_rays, intersect_by_class, max_component, strategies,
+                     surface_interaction)
+from .path import geometric_side_valid, ray_class
+
+HAS_STRATEGY_VIEWS = True
+# Paths per chunk: keeps the subpath arrays (depth x paths) small.
+CHUNK = 8192
+# Sample dimensions: 0-1 pixel filter; per camera vertex: BSDF lobe, BSDF 2-D, roulette, light
+# selection, light point 2-D (for s = 1); then the light subpath: selection, point 2-D,
+# direction 2-D, and per light vertex: lobe, BSDF 2-D, roulette.
+DIMS_CAMERA = 2
+DIMS_PER_CAMERA_VERTEX = 7
+DIMS_LIGHT_START = 5
+DIMS_PER_LIGHT_VERTEX = 4
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _empty_params(n):
+    return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
+                      np.zeros((n, 3)))
+
+
+def _scatter_params(dst, rows, src):
+    dst.kind[rows] = src.kind
+    dst.color[rows] = src.color
+    dst.alpha[rows] = src.alpha
+    dst.eta[rows] = src.eta
+    dst.tint[rows] = src.tint
+
+
+@dataclass
+class Subpath:
+    """Vertices of a batch of subpaths, depth-major: arrays of shape ``(D, n, ...)``.
+
+    Vertex 0 is the endpoint (the pinhole, or the point on the emitter); vertices ``1..D-1``
+    are surface hits. ``pdf_fwd`` is the density with which the subpath's own sampling made
+    the vertex, ``pdf_rev`` the density with which the other side would make it (known once
+    the next vertex is sampled); both are in area measure, solid angle for infinite light
+    endpoints, and one next to a delta vertex (the discrete choices cancel in MIS ratios).
+    ``d_prev`` and ``cos_prev`` are the distance to the previous vertex and the cosine there
+    (along the edge, geometric normal; one for points, the pinhole and infinite endpoints),
+    used to turn solid-angle densities at this vertex into area densities at the previous one.
+    """
+
+    valid: np.ndarray
+    p: np.ndarray
+    ng: np.ndarray
+    prim: np.ndarray
+    fs: np.ndarray
+    ft: np.ndarray
+    fn: np.ndarray
+    wo: np.ndarray
+    wo_local: np.ndarray
+    params: list
+    connectible: np.ndarray
+    delta: np.ndarray
+    beta: np.ndarray
+    pdf_fwd: np.ndarray
+    pdf_rev: np.ndarray
+    d_prev: np.ndarray
+    cos_prev: np.ndarray
+
+    @staticmethod
+    def empty(depth, n):
+        z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
+        return Subpath(np.zeros((depth, n), bool), z3(), z3(), np.zeros((depth, n), np.int64),
+                       z3(), z3(), z3(), z3(), z3(), [None] * depth,
+                       np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
+                       np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
+                       np.ones((depth, n)))
+
+
+class _Context:
+    """What the stages of one chunk share."""
+
+    def __init__(self, prep, settings, counters, emission):
+        self.prep = prep
+        self.settings = settings
+        self.counters = counters
+        self.emission = emission
+        self.cam = prep.scene.camera
+        self.cam_pos = camera_position(self.cam)
+        self.smooth = prep.scene.corner_normals is not None
+        self.heuristic = settings.mis_heuristic
+        self.views = bool(getattr(settings, "strategy_views", False))
+        self.view_length = int(getattr(settings, "strategy_max_length", 0))
+
+
+# ------------------------------------------------------------------------------------ BSDFs
+def _eval(ctx, sub, j, rows, w, mode):
+    """``f |cos|`` at vertices ``sub[j, rows]`` toward world directions ``w (m, 3)``, with the
+    geometric-side rule and, in importance mode, the shading-normal correction (Veach 5.3)."""
+    params = sub.params[j].take(rows)
+    wo_l = sub.wo_local[j, rows]
+    wi_l = to_local(w, sub.fs[j, rows], sub.ft[j, rows], sub.fn[j, rows])
+    f = eval_bsdf(params, wo_l, wi_l, mode)
+    if ctx.smooth:
+        f *= _smooth_factor(sub.ng[j, rows], sub.fn[j, rows], sub.wo[j, rows], w, wo_l, wi_l,
+                            mode)[:, None]
+    return f
+
+
+def _smooth_factor(ng, ns, wo, wi, wo_l, wi_l, mode):
+    transmit = wo_l[:, 2] * wi_l[:, 2] < 0
+    ok = geometric_side_valid(ng, wo, wi, transmit).astype(np.float64)
+    if mode == IMPORTANCE:
+        num = np.abs(_dot(wo, ns)) * np.abs(_dot(wi, ng))
+        den = np.abs(_dot(wo, ng)) * np.abs(_dot(wi, ns))
+        ok *= np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    return ok
+
+
+def _pdf(sub, j, rows, w_from, w_to):
+    """Solid-angle density of sampling ``w_to`` at ``sub[j, rows]`` given ``w_from`` (world)."""
+    f, t, n = sub.fs[j, rows], sub.ft[j, rows], sub.fn[j, rows]
+    return pdf_bsdf(sub.params[j].take(rows), to_local(w_from, f, t, n), to_local(w_to, f, t, n))
+
+
+def _to_area(pdf_sa, cos_at, dist):
+    """Solid-angle density -> area density at a point ``dist`` away (cosine ``cos_at`` there);
+    unchanged toward infinite endpoints (``dist = inf``)."""
+    finite = np.isfinite(dist)
+    d2 = np.where(finite, dist * dist, 1.0)
+    return np.where(finite, pdf_sa * np.abs(cos_at) / np.maximum(d2, 1e-300), pdf_sa)
+
+
+# ------------------------------------------------------------------------------------ MIS
+def mis_weight(p_light, p_camera, delta, s, delta_light, heuristic="power", beta=2.0,
+               alpha=0.1):
+    """MIS weight ``(m,)`` of strategy ``s`` for paths of ``k + 1`` vertices ``x_0..x_k``.
+
+    Parameters
+    ----------
+    p_light, p_camera : list of k + 1 arrays (m,)
+        ``p_light[i]``: density with which the light side makes ``x_i`` (from ``x_{i-1}``;
+        ``x_0``'s: the emitter's origin density); ``p_camera[i]``: the same from the camera
+        side (``x_k`` is the pinhole). The density of strategy ``s'`` is
+        ``prod_{i < s'} p_light[i] * prod_{i >= s'} p_camera[i]``; only ratios are formed.
+    delta : list of k + 1 arrays (m,) bool
+        Vertices scattered by a delta lobe: strategies connecting at them are impossible.
+    s : int
+        The strategy that made the paths (light vertices used).
+    delta_light : (m,) bool
+        ``x_0`` is a point or a directional delta light: ``s' = 0`` is impossible.
+    heuristic : {'balance', 'power', 'maximum', 'cutoff', 'none'}
+
+    Notes
+    -----
+    Strategies ``s' = 0..k`` (``t' = k + 1 - s' >= 1``); ``s' = k`` (``t' = 1``) only for
+    ``k >= 2`` (an emitter seen directly comes from the camera side alone).
+    """
+    k = len(p_light) - 1
+    m = delta_light.shape[0]
+    ratio = [None] * (k + 1)
+    ratio[s] = np.ones(m)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for sp in range(s - 1, -1, -1):
+            num, den = p_camera[sp], p_light[sp]
+            ratio[sp] = np.where(den > 0, ratio[sp + 1] * num / np.where(den > 0, den, 1.0), 0.0)
+        for sp in range(s + 1, k + 1):
+            num, den = p_light[sp - 1], p_camera[sp - 1]
+            ratio[sp] = np.where(den > 0, ratio[sp - 1] * num / np.where(den > 0, den, 1.0), 0.0)
+    terms, valid = [], []
+    for sp in range(k + 1):
+        if sp == 0:
+            ok = ~delta_light
+        elif sp == k:
+            ok = ~delta[k - 1] if k >= 2 else np.zeros(m, bool)
+        else:
+            ok = ~delta[sp - 1] & ~delta[sp]
+        if sp == s:
+            ok = np.ones(m, bool)
+        r = np.nan_to_num(ratio[sp], nan=0.0, posinf=np.inf)
+        valid.append(ok & (r > 0))
+        terms.append(np.where(ok, r, 0.0))
+    r = np.stack(terms)
+    v = np.stack(valid)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if heuristic == "balance":
+            w = 1.0 / r.sum(axis=0)
+        elif heuristic == "power":
+            w = 1.0 / (r ** beta).sum(axis=0)
+        elif heuristic == "none":
+            w = 1.0 / v.sum(axis=0)
+        elif heuristic == "maximum":
+            top = r.max(axis=0)
+            ties = (v & (r >= top)).sum(axis=0)
+            w = np.where(top <= 1.0, 1.0 / np.maximum(ties, 1), 0.0)
+        elif heuristic == "cutoff":
+            top = r.max(axis=0)
+            keep = v & (r >= alpha * top)
+            w = np.where(1.0 >= alpha * top, 1.0 / np.where(keep, r, 0.0).sum(axis=0), 0.0)
+        else:
+            raise ValueError(f"BDPT's MIS heuristic must be balance, power, maximum, cutoff or "
+                             f"none, not {heuristic!r}")
+    return np.where(np.isfinite(w), w, 0.0)
+
+
+# ------------------------------------------------------------------------------------ walks
+def _walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mode, dims_of,
+          depth, on_segment=None):
+    """Stage *random walk*: extend ``sub`` from vertex 0 with the rays ``o, d`` of ``rows``.
+
+    Vertices ``1..depth-1`` are made. ``pdf_prev (m,)`` is the solid-angle density of the first
+    ray (the disk's area density for infinite light endpoints, whose ``d_prev`` is inf),
+    ``prev_delta`` whether it came from a delta lobe, ``beta (m, 3)`` its throughput. With
+    ``on_segment(j, rows, o, d, hits, pdf_prev, prev_delta)`` (the camera side, for ``s = 0``)
+    one more segment is traced after the last vertex, for the emitters it finds.
+    """
+    prep, settings = ctx.prep, ctx.settings
+    n = sub.valid.shape[1]
+    last = depth + int(on_segment is not None)
+    for j in range(1, last):
+        hits = intersect_by_class(prep.accel, o, d, tmax, vis)
+        ctx.counters.rays += o.shape[0]
+        if on_segment is not None:
+            on_segment(j, rows, o, d, hits, pdf_prev, prev_delta)
+        if j == depth:
+            break
+        live = np.nonzero(hits.hit)[0]
+        live = live[prep.tri_area[hits.prim[live]] > 0]
+        if live.size == 0:
+            break
+        si = surface_interaction(prep, hits, d, live)
+        r = rows[live]
+        stream.skip_to(dims_of(j))
+        u_lobe = stream.next_1d()[r]
+        u_bsdf = stream.next_2d()[r]
+        u_rr = stream.next_1d()[r]
+        params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe)
+        if prep.scene.textures:
+            trow, color = prep.textured_base_color(si.prim, hits.u[live], hits.v[live])
+            params.color[trow] = color
+        if ctx.smooth:
+            front = np.where(_dot(si.ns, si.ng) < 0, -1.0, 1.0)
+            fs, ft, fn = shading_frame(si.ns * front[:, None])
+        else:
+            fs, ft, fn = shading_frame(si.ng)
+        wo_l = to_local(si.wo, fs, ft, fn)
+
+        # Store vertex j; its forward density in area measure (times the cosine alone after an
+        # infinite endpoint, whose rays are parallel).
+        if j == 1:
+            dist = np.linalg.norm(si.p - sub.p[0, r], axis=1)
+            dist = np.where(np.isfinite(sub.d_prev[0, r]), dist, np.inf)
+            sub.cos_prev[j, r] = sub.cos_prev[0, r]
+        else:
+            dist = hits.t[live]
+            sub.cos_prev[j, r] = np.abs(_dot(sub.ng[j - 1, r], si.wo))
+        cos_here = np.abs(_dot(si.ng, si.wo))
+        fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
+                       _to_area(pdf_prev[live], cos_here, dist))
+        sub.valid[j, r] = True
+        sub.p[j, r], sub.ng[j, r], sub.prim[j, r] = si.p, si.ng, si.prim
+        sub.fs[j, r], sub.ft[j, r], sub.fn[j, r] = fs, ft, fn
+        sub.wo[j, r], sub.wo_local[j, r] = si.wo, wo_l
+        if sub.params[j] is None:
+            sub.params[j] = _empty_params(n)
+        _scatter_params(sub.params[j], r, params)
+        sub.connectible[j, r] = ~delta_only
+        sub.beta[j, r] = beta[live]
+        sub.d_prev[j, r] = dist
+        sub.pdf_fwd[j, r] = np.where(prev_delta[live], 1.0, fwd)
+        if j == depth - 1 and on_segment is None:
+            break
+
+        # Sample the BSDF for the next vertex; the reverse density goes to vertex j - 1.
+        smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode)
+        wi = to_world(smp.wi, fs, ft, fn)
+        weight = smp.weight
+        if ctx.smooth:
+            weight = weight * _smooth_factor(si.ng, fn, si.wo, wi, wo_l, smp.wi, mode)[:, None]
+        back = _to_area(pdf_bsdf(params, smp.wi, wo_l), sub.cos_prev[j, r], dist)
+        sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
+        sub.delta[j, r] = smp.delta
+        beta = beta[live] * weight
+        alive = (smp.pdf > 0) & np.isfinite(beta).all(axis=1)
+        if settings.use_russian_roulette and j - 1 >= settings.rr_min_bounces:
+            q = np.minimum(1.0, max_component(beta))
+            alive &= u_rr < q
+            beta = beta / np.maximum(q, 1e-12)[:, None]
+        alive &= max_component(beta) > 0
+        keep = np.nonzero(alive)[0]
+        if keep.size == 0:
+            break
+        rows = r[keep]
+        beta = beta[keep]
+        o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
+        d = wi[keep]
+        tmax = np.full(keep.size, np.inf)
+        pdf_prev = smp.pdf[keep]
+        prev_delta = smp.delta[keep]
+        vis = ray_class(smp.lobe[keep])
+
+
+def _accumulate(ctx, out, name_s, name_t, rows, value, weight):
+    """Add a strategy's contributions to the image and, if views are on, to its layers."""
+    out["L"][rows] += value * weight[:, None]
+    if ctx.views and name_s + name_t - 1 <= ctx.view_length:
+        key = f"Strategy s{name_s} t{name_t}"
+        layers = out["layers"]
+        for name, v in ((key, value), (key + " weighted", value * weight[:, None])):
+            if name not in layers:
+                layers[name] = ("camera", np.zeros_like(out["L"]))
+            layers[name][1][rows] += v
+
+
+def _splat(ctx, out, s, xy, value, weight):
+    out["splat_xy"].append(xy)
+    out["splat_value"].append(value * weight[:, None])
+    if ctx.views and s <= ctx.view_length:
+        key = f"Strategy s{s} t1"
+        layers = out["layers"]
+        for name, v in ((key, value), (key + " weighted", value * weight[:, None])):
+            if name not in layers:
+                layers[name] = ("splat", [], [])
+            layers[name][1].append(xy)
+            layers[name][2].append(v)
+
+
+# ------------------------------------------------------------------------------------ s = 0
+def _camera_emission(ctx, cam_sub, out):
+    """``on_segment`` of the camera walk: emitters along the segment from vertex ``j - 1``
+    (strategy ``s = 0, t = j + 1``), MIS-weighted against the strategies that connect."""
+    prep, em = ctx.prep, ctx.emission
+    ls = prep.lights
+
+    def handle(j, rows, o, d, hits, pdf_prev, prev_delta):
+        found = []  # (local rows, emitter index, point, normal, distance)
+        n = rows.size
+        escaped = np.nonzero(~hits.hit)[0]
+        if escaped.size:
+            if ls.has_world:
+                found.append((escaped, np.full(escaped.size, ls.world_index),
+                              np.zeros((escaped.size, 3)), np.zeros((escaped.size, 3)),
+                              np.full(escaped.size, np.inf)))
+            for li in np.nonzero(ls.lights.kind == LIGHT_SUN)[0] if ls.n_lights else []:
+                if ls.delta[li] or (j == 1 and not ls.lights.visible_camera[li]):
+                    continue
+                found.append((escaped, np.full(escaped.size, li), np.zeros((escaped.size, 3)),
+                              np.zeros((escaped.size, 3)), np.full(escaped.size, np.inf)))
+        found += _lamp_hits(ctx, o, d, hits.t, j == 1)
+        hit_rows = np.nonzero(hits.hit)[0]
+        if hit_rows.size and ls.emissive_tris.size:
+            e = ls.tri_emitter[hits.prim[hit_rows]]
+            sel = e >= 0
+            if sel.any():
+                lr = hit_rows[sel]
+                prim = hits.prim[lr]
+                q = (prep.tri_v0[prim] + hits.u[lr][:, None] * prep.tri_e1[prim]
+                     + hits.v[lr][:, None] * prep.tri_e2[prim])
+                found.append((lr, e[sel], q, prep.tri_normal[prim], hits.t[lr]))
+        for lr, index, q, normal, t in found:
+            if lr.size == 0:
+                continue
+            r = rows[lr]
+            w_travel = -d[lr]
+            receiver = cam_sub.p[j - 1, r]
+            value = cam_sub.beta[j - 1, r] * em.radiance(index, q, normal, w_travel, receiver)
+            ok = max_component(value) > 0
+            if not ok.any():
+                continue
+            lr, index, q, normal, t, r, value = (lr[ok], index[ok], q[ok], normal[ok], t[ok],
+                                                 r[ok], value[ok])
+            if j == 1:
+                weight = np.ones(lr.size)  # emitters seen directly: s = 0 alone
+            else:
+                weight = _s0_weight(ctx, cam_sub, j, r, index, q, normal, t, -d[lr],
+                                    pdf_prev[lr], prev_delta[lr])
+            _accumulate(ctx, out, 0, j + 1, r, value, weight)
+
+    return handle
+
+
+def _lamp_hits(ctx, o, d, tmax, camera):
+    """Points where rays meet lamp shapes (spheres, area lights) before ``tmax``:
+    a list of ``(rows, emitter index, point, normal, distance)``."""
+    lights = ctx.prep.lights.lights
+    out = []
+    for li in ctx.prep.lights.shape_lights:
+        if camera and not lights.visible_camera[li]:
+            continue
+        kind = lights.kind[li]
+        if kind == LIGHT_POINT:
+            c, r = lights.position[li], lights.radius[li]
+            oc = o - c
+            b = _dot(oc, d)
+            cc = _dot(oc, oc) - r * r
+            disc = b * b - cc
+            root = np.sqrt(np.maximum(disc, 0.0))
+            t = np.where(cc > 0, -b - root, -b + root)
+            rows = np.nonzero((disc > 0) & (t > 0) & (t < tmax))[0]
+            if rows.size:
+                q = o[rows] + d[rows] * t[rows, None]
+                normal = (q - c) / r
+                out.append((rows, np.full(rows.size, li), q, normal, t[rows]))
+        elif kind != LIGHT_SUN:
+            n_l = lights.direction[li]
+            ax, ay = lights.axis_x[li], lights.axis_y[li]
+            denom = d @ n_l
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = ((lights.position[li] - o) @ n_l) / denom
+            hit = (denom < 0) & (t > 0) & (t < tmax)
+            q = o + d * np.where(hit, t, 0.0)[:, None]
+            rel = q - lights.position[li]
+            gram = np.array([[ax @ ax, ax @ ay], [ax @ ay, ay @ ay]])
+            if not np.linalg.det(gram) > 0:
+                continue
+            x, y = np.linalg.solve(gram, np.stack([rel @ ax, rel @ ay]))
+            inside = ((np.abs(x) <= 0.5) & (np.abs(y) <= 0.5) if kind != 3
+                      else x * x + y * y <= 0.25)
+            rows = np.nonzero(hit & inside)[0]
+            if rows.size:
+                out.append((rows, np.full(rows.size, li), q[rows],
+                            np.broadcast_to(n_l, (rows.size, 3)).copy(), t[rows]))
+    return out
+
+
+def _s0_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_delta):
+    """MIS weight of emitters found by the camera subpath's segment from ``z_{j-1}``."""
+    em = ctx.emission
+    k = j
+    m = r.size
+    infinite = em.is_infinite(index)
+    p_light = [None] * (k + 1)
+    p_camera = [None] * (k + 1)
+    delta = [np.zeros(m, bool) for _ in range(k + 1)]
+    p_light[0] = em.pdf_origin(index, w_travel)
+    cos_l = np.where(infinite, 1.0, np.abs(_dot(normal, w_travel)))
+    p_camera[0] = np.where(prev_delta, 1.0, _to_area(pdf_prev, cos_l, t))
+    # The emitter makes z_{j-1} by its direction density.
+    cos_z = np.abs(_dot(cam.ng[j - 1, r], w_travel))
+    pdf_dir = em.pdf_direction(index, normal, w_travel)
+    p_light[1] = np.where(infinite, pdf_dir * cos_z, _to_area(pdf_dir, cos_z, t))
+    for i in range(1, k + 1):
+        zi = k - i
+        p_camera[i] = cam.pdf_fwd[zi, r] if zi > 0 else np.ones(m)
+        if i >= 2:
+            p_light[i] = cam.pdf_rev[zi, r] if zi > 0 else np.ones(m)
+        if 0 < zi:
+            delta[i] = cam.delta[zi, r]
+    delta_light = np.zeros(m, bool)
+    s = ctx.settings
+    return mis_weight(p_light, p_camera, delta, 0, delta_light, ctx.heuristic, s.mis_beta,
+                      s.mis_alpha)
+
+
+# ------------------------------------------------------------------------------------ connect
+def _connect(ctx, L, C, s, t, out, fresh=None):
+    """Strategies ``s >= 1, t >= 2``: light vertex ``s - 1`` (or the fresh emitter point for
+    ``s = 1``) joined to camera vertex ``t - 1`` by a shadow ray."""
+    prep, em = ctx.prep, ctx.emission
+    zj = t - 1
+    if s == 1:
+        rows = np.nonzero(C.valid[zj] & C.connectible[zj] & (fresh.index >= 0))[0]
+    else:
+        yj = s - 1
+        rows = np.nonzero(C.valid[zj] & C.connectible[zj] & L.valid[yj] & L.connectible[yj])[0]
+    if rows.size == 0:
+        return
+    z = C.p[zj, rows]
+    if s == 1:
+        infinite = fresh.infinite[rows]
+        index = fresh.index[rows]
+        y = fresh.p[rows]
+        to_y = np.where(infinite[:, None], -fresh.w_inf[rows], y - z)
+    else:
+        y = L.p[s - 1, rows]
+        infinite = np.zeros(rows.size, bool)
+        to_y = y - z
+    dist = np.where(infinite, np.inf, np.linalg.norm(to_y, axis=1))
+    ok = (dist > 0)
+    w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y
+    f_z = _eval(ctx, C, zj, rows, w, RADIANCE)
+    if s == 1:
+        normal = fresh.normal[rows]
+        le = em.radiance(index, y, normal, -w, z)
+        point = fresh.delta_light[rows] & ~infinite
+        cos_y = np.where(infinite | point, 1.0, np.abs(_dot(normal, w)))
+        f_y = le * cos_y[:, None]
+        beta_y = 1.0 / np.where(fresh.pdf_origin[rows] > 0, fresh.pdf_origin[rows], np.inf)
+        value = f_y * f_z * C.beta[zj, rows] * beta_y[:, None]
+    else:
+        f_y = _eval(ctx, L, s - 1, rows, -w, IMPORTANCE)
+        value = L.beta[s - 1, rows] * f_y * f_z * C.beta[zj, rows]
+    g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
+    value = value * g[:, None]
+    ok &= (max_component(value) > 0) & np.isfinite(value).all(axis=1)
+    cand = np.nonzero(ok)[0]
+    if cand.size == 0:
+        return
+    rows, z, w, dist, value, infinite = (rows[cand], z[cand], w[cand], dist[cand], value[cand],
+                                         infinite[cand])
+    y = y[cand]
+    if s == 1:
+        index = index[cand]
+        y_normal = np.where(infinite[:, None], 0.0, fresh.normal[rows])
+    else:
+        y_normal = L.ng[s - 1, rows]
+    blocked = prep.accel.occluded(*prep.accel.shadow_rays(
+        z, C.ng[zj, rows], C.prim[zj, rows], w, dist, y_normal), VIS_SHADOW)
+    ctx.counters.rays += rows.size
+    vis = np.nonzero(~blocked)[0]
+    if vis.size == 0:
+        return
+    rows, w, dist, value, infinite, y_normal = (rows[vis], w[vis], dist[vis], value[vis],
+                                                infinite[vis], y_normal[vis])
+    if s == 1:
+        index = index[vis]
+    weight = _connect_weight(ctx, L, C, s, t, rows, w, dist, infinite, y_normal, fresh,
+                             index if s == 1 else None)
+    _accumulate(ctx, out, s, t, rows, value, weight)
+
+
+def _connect_weight(ctx, L, C, s, t, rows, w, dist, infinite, y_normal, fresh, index):
+    """MIS weight of a connection ``y = x_{s-1}`` (light side) -> ``z = x_s`` (camera side);
+    ``w (m, 3)`` points from z to y."""
+    em = ctx.emission
+    k = s + t - 1
+    m = rows.size
+    zj = t - 1
+    p_light = [None] * (k + 1)
+    p_camera = [None] * (k + 1)
+    delta = [np.zeros(m, bool) for _ in range(k + 1)]
+    cos_z = np.abs(_dot(C.ng[zj, rows], w))
+    # Light side: stored densities up to y, then y -> z, then z -> z_{t-2}.
+    if s == 1:
+        p_light[0] = fresh.pdf_origin[rows]
+        cos_y = np.where(infinite | fresh.delta_light[rows], 1.0, np.abs(_dot(y_normal, w)))
+        pdf_dir = em.pdf_direction(index, y_normal, -w)
+        p_light[1] = np.where(infinite, pdf_dir * cos_z, _to_area(pdf_dir, cos_z, dist))
+        delta_light = fresh.delta_light[rows]
+    else:
+        for i in range(s):
+            p_light[i] = L.pdf_fwd[i, rows]
+            if 0 < i < s - 1:
+                delta[i] = L.delta[i, rows]
+        cos_y = np.abs(_dot(y_normal, w))
+        pdf_yz = _pdf(L, s - 1, rows, L.wo[s - 1, rows], -w)
+        p_light[s] = _to_area(pdf_yz, cos_z, dist)
+        delta_light = ctx.light_delta[rows]
+    if t >= 2 and s + 1 <= k:
+        if zj >= 1:
+            pdf_back = _pdf(C, zj, rows, w, C.wo[zj, rows])
+            p_light[s + 1] = _to_area(pdf_back, C.cos_prev[zj, rows], C.d_prev[zj, rows]) \
+                if zj >= 2 else np.ones(m)
+    for i in range(s + 2, k + 1):
+        zi = k - i
+        p_light[i] = C.pdf_rev[zi, rows] if zi > 0 else np.ones(m)
+    # Camera side: stored densities down to z, then z -> y, then y -> y_{s-2}.
+    for i in range(s, k + 1):
+        zi = k - i
+        p_camera[i] = C.pdf_fwd[zi, rows] if zi > 0 else np.ones(m)
+        if s < i < k:
+            delta[i] = C.delta[zi, rows]
+    pdf_zy = _pdf(C, zj, rows, C.wo[zj, rows], w)
+    p_camera[s - 1] = np.where(infinite, pdf_zy, _to_area(pdf_zy, cos_y, dist))
+    if s >= 2:
+        pdf_back = _pdf(L, s - 1, rows, -w, L.wo[s - 1, rows])
+        p_camera[s - 2] = _to_area(pdf_back, L.cos_prev[s - 1, rows], L.d_prev[s - 1, rows])
+        for i in range(s - 2):
+            p_camera[i] = L.pdf_rev[i, rows]
+    st = ctx.settings
+    return mis_weight(p_light, p_camera, delta, s, delta_light, ctx.heuristic, st.mis_beta,
+                      st.mis_alpha)
+
+
+def _connect_camera(ctx, L, s, out):
+    """Strategy ``t = 1``: light vertex ``s - 1`` seen by the pinhole, splatted."""
+    prep, cam = ctx.prep, ctx.cam
+    yj = s - 1
+    rows = np.nonzero(L.valid[yj] & L.connectible[yj])[0]
+    if rows.size == 0:
+        return
+    y = L.p[yj, rows]
+    film_xy, visible, cos_theta, dist = project(cam, y)
+    w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
+    f_y = _eval(ctx, L, yj, rows, w, IMPORTANCE)
+    we = importance(cam, cos_theta)
+    value = L.beta[yj, rows] * f_y * (we / np.maximum(dist * dist, 1e-300))[:, None]
+    ok = visible & (max_component(value) > 0) & np.isfinite(value).all(axis=1)
+    cand = np.nonzero(ok)[0]
+    if cand.size == 0:
+        return
+    rows, y, w, dist, value, film_xy, cos_theta = (rows[cand], y[cand], w[cand], dist[cand],
+                                                   value[cand], film_xy[cand], cos_theta[cand])
+    o, dirs, tmax = prep.accel.shadow_rays(y, L.ng[yj, rows], L.prim[yj, rows], w, dist,
+                                           np.zeros_like(w))
+    blocked = prep.accel.occluded(o, dirs, tmax, VIS_CAMERA)
+    ctx.counters.rays += rows.size
+    vis = np.nonzero(~blocked)[0]
+    if vis.size == 0:
+        return
+    rows, w, dist, value, film_xy, cos_theta = (rows[vis], w[vis], dist[vis], value[vis],
+                                                film_xy[vis], cos_theta[vis])
+    if ctx.light_only:
+        weight = np.ones(rows.size)
+    else:
+        k = s
+        m = rows.size
+        p_light = [L.pdf_fwd[i, rows] for i in range(s)] + [np.ones(m)]
+        delta = [np.zeros(m, bool)] + [L.delta[i, rows] for i in range(1, s - 1)] + [
+            np.zeros(m, bool), np.zeros(m, bool)]
+        p_camera = [None] * (k + 1)
+        p_camera[k] = np.ones(m)
+        pdf_cam = camera_pdf(cam, cos_theta)
+        p_camera[s - 1] = _to_area(pdf_cam, np.abs(_dot(L.ng[yj, rows], w)), dist)
+        pdf_back = _pdf(L, yj, rows, w, L.wo[yj, rows])
+        p_camera[s - 2] = _to_area(pdf_back, L.cos_prev[yj, rows], L.d_prev[yj, rows])
+        for i in range(s - 2):
+            p_camera[i] = L.pdf_rev[i, rows]
+        st = ctx.settings
+        weight = mis_weight(p_light, p_camera, delta, s, ctx.light_delta[rows], ctx.heuristic,
+                            st.mis_beta, st.mis_alpha)
+    _splat(ctx, out, s, film_xy, value, weight)
+
+
+# ------------------------------------------------------------------------------------ driver
+def _light_subpath(ctx, stream, n, base, depth):
+    """Stage *generate light subpath*: emitter point and direction, then the random walk."""
+    em, prep = ctx.emission, ctx.prep
+    L = Subpath.empty(depth, n)
+    stream.skip_to(base)
+    u_sel = stream.next_1d()
+    u_pos = stream.next_2d()
+    u_dir = stream.next_2d()
+    pts = em.sample_points(u_sel, u_pos, ctx.counters)
+    origin, w, pdf_dir, cos_l, le = em.sample_directions(pts, u_dir)
+    ctx.light_delta = pts.delta_light
+    L.valid[0] = pts.index >= 0
+    L.p[0] = np.where(pts.infinite[:, None], origin, pts.p)
+    L.ng[0] = pts.normal
+    L.pdf_fwd[0] = pts.pdf_origin
+    L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
+    L.d_prev[0] = np.where(pts.infinite, np.inf, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
+    good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & np.isfinite(beta).all(1)
+    rows = np.nonzero(good)[0]
+    rows = rows[max_component(beta[rows]) > 0]
+    if depth < 2 or rows.size == 0:
+        return L
+    # Rays leave lamps (not geometry) from the point itself, emissive triangles pushed off.
+    o = origin[rows]
+    k = prep.lights.n_lights
+    tri = np.nonzero((pts.index[rows] >= k) & ~pts.infinite[rows])[0]
+    if tri.size:
+        prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
+        o[tri] = prep.accel.offset_origin(o[tri], pts.normal[rows][tri], prim, w[rows][tri])
+    _walk(ctx, L, o, w[rows], np.full(rows.size, np.inf), beta[rows], pdf_dir[rows],
+          np.zeros(rows.size, bool), np.full(rows.size, VIS_SHADOW, np.int32), rows, stream,
+          IMPORTANCE, lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX,
+          depth)
+    return L
+
+
+def _camera_subpath(ctx, pixel_filter, stream, n, depth, out):
+    """Stage *generate camera subpath*, adding the emitters it finds (``s = 0``) to ``out``."""
+    prep, cam = ctx.prep, ctx.cam
+    C = Subpath.empty(depth, n)
+    o, d, tmax = camera_rays(prep, pixel_filter, stream)
+    C.valid[0] = True
+    C.p[0] = ctx.cam_pos
+    C.d_prev[0] = 0.0
+    C.beta[0] = 1.0
+    m = np.asarray(cam.to_world, np.float64)
+    axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+    pdf_cam = camera_pdf(cam, d @ axis)
+    _walk(ctx, C, o, d, tmax, np.ones((n, 3)), pdf_cam, np.zeros(n, bool),
+          np.full(n, VIS_CAMERA, np.int32), np.arange(n), stream, RADIANCE,
+          lambda j: DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX, depth,
+          _camera_emission(ctx, C, out))
+    return C
+
+
+def render_samples(prep, settings, pixel_filter, stream, counters, light_only=False):
+    """Image contributions of one BDPT sample (a camera and a light subpath) per entry of
+    ``stream``; see the module docstring. ``light_only`` keeps the strategies of light
+    tracing (:mod:`.light`). Returns a :class:`BatchOutput`."""
+    n = len(stream)
+    if n > CHUNK:
+        return _in_chunks(prep, settings, pixel_filter, stream, counters, light_only)
+    cam = prep.scene.camera
+    if cam.type != "PERSP":
+        raise ValueError("light tracing and BDPT need a perspective camera "
+                         "(an orthographic camera cannot be reached from the lights)")
+    emission = getattr(prep, "emission", None)
+    if emission is None:
+        emission = prep.emission = Emission(prep.lights, prep.scene.vertices)
+    ctx = _Context(prep, settings, counters, emission)
+    ctx.light_only = light_only
+    ctx.views = ctx.views and not light_only
+    counters.camera_samples += n
+    segments = settings.max_bounces + 2  # longest path, in segments
+    depth = segments                      # vertices per subpath, endpoint included
+    out = {"L": np.zeros((n, 3)), "splat_xy": [], "splat_value": [], "layers": {}}
+
+    # Light tracing keeps the camera's first segment only: emitters seen directly.
+    C = _camera_subpath(ctx, pixel_filter, stream, n, 1 if light_only else depth, out)
+    base = DIMS_CAMERA + (depth + 1) * DIMS_PER_CAMERA_VERTEX
+    L = _light_subpath(ctx, stream, n, base, depth)
+
+    if not light_only:
+        for t in range(2, depth + 1):
+            zj = t - 1
+            if not C.valid[zj].any():
+                break
+            # s = 1: a fresh point on an emitter for every camera vertex.
+            stream.skip_to(DIMS_CAMERA + (zj - 1) * DIMS_PER_CAMERA_VERTEX + 4)
+            u_sel = stream.next_1d()
+            u_pos = stream.next_2d()
+            fresh = emission.sample_points(u_sel, u_pos, counters)
+            _connect(ctx, L, C, 1, t, out, fresh)
+            for s in range(2, segments + 2 - t):
+                if not L.valid[s - 1].any():
+                    break
+                _connect(ctx, L, C, s, t, out)
+    for s in range(2, segments + 1):
+        if not L.valid[s - 1].any():
+            break
+        _connect_camera(ctx, L, s, out)
+
+    image = out["L"]
+    image[~np.isfinite(image).all(axis=1)] = 0.0
+    xy = np.concatenate(out["splat_xy"]) if out["splat_xy"] else np.zeros((0, 2))
+    value = np.concatenate(out["splat_value"]) if out["splat_value"] else np.zeros((0, 3))
+    layers = {}
+    for name, entry in out["layers"].items():
+        if entry[0] == "camera":
+            layers[name] = ("camera", np.where(np.isfinite(entry[1]), entry[1], 0.0))
+        else:
+            layers[name] = ("splat", np.concatenate(entry[1]), np.concatenate(entry[2]))
+    return BatchOutput(np.maximum(image, 0.0), xy, np.maximum(value, 0.0), n, layers)
+
+
+def _in_chunks(prep, settings, pixel_filter, stream, counters, light_only):
+    """:func:`render_samples` on consecutive chunks of ``CHUNK`` paths, outputs joined."""
+    outs = []
+    n = len(stream)
+    for start in range(0, n, CHUNK):
+        part = copy.copy(stream)
+        part.compact(np.arange(start, min(start + CHUNK, n)))
+        outs.append(render_samples(prep, settings, pixel_filter, part, counters, light_only))
+    layers = {}
+    for o in outs:
+        for name, entry in o.layers.items():
+            layers.setdefault(name, []).append(entry)
+    joined = {}
+    for name, entries in layers.items():
+        if entries[0][0] == "camera":
+            continue  # filled below, aligned with the chunks
+        joined[name] = ("splat", np.concatenate([e[1] for e in entries]),
+                        np.concatenate([e[2] for e in entries]))
+    for name in layers:
+        if name in joined:
+            continue
+        parts = []
+        for o in outs:
+            entry = o.layers.get(name)
+            parts.append(entry[1] if entry is not None else np.zeros_like(o.radiance))
+        joined[name] = ("camera", np.concatenate(parts))
+    return BatchOutput(np.concatenate([o.radiance for o in outs]),
+                       np.concatenate([o.splat_xy for o in outs]),
+                       np.concatenate([o.splat_value for o in outs]),
+                       sum(o.light_paths for o in outs), joined)

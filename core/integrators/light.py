@@ -1,0 +1,37 @@
+"""Light tracing: particles from the lights, connected to the camera and splatted on the film.
+
+What it estimates
+    The same pixel measurement as :mod:`.path`, from the other end. Each sample traces one
+    light subpath (emitter chosen as next-event estimation chooses it, a point on it, a
+    direction by its emission profile; then BSDF sampling in importance mode) and connects every
+    non-delta vertex to the pinhole with a shadow ray; the contribution lands at the film
+    position where the vertex projects, weighted by the pixel filter (BDPT's ``t = 1``
+    strategies, unweighted). Emitters seen directly come from the camera ray of the sample
+    (BDPT's ``s = 0, t = 2``), since a light path cannot reach a pinhole by itself.
+Bias and consistency
+    Unbiased for paths of up to ``max_bounces + 1`` scattering vertices, as the path tracer,
+    except for the approximations of :mod:`core.emitters` (sphere lights do not light points
+    inside them).
+When to use it
+    Caustics seen directly: light focused by glass or mirrors onto a diffuse surface the camera
+    sees.
+When it fails
+    Anything the camera sees through a mirror or glass (a specular surface between the camera
+    and the last diffuse vertex cannot be connected to a pinhole), and large scenes where few
+    particles land in view. Use BDPT to combine it with path tracing.
+"""
+
+from __future__ import annotations
+
+from . import bdpt
+
+
+def render_samples(prep, settings, pixel_filter, stream, counters):
+    """One light path (and one camera ray for emitters seen directly) per entry of ``stream``.
+
+    Returns
+    -------
+    core.integrators.common.BatchOutput
+        Camera-sample radiance (emitters seen directly) and the light paths' splats.
+    """
+    return bdpt.render_samples(prep, settings, pixel_filter, stream, counters, light_only=True)
