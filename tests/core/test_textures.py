@@ -1,7 +1,9 @@
-"""Image textures into the base colour: Cycles' Linear + Repeat lookup, and renders with them.
+"""Image textures into the base colour: Cycles' lookups, and renders with them.
 
 Checks: the lookup returns the texel at texel centres, blends linearly between them and wraps
-(Repeat); a closed sphere whose texture is a constant albedo is the untextured furnace; a
+(Repeat); Closest returns the texel containing the point, Extend clamps to the edge texels,
+Clip is black outside the image (and blends with black across its border), Mirror reflects
+at the edges, all against hand-picked texels; a closed sphere whose texture is a constant albedo is the untextured furnace; a
 checker-textured plane under a uniform world renders each cell as albedo x L (a diffuse plane
 under a uniform sky of radiance L reflects rho L), with the image's orientation (row 0 at v = 0)
 checked by an asymmetric pattern of cells.
@@ -55,6 +57,56 @@ def test_texture_lookup_repeats():
     h, w = img.shape[:2]
     np.testing.assert_allclose(texture_lookup(img, [[1.0, 0.5 / h]]),
                                0.5 * (img[0, 0] + img[0, w - 1])[None], rtol=1e-6)
+
+
+def test_closest_lookup_is_the_texel_containing_the_point():
+    img = _image()
+    h, w = img.shape[:2]
+    j, i = np.meshgrid(np.arange(w), np.arange(h))
+    for fu, fv in ((0.01, 0.99), (0.5, 0.5), (0.99, 0.01)):
+        uv = np.stack([(j.ravel() + fu) / w, (i.ravel() + fv) / h], axis=-1)
+        np.testing.assert_array_equal(texture_lookup(img, uv, "Closest"), img.reshape(-1, 3))
+    # Repeat by default; Extend clamps to the edge texels.
+    np.testing.assert_array_equal(texture_lookup(img, [[-0.1 / w, 0.5 / h]], "Closest"),
+                                  img[None, 0, w - 1])
+    np.testing.assert_array_equal(
+        texture_lookup(img, [[-0.1 / w, 0.5 / h], [3.0, -2.0]], "Closest", "EXTEND"),
+        np.stack([img[0, 0], img[0, w - 1]]))
+
+
+def test_extend_lookup_clamps_to_the_edge_texels():
+    img = _image()
+    h, w = img.shape[:2]
+    uv = [[-5.0, 0.5 / h], [0.25 / w, 1.0 / h], [1.7, 10.0], [(w - 0.5) / w, 0.25 / h]]
+    expected = [img[0, 0], 0.5 * (img[0, 0] + img[1, 0]), img[h - 1, w - 1], img[0, w - 1]]
+    np.testing.assert_allclose(texture_lookup(img, uv, "Linear", "EXTEND"), expected, rtol=1e-6)
+
+
+def test_clip_lookup_is_black_outside_and_blends_with_black_across_the_border():
+    img = _image()
+    h, w = img.shape[:2]
+    outside = [[-0.3, 0.5], [0.5, 1.4], [1.0 + 0.6 / w, 0.5 / h]]
+    for interpolation in ("Linear", "Closest"):
+        np.testing.assert_array_equal(texture_lookup(img, outside, interpolation, "CLIP"), 0.0)
+    # On the left edge, at a texel centre's height: half the edge texel, half black.
+    np.testing.assert_allclose(texture_lookup(img, [[0.0, 1.5 / h]], "Linear", "CLIP"),
+                               0.5 * img[None, 1, 0], rtol=1e-6)
+    np.testing.assert_array_equal(texture_lookup(img, [[0.1 / w, 1.5 / h]], "Closest", "CLIP"),
+                                  img[None, 1, 0])
+
+
+def test_mirror_lookup_reflects_at_the_edges():
+    img = _image()
+    h, w = img.shape[:2]
+    uv = np.random.default_rng(4).random((200, 2))
+    base = texture_lookup(img, uv, "Linear", "MIRROR")
+    for mirrored in (np.stack([-uv[:, 0], uv[:, 1]], -1), np.stack([uv[:, 0], 2 - uv[:, 1]], -1),
+                     uv + 2):
+        np.testing.assert_allclose(texture_lookup(img, mirrored, "Linear", "MIRROR"), base,
+                                   rtol=1e-6, atol=1e-7)
+    np.testing.assert_array_equal(
+        texture_lookup(img, [[-0.5 / w, 0.5 / h], [1 + 1.5 / w, 0.5 / h]], "Closest", "MIRROR"),
+        np.stack([img[0, 0], img[0, w - 2]]))
 
 
 def _textured(scene, image, uvs):
