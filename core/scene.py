@@ -204,8 +204,9 @@ class Materials:
 
     @property
     def mixed(self):
-        """``(m,) bool``: rows that are mixtures of more than one component."""
-        return (self.mix_weights > 0).sum(axis=1) > 1
+        """``(m,) bool``: rows shaded by other rows (mixtures, even of a single component)."""
+        own = np.arange(self.mix_rows.shape[0])[:, None]
+        return np.any((self.mix_rows != own) & (self.mix_weights > 0), axis=1)
 
     @staticmethod
     def from_lists(names, base_colors, emissions, kinds=None, roughness=None, ior=None,

@@ -44,8 +44,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..materials.bsdf import (LOBE_DIFFUSE, LOBE_TRANSMIT, RADIANCE, eval_bsdf, pdf_bsdf,
-                              sample_bsdf)
+from ..accel import Hits
+from ..materials.bsdf import (KIND_DIELECTRIC, LOBE_DIFFUSE, LOBE_TRANSMIT, RADIANCE, eval_bsdf,
+                              pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..sampling.mis import light_weight
@@ -99,7 +100,8 @@ class _LambertShading:
         if self.ng is not None:
             weight *= geometric_side_valid(self.ng, self.wo, wi, False)[:, None]
         k = pdf.shape[0]
-        return wi, weight, pdf, np.zeros(k, bool), np.full(k, VIS_DIFFUSE, np.int32)
+        return (wi, weight, pdf, np.zeros(k, bool), np.full(k, VIS_DIFFUSE, np.int32),
+                np.zeros(k, bool))
 
 
 class _BSDFShading:
@@ -139,7 +141,14 @@ class _BSDFShading:
         if self.ng is not None:
             transmit = (smp.lobe & LOBE_TRANSMIT) != 0
             weight = weight * geometric_side_valid(self.ng, self.wo_world, wi, transmit)[:, None]
-        return wi, weight, smp.pdf, smp.delta, ray_class(smp.lobe)
+        return wi, weight, smp.pdf, smp.delta, ray_class(smp.lobe), self.pass_through(smp)
+
+    def pass_through(self, smp):
+        """Rows whose sample went straight through a smooth dielectric of IOR 1 (Transparent
+        BSDF, Principled Alpha): the ray keeps its kind, as Cycles' transparent bounces do."""
+        p = self.params
+        return (smp.delta & ((smp.lobe & LOBE_TRANSMIT) != 0) & (p.kind == KIND_DIELECTRIC)
+                & (p.eta == 1.0))
 
 
 def geometric_side_valid(ng, wo, wi, transmit):
@@ -191,15 +200,16 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
     pdf_prev = np.zeros(n)
     use_mis = np.zeros(n, bool)
     vis = np.full(n, VIS_CAMERA, np.int32)
+    # Camera rays, also after passing straight through transparent surfaces.
+    camera_ray = np.ones(n, bool)
     lambert_only = prep.lambert_only
 
     for bounce in range(settings.max_bounces + 2):
         # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
-        camera = bounce == 0
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         counters.rays += o.shape[0]
-        add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera,
-                                heuristic, mis_beta, mis_alpha)
+        _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray,
+                      heuristic, mis_beta, mis_alpha)
         if bounce == settings.max_bounces + 1:
             break  # this segment only gathered emission (Cycles' "terminate on next surface")
 
@@ -211,6 +221,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         si = surface_interaction(prep, hits, d, live)
         stream.compact(live)
         rows_of, beta = rows_of[live], beta[live]
+        vis, camera_ray = vis[live], camera_ray[live]
         # This bounce's numbers, all drawn up front in the order of their dimensions: the BSDF
         # lobe number also chooses the component of mixed materials before NEE needs it.
         stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
@@ -235,7 +246,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
                             heuristic, mis_beta, mis_alpha, counters)
 
         # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
-        wi, weight, pdf_b, delta, vis_next = shading.sample(u_bsdf)
+        wi, weight, pdf_b, delta, vis_next, through = shading.sample(u_bsdf)
         beta = beta * weight
         alive = (pdf_b > 0) & np.isfinite(beta).all(axis=1)
 
@@ -255,12 +266,31 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         tmax = np.full(keep.size, np.inf)
         pdf_prev = pdf_b[keep]
         use_mis = ~delta[keep]
-        vis = vis_next[keep]
+        through = through[keep]
+        camera_ray = camera_ray[keep] & through
+        vis = np.where(through, vis[keep], vis_next[keep])
 
     # No NaN or Inf reaches the film: a non-finite estimate is dropped (counted as zero).
     bad = ~np.isfinite(L).all(axis=1)
     L[bad] = 0.0
     return np.maximum(L, 0.0)
+
+
+def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, heuristic,
+                  mis_beta, mis_alpha):
+    """Stage *handle escaped + handle emission*, with camera rays (``camera_ray (n,)``: lamps
+    show only if visible to the camera) and other rays handled apart."""
+    groups = ([(None, bool(camera_ray[0]))] if np.all(camera_ray == camera_ray[:1])
+              else [(np.nonzero(camera_ray)[0], True), (np.nonzero(~camera_ray)[0], False)])
+    for rows, camera in groups:
+        if rows is None:
+            add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis,
+                                    camera, heuristic, mis_beta, mis_alpha)
+            continue
+        sub = Hits(hits.prim[rows], hits.t[rows], hits.u[rows], hits.v[rows])
+        add_emitters_along_rays(prep, L, beta[rows], o[rows], d[rows], sub, rows_of[rows],
+                                pdf_prev[rows], use_mis[rows], camera, heuristic, mis_beta,
+                                mis_alpha)
 
 
 def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, heuristic, mis_beta,

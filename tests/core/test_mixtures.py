@@ -155,3 +155,28 @@ def test_nee_and_bsdf_sampling_agree_on_a_mixed_material():
         assert_two_images_agree(ref.combined()[..., :3], ref.variance()[..., :3],
                                 other.combined()[..., :3], other.variance()[..., :3],
                                 what=f"mixture power vs {heuristic}")
+
+
+@pytest.mark.parametrize("visible_camera", [False, True])
+def test_lamp_seen_through_a_transparent_plane_keeps_its_camera_visibility(visible_camera):
+    # Cycles' transparent bounces keep the ray a camera ray: a lamp hidden from the camera
+    # stays hidden behind an Alpha 0 / Transparent surface, and a visible one shows fully.
+    from sampling_lab.core.lights import area_light
+
+    mats = _mixed_table(weights=[0.0, 0.0, 1.0])
+    to_world = np.eye(4)
+    to_world[:3, 3] = (0.5, 0.5, -1.0)
+    to_world[:3, :3] = np.diag([1.0, -1.0, -1.0])  # local -Z (the emitting side) toward +z
+    lamp = area_light(to_world, 'SQUARE', 4.0, 4.0, (1.0, 1.0, 1.0), 100.0,
+                      visible_camera=visible_camera)
+    scene = _plane(mats)
+    scene = Scene(scene.vertices, scene.triangles, scene.material, mats, lamp, scene.camera)
+    res = render(scene, RenderSettings(spp=4, max_bounces=2, seed=3))
+    img = res.combined()[..., :3]
+    assert np.isfinite(img).all()
+    if visible_camera:
+        radiance = lamp.radiance[0]
+        np.testing.assert_allclose(img[4:-4, 4:-4].reshape(-1, 3), radiance[None].repeat(
+            img[4:-4, 4:-4].reshape(-1, 3).shape[0], 0), rtol=1e-5)
+    else:
+        assert img.max() == 0.0
