@@ -163,3 +163,27 @@ def test_textured_plane_agrees_with_cycles(empty_scene, tmp_path):
     a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
                                what="textured plane")
     print(f"textured plane: image mean ours {a} cycles {b} ratio {a / b}")
+
+
+@pytest.mark.parametrize("interpolation,extension", [("Closest", 'CLIP'), ("Linear", 'EXTEND'),
+                                                     ("Closest", 'MIRROR')])
+def test_texture_interpolation_and_extension_agree_with_cycles(empty_scene, tmp_path,
+                                                               interpolation, extension):
+    # UVs span [-0.5, 1.5]^2: three quarters of the plane show the extension.
+    scene = empty_scene
+    mat, tex = textured_material("Checker", S.float_image("Checker", checker_pixels(4)))
+    tex.interpolation = interpolation
+    tex.extension = extension
+    ob = add_uv_quad(scene, "Plane", 1.0, mat)
+    uv = ob.data.uv_layers.active.uv
+    uv.foreach_set("vector", np.array([-0.5, -0.5, 1.5, -0.5, 1.5, 1.5, -0.5, 1.5], np.float32))
+    ob.data.update()
+    S.set_world(scene, (1.0, 1.0, 1.0), 1.0)
+    S.add_camera(scene, (0.0, 0.0, 2.8), (0.0, 0.0, 0.0), lens=35.0)
+    S.set_resolution(scene, 32, 32)
+
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 64, 16, CYCLES_RUNS, 2,
+                                            our_seed=13, cycles_seed=401)
+    what = f"{interpolation} {extension}"
+    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles, what=what)
+    print(f"{what}: image mean ours {a} cycles {b} ratio {a / b}")
