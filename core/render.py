@@ -25,7 +25,7 @@ from .integrators.common import BatchOutput, Counters, strategy_pass_names
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
 from .prepare import prepare
 from .sampling.distributions import DISTRIBUTION_METHODS
-from .sampling.mis import MIS_SETTINGS
+from .sampling.mis import HEURISTICS, MIS_SETTINGS
 from .sampling.samplers import make_sampler
 
 # Target number of paths per work unit: large enough for NumPy to amortise Python overhead,
@@ -137,6 +137,12 @@ def check_settings(scene, settings):
         if getattr(settings, name) not in allowed:
             raise ValueError(f"unknown {name.replace('_', ' ')} {getattr(settings, name)!r}; "
                              f"choose from {', '.join(allowed)}")
+    if settings.integrator == "bdpt" and settings.mis_heuristic not in HEURISTICS:
+        raise ValueError(f"BDPT weighs all its strategies with one heuristic: choose from "
+                         f"{', '.join(HEURISTICS)}, not {settings.mis_heuristic!r}")
+    if settings.integrator in ("light", "bdpt") and scene.camera.type != "PERSP":
+        raise ValueError(f"{settings.integrator} needs a perspective camera: light paths "
+                         f"cannot reach an orthographic one")
     if not (np.isfinite(settings.mis_beta) and settings.mis_beta > 0):
         raise ValueError(f"the MIS power heuristic's beta must be positive, not "
                          f"{settings.mis_beta!r}")

@@ -5,6 +5,8 @@
 - :func:`furnace`: a closed sphere of emission ``Le`` and albedo ``rho`` seen from inside; every
   pixel converges to ``Le (1 - rho^(B + 2)) / (1 - rho)`` for ``B`` bounces.
 - :func:`point_in_sphere`: a point light at the centre of a closed diffuse sphere.
+- :func:`cornell_sphere`: the Cornell box's walls around a glass or mirror ball under a small
+  light: the caustic and the "light seen in a mirror" cases of light transport.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import lights as L
-from .scene import Camera, Lights, Materials, Scene
+from .scene import MAT_CONDUCTOR, MAT_DIELECTRIC, Camera, Lights, Materials, Scene
 
 WHITE = (0.725, 0.71, 0.68)
 RED = (0.63, 0.065, 0.05)
@@ -75,13 +77,8 @@ def cornell_box(width=256, height=256, light="mesh", light_power=None):
         ``'mesh'`` (an emissive quad under the ceiling, radiance 12), ``'point'`` (a 60 W point
         light of radius 0.05 near the ceiling) or ``'area'`` (a 40 W square area light, 0.5 m).
     """
-    b = _Builder()
-    y0, y1, x0, x1, z0, z1 = -1.0, 1.0, -1.0, 1.0, 0.0, 2.0
-    b.add(*_quad((x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)), 0)  # floor
-    b.add(*_quad((x0, y0, z1), (x0, y1, z1), (x1, y1, z1), (x1, y0, z1)), 0)  # ceiling
-    b.add(*_quad((x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)), 0)  # back
-    b.add(*_quad((x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)), 1)  # left, red
-    b.add(*_quad((x1, y0, z0), (x1, y0, z1), (x1, y1, z1), (x1, y1, z0)), 2)  # right, green
+    b = _cornell_walls()
+    z1 = 2.0
     b.add(*_box((0.33, 0.3, 0.6), (0.6, 0.6, 1.2), np.radians(-17)), 0)       # tall box
     b.add(*_box((-0.35, -0.3, 0.3), (0.6, 0.6, 0.6), np.radians(17)), 0)      # short box
     names = ["White", "Red", "Green"]
@@ -105,9 +102,66 @@ def cornell_box(width=256, height=256, light="mesh", light_power=None):
     else:
         raise ValueError(f"unknown Cornell box light {light!r}")
     v, f, m = b.arrays()
-    cam = Camera(to_world=look_at((0, -3.9, 1.0), (0, 0, 1.0)), width=width, height=height,
-                 lens=50.0, sensor_width=36.0, clip_start=0.1, clip_end=100.0)
-    return Scene(v, f, m, Materials.from_lists(names, colors, emissions), lights, cam)
+    return Scene(v, f, m, Materials.from_lists(names, colors, emissions), lights,
+                 _cornell_camera(width, height))
+
+
+def _cornell_walls():
+    """Floor, ceiling, back (white, row 0), left (red, row 1) and right (green, row 2) walls."""
+    b = _Builder()
+    y0, y1, x0, x1, z0, z1 = -1.0, 1.0, -1.0, 1.0, 0.0, 2.0
+    b.add(*_quad((x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)), 0)  # floor
+    b.add(*_quad((x0, y0, z1), (x0, y1, z1), (x1, y1, z1), (x1, y0, z1)), 0)  # ceiling
+    b.add(*_quad((x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)), 0)  # back
+    b.add(*_quad((x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)), 1)  # left, red
+    b.add(*_quad((x1, y0, z0), (x1, y0, z1), (x1, y1, z1), (x1, y1, z0)), 2)  # right, green
+    return b
+
+
+def _cornell_camera(width, height):
+    return Camera(to_world=look_at((0, -3.9, 1.0), (0, 0, 1.0)), width=width, height=height,
+                  lens=50.0, sensor_width=36.0, clip_start=0.1, clip_end=100.0)
+
+
+def cornell_sphere(width=256, height=256, ball="glass", light="point", light_radius=0.02,
+                   light_power=60.0, subdivisions=4):
+    """The Cornell box's walls around a smooth ball of radius 0.45 resting above the floor.
+
+    Parameters
+    ----------
+    ball : str
+        ``'glass'`` (clear dielectric, IOR 1.5: it focuses the light into a caustic on the
+        floor) or ``'mirror'`` (a perfect white conductor: the light is seen in it).
+    light : str
+        ``'point'`` (a delta point light at (0, 0, 1.75): path tracing cannot find it through
+        the ball), ``'sphere'`` (a sphere light of ``light_radius``: found rarely, so noisy) or
+        ``'area'`` (a square area light of side ``4 * light_radius`` under the ceiling).
+    """
+    b = _cornell_walls()
+    v, f = icosphere(subdivisions, 0.45)
+    b.add(v + np.array([0.0, 0.0, 0.75]), f, 3)
+    names = ["White", "Red", "Green", "Ball"]
+    colors = [WHITE, RED, GREEN, (1.0, 1.0, 1.0)]
+    kinds = [0, 0, 0, MAT_DIELECTRIC if ball == "glass" else MAT_CONDUCTOR]
+    if ball not in ("glass", "mirror"):
+        raise ValueError(f"unknown ball {ball!r}")
+    mats = Materials.from_lists(names, colors, [(0, 0, 0)] * 4, kinds=kinds,
+                                roughness=np.zeros(4, np.float32),
+                                ior=np.full(4, 1.5, np.float32))
+    position = (0.0, 0.0, 1.75)
+    if light == "point":
+        lights = L.point_light(position, (1, 1, 1), light_power, radius=0.0)
+    elif light == "sphere":
+        lights = L.point_light(position, (1, 1, 1), light_power, radius=light_radius)
+    elif light == "area":
+        m = np.eye(4)
+        m[:3, 3] = (0.0, 0.0, 2.0 - 1e-3)
+        lights = L.area_light(m, "SQUARE", 4 * light_radius, 4 * light_radius, (1, 1, 1),
+                              light_power)
+    else:
+        raise ValueError(f"unknown light {light!r}")
+    v, f, m = b.arrays()
+    return Scene(v, f, m, mats, lights, _cornell_camera(width, height))
 
 
 def icosphere(subdivisions=3, radius=1.0, inward=False):
@@ -165,4 +219,6 @@ BUILTIN = {
     "cornell_area": lambda w, h: cornell_box(w, h, "area"),
     "furnace": lambda w, h: furnace(width=w, height=h),
     "point_in_sphere": lambda w, h: point_in_sphere(width=w, height=h),
+    "glass_caustic": lambda w, h: cornell_sphere(w, h, "glass", "sphere"),
+    "mirror_ball": lambda w, h: cornell_sphere(w, h, "mirror", "area", light_radius=0.05),
 }

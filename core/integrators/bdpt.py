@@ -261,7 +261,7 @@ def _walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, m
     Vertices ``1..depth-1`` are made. ``pdf_prev (m,)`` is the solid-angle density of the first
     ray (the disk's area density for infinite light endpoints, whose ``d_prev`` is inf),
     ``prev_delta`` whether it came from a delta lobe, ``beta (m, 3)`` its throughput. With
-    ``on_segment(j, rows, o, d, hits, pdf_prev, prev_delta)`` (the camera side, for ``s = 0``)
+    ``on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)`` (the camera side, for ``s = 0``)
     one more segment is traced after the last vertex, for the emitters it finds.
     """
     prep, settings = ctx.prep, ctx.settings
@@ -271,7 +271,7 @@ def _walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, m
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         ctx.counters.rays += o.shape[0]
         if on_segment is not None:
-            on_segment(j, rows, o, d, hits, pdf_prev, prev_delta)
+            on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)
         if j == depth:
             break
         live = np.nonzero(hits.hit)[0]
@@ -382,7 +382,7 @@ def _camera_emission(ctx, cam_sub, out):
     prep, em = ctx.prep, ctx.emission
     ls = prep.lights
 
-    def handle(j, rows, o, d, hits, pdf_prev, prev_delta):
+    def handle(j, rows, o, d, hits, beta, pdf_prev, prev_delta):
         found = []  # (local rows, emitter index, point, normal, distance)
         n = rows.size
         escaped = np.nonzero(~hits.hit)[0]
@@ -413,7 +413,7 @@ def _camera_emission(ctx, cam_sub, out):
             r = rows[lr]
             w_travel = -d[lr]
             receiver = cam_sub.p[j - 1, r]
-            value = cam_sub.beta[j - 1, r] * em.radiance(index, q, normal, w_travel, receiver)
+            value = beta[lr] * em.radiance(index, q, normal, w_travel, receiver)
             ok = max_component(value) > 0
             if not ok.any():
                 continue
