@@ -618,3 +618,52 @@ def assert_two_images_agree(mean_a, var_a, mean_b, var_b, block=8, p_false=1e-4,
                            what=f"{what}: image means")
     return assert_estimates_agree(ma, sa, mb, sb, p_false, comparisons,
                                   what=f"{what}: {block}x{block} block means")
+
+
+def replicate_block_means(imgs, block, mask=None):
+    """Per-replicate block means ``(runs, m)`` over channels, plus the image mean per channel;
+    pixels outside ``mask (h, w)`` are left out (blocks with none are dropped)."""
+    r, h, w, c = imgs.shape
+    if mask is None:
+        mask = np.ones((h, w), bool)
+    cols = []
+    for y in range(0, h - block + 1, block):
+        for x in range(0, w - block + 1, block):
+            m = mask[y:y + block, x:x + block]
+            if m.sum() == 0:
+                continue
+            cols.append(imgs[:, y:y + block, x:x + block][:, m].mean(axis=1))
+    cols.append(imgs[:, mask].mean(axis=1))
+    return np.concatenate(cols, axis=1)
+
+
+def assert_replicates_agree(a, b, block=8, mask=None, p_false=1e-4, what="images"):
+    """Assert that two sets of independent replicate renders agree, block by block.
+
+    For renderers whose pixel estimates are correlated (light paths splat into many pixels),
+    a pixel variance pass understates a block's variance; replicates do not. Every block mean
+    per channel and the image mean per channel (over ``mask``) must agree within the Welch t
+    interval of the difference, with the smaller replicate count's degrees of freedom
+    (conservative), Bonferroni-corrected over all of them.
+
+    Parameters
+    ----------
+    a, b : (runs, h, w, c) float
+        Replicates with different seeds; at least two each.
+    mask : (h, w) bool or None
+        Pixels compared (all by default).
+
+    Returns
+    -------
+    (c,) float64
+        Ratio of the image means, ``a / b``.
+    """
+    ba, bb = replicate_block_means(a, block, mask), replicate_block_means(b, block, mask)
+    ma, mb = ba.mean(0), bb.mean(0)
+    se = np.sqrt(ba.var(0, ddof=1) / len(a) + bb.var(0, ddof=1) / len(b))
+    dof = min(len(a), len(b)) - 1
+    q = -student_t_quantile(0.5 * p_false / ma.size, dof)
+    bad = np.abs(ma - mb) > q * se + 1e-12 * np.abs(mb)
+    assert not bad.any(), (f"{what}: {bad.sum()} of {ma.size} block means differ beyond "
+                           f"t={q:.3g}: {ma[bad][:4]} vs {mb[bad][:4]} (se {se[bad][:4]})")
+    return ma[-3:] / mb[-3:]

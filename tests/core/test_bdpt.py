@@ -2,8 +2,8 @@
 
 Images of light tracing and BDPT splat one light path into many pixels, so pixel estimates are
 correlated and the film's per-pixel variance understates a block's. Confidence intervals here
-come from independent replicate renders (different seeds) instead: block means per replicate,
-then a t interval on their difference (Welch, with the smaller replicate count's dof).
+come from independent replicate renders (different seeds) instead
+(:func:`tests.helpers.assert_replicates_agree`).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from sampling_lab.core.accel import Accel
 from sampling_lab.core.camera import generate_rays
 from sampling_lab.core.integrators.bdpt import mis_weight
 from sampling_lab.core.integrators.common import strategies, strategy_pass_names
-from sampling_lab.core.metrics import student_t_quantile
 from sampling_lab.core.render import RenderSettings, check_settings, render
 from sampling_lab.core.scenes import cornell_box, cornell_sphere
+from tests.helpers import assert_replicates_agree
 
 HEURISTICS = ("balance", "power", "maximum", "cutoff", "none")
 
@@ -34,37 +34,6 @@ def _replicates(scene, integrator, runs, spp, seed0=0, **kw):
         assert np.isfinite(img).all() and (img >= 0).all()
         out.append(img)
     return np.stack(out)
-
-
-def _blocks(imgs, block, mask=None):
-    """Per-replicate block means ``(runs, m)`` over channels, plus the image mean per channel;
-    pixels outside ``mask (h, w)`` are left out (blocks with none are dropped)."""
-    r, h, w, c = imgs.shape
-    if mask is None:
-        mask = np.ones((h, w), bool)
-    cols = []
-    for y in range(0, h - block + 1, block):
-        for x in range(0, w - block + 1, block):
-            m = mask[y:y + block, x:x + block]
-            if m.sum() == 0:
-                continue
-            cols.append(imgs[:, y:y + block, x:x + block][:, m].mean(axis=1))
-    cols.append(imgs[:, mask].mean(axis=1))
-    return np.concatenate(cols, axis=1)
-
-
-def _assert_replicates_agree(a, b, block=8, mask=None, p_false=1e-4, what="images"):
-    """Every block mean (per channel) and the image mean agree within Welch t intervals,
-    Bonferroni-corrected over all of them. Returns the image-mean ratio ``a / b``."""
-    ba, bb = _blocks(a, block, mask), _blocks(b, block, mask)
-    ma, mb = ba.mean(0), bb.mean(0)
-    se = np.sqrt(ba.var(0, ddof=1) / len(a) + bb.var(0, ddof=1) / len(b))
-    dof = min(len(a), len(b)) - 1
-    q = -student_t_quantile(0.5 * p_false / ma.size, dof)
-    bad = np.abs(ma - mb) > q * se + 1e-12 * np.abs(mb)
-    assert not bad.any(), (f"{what}: {bad.sum()} of {ma.size} block means differ beyond "
-                           f"t={q:.3g}: {ma[bad][:4]} vs {mb[bad][:4]} (se {se[bad][:4]})")
-    return ma[-3:] / mb[-3:]
 
 
 # ------------------------------------------------------------------------------------ MIS
@@ -128,7 +97,7 @@ def test_light_tracing_and_bdpt_agree_with_path_tracing_on_the_cornell_box(light
     for integrator in ("light", "bdpt"):
         imgs = _replicates(scene, integrator, 8, 16 if integrator == "bdpt" else 32, seed0=5,
                            **kw)
-        ratio = _assert_replicates_agree(imgs, pt, what=f"{integrator} vs path ({light})")
+        ratio = assert_replicates_agree(imgs, pt, what=f"{integrator} vs path ({light})")
         print(f"{integrator}/path, Cornell {light}: image mean ratio {np.round(ratio, 4)}")
 
 
@@ -154,8 +123,8 @@ def test_bdpt_strategy_images_of_one_path_length_estimate_the_same_light():
         ref = own[(1, k)]  # next-event estimation of this length
         for st, imgs in own.items():
             if st != (1, k):
-                _assert_replicates_agree(imgs, ref, block=16, what=f"strategy {st} vs (1, {k})")
-        ratio = _assert_replicates_agree(weighted, ref, block=16,
+                assert_replicates_agree(imgs, ref, block=16, what=f"strategy {st} vs (1, {k})")
+        ratio = assert_replicates_agree(weighted, ref, block=16,
                                          what=f"sum of weighted strategies, length {k}")
         print(f"length {k}: sum of weighted / NEE strategy = {np.round(ratio, 4)}")
 
@@ -205,7 +174,7 @@ def test_bdpt_converges_to_the_light_tracing_reference_on_a_glass_caustic():
     kw = dict(max_bounces=4)
     light = _replicates(scene, "light", 8, 32, **kw)
     bdpt = _replicates(scene, "bdpt", 8, 8, seed0=11, **kw)
-    ratio = _assert_replicates_agree(bdpt, light, mask=mask, what="bdpt vs light on walls")
+    ratio = assert_replicates_agree(bdpt, light, mask=mask, what="bdpt vs light on walls")
     print(f"glass caustic, walls seen directly: bdpt / light = {np.round(ratio, 4)}")
     pt = _replicates(scene, "path", 8, 32, seed0=21, **kw)
     # Caustic region: the floor pixels where the light tracer is much brighter than the path
@@ -276,4 +245,4 @@ def test_far_from_origin_scene_gives_the_same_image(integrator):
     far.camera.to_world[:3, 3] += shift
     a = _replicates(near, integrator, 4, 8, max_bounces=2)
     b = _replicates(far, integrator, 4, 8, seed0=50, max_bounces=2)
-    _assert_replicates_agree(b, a, block=12, what=f"{integrator}: far vs near")
+    assert_replicates_agree(b, a, block=12, what=f"{integrator}: far vs near")
