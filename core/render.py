@@ -183,6 +183,11 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     integrator = INTEGRATORS[settings.integrator]
     pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
     result = RenderResult(film, messages=list(scene.messages))
+    if settings.integrator in ("light", "bdpt") and len(scene.lights):
+        soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
+        if soft:
+            result.messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
+                                   f"is rendered as a plain sphere light")
     if settings.strategy_views and getattr(integrator, "HAS_STRATEGY_VIEWS", False):
         result.layer_names = strategy_pass_names(settings.strategy_max_length)
 

@@ -51,7 +51,7 @@ from ..emitters import Emission
 from ..materials.bsdf import (IMPORTANCE, LOBE_TRANSMIT, RADIANCE, BSDFParams, eval_bsdf,
                               pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
-from ..scene import LIGHT_POINT, LIGHT_SUN, VIS_CAMERA, VIS_SHADOW
+from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_SUN, VIS_CAMERA, VIS_SHADOW
 from .common import (BatchOutput, camera_rays, intersect_by_class, max_component, strategies,
                      surface_interaction)
 from .path import geometric_side_valid, ray_class
@@ -284,10 +284,8 @@ def _walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, m
         u_lobe = stream.next_1d()[r]
         u_bsdf = stream.next_2d()[r]
         u_rr = stream.next_1d()[r]
-        params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe)
-        if prep.scene.textures:
-            trow, color = prep.textured_base_color(si.prim, hits.u[live], hits.v[live])
-            params.color[trow] = color
+        params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
+                                                      hits.v[live])
         if ctx.smooth:
             front = np.where(_dot(si.ns, si.ng) < 0, -1.0, 1.0)
             fs, ft, fn = shading_frame(si.ns * front[:, None])
@@ -464,7 +462,7 @@ def _lamp_hits(ctx, o, d, tmax, camera):
             if not np.linalg.det(gram) > 0:
                 continue
             x, y = np.linalg.solve(gram, np.stack([rel @ ax, rel @ ay]))
-            inside = ((np.abs(x) <= 0.5) & (np.abs(y) <= 0.5) if kind != 3
+            inside = ((np.abs(x) <= 0.5) & (np.abs(y) <= 0.5) if kind != LIGHT_DISK
                       else x * x + y * y <= 0.25)
             rows = np.nonzero(hit & inside)[0]
             if rows.size:
