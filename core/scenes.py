@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import lights as L
-from .scene import MAT_CONDUCTOR, MAT_DIELECTRIC, Camera, Lights, Materials, Scene
+from .scene import MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_LAYERED, Camera, Lights, Materials, Scene
 
 WHITE = (0.725, 0.71, 0.68)
 RED = (0.63, 0.065, 0.05)
@@ -124,14 +124,19 @@ def _cornell_camera(width, height):
 
 
 def cornell_sphere(width=256, height=256, ball="glass", light="point", light_radius=0.02,
-                   light_power=60.0, subdivisions=4):
+                   light_power=60.0, subdivisions=4, roughness=0.0, smooth=False):
     """The Cornell box's walls around a smooth ball of radius 0.45 resting above the floor.
 
     Parameters
     ----------
     ball : str
         ``'glass'`` (clear dielectric, IOR 1.5: it focuses the light into a caustic on the
-        floor) or ``'mirror'`` (a perfect white conductor: the light is seen in it).
+        floor), ``'mirror'`` (a white conductor: the light is seen in it) or ``'coat'`` (a
+        dielectric coat over a diffuse base).
+    roughness : float
+        The ball's roughness (0: smooth, delta BSDFs).
+    smooth : bool
+        Smooth shading: the ball's corner normals are the sphere's normals.
     light : str
         ``'point'`` (a delta point light at (0, 0, 1.75): path tracing cannot find it through
         the ball), ``'sphere'`` (a sphere light of ``light_radius``: found rarely, so noisy) or
@@ -139,14 +144,15 @@ def cornell_sphere(width=256, height=256, ball="glass", light="point", light_rad
     """
     b = _cornell_walls()
     v, f = icosphere(subdivisions, 0.45)
+    n_walls = sum(len(faces) for faces in b.f)
     b.add(v + np.array([0.0, 0.0, 0.75]), f, 3)
-    names = ["White", "Red", "Green", "Ball"]
-    colors = [WHITE, RED, GREEN, (1.0, 1.0, 1.0)]
-    kinds = [0, 0, 0, MAT_DIELECTRIC if ball == "glass" else MAT_CONDUCTOR]
-    if ball not in ("glass", "mirror"):
+    kind = {"glass": MAT_DIELECTRIC, "mirror": MAT_CONDUCTOR, "coat": MAT_LAYERED}.get(ball)
+    if kind is None:
         raise ValueError(f"unknown ball {ball!r}")
-    mats = Materials.from_lists(names, colors, [(0, 0, 0)] * 4, kinds=kinds,
-                                roughness=np.zeros(4, np.float32),
+    names = ["White", "Red", "Green", "Ball"]
+    colors = [WHITE, RED, GREEN, (0.8, 0.3, 0.2) if ball == "coat" else (1.0, 1.0, 1.0)]
+    mats = Materials.from_lists(names, colors, [(0, 0, 0)] * 4, kinds=[0, 0, 0, kind],
+                                roughness=np.array([0.5, 0.5, 0.5, roughness], np.float32),
                                 ior=np.full(4, 1.5, np.float32))
     position = (0.0, 0.0, 1.75)
     if light == "point":
@@ -160,8 +166,17 @@ def cornell_sphere(width=256, height=256, ball="glass", light="point", light_rad
                               light_power)
     else:
         raise ValueError(f"unknown light {light!r}")
-    v, f, m = b.arrays()
-    return Scene(v, f, m, mats, lights, _cornell_camera(width, height))
+    verts, faces, m = b.arrays()
+    corner = None
+    if smooth:
+        # Flat walls keep their face normal; the ball's corners get the sphere's normals.
+        tri = verts[faces]
+        face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        face_n /= np.maximum(np.linalg.norm(face_n, axis=1, keepdims=True), 1e-300)
+        corner = np.repeat(face_n[:, None, :], 3, axis=1)
+        corner[n_walls:] = v[f]
+    return Scene(verts, faces, m, mats, lights, _cornell_camera(width, height),
+                 corner_normals=corner)
 
 
 def icosphere(subdivisions=3, radius=1.0, inward=False):

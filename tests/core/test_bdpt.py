@@ -246,3 +246,20 @@ def test_far_from_origin_scene_gives_the_same_image(integrator):
     a = _replicates(near, integrator, 4, 8, max_bounces=2)
     b = _replicates(far, integrator, 4, 8, seed0=50, max_bounces=2)
     assert_replicates_agree(b, a, block=12, what=f"{integrator}: far vs near")
+
+
+@pytest.mark.parametrize("ball,roughness,smooth", [
+    ("mirror", 0.3, False), ("glass", 0.3, False), ("coat", 0.2, False), ("glass", 0.0, True),
+    ("coat", 0.2, True)])
+def test_bdpt_agrees_with_path_tracing_on_glossy_glass_and_coated_balls(ball, roughness, smooth):
+    """Rough conductors and dielectrics (importance-mode refraction, reverse densities), the
+    layered coat (its adjoint), and smooth shading (Veach's shading-normal correction) under
+    an area light large enough for the path tracer to converge."""
+    scene = cornell_sphere(24, 24, ball, "area", light_radius=0.15, roughness=roughness,
+                           smooth=smooth, subdivisions=3)
+    scene.lights.visible_camera[:] = False  # its few bright pixels would only widen the CIs
+    kw = dict(max_bounces=4)
+    pt = _replicates(scene, "path", 8, 32, **kw)
+    bd = _replicates(scene, "bdpt", 8, 8, seed0=5, **kw)
+    ratio = assert_replicates_agree(bd, pt, what=f"bdpt vs path, {ball} {roughness}")
+    print(f"bdpt/path, {ball} ball roughness {roughness} smooth {smooth}: {np.round(ratio, 4)}")
