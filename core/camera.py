@@ -87,16 +87,21 @@ def camera_position(cam: Camera):
     return np.asarray(cam.to_world, np.float64)[:3, 3].copy()
 
 
-def project(cam: Camera, p):
+def project(cam: Camera, p, margin=0.0):
     """Where points ``p (n, 3)`` land on the film of a perspective camera (inverse of
     :func:`generate_rays`).
+
+    ``margin`` (pixels) widens the film on every side: with a pixel filter wider than a pixel,
+    camera rays of edge pixels leave through film positions up to half the filter's width
+    outside the image, and light paths arriving there must still reach those pixels.
 
     Returns
     -------
     film_xy : (n, 2) float64
         Film position in pixels (x from the left, y from the bottom); may lie outside.
     visible : (n,) bool
-        In front of the camera, between the clipping planes and inside the film's extent.
+        In front of the camera, between the clipping planes and inside the film's extent
+        (widened by ``margin``).
     cos_theta : (n,) float64
         Cosine between the view axis and the direction to the point.
     dist : (n,) float64
@@ -118,7 +123,8 @@ def project(cam: Camera, p):
     fy = ((ty - sy) / (2.0 * half_y) + 0.5) * cam.height
     film_xy = np.stack([fx, fy], axis=-1)
     visible = ((depth > 0) & (depth >= cam.clip_start) & (depth <= cam.clip_end)
-               & (fx >= 0) & (fx < cam.width) & (fy >= 0) & (fy < cam.height)
+               & (fx >= -margin) & (fx < cam.width + margin) & (fy >= -margin)
+               & (fy < cam.height + margin)
                & np.isfinite(fx) & np.isfinite(fy))
     return np.where(np.isfinite(film_xy), film_xy, -1.0), visible, np.where(
         visible, cos_theta, 0.0), dist

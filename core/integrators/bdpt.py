@@ -628,7 +628,7 @@ def _connect_camera(ctx, L, s, out):
     if rows.size == 0:
         return
     y = L.p[yj, rows]
-    film_xy, visible, cos_theta, dist = project(cam, y)
+    film_xy, visible, cos_theta, dist = project(cam, y, ctx.film_margin)
     w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
     f_y = _eval(ctx, L, yj, rows, w, IMPORTANCE)
     we = importance(cam, cos_theta)
@@ -744,6 +744,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters, light_only=Fa
         emission = prep.emission = Emission(prep.lights, prep.scene.vertices)
     ctx = _Context(prep, settings, counters, emission)
     ctx.light_only = light_only
+    ctx.film_margin = 0.5 * pixel_filter.support
     ctx.views = ctx.views and not light_only
     counters.camera_samples += n
     segments = settings.max_bounces + 2  # longest path, in segments
