@@ -9,8 +9,6 @@ mean per channel within 1 % (plus its confidence interval), every 8 x 8 block wi
 confidence interval of the difference.
 """
 
-import math
-
 import bpy
 import numpy as np
 import pytest
@@ -23,34 +21,13 @@ OUR_SPP = 256
 CYCLES_SPP = 64
 CYCLES_RUNS = 4
 BOUNCES = 8
-MAP_W, MAP_H = 64, 32
-
-
-def sky_pixels():
-    """``(32, 64, 3)`` radiance: a gradient in u (red) and v (green), dark below the horizon,
-    and a 3 x 2 pixel spot ten times brighter (row 0 is the bottom, the nadir)."""
-    u = (np.arange(MAP_W) + 0.5) / MAP_W
-    v = (np.arange(MAP_H) + 0.5) / MAP_H
-    r = 0.2 + 1.2 * u[None, :] * np.ones((MAP_H, 1))
-    g = 0.1 + 1.0 * v[:, None] * np.ones((1, MAP_W))
-    b = np.full((MAP_H, MAP_W), 0.4)
-    rgb = np.stack([r, g, b], axis=-1)
-    rgb[v < 0.5] *= 0.3
-    rgb[19:21, 20:23] = (12.0, 10.0, 6.0)   # above the horizon, toward +Y+X
-    return rgb.astype(np.float32)
+MAP_W, MAP_H = S.SKY_W, S.SKY_H
+sky_pixels = S.sky_pixels
 
 
 def environment_scene(scene, strength=1.5):
-    image = S.float_image("Sky", sky_pixels())
-    world, env, bg = S.set_environment_world(scene, image, strength)
-    grey = S.diffuse_material("Grey", (0.5, 0.5, 0.5))
-    white = S.diffuse_material("White", (0.8, 0.8, 0.8))
-    S.add_quad(scene, "Plane", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], grey)
-    S.add_uv_sphere(scene, "Sphere", (0.3, 0.4, 0.6), 0.6, white)
-    # Looking toward +Y and 10 degrees down: the upper part of the image is sky.
-    S.add_camera(scene, (0.0, -4.0, 1.4), (math.radians(80), 0.0, 0.0), lens=24.0)
-    S.set_resolution(scene, *RESOLUTION)
-    return world, env, bg
+    """The shared environment scene (``bench/bpy_scenes.py``) at this module's resolution."""
+    return S.environment_scene(scene, RESOLUTION, strength)
 
 
 def test_environment_texture_exports_pixels_times_strength(empty_scene, export):
