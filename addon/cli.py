@@ -144,7 +144,30 @@ def build_parser():
     bs.add_argument("--output", default="bench/results", help="folder for CSV, cache and plots")
     bs.add_argument("--docs", default=None,
                     help="markdown report to write (default docs/STRATEGIES.md unless --quick)")
+    _add_bench_scenes_parser(sub)
     return parser
+
+
+def _add_bench_scenes_parser(sub):
+    from ..bench.hard_scenes import ISSUE4_SCENES, ISSUE5_SCENES, SCENES
+
+    h = sub.add_parser("bench-scenes", help="equal-time error of our integrators and Cycles on "
+                       "hard scenes (figures, docs/HARD_SCENES.md)")
+    h.add_argument("--scenes", nargs="+", default=list(ISSUE4_SCENES),
+                   help=f"from: {', '.join(SCENES)} (default: {' '.join(ISSUE4_SCENES)}; "
+                   f"issue 5's set: {' '.join(ISSUE5_SCENES)})")
+    h.add_argument("--integrators", nargs="+", default=None,
+                   help=f"from: {', '.join(INTEGRATORS)} (default: all of them)")
+    h.add_argument("--seconds", type=_positive_float, default=4.0,
+                   help="equal wall-clock budget of every render")
+    h.add_argument("--size", type=_resolution, default=(64, 64), help="WxH (default 64x64)")
+    h.add_argument("--reference-spp", type=_positive_int, default=1024)
+    h.add_argument("--reference-seconds", type=float, default=None,
+                   help="time cap of each reference (default max(30, 8 x --seconds); 0: none)")
+    h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
+    h.add_argument("--output", default="bench/results", help="folder for CSV and images")
+    h.add_argument("--docs", default="docs/HARD_SCENES.md",
+                   help="markdown report to write ('' for none)")
 
 
 class ProgressBar:
@@ -289,6 +312,16 @@ def cmd_bench_strategies(args):
                output=args.output, docs=args.docs)
 
 
+def cmd_bench_scenes(args, argv):
+    from ..bench.hard_scenes import run
+
+    command = "python -m sampling_lab " + " ".join(argv if argv is not None else sys.argv[1:])
+    return run(scenes=args.scenes, integrators=args.integrators, seconds=args.seconds,
+               size=args.size, reference_spp=args.reference_spp, cycles=not args.no_cycles,
+               output=args.output, docs=args.docs or None,
+               reference_seconds=args.reference_seconds, command=command)
+
+
 def main(argv=None):
     try:
         args = build_parser().parse_args(argv)
@@ -296,6 +329,8 @@ def main(argv=None):
             return cmd_render(args)
         if args.command == "bench-strategies":
             return cmd_bench_strategies(args)
+        if args.command == "bench-scenes":
+            return cmd_bench_scenes(args, argv)
         if args.command == "samplers":
             from ..core.sampling.lab import main as lab_main
 

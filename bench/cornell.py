@@ -135,7 +135,7 @@ def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
     if cycles:
         _stage(f"Cycles: kernel loading, fixed cost, {FIXED_SPP} spp")
         try:
-            cy = _CyclesRunner(scene, threads, max_bounces)
+            cy = CyclesRunner(scene, threads, max_bounces)
             cy.measure_fixed_cost(seed)
             cy.measure_fixed_spp(FIXED_SPP, seed)
         except Exception:  # noqa: BLE001 - report and carry on with the other figures
@@ -336,16 +336,23 @@ def _trace_parallel(emb, origins, directions, k):
 # --------------------------------------------------------------------------- Cycles
 
 
-class _CyclesRunner:
-    """The benchmark's Cycles scene and its measured costs: cold start, fixed cost, rate."""
+class CyclesRunner:
+    """The benchmark's Cycles scene and its measured costs: cold start, fixed cost, rate.
 
-    def __init__(self, core_scene, threads, max_bounces):
+    ``blender_scene`` renders a scene already built in ``bpy`` (``core_scene`` is then its
+    export, for the pixel count); by default ``core_scene`` is rebuilt in a new empty file.
+    """
+
+    def __init__(self, core_scene, threads, max_bounces, blender_scene=None):
         from . import blender_scene as bs
 
         self.bs = bs
-        bpy = bs.import_bpy()
-        bpy.ops.wm.read_homefile(use_empty=True)
-        self.scene = bs.build_blender_scene(core_scene)
+        if blender_scene is None:
+            bs.import_bpy().ops.wm.read_homefile(use_empty=True)
+            blender_scene = bs.build_blender_scene(core_scene)
+        # A scene built elsewhere may still name another engine (EEVEE in an empty file).
+        blender_scene.render.engine = "CYCLES"
+        self.scene = blender_scene
         self.threads = threads
         self.max_bounces = max_bounces
         self.pixels = core_scene.camera.width * core_scene.camera.height
