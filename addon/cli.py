@@ -153,9 +153,9 @@ def _add_bench_scenes_parser(sub):
 
     h = sub.add_parser("bench-scenes", help="equal-time error of our integrators and Cycles on "
                        "hard scenes (figures, docs/HARD_SCENES.md)")
-    h.add_argument("--scenes", nargs="+", default=list(ISSUE4_SCENES),
-                   help=f"from: {', '.join(SCENES)} (default: {' '.join(ISSUE4_SCENES)}; "
-                   f"issue 5's set: {' '.join(ISSUE5_SCENES)})")
+    h.add_argument("--scenes", nargs="+", default=list(SCENES),
+                   help=f"from: {', '.join(SCENES)} (default: all; issue 4's set: "
+                   f"{' '.join(ISSUE4_SCENES)}; issue 5's: {' '.join(ISSUE5_SCENES)})")
     h.add_argument("--integrators", nargs="+", default=None,
                    help=f"from: {', '.join(INTEGRATORS)} (default: all of them)")
     h.add_argument("--seconds", type=_positive_float, default=4.0,
@@ -164,6 +164,8 @@ def _add_bench_scenes_parser(sub):
     h.add_argument("--reference-spp", type=_positive_int, default=1024)
     h.add_argument("--reference-seconds", type=float, default=None,
                    help="time cap of each reference (default max(30, 8 x --seconds); 0: none)")
+    h.add_argument("--sampler", default="independent",
+                   help="sampler of our equal-time renders (default independent)")
     h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
     h.add_argument("--output", default="bench/results", help="folder for CSV and images")
     h.add_argument("--docs", default="docs/HARD_SCENES.md",
@@ -319,7 +321,8 @@ def cmd_bench_scenes(args, argv):
     return run(scenes=args.scenes, integrators=args.integrators, seconds=args.seconds,
                size=args.size, reference_spp=args.reference_spp, cycles=not args.no_cycles,
                output=args.output, docs=args.docs or None,
-               reference_seconds=args.reference_seconds, command=command)
+               reference_seconds=args.reference_seconds, sampler=args.sampler.lower(),
+               command=command)
 
 
 def main(argv=None):

@@ -46,6 +46,7 @@ from ..core.exr import write_png_preview
 from ..core.integrators import INTEGRATORS
 from ..core.metrics import rel_mse
 from ..core.render import RenderSettings, render
+from ..core.sampling.samplers import available as available_samplers
 from .cornell import (
     EPS,
     CyclesRunner,
@@ -104,15 +105,17 @@ REFERENCE_TIME_FACTOR = 8.0
 REFERENCE_INTEGRATOR = "path"
 
 
-def run(scenes=ISSUE4_SCENES, integrators=None, seconds=4.0, size=(64, 64), reference_spp=1024,
+def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), reference_spp=1024,
         cycles=True, output="bench/results", docs="docs/HARD_SCENES.md", *,
-        reference_seconds=None, threads=2, max_bounces=8, seed=0, command=None):
+        reference_seconds=None, sampler="independent", threads=2, max_bounces=8, seed=0,
+        command=None):
     """Render every scene with each integrator and Cycles for ``seconds``; write the figures.
 
     Parameters
     ----------
     scenes : sequence of str
-        Keys of :data:`SCENES`.
+        Keys of :data:`SCENES` (default all; :data:`ISSUE4_SCENES` and :data:`ISSUE5_SCENES`
+        are the sets the two issues asked for).
     integrators : sequence of str or None
         Keys of ``core.integrators.INTEGRATORS``; None takes all of them.
     seconds : float
@@ -129,6 +132,8 @@ def run(scenes=ISSUE4_SCENES, integrators=None, seconds=4.0, size=(64, 64), refe
         Markdown report to write (None: none).
     reference_seconds : float or None
         Time cap of each reference render; None picks ``max(30, 8 * seconds)``, 0 removes it.
+    sampler : str
+        Sampler of our equal-time renders (the reference always uses ``independent``).
     threads, max_bounces, seed : int
     command : str or None
         The command line, quoted in the report.
@@ -140,13 +145,14 @@ def run(scenes=ISSUE4_SCENES, integrators=None, seconds=4.0, size=(64, 64), refe
         arguments.
     """
     integrators = list(INTEGRATORS) if integrators is None else list(integrators)
-    unknown = [s for s in scenes if s not in SCENES] + [i for i in integrators
-                                                         if i not in INTEGRATORS]
+    unknown = ([s for s in scenes if s not in SCENES]
+               + [i for i in integrators if i not in INTEGRATORS]
+               + ([] if sampler in available_samplers() else [sampler]))
     width, height = (int(x) for x in size)
     if unknown or not scenes or not integrators:
-        print(f"sampling_lab bench-scenes: unknown or missing scenes/integrators {unknown}; "
-              f"scenes: {', '.join(SCENES)}; integrators: {', '.join(INTEGRATORS)}",
-              file=sys.stderr)
+        print(f"sampling_lab bench-scenes: unknown or missing names {unknown}; scenes: "
+              f"{', '.join(SCENES)}; integrators: {', '.join(INTEGRATORS)}; samplers: "
+              f"{', '.join(available_samplers())}", file=sys.stderr)
         return 2
     if width < 1 or height < 1 or not seconds > 0 or reference_spp < 1:
         print("sampling_lab bench-scenes: --size, --seconds and --reference-spp must be positive",
@@ -165,7 +171,8 @@ def run(scenes=ISSUE4_SCENES, integrators=None, seconds=4.0, size=(64, 64), refe
     summary.update(resolution=f"{width}x{height}", max_bounces=max_bounces, threads=threads,
                    equal_time_s=seconds, reference_spp_requested=reference_spp,
                    reference_seconds_cap=reference_seconds, integrators=" ".join(integrators),
-                   reference_integrator=REFERENCE_INTEGRATOR, scenes=" ".join(scenes))
+                   reference_integrator=REFERENCE_INTEGRATOR, scenes=" ".join(scenes),
+                   sampler=sampler)
     print(f"Sampling Lab bench-scenes: {', '.join(scenes)}; integrators {', '.join(integrators)}"
           f"{' and Cycles' if cycles else ''}; {width}x{height}, {seconds:g} s each, "
           f"{max_bounces} bounces, {threads} threads")
@@ -205,7 +212,8 @@ def run(scenes=ISSUE4_SCENES, integrators=None, seconds=4.0, size=(64, 64), refe
             try:
                 t0 = time.perf_counter()
                 res = render(core_scene, RenderSettings(integrator=integ, spp=0,
-                                                        time_limit=seconds, **settings))
+                                                        time_limit=seconds, sampler=sampler,
+                                                        **settings))
                 wall = time.perf_counter() - t0
             except Exception:  # noqa: BLE001 - an integrator in progress must not stop the rest
                 traceback.print_exc()
@@ -371,7 +379,7 @@ def _write_report(path, png, rows, scene_rows, summary, integrators, cycles, sec
         "",
         f"Every render gets **{seconds:g} s of wall clock** ({summary['resolution']}, "
         f"{summary['max_bounces']} bounces, {summary['threads']} threads, Blackman-Harris 1.5, "
-        "independent sampler for ours, Cycles' defaults otherwise under "
+        f"{summary['sampler']} sampler for ours, Cycles' defaults otherwise under "
         "`bench.blender_scene.configure_cycles`: no clamping, no glossy blur, no light "
         "threshold, no adaptive sampling, no denoising, caustics on). Times are the wall clock "
         "of the whole render call (ours: scene preparation included; Cycles: synchronisation, "
