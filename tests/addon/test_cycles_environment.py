@@ -1,12 +1,12 @@
 """An environment-lit scene agrees with Cycles, and the exporter reads Environment Textures.
 
-The world is an Environment Texture (a small float image made here: a colour gradient along
-both image axes and a bright spot) into a Background node. A diffuse plane and a flat-shaded UV
-sphere are lit by it, and the camera sees the sky directly, so that the equirectangular lookup
-(orientation, row order, bilinear interpolation) is compared pixel by pixel as well as the
-importance-sampled lighting. The comparison is the one of ``test_cycles_agreement.py``: image
-mean per channel within 1 % (plus its confidence interval), every 8 x 8 block within the
-confidence interval of the difference.
+The world is an Environment Texture (a small float image, ``bench/bpy_scenes.sky_pixels``: a
+colour gradient along both image axes and a bright spot) into a Background node. A diffuse
+plane and a flat-shaded UV sphere are lit by it, and the camera sees the sky directly, so that
+the equirectangular lookup (orientation, row order, bilinear interpolation) is compared pixel
+by pixel as well as the importance-sampled lighting. The comparison is the one of
+``test_cycles_agreement.py``: image mean per channel within 1 % (plus its confidence interval),
+every 8 x 8 block within the confidence interval of the difference.
 """
 
 import bpy
