@@ -304,11 +304,12 @@ def _groups(params):
     kind = params.kind
     if kind.size == 0:
         return []
-    unknown = ~np.isin(kind, KINDS)
-    if unknown.any():
+    lo, hi = int(kind.min()), int(kind.max())
+    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..3
+        unknown = ~np.isin(kind, KINDS)
         raise ValueError(f"unknown BSDF kind codes {np.unique(kind[unknown]).tolist()}")
     first = kind[0]
-    if np.all(kind == first):
+    if lo == hi:
         return [(int(first), None)]
     return [(int(c), np.nonzero(kind == c)[0]) for c in np.unique(kind)]
 
