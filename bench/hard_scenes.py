@@ -20,9 +20,10 @@ process:
    relMSE between the two against what their noise alone would give.
 5. *Errors*: ``relMSE = mean (x - ref)^2 / (ref^2 + 0.01)`` (``core.metrics.rel_mse``) against
    our reference, minus that reference's own noise ("corrected", an unbiased estimate of the
-   error against the converged image), scaled by ``time / seconds`` to exactly the budget
-   (error ~ 1 / time for an unbiased estimator); and, as a cross-check, the raw relMSE against
-   the Cycles reference.
+   error against the converged image), scaled to exactly the budget by
+   ``(time - fixed) / (seconds - fixed)`` (error ~ 1 / sampling time for an unbiased
+   estimator; ``fixed`` is our scene preparation or Cycles' fixed cost of a render); and, as a
+   cross-check, the raw relMSE against the Cycles reference.
 
 Output: ``hard_scenes.csv`` (one row per scene and render) and ``hard_scenes_summary.csv``
 (references, agreement, machine, load averages) in ``output``, a montage PNG and a markdown
@@ -393,8 +394,10 @@ def _write_report(path, png, rows, scene_rows, summary, integrators, cycles, sec
         "two are compared below. relMSE = mean over pixels and RGB of (x − ref)² / (ref² + "
         f"{EPS:g}). *corrected*: minus the reference's own noise (its per-pixel variance), an "
         f"unbiased estimate of the error against the converged image; *@{seconds:g} s*: "
-        f"corrected × time / {seconds:g} s, the error at exactly the budget (the column to "
-        "compare); *vs Cycles ref*: raw relMSE against the Cycles reference (a cross-check "
+        f"corrected × (time − fixed) / ({seconds:g} s − fixed), the error at exactly the "
+        "budget, where *fixed* is the part of a render that takes no samples (our scene "
+        "preparation, Cycles' fixed cost of a render, measured on a 1-spp render): the column "
+        "to compare; *vs Cycles ref*: raw relMSE against the Cycles reference (a cross-check "
         "that does not depend on our reference); *mean / ref*: image mean over the "
         "reference's.",
         "",
