@@ -145,6 +145,14 @@ def build_parser():
     bs.add_argument("--docs", default=None,
                     help="markdown report to write (default docs/STRATEGIES.md unless --quick)")
     _add_bench_scenes_parser(sub)
+    v = sub.add_parser("bdpt-views", help="BDPT's per-strategy images in one figure, by path "
+                       "length (docs/images/bdpt_views_<scene>.png)")
+    v.add_argument("--scene", default="glass_caustic", choices=sorted(builtin_scenes.BUILTIN))
+    v.add_argument("--size", type=_resolution, default=(96, 96), help="WxH (default 96x96)")
+    v.add_argument("--spp", type=_positive_int, default=32)
+    v.add_argument("--max-length", type=_positive_int, default=4,
+                   help="longest path shown, in segments (default 4)")
+    v.add_argument("--output", default="docs/images", help="folder of the PNG")
     return parser
 
 
@@ -325,6 +333,17 @@ def cmd_bench_scenes(args, argv):
                command=command)
 
 
+def cmd_bdpt_views(args):
+    from ..bench.bdpt_views import run
+
+    path, means = run(scene=args.scene, size=args.size, spp=args.spp,
+                      max_length=args.max_length, output=args.output)
+    for name, mean in means.items():
+        print(f"{name:32s} image mean {mean:.5g}")
+    print(path)
+    return 0
+
+
 def main(argv=None):
     try:
         args = build_parser().parse_args(argv)
@@ -334,6 +353,8 @@ def main(argv=None):
             return cmd_bench_strategies(args)
         if args.command == "bench-scenes":
             return cmd_bench_scenes(args, argv)
+        if args.command == "bdpt-views":
+            return cmd_bdpt_views(args)
         if args.command == "samplers":
             from ..core.sampling.lab import main as lab_main
 

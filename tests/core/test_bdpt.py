@@ -333,3 +333,16 @@ def test_every_sampler_drives_light_tracing_and_bdpt(sampler):
             for i in range(6)])
         assert np.isfinite(imgs).all()
         assert_replicates_agree(imgs, pt, block=16, what=f"{integrator} with {sampler}")
+
+
+def test_bdpt_views_figure_shows_every_strategy_and_the_weighted_shares_make_the_image(
+        tmp_path):
+    from sampling_lab.bench.bdpt_views import run
+    path, means = run("cornell_area", (16, 16), 4, max_length=3, output=str(tmp_path))
+    assert (tmp_path / "bdpt_views_cornell_area.png").stat().st_size > 0
+    assert set(means) == set(strategy_pass_names(3))
+    scene = cornell_box(16, 16, "area")
+    image = render(scene, RenderSettings(integrator="bdpt", spp=4, seed=0,
+                                         max_bounces=1)).film.mean().mean()
+    weighted = sum(v for k, v in means.items() if k.endswith("weighted"))
+    np.testing.assert_allclose(weighted, image, rtol=1e-5)
