@@ -113,9 +113,9 @@ class RenderResult:
                 for name in self.layer_names}
 
 
-def _units(n_pixels, first_sample, spp_in_pass):
+def _units(n_pixels, first_sample, spp_in_pass, unit_paths=UNIT_PATHS):
     """Work units of a pass: (pixel_start, pixel_stop, first_sample, n_samples)."""
-    per_unit = max(1, UNIT_PATHS // spp_in_pass)
+    per_unit = max(1, unit_paths // spp_in_pass)
     return [(p, min(p + per_unit, n_pixels), first_sample, spp_in_pass)
             for p in range(0, n_pixels, per_unit)]
 
@@ -193,7 +193,9 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
 
     n_pix = film.n_pixels
     total_spp = settings.spp if settings.spp > 0 else None
-    spp_per_pass = max(1, min(UNIT_PATHS * max(1, settings.threads) // n_pix, 64))
+    # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
+    unit_paths = getattr(integrator, "UNIT_PATHS", UNIT_PATHS)
+    spp_per_pass = max(1, min(unit_paths * max(1, settings.threads) // n_pix, 64))
     counters = Counters()
     done_spp = 0
     t_start = time.perf_counter()
@@ -247,7 +249,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
             if out_of_time():
                 break
             k = spp_per_pass if total_spp is None else min(spp_per_pass, total_spp - done_spp)
-            units = _units(n_pix, done_spp, k)
+            units = _units(n_pix, done_spp, k, unit_paths)
             # Keep at most `threads` units in flight so cancel and time limits answer quickly.
             pending = []
             finished_units = 0

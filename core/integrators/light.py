@@ -25,6 +25,9 @@ from __future__ import annotations
 
 from . import bdpt
 
+# Paths per work unit (a light-tracing sample costs 2-5 path-tracing samples).
+UNIT_PATHS = 1 << 13
+
 
 def render_samples(prep, settings, pixel_filter, stream, counters):
     """One light path (and one camera ray for emitters seen directly) per entry of ``stream``.
