@@ -147,17 +147,44 @@ class _Context:
 
 
 # ------------------------------------------------------------------------------------ BSDFs
-def _eval(ctx, sub, j, rows, w, mode):
-    """``f |cos|`` at vertices ``sub[j, rows]`` toward world directions ``w (m, 3)``, with the
-    geometric-side rule and, in importance mode, the shading-normal correction (Veach 5.3)."""
-    params = sub.params[j].take(rows)
-    wo_l = sub.wo_local[j, rows]
-    wi_l = to_local(w, sub.fs[j, rows], sub.ft[j, rows], sub.fn[j, rows])
-    f = eval_bsdf(params, wo_l, wi_l, mode)
-    if ctx.smooth:
-        f *= _smooth_factor(sub.ng[j, rows], sub.fn[j, rows], sub.wo[j, rows], w, wo_l, wi_l,
-                            mode)[:, None]
-    return f
+class _Gathered:
+    """Vertex ``j`` of a subpath for the rows of one connection: what evaluating its BSDF
+    needs, gathered once (parameters, shading frame, incoming direction)."""
+
+    def __init__(self, ctx, sub, j, rows, mode):
+        self.smooth, self.mode = ctx.smooth, mode
+        self.params = sub.params[j].take(rows)
+        self.fs, self.ft, self.fn = sub.fs[j, rows], sub.ft[j, rows], sub.fn[j, rows]
+        self.wo, self.wo_l, self.ng = sub.wo[j, rows], sub.wo_local[j, rows], sub.ng[j, rows]
+
+    def take(self, idx):
+        """The rows ``idx`` of this gather (after shadow rays removed some)."""
+        out = object.__new__(_Gathered)
+        out.smooth, out.mode = self.smooth, self.mode
+        out.params = self.params.take(idx)
+        for name in ("fs", "ft", "fn", "wo", "wo_l", "ng"):
+            setattr(out, name, getattr(self, name)[idx])
+        return out
+
+    def local(self, w):
+        """World directions ``w (m, 3)`` in the vertices' shading frames."""
+        return to_local(w, self.fs, self.ft, self.fn)
+
+    def f(self, w, w_l):
+        """``f |cos|`` toward ``w`` (world) / ``w_l`` (local), with the geometric-side rule and,
+        in importance mode, the shading-normal correction (Veach 5.3)."""
+        f = eval_bsdf(self.params, self.wo_l, w_l, self.mode)
+        if self.smooth:
+            f *= _smooth_factor(self.ng, self.fn, self.wo, w, self.wo_l, w_l, self.mode)[:, None]
+        return f
+
+    def pdf_toward(self, w_l):
+        """Solid-angle density of sampling ``w_l`` given the incoming direction."""
+        return pdf_bsdf(self.params, self.wo_l, w_l)
+
+    def pdf_back(self, w_l):
+        """Solid-angle density of sampling the incoming direction given ``w_l``."""
+        return pdf_bsdf(self.params, w_l, self.wo_l)
 
 
 def _smooth_factor(ng, ns, wo, wi, wo_l, wi_l, mode):
@@ -168,12 +195,6 @@ def _smooth_factor(ng, ns, wo, wi, wo_l, wi_l, mode):
         den = np.abs(_dot(wo, ng)) * np.abs(_dot(wi, ns))
         ok *= np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
     return ok
-
-
-def _pdf(sub, j, rows, w_from, w_to):
-    """Solid-angle density of sampling ``w_to`` at ``sub[j, rows]`` given ``w_from`` (world)."""
-    f, t, n = sub.fs[j, rows], sub.ft[j, rows], sub.fn[j, rows]
-    return pdf_bsdf(sub.params[j].take(rows), to_local(w_from, f, t, n), to_local(w_to, f, t, n))
 
 
 def _to_area(pdf_sa, cos_at, dist):
@@ -529,7 +550,10 @@ def _connect(ctx, L, C, s, t, out, fresh=None):
     dist = np.where(infinite, np.inf, np.linalg.norm(to_y, axis=1))
     ok = (dist > 0)
     w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y
-    f_z = _eval(ctx, C, zj, rows, w, RADIANCE)
+    zv = _Gathered(ctx, C, zj, rows, RADIANCE)
+    w_z = zv.local(w)
+    f_z = zv.f(w, w_z)
+    yv = w_y = None
     if s == 1:
         normal = fresh.normal[rows]
         le = em.radiance(index, y, normal, -w, z)
@@ -539,7 +563,9 @@ def _connect(ctx, L, C, s, t, out, fresh=None):
         beta_y = 1.0 / np.where(fresh.pdf_origin[rows] > 0, fresh.pdf_origin[rows], np.inf)
         value = f_y * f_z * C.beta[zj, rows] * beta_y[:, None]
     else:
-        f_y = _eval(ctx, L, s - 1, rows, -w, IMPORTANCE)
+        yv = _Gathered(ctx, L, s - 1, rows, IMPORTANCE)
+        w_y = yv.local(-w)
+        f_y = yv.f(-w, w_y)
         value = L.beta[s - 1, rows] * f_y * f_z * C.beta[zj, rows]
     g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
     value = value * g[:, None]
@@ -547,61 +573,63 @@ def _connect(ctx, L, C, s, t, out, fresh=None):
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return
-    rows, z, w, dist, value, infinite = (rows[cand], z[cand], w[cand], dist[cand], value[cand],
-                                         infinite[cand])
-    y = y[cand]
     if s == 1:
-        index = index[cand]
-        y_normal = np.where(infinite[:, None], 0.0, fresh.normal[rows])
+        y_normal = np.where(infinite[cand, None], 0.0, fresh.normal[rows[cand]])
     else:
-        y_normal = L.ng[s - 1, rows]
+        y_normal = L.ng[s - 1, rows[cand]]
     blocked = prep.accel.occluded(*prep.accel.shadow_rays(
-        z, C.ng[zj, rows], C.prim[zj, rows], w, dist, y_normal), VIS_SHADOW)
-    ctx.counters.rays += rows.size
-    vis = np.nonzero(~blocked)[0]
-    if vis.size == 0:
+        z[cand], C.ng[zj, rows[cand]], C.prim[zj, rows[cand]], w[cand], dist[cand], y_normal),
+        VIS_SHADOW)
+    ctx.counters.rays += cand.size
+    keep = cand[~blocked]
+    if keep.size == 0:
         return
-    rows, w, dist, value, infinite, y_normal = (rows[vis], w[vis], dist[vis], value[vis],
-                                                infinite[vis], y_normal[vis])
+    conn = {"w": w[keep], "dist": dist[keep], "infinite": infinite[keep],
+            "y_normal": y_normal[~blocked], "z": zv.take(keep), "w_z": w_z[keep]}
     if s == 1:
-        index = index[vis]
-    weight = _connect_weight(ctx, L, C, s, t, rows, w, dist, infinite, y_normal, fresh,
-                             index if s == 1 else None)
-    _accumulate(ctx, out, s, t, rows, value, weight)
+        conn["index"] = index[keep]
+    else:
+        conn["y"], conn["w_y"] = yv.take(keep), w_y[keep]
+    weight = _connect_weight(ctx, L, C, s, t, rows[keep], conn, fresh)
+    _accumulate(ctx, out, s, t, rows[keep], value[keep], weight)
 
 
-def _connect_weight(ctx, L, C, s, t, rows, w, dist, infinite, y_normal, fresh, index):
-    """MIS weight of a connection ``y = x_{s-1}`` (light side) -> ``z = x_s`` (camera side);
-    ``w (m, 3)`` points from z to y."""
+def _connect_weight(ctx, L, C, s, t, rows, conn, fresh):
+    """MIS weight of a connection ``y = x_{s-1}`` (light side) -> ``z = x_s`` (camera side).
+
+    ``conn`` holds the connection's ``w`` (from z to y, world), ``dist``, ``infinite``,
+    ``y_normal``, the gathered camera vertex ``z`` and ``w`` in its frame ``w_z``; and either
+    the emitter ``index`` (``s = 1``) or the gathered light vertex ``y`` and ``-w`` in its frame
+    ``w_y``.
+    """
     em = ctx.emission
     k = s + t - 1
     m = rows.size
     zj = t - 1
+    w, dist, infinite, y_normal = conn["w"], conn["dist"], conn["infinite"], conn["y_normal"]
+    zv, w_z = conn["z"], conn["w_z"]
     p_light = [None] * (k + 1)
     p_camera = [None] * (k + 1)
     delta = [np.zeros(m, bool) for _ in range(k + 1)]
-    cos_z = np.abs(_dot(C.ng[zj, rows], w))
+    cos_z = np.abs(_dot(zv.ng, w))
     # Light side: stored densities up to y, then y -> z, then z -> z_{t-2}.
     if s == 1:
         p_light[0] = fresh.pdf_origin[rows]
         cos_y = np.where(infinite | fresh.delta_light[rows], 1.0, np.abs(_dot(y_normal, w)))
-        pdf_dir = em.pdf_direction(index, y_normal, -w)
+        pdf_dir = em.pdf_direction(conn["index"], y_normal, -w)
         p_light[1] = np.where(infinite, pdf_dir * cos_z, _to_area(pdf_dir, cos_z, dist))
         delta_light = fresh.delta_light[rows]
     else:
+        yv, w_y = conn["y"], conn["w_y"]
         for i in range(s):
             p_light[i] = L.pdf_fwd[i, rows]
             if 0 < i < s - 1:
                 delta[i] = L.delta[i, rows]
         cos_y = np.abs(_dot(y_normal, w))
-        pdf_yz = _pdf(L, s - 1, rows, L.wo[s - 1, rows], -w)
-        p_light[s] = _to_area(pdf_yz, cos_z, dist)
+        p_light[s] = _to_area(yv.pdf_toward(w_y), cos_z, dist)
         delta_light = ctx.light_delta[rows]
-    if t >= 2 and s + 1 <= k:
-        if zj >= 1:
-            pdf_back = _pdf(C, zj, rows, w, C.wo[zj, rows])
-            p_light[s + 1] = _to_area(pdf_back, C.cos_prev[zj, rows], C.d_prev[zj, rows]) \
-                if zj >= 2 else np.ones(m)
+    if zj >= 2:
+        p_light[s + 1] = _to_area(zv.pdf_back(w_z), C.cos_prev[zj, rows], C.d_prev[zj, rows])
     for i in range(s + 2, k + 1):
         zi = k - i
         p_light[i] = C.pdf_rev[zi, rows] if zi > 0 else np.ones(m)
@@ -611,11 +639,11 @@ def _connect_weight(ctx, L, C, s, t, rows, w, dist, infinite, y_normal, fresh, i
         p_camera[i] = C.pdf_fwd[zi, rows] if zi > 0 else np.ones(m)
         if s < i < k:
             delta[i] = C.delta[zi, rows]
-    pdf_zy = _pdf(C, zj, rows, C.wo[zj, rows], w)
+    pdf_zy = zv.pdf_toward(w_z)
     p_camera[s - 1] = np.where(infinite, pdf_zy, _to_area(pdf_zy, cos_y, dist))
     if s >= 2:
-        pdf_back = _pdf(L, s - 1, rows, -w, L.wo[s - 1, rows])
-        p_camera[s - 2] = _to_area(pdf_back, L.cos_prev[s - 1, rows], L.d_prev[s - 1, rows])
+        p_camera[s - 2] = _to_area(yv.pdf_back(w_y), L.cos_prev[s - 1, rows],
+                                   L.d_prev[s - 1, rows])
         for i in range(s - 2):
             p_camera[i] = L.pdf_rev[i, rows]
     st = ctx.settings
@@ -630,30 +658,34 @@ def _connect_camera(ctx, L, s, out):
     rows = np.nonzero(L.valid[yj] & L.connectible[yj])[0]
     if rows.size == 0:
         return
+    film_xy, visible, cos_theta, dist = project(cam, L.p[yj, rows], ctx.film_margin)
+    seen = np.nonzero(visible)[0]
+    if seen.size == 0:
+        return
+    rows, film_xy, cos_theta, dist = rows[seen], film_xy[seen], cos_theta[seen], dist[seen]
     y = L.p[yj, rows]
-    film_xy, visible, cos_theta, dist = project(cam, y, ctx.film_margin)
     w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
-    f_y = _eval(ctx, L, yj, rows, w, IMPORTANCE)
+    yv = _Gathered(ctx, L, yj, rows, IMPORTANCE)
+    w_y = yv.local(w)
     we = importance(cam, cos_theta)
-    value = L.beta[yj, rows] * f_y * (we / np.maximum(dist * dist, 1e-300))[:, None]
-    ok = visible & (max_component(value) > 0) & np.isfinite(value).all(axis=1)
+    value = L.beta[yj, rows] * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
+    ok = (max_component(value) > 0) & np.isfinite(value).all(axis=1)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return
-    rows, y, w, dist, value, film_xy, cos_theta = (rows[cand], y[cand], w[cand], dist[cand],
-                                                   value[cand], film_xy[cand], cos_theta[cand])
-    o, dirs, tmax = prep.accel.shadow_rays(y, L.ng[yj, rows], L.prim[yj, rows], w, dist,
-                                           np.zeros_like(w))
+    o, dirs, tmax = prep.accel.shadow_rays(y[cand], yv.ng[cand], L.prim[yj, rows[cand]],
+                                           w[cand], dist[cand], np.zeros((cand.size, 3)))
     blocked = prep.accel.occluded(o, dirs, tmax, VIS_CAMERA)
-    ctx.counters.rays += rows.size
-    vis = np.nonzero(~blocked)[0]
-    if vis.size == 0:
+    ctx.counters.rays += cand.size
+    keep = cand[~blocked]
+    if keep.size == 0:
         return
-    rows, w, dist, value, film_xy, cos_theta = (rows[vis], w[vis], dist[vis], value[vis],
-                                                film_xy[vis], cos_theta[vis])
+    rows, w, w_y, dist, value, film_xy, cos_theta = (rows[keep], w[keep], w_y[keep], dist[keep],
+                                                     value[keep], film_xy[keep], cos_theta[keep])
     if ctx.light_only:
         weight = np.ones(rows.size)
     else:
+        yv = yv.take(keep)
         k = s
         m = rows.size
         p_light = [L.pdf_fwd[i, rows] for i in range(s)] + [np.ones(m)]
@@ -662,9 +694,8 @@ def _connect_camera(ctx, L, s, out):
         p_camera = [None] * (k + 1)
         p_camera[k] = np.ones(m)
         pdf_cam = camera_pdf(cam, cos_theta)
-        p_camera[s - 1] = _to_area(pdf_cam, np.abs(_dot(L.ng[yj, rows], w)), dist)
-        pdf_back = _pdf(L, yj, rows, w, L.wo[yj, rows])
-        p_camera[s - 2] = _to_area(pdf_back, L.cos_prev[yj, rows], L.d_prev[yj, rows])
+        p_camera[s - 1] = _to_area(pdf_cam, np.abs(_dot(yv.ng, w)), dist)
+        p_camera[s - 2] = _to_area(yv.pdf_back(w_y), L.cos_prev[yj, rows], L.d_prev[yj, rows])
         for i in range(s - 2):
             p_camera[i] = L.pdf_rev[i, rows]
         st = ctx.settings
