@@ -48,11 +48,10 @@ import numpy as np
 
 from ..camera import camera_pdf, camera_position, importance, project
 from ..emitters import Emission
-from ..materials.bsdf import (IMPORTANCE, LOBE_TRANSMIT, RADIANCE, BSDFParams, eval_bsdf,
-                              pdf_bsdf, sample_bsdf)
+from ..materials.bsdf import IMPORTANCE, RADIANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_SUN, VIS_CAMERA, VIS_SHADOW
-from .common import (BatchOutput, camera_rays, intersect_by_class, max_component, strategies,
+from .common import (BatchOutput, camera_rays, intersect_by_class, max_component,
                      surface_interaction)
 from .path import geometric_side_valid, ray_class
 
