@@ -7,8 +7,9 @@ What it estimates
     ``s = 0`` (the camera subpath hits an emitter), ``s = 1`` (a fresh point on an emitter is
     connected to ``z_{t-1}``: next-event estimation), ``s >= 2, t >= 2`` (``y_{s-1}`` is
     connected to ``z_{t-1}`` by a shadow ray) and ``t = 1`` (``y_{s-1}`` is connected to the
-    pinhole and splatted onto the film where it lands). Emitters seen directly are always
-    found from the camera (``s = 0, t = 2``; ``s = 1, t = 1`` is not used).
+    pinhole and splatted onto the film where it lands; ``s = 1, t = 1`` connects the light
+    subpath's point on an emitter to the pinhole, so small lamps seen directly are not left
+    to camera rays alone).
 Bias and consistency
     Unbiased for paths of up to ``max_bounces + 1`` scattering vertices, as the path tracer.
     MIS weights are computed from each path's per-vertex densities, in area measure (solid angle
@@ -206,7 +207,7 @@ def _to_area(pdf_sa, cos_at, dist):
 
 # ------------------------------------------------------------------------------------ MIS
 def mis_weight(p_light, p_camera, delta, s, delta_light, heuristic="power", beta=2.0,
-               alpha=0.1):
+               alpha=0.1, direct=None):
     """MIS weight ``(m,)`` of strategy ``s`` for paths of ``k + 1`` vertices ``x_0..x_k``.
 
     Parameters
@@ -223,11 +224,14 @@ def mis_weight(p_light, p_camera, delta, s, delta_light, heuristic="power", beta
     delta_light : (m,) bool
         ``x_0`` is a point or a directional delta light: ``s' = 0`` is impossible.
     heuristic : {'balance', 'power', 'maximum', 'cutoff', 'none'}
+    direct : (m,) bool or None
+        For ``k = 1`` (an emitter seen directly): whether ``s' = 1, t' = 1`` (a point on the
+        emitter connected to the pinhole) can make the path: finite emitters seen by the camera,
+        not infinite ones. None: it cannot.
 
     Notes
     -----
-    Strategies ``s' = 0..k`` (``t' = k + 1 - s' >= 1``); ``s' = k`` (``t' = 1``) only for
-    ``k >= 2`` (an emitter seen directly comes from the camera side alone).
+    Strategies ``s' = 0..k`` (``t' = k + 1 - s' >= 1``).
     """
     k = len(p_light) - 1
     m = delta_light.shape[0]
@@ -245,7 +249,10 @@ def mis_weight(p_light, p_camera, delta, s, delta_light, heuristic="power", beta
         if sp == 0:
             ok = ~delta_light
         elif sp == k:
-            ok = ~delta[k - 1] if k >= 2 else np.zeros(m, bool)
+            if k >= 2:
+                ok = ~delta[k - 1]
+            else:
+                ok = np.zeros(m, bool) if direct is None else np.asarray(direct, bool)
         else:
             ok = ~delta[sp - 1] & ~delta[sp]
         if sp == s:
@@ -440,9 +447,11 @@ def _camera_emission(ctx, cam_sub, out):
                 continue
             lr, index, q, normal, t, r, value = (lr[ok], index[ok], q[ok], normal[ok], t[ok],
                                                  r[ok], value[ok])
-            if j == 1:
-                weight = np.ones(lr.size)  # emitters seen directly: s = 0 alone
+            if ctx.light_only:
+                weight = np.ones(lr.size)  # light tracing sees emitters through the camera
             else:
+                if j == 1:  # distances from the pinhole, not from the near clipping plane
+                    t = np.where(np.isfinite(t), np.linalg.norm(q - ctx.cam_pos, axis=1), t)
                 weight = _s0_weight(ctx, cam_sub, j, r, index, q, normal, t, -d[lr],
                                     pdf_prev[lr], prev_delta[lr])
             _accumulate(ctx, out, 0, j + 1, r, value, weight)
@@ -520,7 +529,7 @@ def _s0_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_del
     delta_light = np.zeros(m, bool)
     s = ctx.settings
     return mis_weight(p_light, p_camera, delta, 0, delta_light, ctx.heuristic, s.mis_beta,
-                      s.mis_alpha)
+                      s.mis_alpha, direct=~infinite)
 
 
 # ------------------------------------------------------------------------------------ connect
@@ -703,6 +712,56 @@ def _connect_camera(ctx, L, s, out):
     _splat(ctx, out, s, film_xy, value, weight)
 
 
+def _connect_emitter_to_camera(ctx, L, out):
+    """Strategy ``s = 1, t = 1``: the light subpath's point on a (finite, camera-visible)
+    emitter seen by the pinhole, splatted; MIS against the camera ray that hits it."""
+    prep, cam, em = ctx.prep, ctx.cam, ctx.emission
+    pts = ctx.light_points
+    ls = prep.lights
+    lamp = (pts.index >= 0) & (pts.index < ls.n_lights)
+    seen_by_camera = np.where(lamp, ls.lights.visible_camera[np.where(lamp, pts.index, 0)]
+                              if ls.n_lights else False, True)
+    rows = np.nonzero((pts.index >= 0) & ~pts.infinite & ~pts.delta_light & seen_by_camera
+                      & (pts.pdf_origin > 0))[0]
+    if rows.size == 0:
+        return
+    p = pts.p[rows]
+    film_xy, visible, cos_theta, dist = project(cam, p, ctx.film_margin)
+    seen = np.nonzero(visible)[0]
+    if seen.size == 0:
+        return
+    rows, p, film_xy, cos_theta, dist = (rows[seen], p[seen], film_xy[seen], cos_theta[seen],
+                                         dist[seen])
+    w = (ctx.cam_pos - p) / np.maximum(dist, 1e-300)[:, None]  # emitter -> camera
+    normal = pts.normal[rows]
+    le = em.radiance(pts.index[rows], p, normal, w, np.broadcast_to(ctx.cam_pos, p.shape))
+    cos_l = np.abs(_dot(normal, w))
+    g = importance(cam, cos_theta) * cos_l / np.maximum(dist * dist, 1e-300)
+    value = le * (g / pts.pdf_origin[rows])[:, None]
+    ok = np.nonzero((max_component(value) > 0) & np.isfinite(value).all(axis=1))[0]
+    if ok.size == 0:
+        return
+    rows, w, dist, value, film_xy, cos_theta, cos_l = (rows[ok], w[ok], dist[ok], value[ok],
+                                                       film_xy[ok], cos_theta[ok], cos_l[ok])
+    # From the pinhole toward the point, stopping just short of it (emissive triangles are
+    # geometry; lamps are not).
+    origins = np.broadcast_to(ctx.cam_pos, (rows.size, 3)).copy()
+    blocked = prep.accel.occluded(origins, -w, dist * (1.0 - 1e-5), VIS_CAMERA)
+    ctx.counters.rays += rows.size
+    keep = np.nonzero(~blocked)[0]
+    if keep.size == 0:
+        return
+    rows, dist, value, film_xy, cos_theta, cos_l = (rows[keep], dist[keep], value[keep],
+                                                    film_xy[keep], cos_theta[keep], cos_l[keep])
+    m = rows.size
+    p_camera = [_to_area(camera_pdf(cam, cos_theta), cos_l, dist), np.ones(m)]
+    p_light = [pts.pdf_origin[rows], np.ones(m)]
+    st = ctx.settings
+    weight = mis_weight(p_light, p_camera, [np.zeros(m, bool)] * 2, 1, np.zeros(m, bool),
+                        ctx.heuristic, st.mis_beta, st.mis_alpha, direct=np.ones(m, bool))
+    _splat(ctx, out, 1, film_xy, value, weight)
+
+
 # ------------------------------------------------------------------------------------ driver
 def _light_subpath(ctx, stream, n, base, depth):
     """Stage *generate light subpath*: emitter point and direction, then the random walk."""
@@ -715,6 +774,7 @@ def _light_subpath(ctx, stream, n, base, depth):
     pts = em.sample_points(u_sel, u_pos, ctx.counters)
     origin, w, pdf_dir, cos_l, le = em.sample_directions(pts, u_dir)
     ctx.light_delta = pts.delta_light
+    ctx.light_points = pts
     L.valid[0] = pts.index >= 0
     L.p[0] = np.where(pts.infinite[:, None], origin, pts.p)
     L.ng[0] = pts.normal
@@ -804,6 +864,8 @@ def render_samples(prep, settings, pixel_filter, stream, counters, light_only=Fa
                 if not L.valid[s - 1].any():
                     break
                 _connect(ctx, L, C, s, t, out)
+    if not light_only:
+        _connect_emitter_to_camera(ctx, L, out)
     for s in range(2, segments + 1):
         if not L.valid[s - 1].any():
             break

@@ -75,16 +75,10 @@ def strategies(max_length):
     """BDPT strategies ``(s, t)`` shown as images, for path lengths 1..``max_length`` segments.
 
     A path of ``k`` segments has ``k + 1`` vertices, ``s`` from the light and ``t`` from the
-    camera. Every ``s = 0..k-1`` with ``t = k + 1 - s >= 2`` is listed, and ``t = 1`` (light
-    subpath connected to the camera) for ``k >= 2``; emitters seen directly (``k = 1``) are
-    always found from the camera (``s = 0, t = 2``).
+    camera: ``s = 0..k`` with ``t = k + 1 - s >= 1`` (``t = 1``: a light-subpath vertex
+    connected to the pinhole; ``t = 0`` would need a light path to hit the pinhole).
     """
-    out = []
-    for k in range(1, int(max_length) + 1):
-        out += [(s, k + 1 - s) for s in range(k)]
-        if k >= 2:
-            out.append((k, 1))
-    return out
+    return [(s, k + 1 - s) for k in range(1, int(max_length) + 1) for s in range(k + 1)]
 
 
 def strategy_pass_names(max_length):

@@ -7,7 +7,7 @@ What it estimates
     non-delta vertex to the pinhole with a shadow ray; the contribution lands at the film
     position where the vertex projects, weighted by the pixel filter (BDPT's ``t = 1``
     strategies, unweighted). Emitters seen directly come from the camera ray of the sample
-    (BDPT's ``s = 0, t = 2``), since a light path cannot reach a pinhole by itself.
+    (BDPT's ``s = 0, t = 2``), so that the sky and sun disks seen directly count too.
 Bias and consistency
     Unbiased for paths of up to ``max_bounces + 1`` scattering vertices, as the path tracer,
     except for the approximations of :mod:`core.emitters` (sphere lights do not light points

@@ -49,6 +49,7 @@ def test_mis_weights_of_all_strategies_sum_to_one_for_every_heuristic(heuristic)
         delta = [np.zeros(m, bool)] + [rng.random(m) < 0.2 for _ in range(k - 1)] + [
             np.zeros(m, bool)]
         delta_light = rng.random(m) < 0.2
+        direct = rng.random(m) < 0.5  # k = 1: whether (s, t) = (1, 1) can make the path
         total = np.zeros(m)
         possible = np.zeros(m, bool)
         for s in range(k + 1):
@@ -62,10 +63,11 @@ def test_mis_weights_of_all_strategies_sum_to_one_for_every_heuristic(heuristic)
             if s == 0:
                 can &= ~delta_light
             elif s == k:
-                can &= ~delta[k - 1] if k >= 2 else False
+                can &= ~delta[k - 1] if k >= 2 else direct
             else:
                 can &= ~delta[s - 1] & ~delta[s]
-            w = mis_weight(p_light, p_camera, delta, s, delta_light, heuristic, 2.0, 0.1)
+            w = mis_weight(p_light, p_camera, delta, s, delta_light, heuristic, 2.0, 0.1,
+                           direct=direct)
             assert np.isfinite(w).all() and (w >= 0).all() and (w <= 1 + 1e-12).all()
             total += np.where(can, w, 0.0)
             possible |= can
@@ -115,12 +117,12 @@ def test_bdpt_strategy_images_of_one_path_length_estimate_the_same_light():
         layers = res.layers()
         assert list(layers) == strategy_pass_names(3)
         runs.append(layers)
-    for k in (2, 3):
+    for k in (1, 2, 3):
         pairs = [(s, t) for s, t in strategies(3) if s + t - 1 == k]
         own = {st: np.stack([r[f"Strategy s{st[0]} t{st[1]}"] for r in runs]) for st in pairs}
         weighted = sum(np.stack([r[f"Strategy s{s} t{t} weighted"] for r in runs])
                        for s, t in pairs)
-        ref = own[(1, k)]  # next-event estimation of this length
+        ref = own[(1, k)]  # next-event estimation of this length (k = 1: seen directly)
         for st, imgs in own.items():
             if st != (1, k):
                 assert_replicates_agree(imgs, ref, block=16, what=f"strategy {st} vs (1, {k})")
