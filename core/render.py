@@ -114,8 +114,15 @@ class RenderResult:
 
 
 def _units(n_pixels, first_sample, spp_in_pass, unit_paths=UNIT_PATHS):
-    """Work units of a pass: (pixel_start, pixel_stop, first_sample, n_samples)."""
-    per_unit = max(1, unit_paths // spp_in_pass)
+    """Work units of a pass: (pixel_start, pixel_stop, first_sample, n_samples).
+
+    Units hold at most ``unit_paths`` paths (one pixel at least) and are of equal size, so no
+    small leftover unit runs alone at the end of a pass. The split does not depend on the
+    thread count: splats from several units reach the same pixels, and their sums must be
+    added in the same order whatever the threads.
+    """
+    count = -(-n_pixels * spp_in_pass // max(1, unit_paths))
+    per_unit = -(-n_pixels // max(1, min(count, n_pixels)))
     return [(p, min(p + per_unit, n_pixels), first_sample, spp_in_pass)
             for p in range(0, n_pixels, per_unit)]
 

@@ -58,8 +58,9 @@ from .path import geometric_side_valid, ray_class
 
 HAS_STRATEGY_VIEWS = True
 # Paths per work unit of the render loop: a BDPT sample costs 5-16 path-tracing samples, so
-# units are smaller than the path tracer's to keep cancel and progress within a second.
-UNIT_PATHS = 1 << 12
+# units are smaller than the path tracer's to keep cancel and progress within a second (a call
+# has ~0.1 s of fixed Python cost, so much smaller units would be slower).
+UNIT_PATHS = 1 << 13
 # Paths per chunk: keeps the subpath arrays (depth x paths) small.
 CHUNK = 8192
 # Sample dimensions: 0-1 pixel filter; per camera vertex: BSDF lobe, BSDF 2-D, roulette, light

@@ -26,7 +26,7 @@ from __future__ import annotations
 from . import bdpt
 
 # Paths per work unit (a light-tracing sample costs 2-5 path-tracing samples).
-UNIT_PATHS = 1 << 13
+UNIT_PATHS = 1 << 14
 
 
 def render_samples(prep, settings, pixel_filter, stream, counters):
