@@ -153,6 +153,12 @@ def build_parser():
     v.add_argument("--max-length", type=_positive_int, default=4,
                    help="longest path shown, in segments (default 4)")
     v.add_argument("--output", default="docs/images", help="folder of the PNG")
+    c = sub.add_parser("bench-caustic", help="equal-time error of path, light and BDPT on the "
+                       "small-light glass caustic (docs/CAUSTIC.md)")
+    c.add_argument("--size", type=_resolution, default=(64, 64), help="WxH (default 64x64)")
+    c.add_argument("--seconds", type=_positive_float, default=8.0)
+    c.add_argument("--reference-seconds", type=_positive_float, default=120.0)
+    c.add_argument("--docs", default="docs/CAUSTIC.md", help="markdown report ('' for none)")
     return parser
 
 
@@ -355,6 +361,12 @@ def main(argv=None):
             return cmd_bench_scenes(args, argv)
         if args.command == "bdpt-views":
             return cmd_bdpt_views(args)
+        if args.command == "bench-caustic":
+            from ..bench.caustic import run as caustic_run
+
+            caustic_run(size=args.size, seconds=args.seconds,
+                        reference_seconds=args.reference_seconds, output=args.docs or None)
+            return 0
         if args.command == "samplers":
             from ..core.sampling.lab import main as lab_main
 
