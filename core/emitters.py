@@ -191,6 +191,14 @@ class Emission:
             pdf[m] = sa_pdf * pmf[m]
         return EmitterPoints(index, p, normal, w_inf, pdf, delta, world | (kind == LIGHT_SUN))
 
+    def _point_lobe(self, li):
+        """Radius, spot cone cosine and whether it is a spot, of point lights ``li (m,)``:
+        spheres (radius > 0) emit by cosine about their normal, points into the sphere or the
+        spot's cone."""
+        lights = self.ls.lights
+        cos_half = lights.spot_cos_half[li]
+        return lights.radius[li], cos_half, cos_half > -1.0
+
     def _lamp_area(self, li, disk):
         lights = self.ls.lights
         area = np.linalg.norm(np.cross(lights.axis_x[li], lights.axis_y[li]), axis=1)
@@ -227,9 +235,7 @@ class Emission:
         m = np.nonzero(kind == LIGHT_POINT)[0]
         if m.size:
             li = lidx[m]
-            r = lights.radius[li]
-            cos_half = lights.spot_cos_half[li]
-            spot = cos_half > -1.0
+            r, cos_half, spot = self._point_lobe(li)
             axis = np.where((r > 0)[:, None], pts.normal[m],
                             np.where(spot[:, None], lights.direction[li], [0.0, 0.0, 1.0]))
             s_, t_ = warps.frame_from_normal(axis)
@@ -373,9 +379,7 @@ class Emission:
         m = np.nonzero(kind == LIGHT_POINT)[0]
         if m.size:
             li = lidx[m]
-            r = lights.radius[li]
-            cos_half = lights.spot_cos_half[li]
-            spot = cos_half > -1.0
+            r, cos_half, spot = self._point_lobe(li)
             in_cone = ~spot | (_dot(w[m], lights.direction[li]) > cos_half)
             cone_pdf = warps.uniform_cone_pdf(np.where(spot, cos_half, -1.0)) * in_cone
             out[m] = np.where(r > 0, np.maximum(cos[m], 0.0) / np.pi, cone_pdf)

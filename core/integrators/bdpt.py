@@ -53,7 +53,7 @@ from ..materials.bsdf import IMPORTANCE, RADIANCE, BSDFParams, eval_bsdf, pdf_bs
 from ..materials.frame import shading_frame, to_local, to_world
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_SUN, VIS_CAMERA, VIS_SHADOW
 from .common import (BatchOutput, camera_rays, intersect_by_class, max_component,
-                     surface_interaction)
+                     russian_roulette, surface_interaction)
 from .path import geometric_side_valid, ray_class
 
 HAS_STRATEGY_VIEWS = True
@@ -361,11 +361,7 @@ def _walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, m
         sub.delta[j, r] = smp.delta
         beta = beta[live] * weight
         alive = (smp.pdf > 0) & np.isfinite(beta).all(axis=1)
-        if settings.use_russian_roulette and j - 1 >= settings.rr_min_bounces:
-            q = np.minimum(1.0, max_component(beta))
-            alive &= u_rr < q
-            beta = beta / np.maximum(q, 1e-12)[:, None]
-        alive &= max_component(beta) > 0
+        alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1)
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
             break

@@ -16,6 +16,20 @@ def max_component(v):
     return np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
 
 
+def russian_roulette(beta, alive, u_rr, settings, bounce):
+    """Stage *Russian roulette*: unbiased termination of low-throughput paths.
+
+    After ``settings.rr_min_bounces`` bounces (if ``use_russian_roulette``) a path survives
+    with probability ``q = min(1, max(beta))`` and its throughput is divided by ``q``; paths of
+    zero throughput end. Returns the new ``alive (k,)`` mask and ``beta (k, 3)``.
+    """
+    if settings.use_russian_roulette and bounce >= settings.rr_min_bounces:
+        q = np.minimum(1.0, max_component(beta))
+        alive = alive & (u_rr < q)
+        beta = beta / np.maximum(q, 1e-12)[:, None]
+    return alive & (max_component(beta) > 0), beta
+
+
 @dataclass
 class Counters:
     """Work done by one batch (summed by the render loop).

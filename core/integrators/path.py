@@ -52,7 +52,7 @@ from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..sampling.mis import light_weight
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
 from .common import (Counters, add_emitters_along_rays, camera_rays, intersect_by_class,
-                     max_component, surface_interaction)
+                     max_component, russian_roulette, surface_interaction)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -250,12 +250,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         beta = beta * weight
         alive = (pdf_b > 0) & np.isfinite(beta).all(axis=1)
 
-        # Russian roulette: unbiased termination of low-throughput paths.
-        if settings.use_russian_roulette and bounce >= settings.rr_min_bounces:
-            q = np.minimum(1.0, max_component(beta))
-            alive &= u_rr < q
-            beta = beta / np.maximum(q, 1e-12)[:, None]
-        alive &= max_component(beta) > 0
+        alive, beta = russian_roulette(beta, alive, u_rr, settings, bounce)
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
             break
