@@ -134,7 +134,7 @@ class Subpath:
 class _Context:
     """What the stages of one chunk share."""
 
-    def __init__(self, prep, settings, counters, emission):
+    def __init__(self, prep, settings, counters, emission, pixel_filter, light_only):
         self.prep = prep
         self.settings = settings
         self.counters = counters
@@ -143,8 +143,12 @@ class _Context:
         self.cam_pos = camera_position(self.cam)
         self.smooth = prep.scene.corner_normals is not None
         self.heuristic = settings.mis_heuristic
-        self.views = bool(getattr(settings, "strategy_views", False))
+        self.light_only = light_only
+        self.views = bool(getattr(settings, "strategy_views", False)) and not light_only
         self.view_length = int(getattr(settings, "strategy_max_length", 0))
+        # Light paths reach edge pixels through the filter's reach outside the image.
+        self.film_margin = 0.5 * pixel_filter.support
+        self.light_points = None  # the light subpaths' endpoints, once sampled
 
 
 # ------------------------------------------------------------------------------------ BSDFs
@@ -632,7 +636,7 @@ def _connect_weight(ctx, L, C, s, t, rows, conn, fresh):
                 delta[i] = L.delta[i, rows]
         cos_y = np.abs(_dot(y_normal, w))
         p_light[s] = _to_area(yv.pdf_toward(w_y), cos_z, dist)
-        delta_light = ctx.light_delta[rows]
+        delta_light = ctx.light_points.delta_light[rows]
     if zj >= 2:
         p_light[s + 1] = _to_area(zv.pdf_back(w_z), C.cos_prev[zj, rows], C.d_prev[zj, rows])
     for i in range(s + 2, k + 1):
@@ -704,8 +708,8 @@ def _connect_camera(ctx, L, s, out):
         for i in range(s - 2):
             p_camera[i] = L.pdf_rev[i, rows]
         st = ctx.settings
-        weight = mis_weight(p_light, p_camera, delta, s, ctx.light_delta[rows], ctx.heuristic,
-                            st.mis_beta, st.mis_alpha)
+        weight = mis_weight(p_light, p_camera, delta, s, ctx.light_points.delta_light[rows],
+                            ctx.heuristic, st.mis_beta, st.mis_alpha)
     _splat(ctx, out, s, film_xy, value, weight)
 
 
@@ -770,7 +774,6 @@ def _light_subpath(ctx, stream, n, base, depth):
     u_dir = stream.next_2d()
     pts = em.sample_points(u_sel, u_pos, ctx.counters)
     origin, w, pdf_dir, cos_l, le = em.sample_directions(pts, u_dir)
-    ctx.light_delta = pts.delta_light
     ctx.light_points = pts
     L.valid[0] = pts.index >= 0
     L.p[0] = np.where(pts.infinite[:, None], origin, pts.p)
@@ -832,10 +835,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters, light_only=Fa
     emission = getattr(prep, "emission", None)
     if emission is None:
         emission = prep.emission = Emission(prep.lights, prep.scene.vertices)
-    ctx = _Context(prep, settings, counters, emission)
-    ctx.light_only = light_only
-    ctx.film_margin = 0.5 * pixel_filter.support
-    ctx.views = ctx.views and not light_only
+    ctx = _Context(prep, settings, counters, emission, pixel_filter, light_only)
     counters.camera_samples += n
     segments = settings.max_bounces + 2  # longest path, in segments
     depth = segments                      # vertices per subpath, endpoint included
