@@ -16,6 +16,17 @@ All tests seed their generators, so a run is reproducible; ``alpha`` / ``p_false
 that a *correct* implementation fails for a fresh seed. Tests that use a checker should also
 show that it can fail (a wrong pdf must be rejected at the same sample count).
 
+The image checkers (:func:`assert_images_agree`, :func:`assert_two_images_agree`,
+:func:`assert_replicates_agree`) also bound the other error, a *wrong* image that passes: from
+the standard errors of the comparison they compute the smallest scale error that they detect
+with probability :data:`POWER` (99 %), for the image mean (every channel) and for each 8 x 8
+block (its RGB scaled; blocks darker than :data:`DARK_BLOCK` of the image are left out of the
+figure, though still compared), and fail a test whose images cannot detect the errors it
+asks for (``detect=(image_mean, block)``, by default :data:`DETECT`: 2 % and 5 %). So an
+agreement test states the smallest error it detects, and a change of scene or sample count that
+makes it blind fails instead of passing quietly. ``tests/core/test_checkers.py`` feeds every
+checker wrong images (scaled by 1.02, 1.05, 1.10, a missing bounce, a shifted image).
+
 The special functions (chi-square tail, normal and t quantiles) come from
 :mod:`sampling_lab.core.metrics`, so the suite does not need SciPy.
 """
@@ -23,12 +34,23 @@ The special functions (chi-square tail, normal and t quantiles) come from
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from sampling_lab.core.metrics import block_means, chi2_sf, normal_quantile, student_t_quantile
 
 TWO_PI = 2.0 * np.pi
+
+POWER = 0.99
+"""Probability with which an agreement check must detect the errors it is sized for."""
+
+DETECT = (0.02, 0.05)
+"""Default ``(image_mean, block)`` relative errors every image agreement check must detect."""
+
+DARK_BLOCK = 0.05
+"""Blocks whose mean (summed over channels) is below this fraction of the image's are not held
+to the block target: 5 % of such a block is under 0.25 % of the image mean."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -500,6 +522,110 @@ def block_estimates(img, var_of_mean, block=8):
     return block_means(img, block), np.sqrt(block_means(var_of_mean, block) / (block * block))
 
 
+# --------------------------------------------------------------------------------------------
+# Power: the smallest error an agreement check detects
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Detectable:
+    """Smallest relative scale errors that a comparison detects with probability :data:`POWER`.
+
+    Attributes
+    ----------
+    image_mean : float
+        Of the whole image (the worst channel).
+    block : float
+        Of one block's RGB (each block's most precise channel, the worst block; blocks below
+        :data:`DARK_BLOCK` of the image left out).
+    """
+
+    image_mean: float
+    block: float
+
+
+@dataclass(frozen=True)
+class Agreement:
+    """What an image agreement check found: the image-mean ratio and its power.
+
+    Attributes
+    ----------
+    ratio : (c,) float64
+        Image mean of A over image mean of B, per channel.
+    detectable : Detectable
+    """
+
+    ratio: np.ndarray
+    detectable: Detectable
+
+
+def smallest_detectable(se, reference, critical, power_quantile):
+    """Relative shift ``d`` at which a two-sided test sees ``d * |reference|`` with the power.
+
+    A test that flags ``|difference| > critical * se`` sees a shift ``delta`` with probability at
+    least ``P(Z > critical - delta / se)``; that is the power whose quantile is
+    ``power_quantile`` when ``delta = (critical + power_quantile) * se``.
+
+    Parameters
+    ----------
+    se, reference : (...) float
+        Standard error of the difference and the value it is relative to.
+    critical : float
+        The test's threshold in standard errors.
+    power_quantile : float
+        Quantile of the power (2.33 for 99 % under the normal approximation).
+
+    Returns
+    -------
+    (...) float64
+        ``inf`` where the reference is zero (no relative error is defined there).
+    """
+    se, ref = np.broadcast_arrays(np.asarray(se, np.float64), np.asarray(reference, np.float64))
+    out = np.full(ref.shape, np.inf)
+    np.divide((critical + power_quantile) * se, np.abs(ref), out=out, where=ref != 0)
+    return out
+
+
+def detectable_errors(se_image, ref_image, critical_image, q_image, se_blocks, ref_blocks,
+                      critical_blocks, q_blocks):
+    """:class:`Detectable` of an image comparison.
+
+    Parameters
+    ----------
+    se_image, ref_image : (c,) float
+        Standard error of the image-mean difference and the reference image mean.
+    critical_image, q_image : float
+        Threshold and power quantile of the image-mean test; the threshold may include a
+        relative slack, added to the result by the caller.
+    se_blocks, ref_blocks : (..., c) float
+        The same per block.
+    critical_blocks, q_blocks : float
+    """
+    ref_blocks = np.asarray(ref_blocks, np.float64)
+    image = smallest_detectable(se_image, ref_image, critical_image, q_image).max()
+    per_block = smallest_detectable(se_blocks, ref_blocks, critical_blocks, q_blocks).min(axis=-1)
+    bright = np.abs(ref_blocks).sum(axis=-1) >= DARK_BLOCK * np.abs(np.sum(ref_image))
+    block = per_block[bright].max() if bright.any() else 0.0
+    return Detectable(float(image), float(block))
+
+
+def require_detectable(found, detect, what, block=8):
+    """Print what a comparison detects; assert it meets ``detect = (image_mean, block)``.
+
+    ``detect=None`` only prints (for comparisons that are not agreement certificates).
+    """
+    print(f"{what}: detects {found.image_mean:.2%} image-mean and {found.block:.2%} "
+          f"{block}x{block}-block errors with probability {POWER:.0%}")
+    if detect is None:
+        return found
+    want_image, want_block = detect
+    assert found.image_mean <= want_image and found.block <= want_block, (
+        f"{what}: too few samples for this check to detect a {want_image:.0%} image-mean error "
+        f"and a {want_block:.0%} error in a {block}x{block} block with probability {POWER:.0%}; "
+        f"it detects {found.image_mean:.2%} and {found.block:.2%}: render more samples")
+    return found
+
+
 def _assert_within(value, target, half_width, rtol, atol, what, detail):
     tol = half_width + atol + rtol * np.abs(target)
     err = np.abs(value - target)
@@ -515,8 +641,8 @@ def _assert_within(value, target, half_width, rtol, atol, what, detail):
                              f"{cells}")
 
 
-def assert_images_agree(mean_a, var_a, replicates_b, block=8, p_false=1e-4, mean_rtol=0.01,
-                        what="images"):
+def assert_images_agree(mean_a, var_a, replicates_b, block=8, p_false=1e-4, mean_rtol=0.005,
+                        detect=DETECT, what="images"):
     """Assert that two renderers' images of one scene agree: overall and block by block.
 
     Renderer A reports each pixel's estimate and the variance of that estimate (our Variance
@@ -531,11 +657,22 @@ def assert_images_agree(mean_a, var_a, replicates_b, block=8, p_false=1e-4, mean
     A's variance (B's and A's noise have the same shape when both are path tracers), and never
     taken below the block's own replicate estimate, which only widens the interval.
 
+    The image means may differ by ``mean_rtol`` of B's beyond their interval: Cycles and we
+    round differently in float32 (measured agreement 0.1-0.3 %), so a pure interval on a very
+    precise image mean would flag rounding. The detectable image-mean error includes it.
+
     Parameters
     ----------
     mean_a, var_a : (h, w, c) float
     replicates_b : (m, h, w, c) float
         m >= 2 independent renders of B.
+    detect : (float, float) or None
+        Relative image-mean and block errors the comparison must detect (see
+        :func:`require_detectable`).
+
+    Returns
+    -------
+    Agreement
     """
     a = np.asarray(mean_a, np.float64)
     va = np.asarray(var_a, np.float64)
@@ -564,12 +701,12 @@ def assert_images_agree(mean_a, var_a, replicates_b, block=8, p_false=1e-4, mean
     img_b_reps = reps.mean(axis=(1, 2))
     img_b = img_b_reps.mean(axis=0)
     se = np.sqrt(va.sum(axis=(0, 1)) / (h * w) ** 2 + img_b_reps.var(axis=0, ddof=1) / m)
-    z = z_for_false_failure(p_false, comparisons=c)
-    tol = mean_rtol * np.abs(img_b) + z * se
+    z_image = z_for_false_failure(p_false, comparisons=c)
+    tol = mean_rtol * np.abs(img_b) + z_image * se
     err = np.abs(img_a - img_b)
     assert (err <= tol).all(), (
         f"{what}: image means differ: A {img_a} vs B {img_b} (tolerance {tol}, of which "
-        f"{mean_rtol:.0%} relative and {z:.2f} standard errors {se})")
+        f"{mean_rtol:.1%} relative and {z_image:.2f} standard errors {se})")
 
     # 2. Block means.
     z = z_for_false_failure(p_false, comparisons=hb * wb * c)
@@ -583,11 +720,15 @@ def assert_images_agree(mean_a, var_a, replicates_b, block=8, p_false=1e-4, mean
             f"{what}: {int(bad.sum())} of {bad.size} {block}x{block} block means outside their "
             f"intervals (z={z:.2f}); worst block {i[:2]} channel {i[2]}: A {a_b[i]:.5g} vs B "
             f"{b_b[i]:.5g} +- {half[i]:.3g}")
-    return img_a, img_b
+    q = -normal_quantile(1.0 - POWER)
+    found = detectable_errors(se, img_b, z_image, q, np.sqrt(va_b + vb_b), b_b, z, q)
+    found = Detectable(found.image_mean + mean_rtol, found.block)
+    require_detectable(found, detect, what, block)
+    return Agreement(img_a / img_b, found)
 
 
 def assert_two_images_agree(mean_a, var_a, mean_b, var_b, block=8, p_false=1e-4,
-                            what="images"):
+                            detect=DETECT, what="images"):
     """Assert that two independent renders with variance passes agree, block by block.
 
     Both renderers report each pixel's estimate and the variance of that estimate (our Variance
@@ -600,11 +741,12 @@ def assert_two_images_agree(mean_a, var_a, mean_b, var_b, block=8, p_false=1e-4,
     Parameters
     ----------
     mean_a, var_a, mean_b, var_b : (h, w, c) float
+    detect : (float, float) or None
+        As in :func:`assert_images_agree`.
 
     Returns
     -------
-    z_blocks : (h // block, w // block, c) float64
-        Standardised differences of the block means.
+    Agreement
     """
     ma, sa = block_estimates(np.asarray(mean_a, np.float64), np.asarray(var_a, np.float64), block)
     mb, sb = block_estimates(np.asarray(mean_b, np.float64), np.asarray(var_b, np.float64), block)
@@ -616,8 +758,13 @@ def assert_two_images_agree(mean_a, var_a, mean_b, var_b, block=8, p_false=1e-4,
     se_b = np.sqrt(np.sum(var_b, axis=(0, 1))) / (h * w)
     assert_estimates_agree(img_a, se_a, img_b, se_b, p_false, comparisons,
                            what=f"{what}: image means")
-    return assert_estimates_agree(ma, sa, mb, sb, p_false, comparisons,
-                                  what=f"{what}: {block}x{block} block means")
+    assert_estimates_agree(ma, sa, mb, sb, p_false, comparisons,
+                           what=f"{what}: {block}x{block} block means")
+    z = z_for_false_failure(p_false, comparisons)
+    q = -normal_quantile(1.0 - POWER)
+    found = detectable_errors(np.hypot(se_a, se_b), img_b, z, q, np.hypot(sa, sb), mb, z, q)
+    require_detectable(found, detect, what, block)
+    return Agreement(img_a / img_b, found)
 
 
 def replicate_block_means(imgs, block, mask=None):
@@ -637,14 +784,17 @@ def replicate_block_means(imgs, block, mask=None):
     return np.concatenate(cols, axis=1)
 
 
-def assert_replicates_agree(a, b, block=8, mask=None, p_false=1e-4, what="images"):
+def assert_replicates_agree(a, b, block=8, mask=None, p_false=1e-4, detect=DETECT,
+                            what="images"):
     """Assert that two sets of independent replicate renders agree, block by block.
 
     For renderers whose pixel estimates are correlated (light paths splat into many pixels),
     a pixel variance pass understates a block's variance; replicates do not. Every block mean
     per channel and the image mean per channel (over ``mask``) must agree within the Welch t
-    interval of the difference, with the smaller replicate count's degrees of freedom
-    (conservative), Bonferroni-corrected over all of them.
+    interval of the difference, Bonferroni-corrected over all of them. The degrees of freedom
+    are Welch-Satterthwaite's, the smallest over all compared means (conservative); they grow
+    with the replicate count, so many cheap replicates make a sharper test than a few long ones
+    (with 4 replicates a side the interval is ~100 standard errors wide, with 32 about 6).
 
     Parameters
     ----------
@@ -652,18 +802,29 @@ def assert_replicates_agree(a, b, block=8, mask=None, p_false=1e-4, what="images
         Replicates with different seeds; at least two each.
     mask : (h, w) bool or None
         Pixels compared (all by default).
+    detect : (float, float) or None
+        As in :func:`assert_images_agree`.
 
     Returns
     -------
-    (c,) float64
-        Ratio of the image means, ``a / b``.
+    Agreement
     """
     ba, bb = replicate_block_means(a, block, mask), replicate_block_means(b, block, mask)
     ma, mb = ba.mean(0), bb.mean(0)
-    se = np.sqrt(ba.var(0, ddof=1) / len(a) + bb.var(0, ddof=1) / len(b))
-    dof = min(len(a), len(b)) - 1
+    va, vb = ba.var(0, ddof=1) / len(a), bb.var(0, ddof=1) / len(b)
+    se = np.sqrt(va + vb)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        welch = (va + vb) ** 2 / (va**2 / (len(a) - 1) + vb**2 / (len(b) - 1))
+    dof = max(min(len(a), len(b)) - 1, float(np.nanmin(welch, initial=np.inf)))
+    dof = min(dof, len(a) + len(b) - 2)
     q = -student_t_quantile(0.5 * p_false / ma.size, dof)
     bad = np.abs(ma - mb) > q * se + 1e-12 * np.abs(mb)
     assert not bad.any(), (f"{what}: {bad.sum()} of {ma.size} block means differ beyond "
-                           f"t={q:.3g}: {ma[bad][:4]} vs {mb[bad][:4]} (se {se[bad][:4]})")
-    return ma[-3:] / mb[-3:]
+                           f"t={q:.3g} ({dof:.1f} dof): {ma[bad][:4]} vs {mb[bad][:4]} "
+                           f"(se {se[bad][:4]})")
+    c = a.shape[-1]
+    q_power = -student_t_quantile(1.0 - POWER, dof)
+    found = detectable_errors(se[-c:], mb[-c:], q, q_power, se[:-c].reshape(-1, c),
+                              mb[:-c].reshape(-1, c), q, q_power)
+    require_detectable(found, detect, what, block)
+    return Agreement(ma[-c:] / mb[-c:], found)
