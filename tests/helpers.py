@@ -37,6 +37,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pytest
 
 from sampling_lab.core.metrics import block_means, chi2_sf, normal_quantile, student_t_quantile
 
@@ -557,6 +558,24 @@ class Agreement:
 
     ratio: np.ndarray
     detectable: Detectable
+
+
+@dataclass(frozen=True)
+class Tier:
+    """Size of an agreement test: the default run, or the full-power run of the slow tier.
+
+    The default run states what it detects next to the test (and the checker asserts it); the
+    slow tier (``pytest -m slow``) multiplies the test's sample counts (by the square of the
+    ratio of its stated block error to 5 %) and must detect :data:`DETECT`.
+    """
+
+    full: bool
+
+
+def power_tiers():
+    """``pytest.param`` list: the default size, and the slow tier at full power."""
+    return [pytest.param(Tier(False), id="fast"),
+            pytest.param(Tier(True), id="full", marks=pytest.mark.slow)]
 
 
 def smallest_detectable(se, reference, critical, power_quantile):

@@ -72,6 +72,7 @@ def test_diffuse_objects_under_an_environment_map_agree_with_cycles(empty_scene,
                                             BOUNCES, our_seed=9, cycles_seed=201)
     for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
+    # Detects 0.7 % image-mean and 4.4 % block errors with 99 % power (the default target).
+    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
                                what="environment map")
-    print(f"environment map: image mean ours {a} cycles {b} ratio {a / b}")
+    print(f"environment map: image mean ours / Cycles {found.ratio}")

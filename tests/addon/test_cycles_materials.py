@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import scenes as S
-from tests.helpers import assert_images_agree
+from tests.helpers import DETECT, assert_images_agree
 
 RESOLUTION = (48, 48)
 OUR_SPP = 1024
@@ -30,6 +30,13 @@ SCENES = {
 }
 
 
+# Smallest errors each comparison detects with 99 % power, (image mean, worst 8x8 block),
+# measured at these sample counts; the checker fails the test if its images fall below them.
+# Measured: mirror ball 4.5 % / 130 %, glass sphere 4.4 % / 90 % (their few caustic and
+# highlight blocks), glossy plates 1.1 % / 4.2 %.
+STATED = {"mirror_ball": (0.05, 1.5), "glass_sphere": (0.05, 1.0), "glossy_plates": DETECT}
+
+
 @pytest.mark.parametrize("name", list(SCENES))
 def test_bsdf_families_agree_with_cycles(empty_scene, tmp_path, name):
     scene = empty_scene
@@ -44,6 +51,6 @@ def test_bsdf_families_agree_with_cycles(empty_scene, tmp_path, name):
         assert np.isfinite(img).all()
     assert scene.sampling_lab  # the engine ran on this scene, materials exported as the core kinds
 
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                               what=name)
-    print(f"{name}: image mean ours {a} cycles {b} ratio {a / b}")
+    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
+                                detect=STATED[name], what=name)
+    print(f"{name}: image mean ours / Cycles {found.ratio}")

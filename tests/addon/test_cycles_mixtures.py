@@ -76,6 +76,13 @@ SCENES = {
 }
 
 
+# Smallest errors each comparison detects with 99 % power, (image mean, worst 8x8 block),
+# measured at these sample counts; the checker fails the test if its images fall below them.
+# Measured: 2.7 % / 20 %, 2.4 % / 23 %, 4.9 % / 32 %.
+STATED = {"principled_metallic_transmission": (0.03, 0.23), "mix_diffuse_glossy": (0.03, 0.27),
+          "alpha_plane": (0.055, 0.37)}
+
+
 @pytest.mark.parametrize("name", list(SCENES))
 def test_mixed_materials_agree_with_cycles(empty_scene, tmp_path, name):
     scene = empty_scene
@@ -86,6 +93,6 @@ def test_mixed_materials_agree_with_cycles(empty_scene, tmp_path, name):
     assert (ours["Sample Count"] == OUR_SPP).all()
     for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                               what=name)
-    print(f"{name}: image mean ours {a} cycles {b} ratio {a / b}")
+    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
+                                detect=STATED[name], what=name)
+    print(f"{name}: image mean ours / Cycles {found.ratio}")

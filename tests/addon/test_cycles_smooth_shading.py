@@ -27,6 +27,12 @@ SCENES = {
 }
 
 
+# Smallest errors each comparison detects with 99 % power, (image mean, worst 8x8 block),
+# measured at these sample counts; the checker fails the test if its images fall below them.
+# Measured: diffuse sphere 1.7 % / 16 %, glossy sphere 6.8 % / 48 % (its highlight).
+STATED = {"smooth_diffuse_sphere": (0.02, 0.18), "smooth_glossy_sphere": (0.075, 0.55)}
+
+
 @pytest.mark.parametrize("name", list(SCENES))
 def test_smooth_shading_agrees_with_cycles(empty_scene, tmp_path, name):
     scene = empty_scene
@@ -39,9 +45,9 @@ def test_smooth_shading_agrees_with_cycles(empty_scene, tmp_path, name):
     for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
 
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                               what=name)
-    print(f"{name}: image mean ours {a} cycles {b} ratio {a / b}")
+    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
+                                detect=STATED[name], what=name)
+    print(f"{name}: image mean ours / Cycles {found.ratio}")
 
 
 def test_smooth_sphere_exports_world_corner_normals(empty_scene):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import scenes as S
-from tests.helpers import assert_images_agree
+from tests.helpers import DETECT, assert_images_agree
 
 RESOLUTION = (48, 48)
 OUR_SPP = 256
@@ -160,9 +160,10 @@ def test_textured_plane_agrees_with_cycles(empty_scene, tmp_path):
                                             BOUNCES, our_seed=11, cycles_seed=301)
     for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                               what="textured plane")
-    print(f"textured plane: image mean ours {a} cycles {b} ratio {a / b}")
+    # Detects 0.9 % image-mean and 2.5 % block errors with 99 % power (the default target).
+    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
+                                what="textured plane")
+    print(f"textured plane: image mean ours / Cycles {found.ratio}")
 
 
 @pytest.mark.parametrize("interpolation,extension", [("Closest", 'CLIP'), ("Linear", 'EXTEND'),
@@ -185,5 +186,9 @@ def test_texture_interpolation_and_extension_agree_with_cycles(empty_scene, tmp_
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 64, 16, CYCLES_RUNS, 2,
                                             our_seed=13, cycles_seed=401)
     what = f"{interpolation} {extension}"
-    a, b = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles, what=what)
-    print(f"{what}: image mean ours {a} cycles {b} ratio {a / b}")
+    # Measured: Closest + Clip 1.3 % / 9.2 % (the clipped edge), Linear + Extend 1.0 % / 3.3 %,
+    # Closest + Mirror 1.1 % / 4.3 %.
+    detect = (0.015, 0.11) if extension == 'CLIP' else DETECT
+    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
+                                detect=detect, what=what)
+    print(f"{what}: image mean ours / Cycles {found.ratio}")

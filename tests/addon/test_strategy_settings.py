@@ -157,8 +157,13 @@ def test_renders_with_strategy_switches_agree_with_the_defaults(empty_scene, tmp
         assert np.isfinite(img).all()
     from tests.helpers import assert_two_images_agree
 
+    # Detects (image mean, worst 8x8 block) with 99 % power, measured: balance/uniform/solid
+    # angle/alias 3.8 % / 14 %, light only 3.8 % / 14 %, BSDF only 25 % / 96 % (24 x 24 at 256
+    # spp: this test checks that the switches reach the render; tests/core/test_strategies.py
+    # holds the agreement of each setting).
+    detect = (0.28, 1.1) if switches.get("mis_heuristic") == 'BSDF' else (0.045, 0.17)
     assert_two_images_agree(out["Combined"][..., :3], out["Variance"], ref["Combined"][..., :3],
-                            ref["Variance"], what=str(switches))
+                            ref["Variance"], detect=detect, what=str(switches))
     method = switches.get("distribution", "CDF").lower()
     assert f"lights by {method}: build" in log, log[-2000:]
 

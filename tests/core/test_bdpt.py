@@ -86,6 +86,15 @@ def test_bdpt_rejects_single_strategy_mis_settings_and_orthographic_cameras():
 
 
 # ------------------------------------------------------------------------------------ agreement
+# Smallest (image mean, worst block) errors each comparison below detects with 99 % power,
+# measured at its sample counts (the checker asserts them). The lamps seen by the camera hold
+# most of the variance: the visible 5 cm sphere light ('point') leaves a weak check.
+CORNELL_DETECTS = {("light", "area"): (0.15, 0.2), ("light", "point"): (0.55, 0.7),
+                   ("light", "delta_point"): (0.04, 0.2), ("light", "mesh"): (0.15, 0.2),
+                   ("bdpt", "area"): (0.1, 0.14), ("bdpt", "point"): (0.37, 0.48),
+                   ("bdpt", "delta_point"): (0.045, 0.18), ("bdpt", "mesh"): (0.1, 0.14)}
+
+
 @pytest.mark.parametrize("light", ["area", "point", "delta_point", "mesh"])
 def test_light_tracing_and_bdpt_agree_with_path_tracing_on_the_cornell_box(light):
     """Area light, sphere light (radius 5 cm, seen by the camera), delta point light, and an
@@ -95,12 +104,13 @@ def test_light_tracing_and_bdpt_agree_with_path_tracing_on_the_cornell_box(light
     if light == "delta_point":
         scene.lights = L.point_light((0, 0, 1.7), (1, 1, 1), 60.0, radius=0.0)
     kw = dict(max_bounces=3)
-    pt = _replicates(scene, "path", 8, 32, **kw)
+    pt = _replicates(scene, "path", 32, 8, **kw)
     for integrator in ("light", "bdpt"):
-        imgs = _replicates(scene, integrator, 8, 16 if integrator == "bdpt" else 32, seed0=5,
+        imgs = _replicates(scene, integrator, 32, 4 if integrator == "bdpt" else 8, seed0=5,
                            **kw)
-        ratio = assert_replicates_agree(imgs, pt, what=f"{integrator} vs path ({light})")
-        print(f"{integrator}/path, Cornell {light}: image mean ratio {np.round(ratio, 4)}")
+        found = assert_replicates_agree(imgs, pt, detect=CORNELL_DETECTS[integrator, light],
+                                        what=f"{integrator} vs path ({light})")
+        print(f"{integrator}/path, Cornell {light}: image mean ratio {np.round(found.ratio, 4)}")
 
 
 def test_bdpt_strategy_images_of_one_path_length_estimate_the_same_light():
@@ -110,8 +120,8 @@ def test_bdpt_strategy_images_of_one_path_length_estimate_the_same_light():
     sampled paths."""
     scene = cornell_box(16, 16, "area")
     runs = []
-    for i in range(8):
-        st = RenderSettings(integrator="bdpt", spp=16, seed=77 + 1000 * i, max_bounces=1,
+    for i in range(32):
+        st = RenderSettings(integrator="bdpt", spp=4, seed=77 + 1000 * i, max_bounces=1,
                             strategy_views=True, strategy_max_length=3)
         res = render(scene, st)
         layers = res.layers()
@@ -125,10 +135,14 @@ def test_bdpt_strategy_images_of_one_path_length_estimate_the_same_light():
         ref = own[(1, k)]  # next-event estimation of this length (k = 1: seen directly)
         for st, imgs in own.items():
             if st != (1, k):
-                assert_replicates_agree(imgs, ref, block=16, what=f"strategy {st} vs (1, {k})")
-        ratio = assert_replicates_agree(weighted, ref, block=16,
+                # Measured: 8.5 % / 6.6 % for (2, 1), up to 73 % / 61 % for (0, 3): a camera
+                # path that must hit the light by chance is a weak estimator by design.
+                assert_replicates_agree(imgs, ref, block=16, detect=(0.85, 0.7),
+                                        what=f"strategy {st} vs (1, {k})")
+        # Measured: 0.5 %, 6.3 % and 15 % image-mean errors for lengths 1, 2, 3.
+        found = assert_replicates_agree(weighted, ref, block=16, detect=(0.17, 0.12),
                                          what=f"sum of weighted strategies, length {k}")
-        print(f"length {k}: sum of weighted / NEE strategy = {np.round(ratio, 4)}")
+        print(f"length {k}: sum of weighted / NEE strategy = {np.round(found.ratio, 4)}")
 
 
 def test_weighted_strategy_images_add_up_to_the_combined_image():
@@ -174,11 +188,13 @@ def test_bdpt_converges_to_the_light_tracing_reference_on_a_glass_caustic():
     scene = cornell_sphere(24, 24, "glass", "point")
     mask = _not_ball(scene)
     kw = dict(max_bounces=4)
-    light = _replicates(scene, "light", 8, 32, **kw)
-    bdpt = _replicates(scene, "bdpt", 8, 8, seed0=11, **kw)
-    ratio = assert_replicates_agree(bdpt, light, mask=mask, what="bdpt vs light on walls")
-    print(f"glass caustic, walls seen directly: bdpt / light = {np.round(ratio, 4)}")
-    pt = _replicates(scene, "path", 8, 32, seed0=21, **kw)
+    light = _replicates(scene, "light", 32, 8, **kw)
+    bdpt = _replicates(scene, "bdpt", 32, 2, seed0=11, **kw)
+    # Detects 3.6 % image-mean and 24 % block errors (99 % power).
+    found = assert_replicates_agree(bdpt, light, mask=mask, detect=(0.042, 0.28),
+                                    what="bdpt vs light on walls")
+    print(f"glass caustic, walls seen directly: bdpt / light = {np.round(found.ratio, 4)}")
+    pt = _replicates(scene, "path", 32, 8, seed0=21, **kw)
     # Caustic region: the floor pixels where the light tracer is much brighter than the path
     # tracer's expectation would allow.
     caustic = mask & (light.mean(0).sum(-1) > 2 * pt.mean(0).sum(-1) + 0.05)
@@ -245,9 +261,12 @@ def test_far_from_origin_scene_gives_the_same_image(integrator):
     far.lights.position = far.lights.position + shift
     far.camera.to_world = far.camera.to_world.copy()
     far.camera.to_world[:3, 3] += shift
-    a = _replicates(near, integrator, 4, 8, max_bounces=2)
-    b = _replicates(far, integrator, 4, 8, seed0=50, max_bounces=2)
-    assert_replicates_agree(b, a, block=12, what=f"{integrator}: far vs near")
+    a = _replicates(near, integrator, 16, 2, max_bounces=2)
+    b = _replicates(far, integrator, 16, 2, seed0=50, max_bounces=2)
+    # Measured: BDPT 4.0 % / 3.5 %; light tracing 90 % / 74 % (open scene, 2 spp a run): for
+    # light tracing this checks only finiteness and gross offsets.
+    detect = (1.0, 0.85) if integrator == "light" else (0.046, 0.041)
+    assert_replicates_agree(b, a, block=12, detect=detect, what=f"{integrator}: far vs near")
 
 
 @pytest.mark.parametrize("ball,roughness,smooth", [
@@ -261,10 +280,12 @@ def test_bdpt_agrees_with_path_tracing_on_glossy_glass_and_coated_balls(ball, ro
                            smooth=smooth, subdivisions=3)
     scene.lights.visible_camera[:] = False  # its few bright pixels would only widen the CIs
     kw = dict(max_bounces=4)
-    pt = _replicates(scene, "path", 8, 32, **kw)
-    bd = _replicates(scene, "bdpt", 8, 8, seed0=5, **kw)
-    ratio = assert_replicates_agree(bd, pt, what=f"bdpt vs path, {ball} {roughness}")
-    print(f"bdpt/path, {ball} ball roughness {roughness} smooth {smooth}: {np.round(ratio, 4)}")
+    pt = _replicates(scene, "path", 32, 8, **kw)
+    bd = _replicates(scene, "bdpt", 32, 2, seed0=5, **kw)
+    # Measured: coat 5.8 % / 12 %, glass 7.4-12 % / 22-27 %, mirror 15 % / 33 %.
+    found = assert_replicates_agree(bd, pt, detect=(0.17, 0.38),
+                                    what=f"bdpt vs path, {ball} {roughness}")
+    print(f"bdpt/path, {ball} ball roughness {roughness} smooth {smooth}: {np.round(found.ratio, 4)}")
 
 
 def _ball_on_plane(lights, world_color=(0.0, 0.0, 0.0), world_map=None):
@@ -307,18 +328,20 @@ def test_light_tracing_and_bdpt_agree_with_path_tracing_under_infinite_and_spot_
                                spot_blend=0.3)
     scene = _ball_on_plane(lights, world, world_map)
     kw = dict(max_bounces=3)
-    pt = _replicates(scene, "path", 8, 32, **kw)
+    pt = _replicates(scene, "path", 32, 8, **kw)
     for integrator, spp in (("light", 32), ("bdpt", 8)):
-        imgs = _replicates(scene, integrator, 8, spp, seed0=5, **kw)
+        imgs = _replicates(scene, integrator, 32, spp // 4, seed0=5, **kw)
         if integrator == "light" and case.startswith("world"):
             # A light path cannot reach a pinhole through the sky: compare where the camera
             # sees the ball or the plane.
             mask = pt.mean(0).sum(-1) > 0
         else:
             mask = None
-        ratio = assert_replicates_agree(imgs, pt, mask=mask, block=8,
+        # Measured: light tracing up to 8.1 % / 32 % (world), BDPT up to 7.7 % / 24 % (spot).
+        detect = (0.095, 0.37) if integrator == "light" else (0.09, 0.28)
+        found = assert_replicates_agree(imgs, pt, mask=mask, block=8, detect=detect,
                                         what=f"{integrator} vs path ({case})")
-        print(f"{integrator}/path under {case}: {np.round(ratio, 4)}")
+        print(f"{integrator}/path under {case}: {np.round(found.ratio, 4)}")
 
 
 @pytest.mark.parametrize("sampler", ["stratified", "multijitter", "halton", "hammersley",
@@ -328,13 +351,16 @@ def test_every_sampler_drives_light_tracing_and_bdpt(sampler):
     low-discrepancy one still converges to the path tracer's image."""
     scene = cornell_box(16, 16, "area")
     kw = dict(max_bounces=2)
-    pt = _replicates(scene, "path", 6, 16, **kw)
+    pt = _replicates(scene, "path", 24, 4, **kw)
     for integrator in ("light", "bdpt"):
         imgs = np.stack([render(scene, RenderSettings(
-            integrator=integrator, sampler=sampler, spp=16, seed=31 + 1000 * i, **kw)).film.mean()
-            for i in range(6)])
+            integrator=integrator, sampler=sampler, spp=4, seed=31 + 1000 * i, **kw)).film.mean()
+            for i in range(24)])
         assert np.isfinite(imgs).all()
-        assert_replicates_agree(imgs, pt, block=16, what=f"{integrator} with {sampler}")
+        # Measured: light tracing 28-34 % / 23-28 %, BDPT 27 % / 22 % (the path-traced
+        # reference's visible lamp dominates): this checks that every sampler drives them.
+        assert_replicates_agree(imgs, pt, block=16, detect=(0.39, 0.32),
+                                what=f"{integrator} with {sampler}")
 
 
 def test_bdpt_views_figure_shows_every_strategy_and_the_weighted_shares_make_the_image(

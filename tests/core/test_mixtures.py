@@ -154,6 +154,7 @@ def test_nee_and_bsdf_sampling_agree_on_a_mixed_material():
                                              mis_heuristic=heuristic))
         assert_two_images_agree(ref.combined()[..., :3], ref.variance()[..., :3],
                                 other.combined()[..., :3], other.variance()[..., :3],
+                                detect=(0.43, 1.05),  # measured 33-37 % / 45-90 %
                                 what=f"mixture power vs {heuristic}")
 
 

@@ -91,6 +91,7 @@ def test_nee_and_bsdf_sampling_agree_on_rough_surfaces(kind):
                                              mis_heuristic=heuristic))
         assert_two_images_agree(ref.combined()[..., :3], ref.variance()[..., :3],
                                 other.combined()[..., :3], other.variance()[..., :3],
+                                detect=(0.45, 1.06),  # measured 34-39 % / 43-91 %
                                 what=f"kind {kind} power vs {heuristic}")
 
 

@@ -166,8 +166,10 @@ def test_bsdf_only_renders_a_delta_point_light_black_but_converges_for_an_area_l
     area = scenes.cornell_box(24, 24, light="area")
     a = render(area, RenderSettings(spp=256, seed=1, max_bounces=3, mis_heuristic="bsdf"))
     b = render(area, RenderSettings(spp=64, seed=2, max_bounces=3, mis_heuristic="power"))
+    # Detects 21 % image-mean and 62 % block errors (99 % power): BSDF sampling alone is noisy.
     assert_two_images_agree(a.combined()[..., :3], a.variance(), b.combined()[..., :3],
-                            b.variance(), what="bsdf only vs power, area light")
+                            b.variance(), detect=(0.24, 0.72),
+                            what="bsdf only vs power, area light")
 
 
 # --------------------------------------------------------------------------------------------
@@ -204,7 +206,11 @@ def test_settings_agree_with_the_power_heuristic_on_the_cornell_box(cornell_refe
     res = render(scenes.cornell_box(RES, RES, light=light),
                  RenderSettings(spp=spp, seed=7, max_bounces=3, **overrides))
     ref, ref_var = cornell_reference[light]
+    # Measured (99 % power): 14 % image-mean and 20 % block errors (the visible lamp's edge
+    # pixels hold most of the variance); 15 % / 44 % without MIS or with BSDF sampling only.
+    weak = overrides.get("mis_heuristic") in ("none", "bsdf")
     assert_two_images_agree(res.combined()[..., :3], res.variance(), ref, ref_var,
+                            detect=(0.17, 0.5) if weak else (0.165, 0.23),
                             what=f"{light} {overrides}")
 
 
@@ -216,7 +222,8 @@ def test_agreement_check_rejects_a_fifteen_percent_brighter_light(cornell_refere
     res = render(scene, RenderSettings(spp=SPP, seed=7, max_bounces=3))
     ref, ref_var = cornell_reference["mesh"]
     with pytest.raises(AssertionError, match="outside the interval"):
-        assert_two_images_agree(res.combined()[..., :3], res.variance(), ref, ref_var)
+        assert_two_images_agree(res.combined()[..., :3], res.variance(), ref, ref_var,
+                                detect=(0.165, 0.23))
 
 
 # --------------------------------------------------------------------------------------------
