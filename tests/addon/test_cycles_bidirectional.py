@@ -27,7 +27,7 @@ BOUNCES = 4
 STATED = {("area", "LIGHT"): (0.025, 0.20), ("area", "BDPT"): (0.035, 0.22),
           ("point", "LIGHT"): (0.03, 0.38), ("point", "BDPT"): (0.035, 0.38)}
 # Sample-count factor of the slow tier: (stated block error / 5 %)^2, rounded up.
-FULL_SCALE = {"area": 16, "point": 50}
+FULL_SCALE = {"area": 20, "point": 56}
 
 
 @pytest.mark.parametrize("tier", power_tiers())
