@@ -80,9 +80,50 @@ def test_cancel_keeps_the_samples_already_taken():
     assert np.isfinite(img).all() and img[..., :3].max() > 0
 
 
-def test_time_limit_halts_the_render():
-    res = render(scenes.cornell_box(32, 32), RenderSettings(spp=0, time_limit=0.5))
-    assert res.stats["time_s"] < 5.0 and res.sample_count().max() > 0
+class _FakeClock:
+    """Stands in for the ``time`` module of ``core.render``: its clock moves only when the test
+    moves it, so the time limit runs out at a chosen point whatever the machine's speed."""
+
+    def __init__(self):
+        self.now = 0.0
+
+    def perf_counter(self):
+        return self.now
+
+
+@pytest.mark.parametrize("spp", [0, 1 << 20])
+def test_time_limit_halts_the_render(monkeypatch, spp):
+    """With no sample count (0) or one far beyond reach, the render stops once the time limit
+    has passed, keeping the samples taken, and is not reported as cancelled."""
+    from sampling_lab.core import render as render_module
+
+    clock = _FakeClock()
+    monkeypatch.setattr(render_module, "time", clock)
+    limit, units_before_limit, backstop = 10.0, 3, 50
+    progress_calls, cancel_polls = [], []
+
+    def progress(fraction, text):
+        progress_calls.append(fraction)
+        if len(progress_calls) == units_before_limit:
+            clock.now = limit  # the limit runs out after the third work unit
+
+    def cancel():
+        # Only stops a render whose time limit is broken, which then fails as cancelled.
+        cancel_polls.append(1)
+        return len(cancel_polls) > backstop
+
+    res = render(scenes.cornell_box(16, 16), RenderSettings(spp=spp, time_limit=limit),
+                 progress=progress, cancel=cancel)
+    assert not res.cancelled, "the time limit did not stop the render"
+    counts = res.sample_count()
+    assert counts.min() > 0
+    # It stops at the first check after the limit: at most one more work unit reports.
+    assert units_before_limit <= len(progress_calls) <= units_before_limit + 1
+    if spp:  # a sample count far beyond reach was not reached
+        assert counts.max() < spp and res.stats["spp"] < spp
+    # The stats time is the (fake) clock's: the render ended after the limit.
+    assert res.stats["time_s"] >= limit
+    assert np.isfinite(res.combined()).all()
 
 
 def test_scene_without_camera_is_a_clear_error():
