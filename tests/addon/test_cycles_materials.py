@@ -38,7 +38,7 @@ STATED = {"mirror_ball": (0.05, 1.5), "glass_sphere": (0.05, 1.0), "glossy_plate
 
 
 @pytest.mark.parametrize("name", list(SCENES))
-def test_bsdf_families_agree_with_cycles(empty_scene, tmp_path, name):
+def test_bsdf_families_agree_with_cycles(empty_scene, export, tmp_path, name):
     scene = empty_scene
     SCENES[name](scene)
 
@@ -49,7 +49,17 @@ def test_bsdf_families_agree_with_cycles(empty_scene, tmp_path, name):
     assert (ours["Sample Count"] == OUR_SPP).all()
     for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
-    assert scene.sampling_lab  # the engine ran on this scene, materials exported as the core kinds
+    # The nodes were exported as the core's BSDF kinds, with nothing approximated or ignored.
+    import bpy
+    from sampling_lab.core.scene import MAT_CONDUCTOR, MAT_DIELECTRIC
+
+    expected = {"mirror_ball": {"Mirror": MAT_CONDUCTOR}, "glass_sphere": {"Glass": MAT_DIELECTRIC},
+                "glossy_plates": dict.fromkeys(["Glossy0", "Glossy1", "Glossy2"], MAT_CONDUCTOR)}
+    exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert not exported.messages, exported.messages
+    names = exported.materials.names
+    assert {m: int(exported.materials.kind[names.index(m)]) for m in expected[name]} == (
+        expected[name])
 
     found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
                                 detect=STATED[name], what=name)
