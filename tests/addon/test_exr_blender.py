@@ -3,8 +3,8 @@ Blender reads ours as a multilayer image with our passes."""
 
 from __future__ import annotations
 
+import bpy
 import numpy as np
-import pytest
 
 from sampling_lab.core import exr
 
@@ -67,7 +67,6 @@ def _bottom_half_bright_scene(bpy, tmp_path):
 
 
 def test_blender_render_reads_back_with_bottom_row_first(tmp_path):
-    bpy = pytest.importorskip("bpy")
     import OpenEXR
 
     _, path = _bottom_half_bright_scene(bpy, tmp_path)
@@ -90,8 +89,6 @@ def test_blender_render_reads_back_with_bottom_row_first(tmp_path):
 
 
 def test_blender_reads_our_multilayer_file_as_passes(tmp_path):
-    bpy = pytest.importorskip("bpy")
-
     path = tmp_path / "ours.exr"
     rng = np.random.default_rng(0)
     exr.write_multilayer(path, {
