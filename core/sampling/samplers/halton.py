@@ -1,11 +1,14 @@
-"""Halton sampler: radical inverses in prime bases, Owen-scrambled per pixel.
+"""Halton sampler: radical inverses in prime bases, scrambled per pixel by nested random
+affine digit permutations (an Owen-style scramble).
 
 What it is
     Dimension d of sample i is the radical inverse of i in the d-th prime base b_d (2, 3, 5,
     7, 11, ...): the base-b digits of i mirrored about the radix point. The primes are generated
     in code (a sieve), as many as the path needs. Each (pixel, dimension, seed) gets its own
-    Owen scrambling in base b_d (:func:`..lowdiscrepancy.owen_scrambled_radical_inverse`: every
-    digit permuted by a random permutation chosen by the digits above it), which keeps the
+    nested scrambling in base b_d (:func:`..lowdiscrepancy.owen_scrambled_radical_inverse`:
+    every digit permuted by a random *affine* permutation ``d -> (a d + c) mod b`` chosen by a
+    hash of the digits below it; full Owen scrambling would draw uniformly random
+    permutations, which agree with these on every pair of digits), which keeps the
     stratification, makes every value uniform (so the estimate is unbiased) and decorrelates
     pixels. A 2-D slot at dimension d is the pair (b_d, b_{d+1}) of the Halton sequence.
 Pixels
@@ -74,8 +77,10 @@ class HaltonSampler:
     name = "halton"
     label = "Halton"
     description = ("Halton low-discrepancy sequence: radical inverses in prime bases 2, 3, 5, "
-                   "..., Owen-scrambled per pixel. Progressive; error near 1/N on smooth "
-                   "integrands, less gain in deep bounces (large bases)")
+                   "..., scrambled per pixel by nested random digit permutations (a random "
+                   "affine permutation per digit, chosen by a hash of the digits below it: "
+                   "Owen-style, not fully random permutations). Progressive; error near 1/N "
+                   "on smooth integrands, less gain in deep bounces (large bases)")
     needs_spp = False
 
     def __init__(self, seed=0, spp=None):

@@ -75,7 +75,8 @@ class HammersleySampler:
 
     name = "hammersley"
     label = "Hammersley"
-    description = ("Hammersley point set (i/N, radical inverse of i), Owen-scrambled per pixel: "
+    description = ("Hammersley point set (i/N, radical inverse of i), scrambled per pixel by a "
+                   "hash-based approximation of Owen scrambling (Laine-Karras permutation): "
                    "a (0,2)-net for N a power of two. Needs the sample count; not for "
                    "time-limited renders")
     needs_spp = True

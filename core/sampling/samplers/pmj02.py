@@ -311,7 +311,8 @@ class PMJ02Sampler:
     name = "pmj02"
     label = "PMJ02"
     description = ("Progressive multi-jittered (0,2) sequences (Christensen et al. 2018), "
-                   "Owen-scrambled per pixel: every power-of-two prefix stratified in all "
+                   "scrambled per pixel by a hash-based approximation of Owen scrambling "
+                   "(Laine-Karras permutation): every power-of-two prefix stratified in all "
                    "elementary intervals. Progressive; best up to 4096 samples")
     needs_spp = False
 

@@ -1,4 +1,5 @@
-"""Sobol sampler: Owen-scrambled, padded 2-D Sobol points (pbrt-v4's ``PaddedSobolSampler``).
+"""Sobol sampler: padded 2-D Sobol points (pbrt-v4's ``PaddedSobolSampler``) with a hash-based
+approximation of Owen scrambling.
 
 What it is
     Every 2-D slot (pixel filter, light sample, BSDF sample) takes Sobol dimensions 0 and 1: the
@@ -10,8 +11,10 @@ What it is
     every elementary interval [a 2^-k, (a + 1) 2^-k) x [b 2^-(m-k), (b + 1) 2^-(m-k)). A 1-D
     slot takes the first coordinate of the same construction (van der Corput).
 Randomisation (per pixel, slot and seed)
-    Hash-based Owen scrambling (Laine-Karras / Burley 2020, :func:`..lowdiscrepancy.owen_scramble`)
-    of each coordinate, and Burley's nested shuffle of the sample index
+    A hash-based approximation of Owen scrambling (Laine-Karras / Burley 2020,
+    :func:`..lowdiscrepancy.owen_scramble`: nested, exact in stratification, but the flips of
+    a bit are a hash of the bits above it rather than independent random bits) of each
+    coordinate, and Burley's nested shuffle of the sample index
     (:func:`..lowdiscrepancy.shuffle_index`), each seeded by a hash of (pixel, first dimension of
     the slot, seed). The shuffle maps the first 2^m sample indices onto an aligned block of 2^m
     Sobol indices, which is again a (0, m, 2)-net, and Owen scrambling maps elementary intervals
@@ -81,7 +84,9 @@ class SobolSampler:
 
     name = "sobol"
     label = "Sobol (Owen)"
-    description = ("Owen-scrambled Sobol (0,2)-sequence in every 2-D slot (padded, as pbrt-v4). "
+    description = ("Sobol (0,2)-sequence in every 2-D slot (padded, as pbrt-v4), scrambled per "
+                   "pixel by a hash-based approximation of Owen scrambling (Laine-Karras "
+                   "permutation with Vegdahl's hash: nested, stratification kept exactly). "
                    "Progressive; error near N^-1.5 on smooth integrands at powers of two: "
                    "use 16, 64, 256, ... samples")
     needs_spp = False
