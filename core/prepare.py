@@ -10,11 +10,9 @@ import numpy as np
 from .accel import Accel
 from .lights import LightSampler
 from .materials.bsdf import BSDFParams, is_delta_only
+from .sampling.distributions import Segmented1D
 from .scene import Scene
 from .textures import material_base_color, textured_base_color
-
-# Largest float64 below one: remapped sample numbers stay in [0, 1).
-_ONE_MINUS_EPSILON = float(np.nextafter(1.0, 0.0))
 
 
 def recentred(scene: Scene):
@@ -73,9 +71,12 @@ class PreparedScene:
         Materials whose BSDF is a pure delta distribution (next-event estimation skips them).
     material_mix_rows : (m, c) int64
         Component rows of each material (``Materials.mix_rows``; a single row is its own).
-    material_mix_cdf : (m, c) float64
-        Cumulative mixing weights per material, the last positive one (and the padding after
-        it) exactly 1.
+    material_mix : core.sampling.distributions.Segmented1D or None
+        One segment of ``c`` mixing weights per material (zero on the padding), drawn from by
+        CDF inversion or an alias table as the ``distribution`` setting says; None if no
+        material mixes (``c == 1``).
+    material_mix_count : (m,) int64
+        Components of positive weight per material (1 for plain rows, which keep their number).
     lambert_only : bool
         Every material a triangle uses is a single diffuse BSDF (no mixtures): integrators may
         take a world-space Lambert path.
@@ -100,7 +101,8 @@ class PreparedScene:
     material_bsdf: BSDFParams = None
     material_delta_only: np.ndarray = None
     material_mix_rows: np.ndarray = None
-    material_mix_cdf: np.ndarray = None
+    material_mix: Segmented1D = None
+    material_mix_count: np.ndarray = None
     lambert_only: bool = False
 
     def bsdf(self, prim):
@@ -124,17 +126,15 @@ class PreparedScene:
         """
         rows = self.tri_material[prim]
         u = np.asarray(u_lobe, np.float64).reshape(-1)
-        if self.material_mix_rows.shape[1] == 1:
-            return self.material_mix_rows[rows, 0], u
-        cdf = self.material_mix_cdf[rows]
-        # The first component whose cumulative weight exceeds u (zero weights are never chosen).
-        j = np.minimum((u[:, None] >= cdf).sum(axis=1), cdf.shape[1] - 1)
-        k = np.arange(u.size)
-        hi = cdf[k, j]
-        lo = np.where(j > 0, cdf[k, np.maximum(j - 1, 0)], 0.0)
-        remapped = (u - lo) / np.maximum(hi - lo, 1e-300)
-        remapped = np.clip(remapped, 0.0, _ONE_MINUS_EPSILON)
-        return self.material_mix_rows[rows, j], remapped
+        material = self.material_mix_rows[rows, 0]
+        if self.material_mix is None:
+            return material, u
+        mixed = np.nonzero(self.material_mix_count[rows] > 1)[0]
+        u = u.copy()
+        # Zero-weight components (and the padding) are never chosen, by either method.
+        index, _, u[mixed] = self.material_mix.sample(rows[mixed], u[mixed])
+        material[mixed] = self.material_mix_rows.reshape(-1)[index]
+        return material, u
 
     def choose_bsdf(self, prim, u_lobe, u=None, v=None):
         """BSDF of the hit triangles ``prim (k,)`` for one path vertex each.
@@ -176,7 +176,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
 
     ``light_selection`` (``'power' | 'uniform'``), ``light_sampling`` (``'area' |
     'solid_angle'``) and ``distribution`` (``'cdf' | 'alias'``) configure the
-    :class:`core.lights.LightSampler`; unknown values raise ``ValueError``.
+    :class:`core.lights.LightSampler`; ``distribution`` also draws mixed materials' components.
+    Unknown values raise ``ValueError``.
     """
     scene, shift = recentred(scene)
     v = scene.vertices.astype(np.float64)
@@ -196,27 +197,26 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
                           sampling=light_sampling, method=distribution)
     # BSDF parameters per material, gathered by triangle at shading time.
     bsdf = BSDFParams.from_materials(mats, np.arange(len(mats.kind)))
-    mix_rows, mix_cdf = mixture_table(mats.mix_weights, mats.mix_rows)
+    mix_rows, mix_weights = mixture_table(mats.mix_weights, mats.mix_rows)
+    m, width = mix_rows.shape
+    mix = (Segmented1D(mix_weights.reshape(-1), np.arange(m + 1) * width, method=distribution)
+           if width > 1 else None)
     used = np.unique(scene.material)
     lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used]))
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
-                         mix_rows, mix_cdf, lambert_only)
+                         mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only)
 
 
 def mixture_table(weights, rows):
-    """Component rows ``(m, c) int64`` and cumulative weights ``(m, c) float64`` of a
-    material table's mixtures, trimmed to the widest mixture. The cdf reaches exactly 1 at
-    each row's last positive weight and stays there, so a draw in [0, 1) never picks a
-    zero-weight component or the padding."""
+    """Component rows ``(m, c) int64`` and mixing weights ``(m, c) float64`` of a material
+    table's mixtures, positive weights first in each row (so column 0 is a row's only
+    component when it has one), trimmed to the widest mixture (``c >= 1``)."""
     w = np.asarray(weights, np.float64)
     rows = np.asarray(rows, np.int64)
     if w.size == 0:
         return rows.reshape(0, 1), np.ones((0, 1))
-    positive = w > 0
-    width = max(1, int(np.max(np.where(positive, np.arange(w.shape[1]) + 1, 0))))
-    w, rows, positive = w[:, :width], rows[:, :width], positive[:, :width]
-    cdf = np.cumsum(w, axis=1) / np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
-    last = np.max(np.where(positive, np.arange(width), 0), axis=1)
-    cdf[np.arange(width)[None, :] >= last[:, None]] = 1.0
-    return rows, cdf
+    order = np.argsort(w <= 0, axis=1, kind="stable")
+    w, rows = np.take_along_axis(w, order, 1), np.take_along_axis(rows, order, 1)
+    width = max(1, int((w > 0).sum(axis=1).max()))
+    return rows[:, :width], w[:, :width]

@@ -1,7 +1,8 @@
 """Materials that mix several BSDFs: one component chosen per path vertex.
 
 Checks: :meth:`PreparedScene.choose_material` picks each component as often as its weight
-(chi-square) and never a zero-weight one, the remapped lobe number is uniform again for every
+(chi-square), by CDF inversion and by alias table as the ``distribution`` setting says, and
+never a zero-weight one, the remapped lobe number is uniform again for every
 component (Kolmogorov-Smirnov), single rows pass their number through unchanged; renders of
 mixtures equal the weighted sums of their components in closed form (a plane under a uniform
 sky, a furnace), and next-event estimation agrees with BSDF sampling on a mixed material.
@@ -50,8 +51,9 @@ def _plane(mats, material_rows=(0, 4), world=(1.0, 1.0, 1.0), n=16):
     return Scene(v, f, material, mats, Lights.empty(), cam, world_color=world)
 
 
-def test_mixture_choice_frequencies_match_weights():
-    prep = prepare(_plane(_mixed_table()))
+@pytest.mark.parametrize("method", ["cdf", "alias"])
+def test_mixture_choice_frequencies_match_weights(method):
+    prep = prepare(_plane(_mixed_table()), distribution=method)
     n = 200_000
     u = np.random.default_rng(1).random(n)
     rows, _ = prep.choose_material(np.zeros(n, np.int64), u)
@@ -59,8 +61,9 @@ def test_mixture_choice_frequencies_match_weights():
     chi_square_test(rows - 1, WEIGHTS, what="mixture components")
 
 
-def test_remapped_lobe_number_is_uniform_for_every_component():
-    prep = prepare(_plane(_mixed_table()))
+@pytest.mark.parametrize("method", ["cdf", "alias"])
+def test_remapped_lobe_number_is_uniform_for_every_component(method):
+    prep = prepare(_plane(_mixed_table()), distribution=method)
     n = 100_000
     u = np.random.default_rng(2).random(n)
     rows, remapped = prep.choose_material(np.zeros(n, np.int64), u)
@@ -69,8 +72,9 @@ def test_remapped_lobe_number_is_uniform_for_every_component():
         ks_uniform_test(remapped[rows == row], what=f"remapped u of component {row}")
 
 
-def test_single_rows_keep_their_lobe_number_and_their_own_bsdf():
-    prep = prepare(_plane(_mixed_table()))
+@pytest.mark.parametrize("method", ["cdf", "alias"])
+def test_single_rows_keep_their_lobe_number_and_their_own_bsdf(method):
+    prep = prepare(_plane(_mixed_table()), distribution=method)
     u = np.random.default_rng(3).random(1000)
     prim = np.full(u.size, 2, np.int64)  # a triangle of the plain row
     rows, remapped = prep.choose_material(prim, u)
@@ -89,6 +93,28 @@ def test_zero_weight_components_are_never_chosen_even_at_cdf_edges():
     assert remapped[2] == 0.0 and remapped[1] < 1.0 and remapped[3] < 1.0
     params, delta_only, _ = prep.choose_bsdf(np.zeros(u.size, np.int64), u)
     np.testing.assert_array_equal(delta_only, [False, False, True, True])
+
+
+def test_alias_table_never_chooses_zero_weight_components_or_padding():
+    prep = prepare(_plane(_mixed_table(weights=[0.5, 0.0, 0.5], pad=2)), distribution="alias")
+    # Every column edge of the 5-column table and the numbers next to them.
+    edges = np.arange(6) / 5.0
+    u = np.clip(np.concatenate([edges, np.nextafter(edges, 0.0), np.nextafter(edges, 1.0),
+                                np.linspace(0.0, 1.0, 10_001)]), 0.0, np.nextafter(1.0, 0.0))
+    rows, remapped = prep.choose_material(np.zeros(u.size, np.int64), u)
+    assert set(np.unique(rows)) == {1, 3}
+    assert remapped.min() >= 0.0 and remapped.max() < 1.0
+
+
+def test_distribution_setting_decides_how_a_number_picks_a_component():
+    # CDF inversion keeps the order of the numbers (monotone in u); the alias table does not.
+    # Both pick components with the same frequencies (the test above), so only this shows
+    # that the setting reaches the mixture choice.
+    u = np.linspace(0.0, 0.999, 1000)
+    picks = {m: prepare(_plane(_mixed_table()), distribution=m).choose_material(
+        np.zeros(u.size, np.int64), u)[0] for m in ("cdf", "alias")}
+    assert np.all(np.diff(picks["cdf"]) >= 0)
+    assert np.any(picks["alias"] != picks["cdf"])
 
 
 def test_lambert_fast_path_only_without_mixtures():
