@@ -19,7 +19,7 @@ import sys
 
 from ..core import scenes as builtin_scenes
 from ..core.integrators import INTEGRATORS
-from ..core.render import RenderSettings, render
+from ..core.render import RenderSettings, render, used_settings
 from ..core.lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
 from ..core.sampling.distributions import DISTRIBUTION_METHODS
 from ..core.sampling.mis import MIS_SETTINGS
@@ -109,7 +109,8 @@ def build_parser():
     r.add_argument("--light-selection", choices=LIGHT_SELECTIONS, default=None,
                    help="choose lights by power or uniformly (default power)")
     r.add_argument("--light-sampling", choices=LIGHT_SAMPLINGS, default=None,
-                   help="sample area emitters by area or solid angle (default area)")
+                   help="path tracing: sample area emitters by area or solid angle (default "
+                        "area); light tracing and bdpt always sample them by area")
     r.add_argument("--distribution", choices=DISTRIBUTION_METHODS, default=None,
                    help="discrete sampling by CDF inversion or alias table (default cdf)")
     r.add_argument("--strategy-views", action="store_true", default=None,
@@ -120,7 +121,9 @@ def build_parser():
                         f"(default 3)")
     r.add_argument("--seed", type=int, default=None)
     r.add_argument("--resolution", type=_resolution, default=None, help="WxH")
-    r.add_argument("--threads", type=_positive_int, default=2)
+    r.add_argument("--threads", type=_positive_int, default=None,
+                   help="worker threads (default: a .blend file's Render > Performance > "
+                        "Threads, else one per CPU core)")
     r.add_argument("--frame", type=int, default=None, help="frame of a .blend to render")
     r.add_argument("--png", action="store_true", help="also write an sRGB PNG preview beside OUT")
     r.add_argument("--json", action="store_true", help="print one JSON line of figures")
@@ -250,7 +253,8 @@ def cmd_render(args):
     scene, settings = load_scene(args)
     settings.integrator = args.integrator
     settings.sampler = args.sampler.lower()
-    settings.threads = max(1, args.threads)
+    if args.threads is not None:
+        settings.threads = args.threads
     if args.time is not None:
         settings.spp, settings.time_limit = 0, args.time
     elif args.spp is not None:
@@ -266,6 +270,14 @@ def cmd_render(args):
                         ("strategy_max_length", "strategy_max_length")):
         if getattr(args, flag) is not None:
             setattr(settings, field, getattr(args, flag))
+    used = used_settings(settings)
+    for flag, field in (("mis", "mis_heuristic"), ("mis_beta", "mis_beta"),
+                        ("mis_alpha", "mis_alpha"), ("light_selection", "light_selection"),
+                        ("light_sampling", "light_sampling"), ("distribution", "distribution")):
+        if getattr(args, flag) is not None and used[field] != getattr(settings, field):
+            print(f"note: --{flag.replace('_', '-')} {getattr(args, flag)} does not apply to "
+                  f"{settings.integrator} with --mis {settings.mis_heuristic}: it uses "
+                  f"{used[field]}", file=sys.stderr)
     if settings.strategy_views and not getattr(INTEGRATORS[settings.integrator],
                                                "HAS_STRATEGY_VIEWS", False):
         print(f"note: the {settings.integrator} integrator writes no strategy views "
@@ -301,7 +313,6 @@ def cmd_render(args):
     stats = dict(result.stats)
     stats.update(output=os.path.abspath(args.output), integrator=settings.integrator,
                  sampler=settings.sampler, width=scene.camera.width, height=scene.camera.height,
-                 mis_beta=settings.mis_beta, mis_alpha=settings.mis_alpha,
                  strategy_views=settings.strategy_views,
                  strategy_max_length=settings.strategy_max_length,
                  layers=list(layers))

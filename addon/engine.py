@@ -51,7 +51,26 @@ def render_settings(props):
         filter_width=float(props.filter_width),
         strategy_views=bool(props.use_strategy_views),
         strategy_max_length=int(props.strategy_max_length),
+        # Render > Performance > Threads: Blender resolves Auto to the core count, as Cycles
+        # reads it.
+        threads=int(props.id_data.render.threads),
     )
+
+
+def used_text(stats):
+    """The strategy settings a render used, as the stats line shows them (options that did
+    not apply are left out: ``core.render.used_settings``)."""
+    parts = []
+    heuristic = stats.get("mis_heuristic", "n/a")
+    if heuristic != "n/a":
+        value = {"power": stats.get("mis_beta"), "cutoff": stats.get("mis_alpha")}.get(heuristic)
+        parts.append(f"MIS {heuristic}" + (f" {value:g}" if isinstance(value, float) else ""))
+    if stats.get("light_selection", "n/a") != "n/a":
+        parts.append(f"lights {stats['light_selection']} by {stats.get('distribution')}, "
+                     f"emitters by {stats.get('light_sampling')}")
+    else:
+        parts.append(f"no light sampling, mixtures by {stats.get('distribution')}")
+    return ", ".join(parts)
 
 
 def render_region(render, width, height, result_width, result_height):
@@ -163,10 +182,11 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
                 self.report({'WARNING'}, f"Sampling Lab: {message}")
         stats = out.stats
         summary = (f"{stats.get('spp', 0)} spp in {stats.get('time_s', 0.0):.2f} s "
+                   f"on {stats.get('threads', 1)} threads "
                    f"(export {export_s:.2f} s), "
                    f"{stats.get('samples_per_s', 0.0) / 1e6:.2f} M samples/s, "
                    f"{stats.get('rays_per_s', 0.0) / 1e6:.2f} M rays/s, "
-                   f"lights by {stats.get('distribution', 'cdf')}: build "
+                   f"{used_text(stats)}, build "
                    f"{1e3 * stats.get('distribution_build_s', 0.0):.2f} ms, sampling "
                    f"{1e3 * stats.get('distribution_sample_s', 0.0):.1f} ms"
                    + (", cancelled" if out.cancelled else ""))

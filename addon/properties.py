@@ -118,7 +118,8 @@ LIGHT_SAMPLING_ITEMS = (
 
 DISTRIBUTION_ITEMS = (
     ('CDF', "CDF Inversion",
-     "Discrete choices (which light, which emissive triangle) by binary search in a "
+     "Discrete choices (which light, which emissive triangle, which component of a mixed "
+     "material) by binary search in a "
      "cumulative distribution: O(log n) per sample, preserves the stratification of the "
      "sampler's numbers"),
     ('ALIAS', "Alias Table",
@@ -231,14 +232,17 @@ class SamplingLabSettings(PropertyGroup):
     )
     light_sampling: EnumProperty(
         name="Area Lights",
-        description="How a point on an area light or emissive triangle is sampled: uniformly "
-                    "by area, or uniformly over the solid angle it covers",
+        description="Path Tracing only: how next-event estimation samples a point on an "
+                    "area light or emissive triangle, uniformly by area or uniformly over the "
+                    "solid angle it covers. Light Tracing and Bidirectional start their light "
+                    "paths on emitters sampled by area",
         items=LIGHT_SAMPLING_ITEMS,
         default='AREA',
     )
     distribution: EnumProperty(
         name="Discrete Sampling",
-        description="Data structure for discrete choices (lights, emissive triangles): CDF "
+        description="Data structure for discrete choices (lights, emissive triangles, mixed "
+                    "materials' components): CDF "
                     "inversion or an alias table. Its build and sampling times are shown in "
                     "the render stats",
         items=DISTRIBUTION_ITEMS,

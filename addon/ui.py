@@ -71,10 +71,12 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         sub.active = light_tracing or settings.mis_heuristic != 'BSDF'
         sub.prop(settings, "light_selection")
         area = sub.column()
-        # Solid-angle sampling needs a receiving point; light tracing samples emitters by area.
-        area.active = sub.active and not light_tracing
+        # Only the path tracer samples emitters toward a receiving point: light and BDPT
+        # paths start on emitters sampled by area (core.render.used_settings).
+        area.active = sub.active and settings.integrator == 'PATH'
         area.prop(settings, "light_sampling")
-        sub.prop(settings, "distribution")
+        # Also draws mixed materials' components: active whatever the light sampling.
+        col.prop(settings, "distribution")
 
 
 class SAMPLINGLAB_RENDER_PT_strategy_views(SamplingLabButtonsPanel, Panel):
@@ -123,6 +125,22 @@ class SAMPLINGLAB_RENDER_PT_film(SamplingLabButtonsPanel, Panel):
         col.prop(settings, "filter_width")
 
 
+class SAMPLINGLAB_RENDER_PT_performance(SamplingLabButtonsPanel, Panel):
+    bl_label = "Performance"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout, _ = settings_layout(self, context)
+
+        rd = context.scene.render
+        col = layout.column()
+        # Blender's own thread setting, read as Cycles reads it: Auto is one thread per core.
+        col.prop(rd, "threads_mode")
+        sub = col.column(align=True)
+        sub.enabled = rd.threads_mode == 'FIXED'
+        sub.prop(rd, "threads")
+
+
 class SAMPLINGLAB_OBJECT_PT_ray_visibility(Panel):
     bl_label = "Ray Visibility"
     bl_space_type = 'PROPERTIES'
@@ -145,10 +163,19 @@ class SAMPLINGLAB_OBJECT_PT_ray_visibility(Panel):
 
         col = layout.column(heading="Visible To")
         col.prop(ob, "visible_camera", text="Camera", toggle=False)
-        col.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
-        col.prop(ob, "visible_glossy", text="Glossy", toggle=False)
-        col.prop(ob, "visible_transmission", text="Transmission", toggle=False)
+        bounces = col.column()
+        # Light Tracing and Bidirectional trace every segment of a camera path with the camera
+        # rays' visibility and every light path segment with the shadow rays' (core.integrators.bdpt).
+        path_tracing = context.scene.sampling_lab.integrator == 'PATH'
+        bounces.active = path_tracing
+        bounces.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
+        bounces.prop(ob, "visible_glossy", text="Glossy", toggle=False)
+        bounces.prop(ob, "visible_transmission", text="Transmission", toggle=False)
         col.prop(ob, "visible_shadow", text="Shadow", toggle=False)
+        if not path_tracing:
+            note = layout.column(align=True)
+            note.label(text="Path Tracing only: Diffuse, Glossy, Transmission.", icon='INFO')
+            note.label(text="Camera paths bounce with Camera visibility, light paths with Shadow.")
 
 
 classes = (
@@ -157,6 +184,7 @@ classes = (
     SAMPLINGLAB_RENDER_PT_strategy_views,
     SAMPLINGLAB_RENDER_PT_light_paths,
     SAMPLINGLAB_RENDER_PT_film,
+    SAMPLINGLAB_RENDER_PT_performance,
     SAMPLINGLAB_OBJECT_PT_ray_visibility,
 )
 

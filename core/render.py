@@ -1,8 +1,8 @@
 """The render loop: progressive passes of wavefront batches on worker threads.
 
 A pass adds ``spp_per_pass`` samples to every pixel. Each pass is cut into work units (a range of
-pixels times a range of sample indices) that two worker threads run concurrently; Embree and large
-NumPy operations release the GIL. Units cover disjoint pixels and their results are accumulated in
+pixels times a range of sample indices) that worker threads (``threads``, one per core by default)
+run concurrently; Embree and large NumPy operations release the GIL. Units cover disjoint pixels and their results are accumulated in
 unit order, and every random number is a function of (pixel, sample index, dimension, seed), so the
 same seed gives a bit-identical image whatever the thread count or timing.
 
@@ -13,6 +13,7 @@ cancelled render keeps every sample it finished (pixels may then hold different 
 
 from __future__ import annotations
 
+import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -27,10 +28,14 @@ from .prepare import prepare
 from .sampling.distributions import DISTRIBUTION_METHODS
 from .sampling.mis import HEURISTICS, MIS_SETTINGS
 from .sampling.samplers import make_sampler
+from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 # Target number of paths per work unit: large enough for NumPy to amortise Python overhead,
 # small enough that a unit takes well under a second (cancel latency) and fits in memory.
 UNIT_PATHS = 1 << 15
+# Work units per pass when the image is small: a pass keeps several threads busy. The pass size
+# must not depend on the thread count, or the film's sums would be added in another order.
+PASS_UNITS = 8
 
 
 @dataclass
@@ -47,6 +52,8 @@ class RenderSettings:
     ``strategy_views`` asks BDPT for one image per strategy ``(s, t)`` (its own estimate and its
     MIS-weighted share) for path lengths up to ``strategy_max_length`` segments, see
     :func:`core.integrators.common.strategy_pass_names`.
+
+    ``threads`` is the number of worker threads, 0 for one per CPU core (Blender's Auto).
     """
 
     integrator: str = "path"
@@ -65,7 +72,7 @@ class RenderSettings:
     distribution: str = "cdf"
     filter_type: str = "BLACKMAN_HARRIS"
     filter_width: float = 1.5
-    threads: int = 2
+    threads: int = 0
     strategy_views: bool = False
     strategy_max_length: int = 3
 
@@ -127,6 +134,42 @@ def _units(n_pixels, first_sample, spp_in_pass, unit_paths=UNIT_PATHS):
             for p in range(0, n_pixels, per_unit)]
 
 
+def used_settings(settings):
+    """The sampling-strategy settings a render really uses; ``'n/a'`` where its integrator has
+    nothing to apply them to.
+
+    Light tracing has one strategy per path (no MIS weights); light and BDPT paths start on
+    emitters sampled by area (a light vertex needs no receiving point, and BDPT's MIS weights
+    use area densities), so ``light_sampling`` is ``'area'`` for them; the path tracer's
+    ``bsdf`` setting never samples lights (``distribution`` still draws mixed materials'
+    components). The render stats report these values, and the add-on greys out the same
+    options.
+
+    Parameters
+    ----------
+    settings : RenderSettings
+
+    Returns
+    -------
+    dict
+        ``mis_heuristic``, ``mis_beta``, ``mis_alpha``, ``light_selection``,
+        ``light_sampling``, ``distribution``.
+    """
+    path = settings.integrator == "path"
+    weighs = settings.integrator != "light" and settings.mis_heuristic in HEURISTICS
+    samples_lights = not (path and settings.mis_heuristic == "bsdf")
+    na = "n/a"
+    return {
+        "mis_heuristic": settings.mis_heuristic if settings.integrator != "light" else na,
+        "mis_beta": settings.mis_beta if weighs and settings.mis_heuristic == "power" else na,
+        "mis_alpha": settings.mis_alpha if weighs and settings.mis_heuristic == "cutoff" else na,
+        "light_selection": settings.light_selection if samples_lights else na,
+        "light_sampling": ((settings.light_sampling if path else "area")
+                           if samples_lights else na),
+        "distribution": settings.distribution,
+    }
+
+
 def check_settings(scene, settings):
     """Raise ``ValueError`` with a user-facing message for settings that cannot render."""
     if scene.camera is None:
@@ -177,7 +220,10 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     """
     check_settings(scene, settings)
     t0 = time.perf_counter()
-    prep = prepare(scene, settings.light_selection, settings.light_sampling,
+    used = used_settings(settings)
+    # Light and BDPT paths start by area whatever the setting (see used_settings).
+    prep = prepare(scene, settings.light_selection,
+                   "solid_angle" if used["light_sampling"] == "solid_angle" else "area",
                    settings.distribution)
     prepare_s = time.perf_counter() - t0
     cam = scene.camera
@@ -195,6 +241,12 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         if soft:
             result.messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
                                    f"is rendered as a plain sphere light")
+    bounce_bits = VIS_DIFFUSE | VIS_GLOSSY | VIS_TRANSMISSION
+    if (settings.integrator in ("light", "bdpt") and len(scene.visibility)
+            and np.any((np.asarray(scene.visibility) & bounce_bits) != bounce_bits)):
+        result.messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
+                               f"visibility are honoured by path tracing only; camera paths "
+                               f"bounce with Camera visibility, light paths with Shadow")
     if settings.strategy_views and getattr(integrator, "HAS_STRATEGY_VIEWS", False):
         result.layer_names = strategy_pass_names(settings.strategy_max_length)
 
@@ -202,7 +254,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     total_spp = settings.spp if settings.spp > 0 else None
     # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
     unit_paths = getattr(integrator, "UNIT_PATHS", UNIT_PATHS)
-    spp_per_pass = max(1, min(unit_paths * max(1, settings.threads) // n_pix, 64))
+    spp_per_pass = max(1, min(unit_paths * PASS_UNITS // n_pix, 64))
+    threads = thread_count(settings)
     counters = Counters()
     done_spp = 0
     t_start = time.perf_counter()
@@ -249,7 +302,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                                      f"{distribution_text(prep.lights, counters)}")
 
     cancelled = False
-    with ThreadPoolExecutor(max_workers=max(1, settings.threads)) as pool:
+    with ThreadPoolExecutor(max_workers=threads) as pool:
         while not cancelled:
             if total_spp is not None and done_spp >= total_spp:
                 break
@@ -262,7 +315,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
             finished_units = 0
             i = 0
             while i < len(units) or pending:
-                while i < len(units) and len(pending) < max(1, settings.threads):
+                while i < len(units) and len(pending) < threads:
                     pending.append(pool.submit(run_unit, units[i]))
                     i += 1
                 accumulate(*pending.pop(0).result())
@@ -293,6 +346,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     result.stats = {
         "time_s": t,
         "prepare_s": prepare_s,
+        "threads": threads,
         "spp": done_spp,
         "samples": counters.camera_samples,
         "samples_per_s": counters.camera_samples / t if t > 0 else 0.0,
@@ -300,10 +354,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         "rays_per_s": counters.rays / t if t > 0 else 0.0,
         "triangles": scene.n_triangles,
         "emitters": prep.lights.n_emitters,
-        "mis_heuristic": settings.mis_heuristic,
-        "light_selection": settings.light_selection,
-        "light_sampling": settings.light_sampling,
-        "distribution": prep.lights.method,
+        **used,
         "distribution_build_s": prep.lights.build_s,
         "distribution_sample_s": counters.distribution_s,
         "distribution_samples": counters.distribution_samples,
@@ -311,6 +362,11 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                                        / max(counters.distribution_samples, 1)),
     }
     return result
+
+
+def thread_count(settings):
+    """Worker threads of a render: ``settings.threads``, or one per CPU core if it is 0."""
+    return settings.threads if settings.threads > 0 else max(1, os.cpu_count() or 1)
 
 
 def distribution_text(lights, counters):

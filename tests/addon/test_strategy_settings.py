@@ -165,7 +165,9 @@ def test_renders_with_strategy_switches_agree_with_the_defaults(empty_scene, tmp
     assert_two_images_agree(out["Combined"][..., :3], out["Variance"], ref["Combined"][..., :3],
                             ref["Variance"], detect=detect, what=str(switches))
     method = switches.get("distribution", "CDF").lower()
-    assert f"lights by {method}: build" in log, log[-2000:]
+    assert f"by {method}, " in log, log[-2000:]
+    if switches.get("mis_heuristic") != 'BSDF':
+        assert f"emitters by {switches.get('light_sampling', 'AREA').lower()}, " in log
 
 
 def test_blend_file_strategy_settings_reach_the_command_line(empty_scene, tmp_path):
@@ -190,3 +192,46 @@ def test_blend_file_strategy_settings_reach_the_command_line(empty_scene, tmp_pa
 
     cli = read_multilayer(tmp_path / "cli.exr")
     np.testing.assert_array_equal(cli["Combined"], engine["Combined"])
+
+
+def test_mis_parameters_set_in_blender_reach_the_weights(empty_scene, tmp_path):
+    # The limits of the parameters are other heuristics (tests/core/test_mis_parameters.py):
+    # same seed, same weights, the same image bit for bit. A Beta or Alpha that did not reach
+    # the renderer would break an equality.
+    S.cornell_box(empty_scene, "mesh", (16, 12))
+    S.set_sampling_lab(empty_scene, samples=2, seed=7, max_bounces=3)
+    props = empty_scene.sampling_lab
+
+    def image(heuristic, **values):
+        props.mis_heuristic = heuristic
+        for name, value in values.items():
+            setattr(props, name, value)
+        return S.render_to_exr(empty_scene, tmp_path / f"{heuristic}.exr")["Combined"]
+
+    balance, maximum = image('BALANCE'), image('MAXIMUM')
+    np.testing.assert_array_equal(image('POWER', mis_beta=1.0), balance)
+    assert np.any(image('POWER', mis_beta=3.0) != balance)
+    np.testing.assert_array_equal(image('CUTOFF', mis_alpha=0.0), balance)
+    np.testing.assert_array_equal(image('CUTOFF', mis_alpha=1.0), maximum)
+
+
+@pytest.mark.parametrize("mode, threads", [('FIXED', 1), ('FIXED', 3), ('AUTO', None)])
+def test_blenders_thread_setting_sets_the_render_threads(empty_scene, engine_module, mode,
+                                                         threads):
+    import os
+
+    render = empty_scene.render
+    render.threads_mode = mode
+    if threads is not None:
+        render.threads = threads
+    expected = threads if mode == 'FIXED' else os.cpu_count()
+    assert engine_module.render_settings(empty_scene.sampling_lab).threads == expected
+
+
+def test_render_stats_report_the_threads_used(empty_scene, tmp_path, capfd):
+    S.cornell_box(empty_scene, "mesh", (8, 8))
+    S.set_sampling_lab(empty_scene, samples=1)
+    empty_scene.render.threads_mode, empty_scene.render.threads = 'FIXED', 3
+    capfd.readouterr()
+    S.render_to_exr(empty_scene, tmp_path / "threads.exr")
+    assert "on 3 threads" in capfd.readouterr().out

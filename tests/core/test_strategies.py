@@ -400,6 +400,8 @@ def cli_results(tmp_path_factory):
         "ok": base + ["--json", "--quiet", "--mis", "cutoff", "--mis-alpha", "0.25",
                       "--mis-beta", "3", "--light-selection", "uniform",
                       "--light-sampling", "solid_angle", "--distribution", "alias"],
+        "bdpt solid angle": base + ["--json", "--quiet", "--integrator", "bdpt",
+                                    "--light-sampling", "solid_angle"],
         "bad mis": base + ["--mis", "veach"],
         "bad beta": base + ["--mis-beta", "0"],
         "bad beta text": base + ["--mis-beta", "two"],
@@ -418,11 +420,24 @@ def test_cli_strategy_flags_reach_the_renderer_and_its_json(cli_results):
     code, out, err = cli_results["ok"]
     assert code == 0, err
     stats = json.loads(out.strip().splitlines()[-1])
-    assert (stats["mis_heuristic"], stats["mis_alpha"], stats["mis_beta"]) == ("cutoff", 0.25, 3.0)
+    # The cutoff heuristic has no beta: the stats say so and a note tells the user.
+    assert (stats["mis_heuristic"], stats["mis_alpha"], stats["mis_beta"]) == (
+        "cutoff", 0.25, "n/a")
+    assert "note: --mis-beta 3.0 does not apply to path with --mis cutoff" in err
     assert (stats["light_selection"], stats["light_sampling"], stats["distribution"]) == (
         "uniform", "solid_angle", "alias")
     for key in ("distribution_build_s", "distribution_sample_s"):
         assert isinstance(stats[key], float) and stats[key] > 0, key
+
+
+def test_cli_says_when_a_strategy_flag_does_not_apply_and_the_stats_report_what_was_used(
+        cli_results):
+    code, out, err = cli_results["bdpt solid angle"]
+    assert code == 0, err
+    stats = json.loads(out.strip().splitlines()[-1])
+    assert stats["light_sampling"] == "area"
+    assert "note: --light-sampling solid_angle does not apply to bdpt" in err
+    assert "it uses area" in err
 
 
 @pytest.mark.parametrize("case", ["bad mis", "bad beta", "bad beta text", "bad alpha",
@@ -433,3 +448,30 @@ def test_cli_bad_strategy_values_exit_2_with_one_line(cli_results, case):
     lines = err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("sampling_lab: error:"), err
     assert out == ""
+
+
+@pytest.mark.parametrize("integrator, heuristic, expected", [
+    ("path", "power", dict(mis_heuristic="power", mis_beta=3.0, mis_alpha="n/a",
+                           light_selection="uniform", light_sampling="solid_angle")),
+    ("path", "cutoff", dict(mis_beta="n/a", mis_alpha=0.25)),
+    ("path", "bsdf", dict(mis_beta="n/a", mis_alpha="n/a", light_selection="n/a",
+                          light_sampling="n/a", distribution="alias")),
+    ("bdpt", "power", dict(mis_beta=3.0, light_selection="uniform", light_sampling="area")),
+    ("light", "power", dict(mis_heuristic="n/a", mis_beta="n/a", light_sampling="area")),
+])
+def test_render_stats_report_the_strategy_settings_each_integrator_used(integrator, heuristic,
+                                                                        expected):
+    settings = RenderSettings(integrator=integrator, spp=1, mis_heuristic=heuristic,
+                              mis_beta=3.0, mis_alpha=0.25, light_selection="uniform",
+                              light_sampling="solid_angle", distribution="alias")
+    stats = render(scenes.cornell_box(8, 8), settings).stats
+    assert {k: stats[k] for k in expected} == expected
+
+
+@pytest.mark.parametrize("integrator", ["light", "bdpt"])
+def test_solid_angle_setting_leaves_light_tracing_and_bdpt_images_unchanged(integrator):
+    # They start light paths on emitters sampled by area: the setting is greyed out for them.
+    images = [render(scenes.cornell_box(12, 12), RenderSettings(
+        integrator=integrator, spp=2, seed=4, light_sampling=s)).combined()
+        for s in ("area", "solid_angle")]
+    np.testing.assert_array_equal(images[0], images[1])
