@@ -87,21 +87,23 @@ def camera_position(cam: Camera):
     return np.asarray(cam.to_world, np.float64)[:3, 3].copy()
 
 
-def project(cam: Camera, p, margin=0.0):
+def project(cam: Camera, p, margin=0.0, window=None):
     """Where points ``p (n, 3)`` land on the film of a perspective camera (inverse of
     :func:`generate_rays`).
 
     ``margin`` (pixels) widens the film on every side: with a pixel filter wider than a pixel,
     camera rays of edge pixels leave through film positions up to half the filter's width
     outside the image, and light paths arriving there must still reach those pixels.
+    ``window = (x0, y0, x1, y1)`` (frame pixels, a render region) narrows the film to that
+    window before the margin widens it; None is the whole frame.
 
     Returns
     -------
     film_xy : (n, 2) float64
-        Film position in pixels (x from the left, y from the bottom); may lie outside.
+        Film position in frame pixels (x from the left, y from the bottom); may lie outside.
     visible : (n,) bool
-        In front of the camera, between the clipping planes and inside the film's extent
-        (widened by ``margin``).
+        In front of the camera, between the clipping planes and inside the film's extent (the
+        window's, widened by ``margin``).
     cos_theta : (n,) float64
         Cosine between the view axis and the direction to the point.
     dist : (n,) float64
@@ -122,9 +124,10 @@ def project(cam: Camera, p, margin=0.0):
     fx = ((tx - sx) / (2.0 * half_x) + 0.5) * cam.width
     fy = ((ty - sy) / (2.0 * half_y) + 0.5) * cam.height
     film_xy = np.stack([fx, fy], axis=-1)
+    x0, y0, x1, y1 = window if window is not None else (0, 0, cam.width, cam.height)
     visible = ((depth > 0) & (depth >= cam.clip_start) & (depth <= cam.clip_end)
-               & (fx >= -margin) & (fx < cam.width + margin) & (fy >= -margin)
-               & (fy < cam.height + margin)
+               & (fx >= x0 - margin) & (fx < x1 + margin) & (fy >= y0 - margin)
+               & (fy < y1 + margin)
                & np.isfinite(fx) & np.isfinite(fy))
     return np.where(np.isfinite(film_xy), film_xy, -1.0), visible, np.where(
         visible, cos_theta, 0.0), dist
@@ -146,9 +149,16 @@ def importance(cam: Camera, cos_theta):
         return np.where(c > 0, 1.0 / (a_pixel * c**3), 0.0)
 
 
-def camera_pdf(cam: Camera, cos_theta):
+def camera_pdf(cam: Camera, cos_theta, pixels=None):
     """Solid-angle density ``(n,)`` of a camera ray in a direction at ``cos_theta`` from the
-    view axis (uniform over the film): ``1 / (A_film cos^3 theta)``; zero behind the camera."""
+    view axis (uniform over the film): ``1 / (A_film cos^3 theta)``; zero behind the camera.
+
+    ``pixels`` is the number of pixels the camera rays are drawn over when that is not the
+    whole frame (a render region): the film area is then that many pixels' area.
+    """
     c = np.asarray(cos_theta, np.float64)
+    area = film_plane_area(cam)
+    if pixels is not None:
+        area *= pixels / (cam.width * cam.height)
     with np.errstate(divide="ignore"):
-        return np.where(c > 0, 1.0 / (film_plane_area(cam) * c**3), 0.0)
+        return np.where(c > 0, 1.0 / (area * c**3), 0.0)

@@ -92,6 +92,17 @@ class PixelFilter:
 class Film:
     """Accumulation buffers for a ``width`` x ``height`` image (row 0 at the bottom).
 
+    A film may be a window of a larger frame (a render region): its pixel ``(0, 0)`` is the
+    frame's pixel ``(x0, y0)``. Camera samples are added by window pixel index; splats come at
+    frame positions and only the taps that fall inside the window are kept.
+
+    Parameters
+    ----------
+    width, height : int
+        Size of the window (the whole image when it is the frame).
+    x0, y0 : int
+        Frame pixel of the window's lower-left pixel.
+
     Attributes
     ----------
     sum, sum_sq : (h * w, 3) float64
@@ -104,9 +115,11 @@ class Film:
         Light paths traced so far (the splat estimator's denominator).
     """
 
-    def __init__(self, width, height):
+    def __init__(self, width, height, x0=0, y0=0):
         self.width = int(width)
         self.height = int(height)
+        self.x0 = int(x0)
+        self.y0 = int(y0)
         n = self.width * self.height
         self.sum = np.zeros((n, 3))
         self.sum_sq = np.zeros((n, 3))
@@ -134,9 +147,10 @@ class Film:
 
         With ``pixel_filter`` (a :class:`PixelFilter`) each contribution is spread over the
         pixels whose filter covers its position, weighted by the filter's normalised density;
-        without, it goes to the pixel that contains it (a 1-pixel box). Non-finite values and
-        positions outside the image are dropped. Call :meth:`add_splat_paths` once per batch
-        with the number of light paths that batch traced.
+        without, it goes to the pixel that contains it (a 1-pixel box). Positions are in frame
+        pixels (see the class docstring); non-finite values and taps outside the window are
+        dropped. Call :meth:`add_splat_paths` once per batch with the number of light paths
+        that batch traced.
         """
         pixel, weighted = self._splat_taps(film_xy, value, pixel_filter)
         n = self.n_pixels
@@ -149,7 +163,7 @@ class Film:
         film_xy = np.asarray(film_xy, np.float64).reshape(-1, 2)
         value = np.asarray(value, np.float64).reshape(-1, 3)
         ok = np.isfinite(value).all(axis=1) & np.isfinite(film_xy).all(axis=1)
-        film_xy, value = film_xy[ok], value[ok]
+        film_xy, value = film_xy[ok] - (self.x0, self.y0), value[ok]
         if pixel_filter is None:
             x = np.floor(film_xy[:, 0]).astype(np.int64)
             y = np.floor(film_xy[:, 1]).astype(np.int64)

@@ -6,6 +6,13 @@ run concurrently; Embree and large NumPy operations release the GIL. Units cover
 unit order, and every random number is a function of (pixel, sample index, dimension, seed), so the
 same seed gives a bit-identical image whatever the thread count or timing.
 
+Render region: with ``settings.region`` only the pixels of that window of the frame are traced
+(camera samples ``region pixels x spp``), and the film is that window. Sample streams are indexed
+by frame pixel and passes hold as many samples per pixel as the whole frame's would, so a region
+pixel is bit-identical to the same pixel of a full-frame render with the same seed (for camera
+samples; light tracing and BDPT trace one light path per region camera sample, see
+:mod:`core.integrators.bdpt`).
+
 Halting: after ``spp`` samples per pixel, or when ``time_limit`` seconds have passed (then the pass
 under way is finished unit by unit until the clock runs out), or when ``cancel()`` says so; a
 cancelled render keeps every sample it finished (pixels may then hold different sample counts).
@@ -54,6 +61,9 @@ class RenderSettings:
     :func:`core.integrators.common.strategy_pass_names`.
 
     ``threads`` is the number of worker threads, 0 for one per CPU core (Blender's Auto).
+
+    ``region`` is a render region ``(x0, y0, x1, y1)``: frame pixels ``x0 <= x < x1`` (from the
+    left) and ``y0 <= y < y1`` (from the bottom); None renders the whole frame.
     """
 
     integrator: str = "path"
@@ -75,6 +85,7 @@ class RenderSettings:
     threads: int = 0
     strategy_views: bool = False
     strategy_max_length: int = 3
+    region: tuple = None
 
 
 @dataclass
@@ -181,6 +192,11 @@ def check_settings(scene, settings):
         raise ValueError("set a sample count or a time limit")
     if scene.camera.width <= 0 or scene.camera.height <= 0:
         raise ValueError("the resolution must be at least 1 x 1 pixel")
+    if settings.region is not None:
+        x0, y0, x1, y1 = settings.region
+        if not (0 <= x0 < x1 <= scene.camera.width and 0 <= y0 < y1 <= scene.camera.height):
+            raise ValueError(f"the render region {tuple(settings.region)} is not a non-empty "
+                             f"window of the {scene.camera.width} x {scene.camera.height} frame")
     for name, allowed in (("mis_heuristic", MIS_SETTINGS), ("light_selection", LIGHT_SELECTIONS),
                           ("light_sampling", LIGHT_SAMPLINGS),
                           ("distribution", DISTRIBUTION_METHODS)):
@@ -227,7 +243,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                    settings.distribution)
     prepare_s = time.perf_counter() - t0
     cam = scene.camera
-    film = Film(cam.width, cam.height)
+    x0, y0, x1, y1 = region_bounds(cam, settings.region)
+    film = Film(x1 - x0, y1 - y0, x0, y0)
     sampler = make_sampler(settings.sampler, seed=settings.seed,
                            spp=settings.spp if settings.spp > 0 else None)
     if hasattr(sampler, "width"):
@@ -254,7 +271,9 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     total_spp = settings.spp if settings.spp > 0 else None
     # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
     unit_paths = getattr(integrator, "UNIT_PATHS", UNIT_PATHS)
-    spp_per_pass = max(1, min(unit_paths * PASS_UNITS // n_pix, 64))
+    # Sized by the whole frame, so a region's pixels sum their samples in the same passes as a
+    # full-frame render (bit-identical pixels).
+    spp_per_pass = max(1, min(unit_paths * PASS_UNITS // (cam.width * cam.height), 64))
     threads = thread_count(settings)
     counters = Counters()
     done_spp = 0
@@ -270,9 +289,11 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         p0, p1, s0, k = unit
         pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
         samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
+        # Streams and camera rays are indexed by frame pixel, the film by window pixel.
+        frame_pixels = (y0 + pixels // film.width) * cam.width + x0 + pixels % film.width
         local = Counters()
         out = integrator.render_samples(prep, settings, pixel_filter,
-                                        sampler.stream(pixels, samples), local)
+                                        sampler.stream(frame_pixels, samples), local)
         return pixels, out, local
 
     def accumulate(pixels, out, local):
@@ -362,6 +383,13 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                                        / max(counters.distribution_samples, 1)),
     }
     return result
+
+
+def region_bounds(cam, region):
+    """``(x0, y0, x1, y1)`` frame pixels a render covers: ``region``, or the whole frame."""
+    if region is None:
+        return 0, 0, int(cam.width), int(cam.height)
+    return tuple(int(v) for v in region)
 
 
 def thread_count(settings):

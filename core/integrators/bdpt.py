@@ -31,6 +31,16 @@ Limitations
     visibility is honoured for camera rays and shadow rays; light subpath rays trace every
     object. Soft Falloff point lights are rendered as spheres, and sphere lights shine on
     points inside them only through ``s <= 1`` strategies (:mod:`core.emitters`).
+Render region
+    A region is rendered as a smaller film: camera subpaths start in the region's pixels only,
+    each with its one light subpath as in a full render (so the region costs its share of the
+    time), and ``t = 1`` connections are made only toward film positions whose splats reach a
+    region pixel (the window plus the filter's reach). Splats are divided by the light subpaths
+    traced, so each is still an unbiased estimate; MIS weights use the density of camera rays
+    over the region (``1 / (A_region cos^3)``), the sample counts this render really has. Camera
+    strategies give the same samples as the full render's pixels; the light strategies have
+    ``region / frame`` as many light paths behind each pixel, so pixels that light paths
+    dominate (caustics) are noisier than in a full-frame render of the same ``spp``.
 When to use it
     Caustics (small lights seen through glass or mirrors on diffuse receivers) and scenes lit
     indirectly, where camera paths rarely find the light and light paths rarely find the
@@ -148,6 +158,11 @@ class _Context:
         self.view_length = int(getattr(settings, "strategy_max_length", 0))
         # Light paths reach edge pixels through the filter's reach outside the image.
         self.film_margin = 0.5 * pixel_filter.support
+        # A render region is a smaller film: splats outside it are not traced, and camera rays
+        # are drawn over its pixels only (their density, for MIS, is over the region's area).
+        self.window = getattr(settings, "region", None)
+        self.film_pixels = (None if self.window is None else
+                            (self.window[2] - self.window[0]) * (self.window[3] - self.window[1]))
         self.light_points = None  # the light subpaths' endpoints, once sampled
 
 
@@ -667,7 +682,7 @@ def _connect_camera(ctx, L, s, out):
     rows = np.nonzero(L.valid[yj] & L.connectible[yj])[0]
     if rows.size == 0:
         return
-    film_xy, visible, cos_theta, dist = project(cam, L.p[yj, rows], ctx.film_margin)
+    film_xy, visible, cos_theta, dist = project(cam, L.p[yj, rows], ctx.film_margin, ctx.window)
     seen = np.nonzero(visible)[0]
     if seen.size == 0:
         return
@@ -702,7 +717,7 @@ def _connect_camera(ctx, L, s, out):
             np.zeros(m, bool), np.zeros(m, bool)]
         p_camera = [None] * (k + 1)
         p_camera[k] = np.ones(m)
-        pdf_cam = camera_pdf(cam, cos_theta)
+        pdf_cam = camera_pdf(cam, cos_theta, ctx.film_pixels)
         p_camera[s - 1] = _to_area(pdf_cam, np.abs(_dot(yv.ng, w)), dist)
         p_camera[s - 2] = _to_area(yv.pdf_back(w_y), L.cos_prev[yj, rows], L.d_prev[yj, rows])
         for i in range(s - 2):
@@ -727,7 +742,7 @@ def _connect_emitter_to_camera(ctx, L, out):
     if rows.size == 0:
         return
     p = pts.p[rows]
-    film_xy, visible, cos_theta, dist = project(cam, p, ctx.film_margin)
+    film_xy, visible, cos_theta, dist = project(cam, p, ctx.film_margin, ctx.window)
     seen = np.nonzero(visible)[0]
     if seen.size == 0:
         return
@@ -755,7 +770,7 @@ def _connect_emitter_to_camera(ctx, L, out):
     rows, dist, value, film_xy, cos_theta, cos_l = (rows[keep], dist[keep], value[keep],
                                                     film_xy[keep], cos_theta[keep], cos_l[keep])
     m = rows.size
-    p_camera = [_to_area(camera_pdf(cam, cos_theta), cos_l, dist), np.ones(m)]
+    p_camera = [_to_area(camera_pdf(cam, cos_theta, ctx.film_pixels), cos_l, dist), np.ones(m)]
     p_light = [pts.pdf_origin[rows], np.ones(m)]
     st = ctx.settings
     weight = mis_weight(p_light, p_camera, [np.zeros(m, bool)] * 2, 1, np.zeros(m, bool),
@@ -813,7 +828,7 @@ def _camera_subpath(ctx, pixel_filter, stream, n, depth, out):
     C.beta[0] = 1.0
     m = np.asarray(cam.to_world, np.float64)
     axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
-    pdf_cam = camera_pdf(cam, d @ axis)
+    pdf_cam = camera_pdf(cam, d @ axis, ctx.film_pixels)
     _walk(ctx, C, o, d, tmax, np.ones((n, 3)), pdf_cam, np.zeros(n, bool),
           np.full(n, VIS_CAMERA, np.int32), np.arange(n), stream, RADIANCE,
           lambda j: DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX, depth,

@@ -12,6 +12,11 @@ Bias and consistency
     Unbiased for paths of up to ``max_bounces + 1`` scattering vertices, as the path tracer,
     except for the approximations of :mod:`core.emitters` (sphere lights do not light points
     inside them).
+Render region
+    One light path per camera sample of the region's pixels, and only splats that reach a
+    region pixel are connected and kept, divided by the light paths traced: unbiased, at the
+    region's share of the time, but with ``region / frame`` as many light paths behind each
+    pixel as a full render of the same ``spp`` (so a noisier region); see :mod:`.bdpt`.
 When to use it
     Caustics seen directly: light focused by glass or mirrors onto a diffuse surface the camera
     sees.
