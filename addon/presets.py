@@ -5,6 +5,7 @@ file that sets ``scene.sampling_lab``); presets the user adds go to Blender's us
 ``presets/sampling_lab/sampling/``, as Cycles' and every other ``AddPresetBase`` preset does.
 """
 
+import re
 from pathlib import Path
 
 import bpy
@@ -28,6 +29,20 @@ def preset_paths():
     return paths + [p for p in bpy.utils.preset_paths(PRESET_SUBDIR) if p not in paths]
 
 
+def preset_files():
+    """What the Sampling presets menu lists, in its order: ``[(label, path), ...]``.
+
+    Every ``.py`` file of :func:`preset_paths` (bundled and user presets together), in the
+    natural order and with the labels of Blender's own preset menus (``Menu.path_menu``).
+    """
+    files = [(name, str(Path(folder) / name)) for folder in preset_paths()
+             for name in sorted(p.name for p in Path(folder).iterdir())
+             if name.lower().endswith(".py") and not name.startswith(".")]
+    files.sort(key=lambda item: tuple(int(t) if t.isdigit() else t
+                                      for t in re.split(r"(\d+)", item[0].lower())))
+    return [(bpy.path.display_name(name), path) for name, path in files]
+
+
 class SAMPLINGLAB_MT_sampling_presets(Menu):
     """Bundled and user sampling presets."""
 
@@ -36,9 +51,11 @@ class SAMPLINGLAB_MT_sampling_presets(Menu):
     preset_operator = "script.execute_preset"
 
     def draw(self, context):
-        self.path_menu(preset_paths(), self.preset_operator,
-                       props_default={"menu_idname": self.bl_idname},
-                       filter_ext=lambda ext: ext.lower() == ".py")
+        col = self.layout.column(align=True)
+        for label, path in preset_files():
+            props = col.operator(self.preset_operator, text=label, translate=False)
+            props.filepath = path
+            props.menu_idname = self.bl_idname
 
 
 class SAMPLINGLAB_OT_sampling_preset_add(AddPresetBase, Operator):
