@@ -37,7 +37,7 @@ def render_settings(props):
         sampler=props.sampler.lower(),
         spp=int(props.samples),
         time_limit=float(props.time_limit),
-        seed=int(props.seed),
+        seed=frame_seed(props),
         max_bounces=int(props.max_bounces),
         use_russian_roulette=bool(props.use_russian_roulette),
         rr_min_bounces=int(props.rr_min_bounces),
@@ -57,6 +57,15 @@ def render_settings(props):
     )
 
 
+def frame_seed(props):
+    """The seed of the scene's current frame: Seed, plus the frame number when Animate Seed is
+    on (as Cycles' ``use_animated_seed``), kept in ``[0, 2^31)``."""
+    seed = int(props.seed)
+    if props.use_animated_seed:
+        seed = (seed + int(props.id_data.frame_current)) % (1 << 31)
+    return seed
+
+
 def used_text(stats):
     """The strategy settings a render used, as the stats line shows them (options that did
     not apply are left out: ``core.render.used_settings``)."""
@@ -74,7 +83,10 @@ def used_text(stats):
 
 
 def render_region(render, width, height, result_width, result_height):
-    """Rows and columns of the full frame that Blender's result covers (Render Region).
+    """The window of the full frame that Blender's result covers (Render Region).
+
+    Blender gives the engine a result of the region's size whether or not Crop to Render Region
+    is on (without it, Blender itself places the region in a full-frame image afterwards).
 
     Parameters
     ----------
@@ -86,15 +98,16 @@ def render_region(render, width, height, result_width, result_height):
 
     Returns
     -------
-    (slice, slice) or None
-        ``None`` when the result is the whole frame.
+    (x0, y0, x1, y1) or None
+        Frame pixels ``x0 <= x < x1``, ``y0 <= y < y1`` (from the bottom), as
+        ``core.render.RenderSettings.region``; ``None`` when the result is the whole frame.
     """
     if (result_width, result_height) == (width, height):
         return None
     # Blender truncates the region's corner to whole pixels.
     x0 = min(max(int(render.border_min_x * width), 0), width - result_width)
     y0 = min(max(int(render.border_min_y * height), 0), height - result_height)
-    return slice(y0, y0 + result_height), slice(x0, x0 + result_width)
+    return x0, y0, x0 + result_width, y0 + result_height
 
 
 class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
@@ -150,11 +163,10 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
         width, height = sl_scene.camera.width, sl_scene.camera.height
         result = self.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
         layer = result.layers[0]
-        region = render_region(scene.render, width, height, result.resolution_x,
-                               result.resolution_y)
-        if region is not None:
-            self.report({'INFO'}, "Sampling Lab: Render Region: the full frame is rendered and "
-                                  "cropped")
+        settings = render_settings(scene.sampling_lab)
+        # Only the region's pixels are traced; the film is the region.
+        settings.region = render_region(scene.render, width, height, result.resolution_x,
+                                        result.resolution_y)
         last_update = [time.perf_counter()]
 
         def progress(fraction, text):
@@ -166,13 +178,13 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
             if now - last_update[0] < UPDATE_INTERVAL:
                 return
             last_update[0] = now
-            passes.write_passes(layer, passes.pass_images(partial), region)
+            passes.write_passes(layer, passes.pass_images(partial))
             self.update_result(result)
 
         try:
-            out = core_render(sl_scene, render_settings(scene.sampling_lab), progress=progress,
+            out = core_render(sl_scene, settings, progress=progress,
                               cancel=self.cancel_requested, on_update=on_update)
-            passes.write_passes(layer, passes.pass_images(out), region)
+            passes.write_passes(layer, passes.pass_images(out))
         finally:
             # A cancelled render keeps the samples it took.
             self.end_result(result)
@@ -181,7 +193,12 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
             if message not in reported:
                 self.report({'WARNING'}, f"Sampling Lab: {message}")
         stats = out.stats
-        summary = (f"{stats.get('spp', 0)} spp in {stats.get('time_s', 0.0):.2f} s "
+        region = settings.region
+        summary = (f"frame {scene.frame_current}: {stats.get('spp', 0)} spp "
+                   f"({stats.get('samples', 0)} samples"
+                   + (f", region {region[2] - region[0]} x {region[3] - region[1]} of "
+                      f"{width} x {height}" if region else "")
+                   + f") in {stats.get('time_s', 0.0):.2f} s "
                    f"on {stats.get('threads', 1)} threads "
                    f"(export {export_s:.2f} s), "
                    f"{stats.get('samples_per_s', 0.0) / 1e6:.2f} M samples/s, "

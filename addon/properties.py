@@ -184,6 +184,13 @@ class SamplingLabSettings(PropertyGroup):
                     "(e.g. to measure variance)",
         default=0, min=0,
     )
+    use_animated_seed: BoolProperty(
+        name="Animate Seed",
+        description="Use a different seed on each frame (Seed plus the frame number, as Cycles' "
+                    "Animate Seed), so the noise of an animation changes from frame to frame "
+                    "instead of staying fixed on the screen",
+        default=False,
+    )
     max_bounces: IntProperty(
         name="Max Bounces",
         description="Maximum number of surface interactions of a path. Cutting paths short "

@@ -43,7 +43,9 @@ class SAMPLINGLAB_RENDER_PT_sampling(SamplingLabButtonsPanel, Panel):
         col.separator()
         col.prop(settings, "samples")
         col.prop(settings, "time_limit")
-        col.prop(settings, "seed")
+        row = col.row(align=True)
+        row.prop(settings, "seed")
+        row.prop(settings, "use_animated_seed", text="", icon='TIME')
 
 
 class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):

@@ -173,21 +173,6 @@ def test_cancelled_render_keeps_the_samples_taken(empty_scene, tmp_path, monkeyp
     assert passes["Combined"][lit][:, :3].mean() > 0
 
 
-@pytest.mark.parametrize("border,rows,cols", [
-    ((0.25, 0.75, 0.5, 1.0), slice(8, 16), slice(4, 12)),
-    ((0.33, 0.71, 0.17, 0.93), slice(2, 14), slice(5, 11)),
-])
-def test_render_region_is_cropped_from_the_full_frame(empty_scene, tmp_path, border, rows, cols):
-    scenes.cornell_box_mesh_light(empty_scene, resolution=(16, 16))
-    scenes.set_sampling_lab(empty_scene, samples=2, seed=3)
-    full = scenes.render_to_exr(empty_scene, tmp_path / "full.exr")["Combined"]
-    render = empty_scene.render
-    render.use_border, render.use_crop_to_border = True, True
-    render.border_min_x, render.border_max_x, render.border_min_y, render.border_max_y = border
-    crop = scenes.render_to_exr(empty_scene, tmp_path / "crop.exr")["Combined"]
-    np.testing.assert_allclose(crop, full[rows, cols], rtol=1e-5, atol=1e-7)
-
-
 def test_same_seed_same_image(empty_scene, tmp_path):
     scenes.cornell_box_point_light(empty_scene, resolution=(8, 8))
     scenes.set_sampling_lab(empty_scene, samples=2, seed=7)
