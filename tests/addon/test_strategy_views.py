@@ -131,7 +131,9 @@ def test_mis_options_are_active_for_path_and_bidirectional_not_light_tracing(emp
     active = dict(_draw(bpy.types.SAMPLINGLAB_RENDER_PT_light_sampling, empty_scene))
     assert active["mis_heuristic"] == active["mis_beta"] == (integrator != 'LIGHT')
     assert active["light_selection"] and active["distribution"]
-    assert active["light_sampling"] == (integrator != 'LIGHT')
+    # Light and BDPT paths start on emitters sampled by area: only the path tracer samples
+    # them by solid angle.
+    assert active["light_sampling"] == (integrator == 'PATH')
 
 
 # --------------------------------------------------------------------------- passes
