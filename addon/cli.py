@@ -319,7 +319,8 @@ def cmd_render(args):
     if args.json:
         print(json.dumps(stats))
     elif not args.quiet:
-        print(f"wrote {args.output}: {stats['spp']} spp in {stats['time_s']:.2f} s, "
+        png = f" and {os.path.splitext(args.output)[0]}.png" if args.png else ""
+        print(f"wrote {args.output}{png}: {stats['spp']} spp in {stats['time_s']:.2f} s, "
               f"{stats['samples_per_s'] / 1e6:.3f} M samples/s, "
               f"{stats['rays_per_s'] / 1e6:.2f} M rays/s", file=sys.stderr)
     return 0
