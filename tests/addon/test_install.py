@@ -32,10 +32,21 @@ import pytest
 
 from scenes import REPO_ROOT, read_blender_exr
 
-sys.path.insert(0, str(REPO_ROOT / "tools"))
-import dist  # noqa: E402  (tools/ is not a package)
+from sampling_lab.addon.passes import PASSES
 
-from sampling_lab.addon.passes import PASSES  # noqa: E402
+
+def _load_dist():
+    """tools/dist.py (tools/ is not a package, and the archive excludes it)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("sampling_lab_tools_dist",
+                                                  REPO_ROOT / "tools" / "dist.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+dist = _load_dist()
 
 SHIPPED_PRESETS = sorted(p.stem for p in (REPO_ROOT / "presets" / "sampling_lab" / "sampling")
                          .glob("*.py"))
@@ -293,9 +304,13 @@ def test_archive_manifest_lists_its_wheels_and_platform(linux_archive):
 
     archive = zipfile.ZipFile(linux_archive)
     manifest = tomllib.loads(archive.read("blender_manifest.toml").decode())
+    inside = sorted(n for n in archive.namelist() if n.endswith(".whl"))
+    # tools/dist.py's generated lists, and the builder's per-archive [build.generated] table.
     assert manifest["platforms"] == ["linux-x64"]
-    assert sorted(w.removeprefix("./") for w in manifest["wheels"]) == sorted(
-        n for n in archive.namelist() if n.endswith(".whl"))
+    assert sorted(w.removeprefix("./") for w in manifest["wheels"]) == inside
+    generated = manifest["build"]["generated"]
+    assert generated["platforms"] == ["linux-x64"]
+    assert sorted(w.removeprefix("./") for w in generated["wheels"]) == inside
     source = tomllib.loads((REPO_ROOT / "blender_manifest.toml").read_text())
     assert "wheels" not in source and "platforms" not in source
 
