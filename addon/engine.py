@@ -149,6 +149,7 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
                 f"Sampling Lab needs the Python module(s) {', '.join(missing)}, which are not "
                 f"installed; install the extension build that bundles them, or pip install "
                 f"{' '.join(missing)} into Blender's Python")
+        from ..core.render import preparation_key
         from ..core.render import render as core_render
 
         scene = depsgraph.scene
@@ -181,13 +182,20 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
             passes.write_passes(layer, passes.pass_images(partial))
             self.update_result(result)
 
+        # Persistent Data: Blender keeps this engine between frames and renders; the prepared
+        # scene (BVH, light tables) is kept with it and reused while only the camera changes.
+        persistent = scene.render.use_persistent_data
+        key = preparation_key(sl_scene, settings) if persistent else None
+        kept = getattr(self, "_prepared", None) if persistent else None
         try:
             out = core_render(sl_scene, settings, progress=progress,
-                              cancel=self.cancel_requested, on_update=on_update)
+                              cancel=self.cancel_requested, on_update=on_update,
+                              prepared=kept[1] if kept is not None and kept[0] == key else None)
             passes.write_passes(layer, passes.pass_images(out))
         finally:
             # A cancelled render keeps the samples it took.
             self.end_result(result)
+        self._prepared = (key, out.prepared) if persistent else None
 
         for message in out.messages:
             if message not in reported:
@@ -200,7 +208,10 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
                       f"{width} x {height}" if region else "")
                    + f") in {stats.get('time_s', 0.0):.2f} s "
                    f"on {stats.get('threads', 1)} threads "
-                   f"(export {export_s:.2f} s), "
+                   f"(export {export_s:.2f} s, "
+                   + ("scene kept from the last render" if stats.get("prepared_reused") else
+                      f"prepare {stats.get('prepare_s', 0.0):.2f} s")
+                   + "), "
                    f"{stats.get('samples_per_s', 0.0) / 1e6:.2f} M samples/s, "
                    f"{stats.get('rays_per_s', 0.0) / 1e6:.2f} M rays/s, "
                    f"{used_text(stats)}, build "

@@ -20,6 +20,9 @@ cancelled render keeps every sample it finished (pixels may then hold different 
 
 from __future__ import annotations
 
+import copy
+import dataclasses
+import hashlib
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -31,7 +34,7 @@ from .film import Film, PixelFilter
 from .integrators import INTEGRATORS
 from .integrators.common import BatchOutput, Counters, strategy_pass_names
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
-from .prepare import prepare
+from .prepare import PreparedScene, prepare
 from .sampling.distributions import DISTRIBUTION_METHODS
 from .sampling.mis import HEURISTICS, MIS_SETTINGS
 from .sampling.samplers import make_sampler
@@ -104,6 +107,9 @@ class RenderResult:
         ``distribution_samples`` (draws) and ``distribution_ns_per_sample``.
     cancelled : bool
     messages : list of str
+    prepared : core.prepare.PreparedScene or None
+        What the render derived from the scene (acceleration structure, light tables), to
+        pass as ``prepared`` to the next render of the same scene (see :func:`render`).
     """
 
     film: Film
@@ -111,6 +117,7 @@ class RenderResult:
     cancelled: bool = False
     messages: list = field(default_factory=list)
     layer_names: list = field(default_factory=list)
+    prepared: PreparedScene = None
 
     def combined(self):
         """``(h, w, 4)`` float32 RGBA, row 0 at the bottom."""
@@ -216,7 +223,8 @@ def check_settings(scene, settings):
         raise ValueError(f"the MIS cutoff alpha must be in [0, 1], not {settings.mis_alpha!r}")
 
 
-def render(scene, settings: RenderSettings, progress=None, cancel=None, on_update=None):
+def render(scene, settings: RenderSettings, progress=None, cancel=None, on_update=None,
+           prepared=None):
     """Render ``scene`` with ``settings``.
 
     Parameters
@@ -229,6 +237,11 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         Polled between work units; True stops the render, keeping finished samples.
     on_update : callable(RenderResult) or None
         Called after every pass (to show the image so far).
+    prepared : core.prepare.PreparedScene or None
+        ``RenderResult.prepared`` of an earlier render whose :func:`preparation_key` equals
+        this one's (the same scene but for the camera, e.g. the previous frame of an
+        animation): reused instead of building the acceleration structure and light tables
+        again (Blender's Persistent Data). The stats say ``prepared_reused``.
 
     Returns
     -------
@@ -237,10 +250,13 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     check_settings(scene, settings)
     t0 = time.perf_counter()
     used = used_settings(settings)
-    # Light and BDPT paths start by area whatever the setting (see used_settings).
-    prep = prepare(scene, settings.light_selection,
-                   "solid_angle" if used["light_sampling"] == "solid_angle" else "area",
-                   settings.distribution)
+    if prepared is not None:
+        prep = with_camera(prepared, scene.camera)
+    else:
+        # Light and BDPT paths start by area whatever the setting (see used_settings).
+        prep = prepare(scene, settings.light_selection,
+                       "solid_angle" if used["light_sampling"] == "solid_angle" else "area",
+                       settings.distribution)
     prepare_s = time.perf_counter() - t0
     cam = scene.camera
     x0, y0, x1, y1 = region_bounds(cam, settings.region)
@@ -252,7 +268,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         sampler.width = cam.width
     integrator = INTEGRATORS[settings.integrator]
     pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
-    result = RenderResult(film, messages=list(scene.messages))
+    result = RenderResult(film, messages=list(scene.messages), prepared=prep)
     if settings.integrator in ("light", "bdpt") and len(scene.lights):
         soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
         if soft:
@@ -367,6 +383,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     result.stats = {
         "time_s": t,
         "prepare_s": prepare_s,
+        "prepared_reused": prepared is not None,
         "threads": threads,
         "spp": done_spp,
         "samples": counters.camera_samples,
@@ -383,6 +400,55 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                                        / max(counters.distribution_samples, 1)),
     }
     return result
+
+
+def preparation_key(scene, settings):
+    """A digest of everything :func:`core.prepare.prepare` derives its tables from: the scene
+    but its camera and messages, and the light-sampling settings. Two renders with the same key
+    can share one prepared scene (:func:`render`'s ``prepared``).
+
+    Returns
+    -------
+    str
+        Hex digest (BLAKE2b of the arrays' dtypes, shapes and bytes).
+    """
+    h = hashlib.blake2b(digest_size=20)
+    used = used_settings(settings)
+    h.update(repr((settings.light_selection, used["light_sampling"] == "solid_angle",
+                   settings.distribution)).encode())
+    for f in dataclasses.fields(scene):
+        if f.name not in ("camera", "messages"):
+            h.update(f.name.encode())
+            _digest(h, getattr(scene, f.name))
+    return h.hexdigest()
+
+
+def _digest(h, value):
+    """Feed ``value`` (arrays, dataclasses of them, lists, scalars) into the hash ``h``."""
+    if dataclasses.is_dataclass(value):
+        for f in dataclasses.fields(value):
+            h.update(f.name.encode())
+            _digest(h, getattr(value, f.name))
+    elif isinstance(value, np.ndarray) and value.dtype != object:
+        h.update(f"{value.dtype.str}{value.shape}".encode())
+        h.update(np.ascontiguousarray(value).data)
+    elif isinstance(value, (list, tuple, np.ndarray)):
+        h.update(f"[{len(value)}".encode())
+        for item in value:
+            _digest(h, item)
+    else:
+        h.update(repr(value).encode())
+
+
+def with_camera(prepared, camera):
+    """``prepared`` (a :class:`core.prepare.PreparedScene`) seen through ``camera`` (world
+    space; moved into the prepared scene's recentred frame). Everything else is shared."""
+    to_world = np.array(camera.to_world, np.float64)
+    to_world[:3, 3] -= prepared.shift
+    out = copy.copy(prepared)
+    out.scene = dataclasses.replace(prepared.scene,
+                                    camera=dataclasses.replace(camera, to_world=to_world))
+    return out
 
 
 def region_bounds(cam, region):

@@ -133,3 +133,34 @@ def test_resolution_percentage_renders_the_scaled_frame(empty_scene, tmp_path):
     for name in ("Combined", "Variance", "Sample Count"):
         np.testing.assert_array_equal(half[name], small[name], err_msg=name)
     assert half["Combined"][..., :3].mean() > 0
+
+
+def test_persistent_data_keeps_the_scene_while_only_the_camera_moves(empty_scene, tmp_path,
+                                                                      capfd):
+    """With Persistent Data the prepared scene (BVH, light tables) of one frame is reused by the
+    next when only the camera moved, with the same image as a fresh preparation; a frame where
+    an object moved is prepared again."""
+    block = _moving_block_scene(empty_scene, tmp_path)
+    block.animation_data_clear()
+    block.location.x = BLOCK_X[1]
+    for frame in (1, 2):  # the block stays put on frames 1 and 2, moves on frame 3
+        block.keyframe_insert("location", frame=frame)
+    block.location.x = BLOCK_X[3]
+    block.keyframe_insert("location", frame=3)
+    camera = empty_scene.camera
+    for frame, z in ((1, 1.0), (2, 1.2), (3, 1.2)):
+        camera.location.z = z
+        camera.keyframe_insert("location", frame=frame)
+    fresh = _render_animation(empty_scene)
+    capfd.readouterr()
+    empty_scene.render.use_persistent_data = True
+    kept = _render_animation(empty_scene)
+    log = capfd.readouterr().out
+    lines = {f: next(line for line in log.splitlines() if f"Sampling Lab: frame {f}: " in line)
+             for f in FRAMES}
+    assert "scene kept from the last render" not in lines[1]  # a new engine: nothing kept
+    assert "scene kept from the last render" in lines[2]      # only the camera moved
+    assert "scene kept from the last render" not in lines[3]  # the block moved
+    for frame in FRAMES:
+        np.testing.assert_array_equal(kept[frame]["Combined"], fresh[frame]["Combined"])
+    assert not np.array_equal(kept[1]["Combined"], kept[2]["Combined"])
