@@ -2,7 +2,7 @@
 
 The benchmark renders the *same* scene with our path tracer and with Cycles in the same process,
 so this module is the inverse of ``addon/export.py``: flat triangle and light tables in, Blender
-objects out, in the conventions of ``DESIGN.md`` (emission strength is radiance, lamp energy in
+objects out, in the units of ``docs/CONVENTIONS.md`` (emission strength is radiance, lamp energy in
 Watts, camera matrix and sensor fit as Blender's).
 
 - :func:`build_blender_scene`: one mesh object per (material, ray visibility) group, Diffuse BSDF

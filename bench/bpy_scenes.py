@@ -5,9 +5,9 @@ as the scene camera, and returns a dict of the objects it made by role. ``tests/
 re-exports everything here for the tests; :mod:`.hard_scenes` renders the same scenes with our
 integrators and with Cycles.
 
-Scene units follow ``DESIGN.md``: Cornell box walls span x, y in [-1, 1] and z in [0, 2], open
-toward -y where the camera stands; materials are Lambertian (Diffuse BSDF) unless named
-otherwise; lights are given in Blender's units (W, W/m^2, Emission strength = radiance).
+Scene units follow ``docs/CONVENTIONS.md``: Cornell box walls span x, y in [-1, 1] and z in
+[0, 2], open toward -y where the camera stands; materials are Lambertian (Diffuse BSDF) unless
+named otherwise; lights are given in Blender's units (W, W/m^2, Emission strength = radiance).
 """
 
 from __future__ import annotations

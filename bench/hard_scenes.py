@@ -28,7 +28,7 @@ process:
 Output: ``hard_scenes.csv`` (one row per scene and render) and ``hard_scenes_summary.csv``
 (references, agreement, machine, load averages) in ``output``, a montage PNG and a markdown
 report (default ``docs/HARD_SCENES.md``, the PNG copied to ``images/`` beside it). Figures,
-never asserted (``DESIGN.md``).
+never asserted (``docs/CONVENTIONS.md``, "Tests").
 """
 
 from __future__ import annotations

@@ -2,8 +2,9 @@
 
 The exporter (``addon/export.py``) and the built-in scenes (``core/scenes.py``) both produce a
 :class:`Scene`. Everything is in world space, in Blender units and Cycles' light units (see
-``DESIGN.md``): lights carry the *radiometric* quantity the integrators need (intensity, radiance or
-irradiance), already converted from Blender's Watts by :func:`core.lights` helpers.
+``docs/CONVENTIONS.md``): lights carry the *radiometric* quantity the integrators need
+(intensity, radiance or irradiance), already converted from Blender's Watts by
+:func:`core.lights` helpers.
 """
 
 from __future__ import annotations

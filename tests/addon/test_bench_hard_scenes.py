@@ -2,7 +2,7 @@
 
 A smoke run: one tiny scene, our path tracer and Cycles for half a second each. It checks that
 the CSV, the markdown table and the figure are written with finite figures; it says nothing
-about speed (``DESIGN.md``: speed is never asserted).
+about speed (``docs/CONVENTIONS.md``, "Tests": speed is never asserted).
 """
 
 import csv
