@@ -166,13 +166,13 @@ def build_parser():
 
 
 def _add_bench_scenes_parser(sub):
-    from ..bench.hard_scenes import ISSUE4_SCENES, ISSUE5_SCENES, SCENES
+    from ..bench.hard_scenes import INTEGRATOR_SCENES, MATERIAL_SCENES, SCENES
 
     h = sub.add_parser("bench-scenes", help="equal-time error of our integrators and Cycles on "
                        "hard scenes (figures, docs/HARD_SCENES.md)")
     h.add_argument("--scenes", nargs="+", default=list(SCENES),
-                   help=f"from: {', '.join(SCENES)} (default: all; issue 4's set: "
-                   f"{' '.join(ISSUE4_SCENES)}; issue 5's: {' '.join(ISSUE5_SCENES)})")
+                   help=f"from: {', '.join(SCENES)} (default: all; materials: "
+                   f"{' '.join(MATERIAL_SCENES)}; integrators: {' '.join(INTEGRATOR_SCENES)})")
     h.add_argument("--integrators", nargs="+", default=None,
                    help=f"from: {', '.join(INTEGRATORS)} (default: all of them)")
     h.add_argument("--seconds", type=_positive_float, default=4.0,

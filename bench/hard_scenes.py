@@ -96,9 +96,12 @@ SCENES = {
     "cornell": (_cornell, "Lambertian Cornell box with its two blocks, 0.5 m 50 W square area "
                 "light under the ceiling"),
 }
-# The scene sets of the two issues that asked for this benchmark.
-ISSUE4_SCENES = ("glossy_plates", "glass_sphere", "mirror_ball", "environment")
-ISSUE5_SCENES = ("cornell", "glass_sphere", "mirror_ball")
+# Glossy, glass and mirror materials and an environment map: hard for camera-side sampling of
+# materials and lights.
+MATERIAL_SCENES = ("glossy_plates", "glass_sphere", "mirror_ball", "environment")
+# Diffuse interreflection and the two caustics: where light tracing and BDPT differ most from
+# path tracing.
+INTEGRATOR_SCENES = ("cornell", "glass_sphere", "mirror_ball")
 # Cycles' rate is measured on about this many camera samples.
 CALIBRATION_SAMPLES = 1 << 18
 REFERENCE_MIN_SECONDS = 30.0
@@ -115,8 +118,8 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
     Parameters
     ----------
     scenes : sequence of str
-        Keys of :data:`SCENES` (default all; :data:`ISSUE4_SCENES` and :data:`ISSUE5_SCENES`
-        are the sets the two issues asked for).
+        Keys of :data:`SCENES` (default all; :data:`MATERIAL_SCENES` and
+        :data:`INTEGRATOR_SCENES` are the material and the integrator sets).
     integrators : sequence of str or None
         Keys of ``core.integrators.INTEGRATORS``; None takes all of them.
     seconds : float
