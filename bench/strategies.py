@@ -338,7 +338,8 @@ def _notes(summary):
         "seen from afar it changes little per sample and costs more arithmetic per sample.",
         "- With one or two emitters the light choice costs microseconds either way; "
         "`strategies.csv` lists the tables' build time and ns per draw. Alias tables matter "
-        "for the environment maps and many-light scenes of later issues.",
+        "for environment maps and scenes with many lights, which this benchmark does not "
+        "render.",
         "- Uniform light selection is not benchmarked here: with one light it is power "
         "selection.",
     ]
