@@ -6,7 +6,7 @@
    (:data:`BUNDLED`, versions from ``requirements.txt``) for every platform and Python of
    :data:`PLATFORMS` and :data:`PYTHONS` into ``build/wheels/<platform>/<python>/``; a wheel
    already there is not downloaded again;
-2. stages the tracked files of the repository in ``build/stage/`` with a generated
+2. stages the repository's files (those git does not ignore) in ``build/stage/`` with a generated
    ``blender_manifest.toml`` that lists those wheels and platforms (the source tree's manifest
    lists none, so that a checkout used as a local extension repository still enables);
 3. runs Blender's own extension tool (``blender_ext.py``, shipped inside the ``bpy`` wheel):
@@ -123,11 +123,23 @@ def download_wheels(pins, platforms, pythons, cache, quiet=False):
     return wheels
 
 
-def tracked_files(root=REPO_ROOT):
-    """Paths (relative to ``root``) of the files git tracks that exist in the work tree."""
-    out = subprocess.run(["git", "-C", str(root), "ls-files", "-z", "--cached"], check=True,
-                         capture_output=True).stdout.decode()
-    return [Path(p) for p in out.split("\0") if p and (root / p).is_file()]
+def source_files(root=REPO_ROOT):
+    """Paths (relative to ``root``) of the work tree's files that git does not ignore.
+
+    The files git tracks and new ones it would track: the tree a checkout enabled as a local
+    extension repository loads. Tracked files alone would mix edited files with missing new
+    ones. The manifest's ``paths_exclude_pattern`` then decides what the archive keeps.
+    """
+    out = subprocess.run(["git", "-C", str(root), "ls-files", "-z", "--cached", "--others",
+                          "--exclude-standard"], check=True, capture_output=True).stdout.decode()
+    return sorted({Path(p) for p in out.split("\0") if p and (root / p).is_file()})
+
+
+def uncommitted(root=REPO_ROOT):
+    """``git status --porcelain`` lines: changes a release from this tree would include."""
+    out = subprocess.run(["git", "-C", str(root), "status", "--porcelain"], check=True,
+                         capture_output=True, text=True).stdout
+    return [line for line in out.splitlines() if line.strip()]
 
 
 def generated_manifest(source_text, platforms, wheel_paths):
@@ -155,11 +167,11 @@ def generated_manifest(source_text, platforms, wheel_paths):
 
 
 def stage(stage_dir, wheels, platforms, root=REPO_ROOT):
-    """Copy the tracked files and the wheels to ``stage_dir`` and write its manifest."""
+    """Copy the source files and the wheels to ``stage_dir`` and write its manifest."""
     if stage_dir.exists():
         shutil.rmtree(stage_dir)
     stage_dir.mkdir(parents=True)
-    for rel in tracked_files(root):
+    for rel in source_files(root):
         target = stage_dir / rel
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(root / rel, target)
@@ -218,6 +230,12 @@ def build(platforms=tuple(PLATFORMS), pythons=tuple(PYTHONS), output=REPO_ROOT /
         raise SystemExit(f"dist: unknown platform or Python {', '.join(unknown)}; choose from "
                          f"{', '.join(PLATFORMS)} and {', '.join(PYTHONS)}")
     pins = pinned_requirements()
+    changes = uncommitted()
+    if changes:
+        log(f"note: the work tree has {len(changes)} uncommitted change(s); the archives hold "
+            f"them (a release should be built from a clean checkout):")
+        for line in changes[:20]:
+            print(f"  {line}", flush=True)
     wheels = download_wheels(pins, platforms, pythons, Path(cache), quiet=quiet)
     manifest = stage(Path(stage_dir), wheels, platforms)
     log(f"staged {stage_dir} with {len(wheels)} wheels; validating")
