@@ -286,9 +286,14 @@ def _spherical_triangle(a, b, c, p):
 def sample_spherical_triangle(u, a, b, c, p):
     """Directions uniform over the solid angle of triangles, as seen from ``p`` (Arvo 1995).
 
-    The first coordinate of ``u`` picks the sub-triangle ``(a, b, c')`` whose area is that
-    fraction of the whole (``c'`` on the arc from ``a`` to ``c``); the second picks a point on the
-    arc from ``b`` to ``c'`` by its cosine to ``b``. pbrt-v4's formulation, in float64.
+    Arvo's two steps. First, ``u[:, 0]`` fixes the area ``u0 * A`` of a sub-triangle
+    ``(a, b, c')`` with ``c'`` on the arc from ``a`` to ``c``: it shares the corner angle
+    ``alpha`` at ``a`` and the side ``a b`` (length ``ab``), so its area ``E`` and the length
+    ``x`` of its side ``a c'`` are tied by the spherical-excess identity
+    ``tan(E / 2) = tan(x / 2) tan(ab / 2) sin(alpha) / (1 + tan(x / 2) tan(ab / 2) cos(alpha))``,
+    which solved for ``x`` gives ``tan(x / 2) = sin(E / 2) / (tan(ab / 2) sin(alpha - E / 2))``.
+    Second, ``u[:, 1]`` picks the direction on the arc from ``b`` to ``c'`` whose cosine to ``b``
+    is uniform between 1 and ``cos(b, c')``: the area swept from ``b`` grows linearly in it.
 
     Parameters
     ----------
@@ -305,22 +310,15 @@ def sample_spherical_triangle(u, a, b, c, p):
     """
     u = np.asarray(u, np.float64)
     wa, wb, wc, n_ab, alpha, beta, gamma = _spherical_triangle(a, b, c, p)
-    area = alpha + beta + gamma - np.pi
-    # Area of the sub-triangle (a, b, c') as an angle sum, and c' from the spherical law of
-    # cosines solved for cos(b') (pbrt-v4, eq. of Arvo's sec. 3).
-    ap_pi = np.pi + u[:, 0] * area
-    cos_a, sin_a = np.cos(alpha), np.sin(alpha)
-    sin_phi = np.sin(ap_pi) * cos_a - np.cos(ap_pi) * sin_a
-    cos_phi = np.cos(ap_pi) * cos_a + np.sin(ap_pi) * sin_a
-    k1 = cos_phi + cos_a
-    k2 = sin_phi - sin_a * _dot(wa, wb)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cos_bp = (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_a) / ((k2 * sin_phi + k1 * cos_phi)
-                                                                 * sin_a)
-    cos_bp = np.clip(np.nan_to_num(cos_bp, nan=1.0), -1.0, 1.0)
-    sin_bp = np.sqrt(np.maximum(0.0, 1.0 - cos_bp * cos_bp))
-    cp = cos_bp[:, None] * wa + sin_bp[:, None] * _gram_schmidt(wc, wa)
-    # Then a point on the arc from b to c', uniform in the cosine to b.
+    half_area = 0.5 * u[:, 0] * np.maximum(alpha + beta + gamma - np.pi, 0.0)
+    # tan(ab / 2) = sin(ab) / (1 + cos(ab)); multiplying it out keeps atan2 finite for long sides.
+    cos_ab = _dot(wa, wb)
+    sin_ab = _norm(_cross(wa, wb))
+    half_x = np.arctan2(np.sin(half_area) * (1.0 + cos_ab), sin_ab * np.sin(alpha - half_area))
+    # c' may not pass c (rounding near u0 = 1).
+    x = np.minimum(2.0 * half_x, _angle_between(wa, wc))
+    cp = np.cos(x)[:, None] * wa + np.sin(x)[:, None] * _gram_schmidt(wc, wa)
+    # Uniform in 1 - cos(b, w) over [0, 1 - cos(b, c')].
     cos_t = 1.0 - u[:, 1] * (1.0 - _dot(cp, wb))
     sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
     w = cos_t[:, None] * wb + sin_t[:, None] * _gram_schmidt(cp, wb)
