@@ -128,6 +128,27 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
     def update_render_passes(self, scene=None, renderlayer=None):
         passes.register_passes(self, scene, renderlayer)
 
+    def view_update(self, context, depsgraph):
+        """Rendered viewport: export again when the depsgraph's updates change the image."""
+        from . import viewport
+
+        viewport.view_update(self, context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        """Rendered viewport: restart on a new view, draw the latest progressive frame."""
+        from . import viewport
+
+        viewport.view_draw(self, context, depsgraph)
+
+    def __del__(self):
+        # Blender frees the engine when rendered shading ends: stop its viewport render.
+        try:
+            from . import viewport
+
+            viewport.free(self)
+        except Exception:  # noqa: BLE001 - also called while Python shuts down
+            pass
+
     def render(self, depsgraph):
         try:
             self._render(depsgraph)
@@ -231,5 +252,8 @@ def register():
 
 
 def unregister():
+    from . import viewport
+
+    viewport.stop_all()
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

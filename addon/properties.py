@@ -177,6 +177,13 @@ class SamplingLabSettings(PropertyGroup):
         default=0.0, min=0.0, soft_max=3600.0, step=100, precision=1,
         subtype='TIME_ABSOLUTE', unit='TIME_ABSOLUTE',
     )
+    viewport_samples: IntProperty(
+        name="Viewport Samples",
+        description="Samples per pixel of the rendered 3D viewport, which refines its image "
+                    "pass by pass until it has this many. Zero means no limit (render until the "
+                    "view or the scene changes)",
+        default=1024, min=0, max=1 << 24, soft_max=4096,
+    )
     seed: IntProperty(
         name="Seed",
         description="Seed of the sample streams. The same seed, samples and scene give the same "

@@ -42,6 +42,7 @@ class SAMPLINGLAB_RENDER_PT_sampling(SamplingLabButtonsPanel, Panel):
         col.operator("samplinglab.sampler_lab", icon='GRAPH')
         col.separator()
         col.prop(settings, "samples")
+        col.prop(settings, "viewport_samples")
         col.prop(settings, "time_limit")
         row = col.row(align=True)
         row.prop(settings, "seed")

@@ -91,7 +91,7 @@ def camera_from_plane(to_world, kind, plane, clip_start, clip_end, width, height
     )
 
 
-def camera_from_matrices(view_matrix, window_matrix, width, height):
+def camera_from_matrices(view_matrix, window_matrix, width, height, clip=None):
     """The camera of a free viewport (``'PERSP'`` or ``'ORTHO'``) from Blender's matrices.
 
     Parameters
@@ -103,6 +103,9 @@ def camera_from_matrices(view_matrix, window_matrix, width, height):
         ``orthographic_m4`` of the view plane between the clipping distances.
     width, height : int
         Region size in pixels.
+    clip : (float, float) or None
+        Clipping distances to use instead of the matrix's: the far distance read back from a
+        float32 projection keeps only about three digits.
 
     Returns
     -------
@@ -115,13 +118,13 @@ def camera_from_matrices(view_matrix, window_matrix, width, height):
         # orthographic_m4: x_ndc = (2 x - (r + l)) / (r - l), z_ndc = (-2 z - (f + n)) / (f - n)
         plane = ((-1.0 - p[0, 3]) / p[0, 0], (1.0 - p[0, 3]) / p[0, 0],
                  (-1.0 - p[1, 3]) / p[1, 1], (1.0 - p[1, 3]) / p[1, 1])
-        near, far = (p[2, 3] + 1.0) / p[2, 2], (p[2, 3] - 1.0) / p[2, 2]
+        near, far = clip or ((p[2, 3] + 1.0) / p[2, 2], (p[2, 3] - 1.0) / p[2, 2])
         return camera_from_plane(to_world, "ORTHO", plane, near, far, width, height)
     # perspective_m4 of the plane (l, r, b, t) at the near distance n: x_ndc w = (2 n x + (r +
     # l) z') / (r - l) with w = -z; at unit distance the plane is (l / n, r / n, ...).
     plane = ((p[0, 2] - 1.0) / p[0, 0], (p[0, 2] + 1.0) / p[0, 0],
              (p[1, 2] - 1.0) / p[1, 1], (p[1, 2] + 1.0) / p[1, 1])
-    near, far = p[2, 3] / (p[2, 2] - 1.0), p[2, 3] / (p[2, 2] + 1.0)
+    near, far = clip or (p[2, 3] / (p[2, 2] - 1.0), p[2, 3] / (p[2, 2] + 1.0))
     return camera_from_plane(to_world, "PERSP", plane, near, far, width, height)
 
 

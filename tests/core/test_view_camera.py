@@ -164,3 +164,18 @@ def test_film_camera_pixel_covers_its_region_pixels(divisor, kind):
     assert (film.width, film.height) == (-(-101 // divisor), -(-57 // divisor))
     xy = film_points(film.width, film.height)
     assert_same_rays(film, xy, cam, xy * divisor)
+
+
+@pytest.mark.parametrize("kind,clip", [("PERSP", (0.5, 20.0)), ("ORTHO", (-7.0, 9.0))])
+def test_given_clipping_distances_replace_the_matrix_ones(kind, clip):
+    plane = (-0.6, 0.6, -0.35, 0.35)
+    proj = (frustum(*(0.1 * np.asarray(plane)), 0.1, 100.0) if kind == "PERSP"
+            else ortho(*plane, -50.0, 50.0))
+    to_world = rigid(5)
+    cam = camera_from_matrices(np.linalg.inv(to_world), proj, 40, 24, clip=clip)
+    origins, directions, tmax = generate_rays(cam, film_points(40, 24))
+    forward = -to_world[:3, 2]
+    # Depth along the view axis, from the eye (Blender clips planes perpendicular to it).
+    depth = lambda p: (p - to_world[:3, 3]) @ forward  # noqa: E731
+    np.testing.assert_allclose(depth(origins), clip[0], atol=1e-9)
+    np.testing.assert_allclose(depth(origins + directions * tmax[:, None]), clip[1], atol=1e-9)
