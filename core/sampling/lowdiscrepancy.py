@@ -1,4 +1,4 @@
-"""Building blocks of the stratified and low-discrepancy samplers (pbrt-v4's ``lowdiscrepancy.h``).
+"""Building blocks of the stratified and low-discrepancy samplers: keys, scrambles, Sobol, Halton.
 
 Everything works on whole arrays of 32-bit unsigned integers with wrapping arithmetic; the only
 loops are over digit positions or bit groups (a few dozen at most) and the bounded cycle-walking
@@ -21,8 +21,10 @@ rounds of the hashed permutation, never over samples or pixels.
 - Any base: :func:`primes` (sieve), :func:`permutation_element` (Kensler 2013's hashed
   permutation of {0, ..., l - 1}, any l, with cycle walking), and
   :func:`owen_scrambled_radical_inverse` (Owen scrambling in base b: the k-th digit is permuted
-  by a random affine permutation chosen by a hash of the k lower digits of the index, after
-  pbrt-v4's ``OwenScrambledRadicalInverse``).
+  by a random affine permutation chosen by a hash of the k lower digits of the index; pbrt-v4's
+  ``OwenScrambledRadicalInverse`` instead permutes each digit by Kensler's hashed permutation).
+
+Sources are listed in ``docs/REFERENCES.md``.
 
 Values leave as doubles in [0, 1 - 2^-24]: the largest is below one also after a cast to
 float32 (as :func:`core.sampling.stream.u32_to_unit_float` guarantees for the independent
@@ -127,8 +129,9 @@ def reverse_bits(x):
 def laine_karras_permutation(x, seed):
     """Nested scramble of bit-reversed values: bit k is flipped by a function of bits < k.
 
-    Nathan Vegdahl's improvement of the Laine-Karras hash, as in pbrt-v4's
-    ``FastOwenScrambler`` and Cycles. Every step (adding the seed, multiplying by an odd number,
+    Nathan Vegdahl's improvement of the Laine-Karras hash ("Building a Better LK Hash",
+    psychopath.io, 2021; its five operations and constants are the published hash, also used by
+    pbrt-v4's ``FastOwenScrambler`` and Cycles). Every step (adding the seed, multiplying by an odd number,
     xor with a multiple by an even number) changes bit k only through bits 0..k-1, so on the
     reversed value it is an Owen-style nested scramble: exact stratification, and the flips are
     pseudo-random functions of the seed.
