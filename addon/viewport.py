@@ -300,9 +300,9 @@ class ProgressiveRender:
 
     @property
     def running(self):
-        """Whether a worker thread is rendering."""
+        """Whether a worker thread is rendering (or about to)."""
         job = self._job
-        return job is not None and job.thread.is_alive()
+        return job is not None and (job.thread.is_alive() or job.thread.ident is None)
 
     @property
     def error(self):
@@ -343,13 +343,13 @@ class ProgressiveRender:
             previous = self._job
             self._generation += 1
             job = _Job(self._generation, scene, settings, list(stages))
+            job.thread = threading.Thread(target=self._run, args=(job, previous), daemon=True,
+                                          name=f"sampling-lab-viewport-{job.generation}")
             self._job = job
             # A restart clears the film: nothing of the old render is shown as the new one.
             self._frame = None
         if previous is not None:
             previous.cancel.set()
-        job.thread = threading.Thread(target=self._run, args=(job, previous), daemon=True,
-                                      name=f"sampling-lab-viewport-{job.generation}")
         job.thread.start()
         return job.generation
 

@@ -1,11 +1,12 @@
 """Cancel latency of the rendered viewport: how long stopping its worker thread takes.
 
-``python -m sampling_lab.bench.viewport_cancel [--size 960x540] [--repeats 12] [--bounces 8]``
+``python -m sampling_lab.bench.viewport_cancel [--size 960x540] [--repeats 12] [--bounces 8]
+[--integrator path]``
 
 The viewport (``addon/viewport.py``) renders on a worker thread; a restart or the end of
 rendered shading sets the cancel flag, which ``core.render`` polls between work units, and the
-thread ends after the units in flight. On the Cornell box at a viewport-like size, path tracing,
-unlimited samples, this starts a render, lets it run a random time, and measures:
+thread ends after the units in flight. On the Cornell box at a viewport-like size, unlimited
+samples, this starts a render, lets it run a random time, and measures:
 
 - *stop*: wall time of ``ProgressiveRender.stop()`` (set the flag, join the thread), the latency
   the issue bounds at 0.2 s;
@@ -49,11 +50,11 @@ def _figures(values):
            f"max {1e3 * values[-1]:7.1f} ms"
 
 
-def run(width=960, height=540, repeats=12, bounces=8, threads=2, seed=1):
+def run(width=960, height=540, repeats=12, bounces=8, threads=2, seed=1, integrator="path"):
     """Measure and print the figures; returns them as lists of seconds by name."""
     scene = scenes.cornell_box(width=width, height=height)
-    settings = RenderSettings(spp=0, time_limit=float("inf"), max_bounces=bounces,
-                              threads=threads)
+    settings = RenderSettings(integrator=integrator, spp=0, time_limit=float("inf"),
+                              max_bounces=bounces, threads=threads)
     stages = viewport.progressive_stages(width, height, 1, 0)
     rng = random.Random(seed)
     stops, units, firsts = [], [], []
@@ -72,7 +73,7 @@ def run(width=960, height=540, repeats=12, bounces=8, threads=2, seed=1):
         if not stopped:
             raise RuntimeError("the viewport worker did not stop within 30 s")
         units.extend(b - a for a, b in zip(renderer.polls, renderer.polls[1:]))
-    print(f"viewport cancel latency: Cornell box {width}x{height}, path tracing, {bounces} "
+    print(f"viewport cancel latency: Cornell box {width}x{height}, {integrator}, {bounces} "
           f"bounces, {threads} threads, {repeats} stops, load {os.getloadavg()[0]:.2f}")
     print(f"  stop        {_figures(stops)}")
     print(f"  unit        {_figures(units)}")
@@ -86,9 +87,10 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=12)
     parser.add_argument("--bounces", type=int, default=8)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--integrator", default="path")
     args = parser.parse_args(argv)
     width, height = (int(v) for v in args.size.lower().split("x"))
-    run(width, height, args.repeats, args.bounces, args.threads)
+    run(width, height, args.repeats, args.bounces, args.threads, integrator=args.integrator)
 
 
 if __name__ == "__main__":

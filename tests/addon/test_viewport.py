@@ -9,13 +9,15 @@
 - Progressive film: the frame view_draw would upload after pass k is the film mean of a k-sample
   render, previews are reduced films, a restart clears the frame.
 - Cancel: the worker polls the cancel flag between work units of bounded size and stops after
-  the units in flight. The wall-clock latency is measured by ``bench/viewport_cancel.py``,
-  not asserted here (a loaded CI machine would make it flaky).
+  the units in flight; a restart returns at once (the UI thread never joins a worker) and the
+  new render waits for the old one's unit. The wall-clock latency is measured by
+  ``bench/viewport_cancel.py``, not asserted here (a loaded CI machine would make it flaky).
 """
 
 import dataclasses
 import importlib
 import math
+import threading
 from contextlib import contextmanager
 
 import bpy
@@ -445,3 +447,40 @@ def test_worker_polls_cancel_between_bounded_units_and_stops_after_those_in_flig
     assert 0 < stats["samples"] <= (cancel_at + stats["threads"] - 1) * (unit + spp_per_pass)
     # Less than one pass was done, and a cut-short pass is never shown.
     assert stats["samples"] < 128 * 128 * spp_per_pass and recorder.frames == []
+
+
+def test_restart_returns_at_once_and_the_new_render_waits_for_the_old_unit(
+        empty_scene, export, viewport):
+    """The UI thread never waits for a render: a restart only sets the old render's flag."""
+    sl_scene = film_scene(export, empty_scene, 32, 24)
+    settings = dataclasses.replace(viewport.viewport_settings(empty_scene), spp=0)
+    in_unit, release = threading.Event(), threading.Event()
+    polls = []
+
+    class EndlessFirstUnit(viewport.ProgressiveRender):
+        def _poll(self, job):
+            polls.append(job.generation)
+            if job.generation == 1 and not release.is_set():
+                # The first render's first poll comes after a unit that "lasts" until released.
+                in_unit.set()
+                release.wait(60)
+            return super()._poll(job)
+
+    recorder = Recorder()
+    renderer = EndlessFirstUnit(notify=recorder)
+    recorder.renderer = renderer
+    try:
+        renderer.start(sl_scene, settings, [(1, 0)])
+        assert in_unit.wait(60)
+        second = renderer.start(sl_scene, settings, [(1, 1)])
+        # start() returned while the old worker is still inside its unit, and the new worker
+        # has not started rendering beside it.
+        assert renderer.running and polls == [1] and renderer.frame() is None
+        release.set()
+        assert renderer.wait(timeout=60)
+        # The old render stopped at the poll after its unit; the new one then rendered.
+        assert polls.count(1) <= 2 and polls[-1] == second
+        assert recorder.frames and all(f.generation == second for f in recorder.frames)
+    finally:
+        release.set()
+        renderer.stop(timeout=60)
