@@ -31,7 +31,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
-import time
 import traceback
 import weakref
 
@@ -75,7 +74,7 @@ def update_restarts(update):
 
 
 def needs_restart(updates):
-    """Whether any of ``depsgraph.updates`` restarts the viewport render (:func:`update_restarts`)."""
+    """Whether any of ``depsgraph.updates`` restarts the render (:func:`update_restarts`)."""
     return any(update_restarts(u) for u in updates)
 
 

@@ -45,7 +45,7 @@ def zoom_factor(camera_zoom):
 
 
 def camera_plane(cam: Camera):
-    """``(left, right, bottom, top)`` view plane of ``cam`` (see :func:`core.camera.view_extent`)."""
+    """``(left, right, bottom, top)`` view plane of ``cam`` (:func:`core.camera.view_extent`)."""
     half_x, half_y, sx, sy = view_extent(cam)
     return (sx - half_x, sx + half_x, sy - half_y, sy + half_y)
 
