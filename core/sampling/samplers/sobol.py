@@ -83,7 +83,7 @@ class SobolSampler:
     """Makes :class:`SobolStream` batches. ``spp`` is accepted and not needed."""
 
     name = "sobol"
-    label = "Sobol (Owen)"
+    label = "Sobol (hashed Owen)"
     description = ("Sobol (0,2)-sequence in every 2-D slot (padded, as pbrt-v4), scrambled per "
                    "pixel by a hash-based approximation of Owen scrambling (Laine-Karras "
                    "permutation with Vegdahl's hash: nested, stratification kept exactly). "
