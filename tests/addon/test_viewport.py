@@ -484,3 +484,20 @@ def test_restart_returns_at_once_and_the_new_render_waits_for_the_old_unit(
     finally:
         release.set()
         renderer.stop(timeout=60)
+
+
+def test_engine_delegates_to_the_viewport_and_unregister_stops_its_renders(
+        empty_scene, export, viewport, addon):
+    engine = importlib.import_module(f"{ADDON_MODULE}.addon.engine")
+    cls = engine.SAMPLINGLAB_RenderEngine
+    for method, target in (("view_update", "view_update"), ("view_draw", "view_draw"),
+                           ("__del__", "free")):
+        names = getattr(cls, method).__code__.co_names
+        assert "viewport" in names and target in names, method
+    sl_scene = film_scene(export, empty_scene, 32, 24)
+    session = viewport.ViewportSession()
+    session.renderer.start(sl_scene, dataclasses.replace(
+        viewport.viewport_settings(empty_scene), spp=0), [(1, 0)])
+    assert session.renderer.running
+    viewport.stop_all()
+    assert not session.renderer.running and session.renderer.stats["cancelled"]
