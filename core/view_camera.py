@@ -73,7 +73,8 @@ def camera_from_plane(to_world, kind, plane, clip_start, clip_end, width, height
     """
     left, right, bottom, top = (float(v) for v in plane)
     span = right - left
-    if not (span > 0 and top > bottom and width > 0 and height > 0):
+    if not (all(map(math.isfinite, (left, right, bottom, top))) and span > 0 and top > bottom
+            and width > 0 and height > 0):
         raise ValueError(f"degenerate view plane {plane!r} or film {width} x {height}")
     m = np.array(to_world, np.float64)
     norms = np.linalg.norm(m[:3, :3], axis=0)
@@ -113,6 +114,8 @@ def camera_from_matrices(view_matrix, window_matrix, width, height, clip=None):
         Perspective when the projection divides by depth (``w = -z``), orthographic otherwise.
     """
     p = np.asarray(window_matrix, np.float64)
+    if p[0, 0] == 0 or p[1, 1] == 0:
+        raise ValueError("the window matrix projects nothing (not drawn yet?)")
     to_world = np.linalg.inv(np.asarray(view_matrix, np.float64))
     if abs(p[3, 3]) > 0.5:
         # orthographic_m4: x_ndc = (2 x - (r + l)) / (r - l), z_ndc = (-2 z - (f + n)) / (f - n)

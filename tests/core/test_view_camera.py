@@ -179,3 +179,10 @@ def test_given_clipping_distances_replace_the_matrix_ones(kind, clip):
     depth = lambda p: (p - to_world[:3, 3]) @ forward  # noqa: E731
     np.testing.assert_allclose(depth(origins), clip[0], atol=1e-9)
     np.testing.assert_allclose(depth(origins + directions * tmax[:, None]), clip[1], atol=1e-9)
+
+
+@pytest.mark.parametrize("proj,size", [(np.zeros((4, 4)), (40, 30)),
+                                       (frustum(-0.1, 0.1, -0.1, 0.1, 0.1, 10.0), (0, 30))])
+def test_degenerate_views_raise_instead_of_making_nan_rays(proj, size):
+    with pytest.raises(ValueError):
+        camera_from_matrices(np.eye(4), proj, *size)
