@@ -241,6 +241,8 @@ class Frame:
         Which start of :class:`ProgressiveRender` it belongs to.
     final : bool
         Whether it is the full film (not a preview).
+    serial : int
+        Counts the frames of a :class:`ProgressiveRender` (tells view_draw to upload it).
     """
 
     pixels: np.ndarray
@@ -248,6 +250,7 @@ class Frame:
     spp: int
     generation: int
     final: bool
+    serial: int = 0
 
 
 def texture_pixels(frame):
@@ -288,6 +291,7 @@ class ProgressiveRender:
         self._job = None
         self._frame = None
         self._generation = 0
+        self._serial = 0
         self.notify = notify
         # Polled by the redraw timer: a frame was published since the last look.
         self.new_frame = threading.Event()
@@ -430,6 +434,8 @@ class ProgressiveRender:
         with self._lock:
             if job is not self._job:
                 return
+            self._serial += 1
+            frame.serial = self._serial
             self._frame = frame
         self._notify()
 
@@ -457,7 +463,7 @@ class ViewportSession:
         self.pixel_size = 1
         self.dirty = True          # the export changed since the render started
         self.error = ""
-        self.texture = None        # (generation, frame id, GPUTexture) drawn last
+        self.texture = None        # (frame serial, pixel size, GPUTexture) drawn last
         _SESSIONS.add(self)
 
     def sync(self, depsgraph, updates=None, camera_object=None):
@@ -532,6 +538,13 @@ class ViewportSession:
                                                self.settings.spp))
         _ensure_redraw_timer()
         return True
+
+    def frame_to_upload(self):
+        """The latest frame if view_draw has not made a texture of it yet, else None."""
+        frame = self.renderer.frame()
+        if frame is None or (self.texture is not None and self.texture[0] == frame.serial):
+            return None
+        return frame
 
     def status(self):
         """The line shown in the viewport's corner."""
@@ -627,12 +640,10 @@ def view_draw(engine, context, depsgraph):
         view = View.from_region(context.region_data, region.width, region.height,
                                 context.space_data)
         session.ensure_view(view)
-        frame = session.renderer.frame()
-        if frame is not None:
-            _draw(engine, depsgraph.scene, session, frame)
-        elif session.texture is not None:
+        upload = session.frame_to_upload()
+        if upload is not None or session.texture is not None:
             # Until the new render's first pass: the previous image, not an empty viewport.
-            _draw(engine, depsgraph.scene, session, None)
+            _draw(engine, depsgraph.scene, session, upload)
         engine.update_stats("", session.status())
     except Exception as ex:  # noqa: BLE001 - nothing may take Blender down
         traceback.print_exc()
@@ -644,12 +655,10 @@ def _draw(engine, scene, session, frame):
     from gpu_extras.presets import draw_texture_2d
 
     if frame is not None:
-        ident = (frame.generation, id(frame))
-        if session.texture is None or session.texture[0] != ident:
-            height, width = frame.pixels.shape[:2]
-            data = gpu.types.Buffer('FLOAT', width * height * 4, texture_pixels(frame))
-            texture = gpu.types.GPUTexture((width, height), format='RGBA32F', data=data)
-            session.texture = (ident, frame.pixel_size, texture)
+        height, width = frame.pixels.shape[:2]
+        data = gpu.types.Buffer('FLOAT', width * height * 4, texture_pixels(frame))
+        texture = gpu.types.GPUTexture((width, height), format='RGBA32F', data=data)
+        session.texture = (frame.serial, frame.pixel_size, texture)
     _, size, texture = session.texture
     gpu.state.blend_set('ALPHA_PREMULT')
     engine.bind_display_space_shader(scene)

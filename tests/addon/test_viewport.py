@@ -238,6 +238,10 @@ def test_session_restarts_on_a_new_view_and_renders_viewport_samples(empty_scene
         frame = session.renderer.frame()
         assert frame.final and frame.spp == 2 and frame.pixels.shape == (30, 40, 4)
         assert session.status() == "Sampling Lab | Sample 2/2 | Done"
+        # view_draw uploads a frame once (what _draw records after making the texture).
+        assert session.frame_to_upload() is frame
+        session.texture = (frame.serial, frame.pixel_size, "texture")
+        assert session.frame_to_upload() is None
     finally:
         session.free(timeout=60)
 
@@ -366,6 +370,7 @@ def test_each_pass_draws_the_film_mean_of_that_many_samples(empty_scene, export,
     assert not preview.final and preview.pixel_size == 4
     assert preview.pixels.shape == (-(-height // 4), -(-width // 4), 4)
     assert [f.spp for f in passes] == [1, 2, 3] and all(f.final for f in passes)
+    assert [f.serial for f in frames] == [1, 2, 3, 4]
     for frame in (preview, passes[0], passes[2]):
         camera = film_camera(sl_scene.camera, frame.pixel_size)
         reference = core_render.render(
