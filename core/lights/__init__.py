@@ -29,14 +29,14 @@ import time
 
 import numpy as np
 
-from .sampling import warps
-from .sampling.distributions import (
+from ..sampling import warps
+from ..sampling.distributions import (
     DISTRIBUTION_METHODS,
     PiecewiseConstant2D,
     Segmented1D,
     make_distribution,
 )
-from .scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SUN, Lights
+from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SUN, Lights
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
