@@ -20,8 +20,8 @@ from typing import NamedTuple
 import bpy
 import numpy as np
 
-from ..core import lights as core_lights
-from ..core.scene import (
+from ...core import lights as core_lights
+from ...core.scene import (
     VIS_CAMERA,
     VIS_DIFFUSE,
     VIS_GLOSSY,
