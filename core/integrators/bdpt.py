@@ -61,6 +61,7 @@ from ..camera import camera_pdf, camera_position, importance, project
 from ..emitters import Emission
 from ..materials.bsdf import IMPORTANCE, RADIANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
+from ..sampling.mis import MIS
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_SUN, VIS_CAMERA, VIS_SHADOW
 from .common import (BatchOutput, camera_rays, intersect_by_class, max_component,
                      russian_roulette, surface_interaction)
@@ -152,7 +153,7 @@ class _Context:
         self.cam = prep.scene.camera
         self.cam_pos = camera_position(self.cam)
         self.smooth = prep.scene.corner_normals is not None
-        self.heuristic = settings.mis_heuristic
+        self.mis = MIS.from_settings(settings)
         self.light_only = light_only
         self.views = bool(getattr(settings, "strategy_views", False)) and not light_only
         self.view_length = int(getattr(settings, "strategy_max_length", 0))
@@ -226,12 +227,13 @@ def _to_area(pdf_sa, cos_at, dist):
 
 
 # ------------------------------------------------------------------------------------ MIS
-def mis_weight(p_light, p_camera, delta, s, delta_light, heuristic="power", beta=2.0,
-               alpha=0.1, direct=None):
+def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
     """MIS weight ``(m,)`` of strategy ``s`` for paths of ``k + 1`` vertices ``x_0..x_k``.
 
     Parameters
     ----------
+    mis : core.sampling.mis.MIS
+        The render's heuristic (not a single-strategy setting).
     p_light, p_camera : list of k + 1 arrays (m,)
         ``p_light[i]``: density with which the light side makes ``x_i`` (from ``x_{i-1}``;
         ``x_0``'s: the emitter's origin density); ``p_camera[i]``: the same from the camera
@@ -243,7 +245,6 @@ def mis_weight(p_light, p_camera, delta, s, delta_light, heuristic="power", beta
         The strategy that made the paths (light vertices used).
     delta_light : (m,) bool
         ``x_0`` is a point or a directional delta light: ``s' = 0`` is impossible.
-    heuristic : {'balance', 'power', 'maximum', 'cutoff', 'none'}
     direct : (m,) bool or None
         For ``k = 1`` (an emitter seen directly): whether ``s' = 1, t' = 1`` (a point on the
         emitter connected to the pinhole) can make the path: finite emitters seen by the camera,
@@ -280,26 +281,7 @@ def mis_weight(p_light, p_camera, delta, s, delta_light, heuristic="power", beta
         r = np.nan_to_num(ratio[sp], nan=0.0, posinf=np.inf)
         valid.append(ok & (r > 0))
         terms.append(np.where(ok, r, 0.0))
-    r = np.stack(terms)
-    v = np.stack(valid)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        if heuristic == "balance":
-            w = 1.0 / r.sum(axis=0)
-        elif heuristic == "power":
-            w = 1.0 / (r ** beta).sum(axis=0)
-        elif heuristic == "none":
-            w = 1.0 / v.sum(axis=0)
-        elif heuristic == "maximum":
-            top = r.max(axis=0)
-            ties = (v & (r >= top)).sum(axis=0)
-            w = np.where(top <= 1.0, 1.0 / np.maximum(ties, 1), 0.0)
-        elif heuristic == "cutoff":
-            top = r.max(axis=0)
-            keep = v & (r >= alpha * top)
-            w = np.where(1.0 >= alpha * top, 1.0 / np.where(keep, r, 0.0).sum(axis=0), 0.0)
-        else:
-            raise ValueError(f"BDPT's MIS heuristic must be balance, power, maximum, cutoff or "
-                             f"none, not {heuristic!r}")
+    w = mis.weight(np.stack(terms), s, np.stack(valid))
     return np.where(np.isfinite(w), w, 0.0)
 
 
@@ -543,9 +525,7 @@ def _s0_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_del
         if 0 < zi:
             delta[i] = cam.delta[zi, r]
     delta_light = np.zeros(m, bool)
-    s = ctx.settings
-    return mis_weight(p_light, p_camera, delta, 0, delta_light, ctx.heuristic, s.mis_beta,
-                      s.mis_alpha, direct=~infinite)
+    return strategy_weight(ctx.mis, p_light, p_camera, delta, 0, delta_light, direct=~infinite)
 
 
 # ------------------------------------------------------------------------------------ connect
@@ -670,9 +650,7 @@ def _connect_weight(ctx, L, C, s, t, rows, conn, fresh):
                                    L.d_prev[s - 1, rows])
         for i in range(s - 2):
             p_camera[i] = L.pdf_rev[i, rows]
-    st = ctx.settings
-    return mis_weight(p_light, p_camera, delta, s, delta_light, ctx.heuristic, st.mis_beta,
-                      st.mis_alpha)
+    return strategy_weight(ctx.mis, p_light, p_camera, delta, s, delta_light)
 
 
 def _connect_camera(ctx, L, s, out):
@@ -722,9 +700,8 @@ def _connect_camera(ctx, L, s, out):
         p_camera[s - 2] = _to_area(yv.pdf_back(w_y), L.cos_prev[yj, rows], L.d_prev[yj, rows])
         for i in range(s - 2):
             p_camera[i] = L.pdf_rev[i, rows]
-        st = ctx.settings
-        weight = mis_weight(p_light, p_camera, delta, s, ctx.light_points.delta_light[rows],
-                            ctx.heuristic, st.mis_beta, st.mis_alpha)
+        weight = strategy_weight(ctx.mis, p_light, p_camera, delta, s,
+                                 ctx.light_points.delta_light[rows])
     _splat(ctx, out, s, film_xy, value, weight)
 
 
@@ -772,9 +749,8 @@ def _connect_emitter_to_camera(ctx, L, out):
     m = rows.size
     p_camera = [_to_area(camera_pdf(cam, cos_theta, ctx.film_pixels), cos_l, dist), np.ones(m)]
     p_light = [pts.pdf_origin[rows], np.ones(m)]
-    st = ctx.settings
-    weight = mis_weight(p_light, p_camera, [np.zeros(m, bool)] * 2, 1, np.zeros(m, bool),
-                        ctx.heuristic, st.mis_beta, st.mis_alpha, direct=np.ones(m, bool))
+    weight = strategy_weight(ctx.mis, p_light, p_camera, [np.zeros(m, bool)] * 2, 1,
+                             np.zeros(m, bool), direct=np.ones(m, bool))
     _splat(ctx, out, 1, film_xy, value, weight)
 
 

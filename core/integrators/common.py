@@ -8,7 +8,6 @@ import numpy as np
 
 from ..accel import Hits
 from ..camera import generate_rays
-from ..sampling.mis import bsdf_weight
 
 
 def max_component(v):
@@ -216,16 +215,13 @@ def shading_normals(prep, prim, u, v, ng, wo):
     return np.where(good[:, None], n, ng)
 
 
-def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera,
-                            heuristic="power", mis_beta=2.0, mis_alpha=0.1):
+def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera, mis):
     """Stage *handle escaped + handle emission*: light reaching the ray's origin along it.
 
     Adds ``beta * Le * w`` to ``L[rows_of]`` for the world (escaped rays), light shapes before the
     hit, and emissive triangles hit. ``w`` is the MIS weight against next-event estimation from
     the previous vertex (``pdf_prev (n,)`` is the BSDF's solid-angle pdf there); where
     ``use_mis (n,)`` is false (camera rays, previous delta BSDF) the weight is one.
-    ``heuristic`` is any of ``core.sampling.mis.MIS_SETTINGS`` (with ``mis_beta`` for
-    ``'power'`` and ``mis_alpha`` for ``'cutoff'``); see :func:`core.sampling.mis.bsdf_weight`.
 
     Parameters
     ----------
@@ -237,11 +233,13 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
     hits : core.accel.Hits
     camera : bool
         Whether these are camera rays (lamps show only if visible to the camera).
+    mis : core.sampling.mis.MIS
+        The render's MIS (any setting); see :meth:`core.sampling.mis.MIS.bsdf_weight`.
     """
     lights = prep.lights
 
     def weight(rows, pdf_light):
-        w = bsdf_weight(pdf_prev[rows], pdf_light, heuristic, mis_beta, mis_alpha)
+        w = mis.bsdf_weight(pdf_prev[rows], pdf_light)
         return np.where(use_mis[rows], w, 1.0)
 
     escaped = np.nonzero(~hits.hit)[0]

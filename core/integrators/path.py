@@ -49,7 +49,7 @@ from ..materials.bsdf import (KIND_DIELECTRIC, LOBE_DIFFUSE, LOBE_TRANSMIT, RADI
                               pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
-from ..sampling.mis import light_weight
+from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
 from .common import (Counters, add_emitters_along_rays, camera_rays, intersect_by_class,
                      max_component, russian_roulette, surface_interaction)
@@ -190,10 +190,9 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
     n = len(stream)
     L = np.zeros((n, 3))
     counters.camera_samples += n
-    heuristic = settings.mis_heuristic
-    mis_beta, mis_alpha = settings.mis_beta, settings.mis_alpha
+    mis = MIS.from_settings(settings)
     # BSDF sampling alone never samples lights: skip NEE and its shadow rays altogether.
-    use_nee = heuristic != "bsdf"
+    use_nee = mis.samples_lights
     o, d, tmax = camera_rays(prep, pixel_filter, stream)
     rows_of = np.arange(n)
     beta = np.ones((n, 3))
@@ -208,8 +207,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
         # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         counters.rays += o.shape[0]
-        _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray,
-                      heuristic, mis_beta, mis_alpha)
+        _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis)
         if bounce == settings.max_bounces + 1:
             break  # this segment only gathered emission (Cycles' "terminate on next surface")
 
@@ -243,7 +241,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
             nee = (np.arange(live.size) if shading.nee_rows is None else shading.nee_rows)
             if nee.size:
                 _next_event(prep, shading, si, nee, u_sel[nee], u_light[nee], beta, L, rows_of,
-                            heuristic, mis_beta, mis_alpha, counters)
+                            mis, counters)
 
         # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
         wi, weight, pdf_b, delta, vis_next, through = shading.sample(u_bsdf)
@@ -271,8 +269,7 @@ def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
     return np.maximum(L, 0.0)
 
 
-def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, heuristic,
-                  mis_beta, mis_alpha):
+def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis):
     """Stage *handle escaped + handle emission*, with camera rays (``camera_ray (n,)``: lamps
     show only if visible to the camera) and other rays handled apart."""
     groups = ([(None, bool(camera_ray[0]))] if np.all(camera_ray == camera_ray[:1])
@@ -280,16 +277,14 @@ def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_
     for rows, camera in groups:
         if rows is None:
             add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis,
-                                    camera, heuristic, mis_beta, mis_alpha)
+                                    camera, mis)
             continue
         sub = Hits(hits.prim[rows], hits.t[rows], hits.u[rows], hits.v[rows])
         add_emitters_along_rays(prep, L, beta[rows], o[rows], d[rows], sub, rows_of[rows],
-                                pdf_prev[rows], use_mis[rows], camera, heuristic, mis_beta,
-                                mis_alpha)
+                                pdf_prev[rows], use_mis[rows], camera, mis)
 
 
-def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, heuristic, mis_beta,
-                mis_alpha, counters):
+def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, mis, counters):
     """Stage *sample lights* on the shading rows ``rows``: adds ``beta f Li w / pdf`` to ``L``."""
     p = si.p[rows]
     wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(p, u_sel, u_light, counters)
@@ -304,7 +299,6 @@ def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, heuri
     counters.rays += cand.size
     vis = cand[~blocked]
     # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
-    w = np.where(delta[vis], 1.0,
-                 light_weight(pdf_l[vis], pdf_b[vis], heuristic, mis_beta, mis_alpha))
+    w = np.where(delta[vis], 1.0, mis.light_weight(pdf_l[vis], pdf_b[vis]))
     contrib = beta[rows[vis]] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
     L[rows_of[rows[vis]]] += contrib

@@ -1,32 +1,37 @@
-"""Multiple importance sampling weights (Veach 1997, ch. 9).
+"""Multiple importance sampling weights (Veach 1997, ch. 9), as one value object.
 
-``mis_weight(pdf_a, pdf_b)`` is the weight of a sample drawn by strategy A (density ``pdf_a``)
-when strategy B could have drawn the same point with density ``pdf_b``, one sample each. For each
-heuristic the weights of A and B at the same point sum to one, which keeps the combination
-unbiased.
+A render builds one :class:`MIS` from its settings (:meth:`MIS.from_settings`) and hands it to
+the integrator; every weight of the render comes from it. Its one weight computation,
+:meth:`MIS.weight`, takes a stack of the densities with which ``k`` strategies make the same
+samples and returns the weight of one of them. The path tracer is its two-strategy case
+(:meth:`MIS.pair_weight`, and :meth:`MIS.light_weight` / :meth:`MIS.bsdf_weight` for next-event
+estimation against BSDF sampling); bidirectional path tracing is its ``k``-strategy case (one
+strategy per way of splitting a path into a light and a camera subpath, see
+:mod:`core.integrators.bdpt_mis`).
 
-The path tracer combines two strategies for direct light: light sampling (next-event estimation,
-NEE) and BSDF sampling (a scattered ray that hits an emitter). :func:`light_weight` and
-:func:`bsdf_weight` give their weights for every setting of ``MIS_SETTINGS``:
+Settings (``MIS_SETTINGS``):
 
 - ``'balance'``, ``'power'`` (exponent ``beta``), ``'maximum'``, ``'cutoff'`` (``alpha``): Veach's
   heuristics;
-- ``'none'``: both strategies, each with the constant weight 1/2 where both can make the sample:
-  the unweighted average of two unbiased estimates; unbiased, but without the variance
-  reduction of MIS (each strategy's bad cases are only halved);
-- ``'bsdf'``: BSDF sampling only (no next-event estimation); an emitter found by a ray gets
-  weight one. Delta lights (points, spots, suns of angle 0) cannot be hit by a ray, so they
-  contribute nothing: the image misses their light, by definition of the strategy;
-- ``'light'``: light sampling only: NEE with weight one; an emitter hit by a ray after a
-  scattering vertex gets weight zero wherever NEE could have sampled it (one where it could
-  not, so no light goes missing). Emitters seen directly by the camera still count.
+- ``'none'``: every strategy that can make the sample gets the same weight: the unweighted
+  average of unbiased estimates; unbiased, but without the variance reduction of MIS (each
+  strategy's bad cases are only divided by the number of strategies);
+- ``'bsdf'`` (path tracer only): BSDF sampling only (no next-event estimation); an emitter found
+  by a ray gets weight one. Delta lights (points, spots, suns of angle 0) cannot be hit by a ray,
+  so they contribute nothing: the image misses their light, by definition of the strategy;
+- ``'light'`` (path tracer only): light sampling only: NEE with weight one; an emitter hit by a
+  ray after a scattering vertex gets weight zero wherever NEE could have sampled it (one where it
+  could not, so no light goes missing). Emitters seen directly by the camera still count.
 
-For every setting ``light_weight(a, b) + bsdf_weight(b, a) == 1`` wherever both densities are
-positive, and the weight of a strategy is one where the other cannot make the sample, so every
-setting is unbiased (``'bsdf'`` apart from delta lights, which it cannot see).
+For every heuristic the weights of all strategies that can make a sample sum to one, which keeps
+the combination unbiased; for the single strategies ``light_weight(a, b) + bsdf_weight(b, a) ==
+1`` wherever both densities are positive, and the weight of a strategy is one where the other
+cannot make the sample (``'bsdf'`` apart from delta lights, which it cannot see).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -35,85 +40,149 @@ SINGLE_STRATEGIES = ("bsdf", "light")
 MIS_SETTINGS = HEURISTICS + SINGLE_STRATEGIES
 
 
-def mis_weight(pdf_a, pdf_b, heuristic="power", beta=2.0, alpha=0.1):
-    """Weight ``(n,)`` of strategy A's samples.
+@dataclass(frozen=True)
+class MIS:
+    """How a render combines its sampling strategies.
 
     Parameters
     ----------
-    pdf_a, pdf_b : (n,) float64
-        Densities of the two strategies at the sampled point (same measure).
-    heuristic : str
-        ``'balance'``, ``'power'`` (exponent ``beta``), ``'maximum'``, ``'cutoff'``
-        (strategies below ``alpha`` times the largest density get weight zero), or ``'none'``
-        (1/2 each: the plain average of the two strategies).
+    setting : str
+        One of ``MIS_SETTINGS``.
     beta : float
         Exponent of the power heuristic (2 is Veach's recommendation; 1 is the balance
         heuristic).
     alpha : float
-        Cutoff fraction in [0, 1].
+        Cutoff fraction in [0, 1]: strategies below ``alpha`` times the largest density get
+        weight zero.
     """
-    a = np.asarray(pdf_a, np.float64)
-    b = np.asarray(pdf_b, np.float64)
-    # Work with ratios to the larger density, so that no sum or power can overflow.
-    m = np.maximum(a, b)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        ra = np.where(np.isinf(m), np.where(np.isinf(a), 1.0, 0.0), a / m)
-        rb = np.where(np.isinf(m), np.where(np.isinf(b), 1.0, 0.0), b / m)
-        if heuristic == "balance":
-            w = ra / (ra + rb)
-        elif heuristic == "power":
-            w = ra**beta / (ra**beta + rb**beta)
-        elif heuristic == "maximum":
-            w = np.where(ra > rb, 1.0, np.where(ra == rb, 0.5, 0.0))
-        elif heuristic == "none":
-            w = np.full(np.broadcast(ra, rb).shape, 0.5)
-        elif heuristic == "cutoff":
-            keep_a = ra >= alpha
-            keep_b = rb >= alpha
-            w = np.where(keep_a, ra / (ra + np.where(keep_b, rb, 0.0)), 0.0)
-        else:
-            raise ValueError(f"unknown MIS heuristic {heuristic!r}")
-    # Where A cannot produce the sample at all, or B cannot, the answer is exact.
-    w = np.where(a <= 0, 0.0, np.where(b <= 0, 1.0, w))
-    return np.nan_to_num(w, nan=0.0)
+
+    setting: str = "power"
+    beta: float = 2.0
+    alpha: float = 0.1
+
+    def __post_init__(self):
+        if self.setting not in MIS_SETTINGS:
+            raise ValueError(f"unknown MIS heuristic {self.setting!r}; choose from "
+                             f"{', '.join(MIS_SETTINGS)}")
+
+    @classmethod
+    def from_settings(cls, settings):
+        """The MIS of a render: ``settings.mis_heuristic``, ``mis_beta``, ``mis_alpha``."""
+        return cls(settings.mis_heuristic, settings.mis_beta, settings.mis_alpha)
+
+    @property
+    def samples_lights(self):
+        """Whether next-event estimation runs (``'bsdf'`` never samples lights)."""
+        return self.setting != "bsdf"
+
+    def weight(self, densities, s, possible=None):
+        """Weight ``(m,)`` of strategy ``s`` among the ``k`` strategies of ``densities``.
+
+        Parameters
+        ----------
+        densities : (k, m) float64
+            Density with which each strategy makes each sample, in one common measure and any
+            common scale (ratios to one of them are enough); zero for a strategy that cannot make
+            the sample; finite or ``inf``, never NaN where a weight is wanted.
+        s : int
+            The strategy that made the samples.
+        possible : (k, m) bool or None
+            Which strategies can make each sample (counted by ``'none'`` and in the ties of
+            ``'maximum'``); None: all of them.
+        """
+        r = densities
+        h = self.setting
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            if h == "balance":
+                return r[s] / r.sum(axis=0)
+            if h == "power":
+                rb = r ** self.beta
+                return rb[s] / rb.sum(axis=0)
+            if h == "none":
+                if possible is None:
+                    return np.full(r.shape[1:], 1.0 / r.shape[0])
+                return possible[s] / possible.sum(axis=0)
+            top = r.max(axis=0)
+            if h == "maximum":
+                best = r >= top
+                ties = (best if possible is None else possible & best).sum(axis=0)
+                return np.where(r[s] >= top, 1.0 / np.maximum(ties, 1), 0.0)
+            if h == "cutoff":
+                keep = r >= self.alpha * top
+                if possible is not None:
+                    keep = possible & keep
+                return np.where(r[s] >= self.alpha * top,
+                                r[s] / np.where(keep, r, 0.0).sum(axis=0), 0.0)
+        raise ValueError(f"the MIS setting {h!r} is a single strategy, not a heuristic "
+                         f"that weighs several: choose from {', '.join(HEURISTICS)}")
+
+    def pair_weight(self, pdf_a, pdf_b):
+        """Weight ``(n,)`` of strategy A's samples when strategy B could make the same point,
+        one sample each: :meth:`weight` of a stack of two (a heuristic setting).
+
+        Parameters
+        ----------
+        pdf_a, pdf_b : (n,) float64
+            Densities of the two strategies at the sampled point (same measure).
+        """
+        a = np.asarray(pdf_a, np.float64)
+        b = np.asarray(pdf_b, np.float64)
+        # Work with ratios to the larger density, so that no sum or power can overflow.
+        m = np.maximum(a, b)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            ra = np.where(np.isinf(m), np.where(np.isinf(a), 1.0, 0.0), a / m)
+            rb = np.where(np.isinf(m), np.where(np.isinf(b), 1.0, 0.0), b / m)
+        w = self.weight(np.stack(np.broadcast_arrays(ra, rb)), 0)
+        # Where A cannot produce the sample at all, or B cannot, the answer is exact.
+        w = np.where(a <= 0, 0.0, np.where(b <= 0, 1.0, w))
+        return np.nan_to_num(w, nan=0.0)
+
+    def light_weight(self, pdf_light, pdf_bsdf):
+        """Weight ``(n,)`` of next-event (light) samples.
+
+        Parameters
+        ----------
+        pdf_light : (n,) float64
+            Density of the light sample under light sampling (selection included).
+        pdf_bsdf : (n,) float64
+            Density of the same direction under BSDF sampling.
+        """
+        if self.setting == "light":
+            return np.where(np.asarray(pdf_light) > 0, 1.0, 0.0)
+        if self.setting == "bsdf":
+            return np.zeros(np.shape(pdf_light))
+        return self.pair_weight(pdf_light, pdf_bsdf)
+
+    def bsdf_weight(self, pdf_bsdf, pdf_light):
+        """Weight ``(n,)`` of emitters found by BSDF-sampled rays.
+
+        Parameters
+        ----------
+        pdf_bsdf : (n,) float64
+            Density of the ray's direction under BSDF sampling.
+        pdf_light : (n,) float64
+            Density with which next-event estimation picks the same point (zero where it
+            cannot).
+        """
+        if self.setting == "light":
+            # Light sampling owns every emitter it can reach; rays keep the rest (none is lost).
+            return np.where(np.asarray(pdf_light) > 0, 0.0, 1.0)
+        if self.setting == "bsdf":
+            return np.where(np.asarray(pdf_bsdf) > 0, 1.0, 0.0)
+        return self.pair_weight(pdf_bsdf, pdf_light)
+
+
+def mis_weight(pdf_a, pdf_b, heuristic="power", beta=2.0, alpha=0.1):
+    """``MIS(heuristic, beta, alpha).pair_weight(pdf_a, pdf_b)``, for one-off use (plots,
+    tests); a render builds its :class:`MIS` once."""
+    return MIS(heuristic, beta, alpha).pair_weight(pdf_a, pdf_b)
 
 
 def light_weight(pdf_light, pdf_bsdf, setting="power", beta=2.0, alpha=0.1):
-    """MIS weight ``(n,)`` of next-event (light) samples.
-
-    Parameters
-    ----------
-    pdf_light : (n,) float64
-        Density of the light sample under light sampling (selection included).
-    pdf_bsdf : (n,) float64
-        Density of the same direction under BSDF sampling.
-    setting : str
-        One of ``MIS_SETTINGS``.
-    beta, alpha : float
-        As in :func:`mis_weight`.
-    """
-    if setting == "light":
-        return np.where(np.asarray(pdf_light) > 0, 1.0, 0.0)
-    if setting == "bsdf":
-        return np.zeros(np.shape(pdf_light))
-    return mis_weight(pdf_light, pdf_bsdf, setting, beta, alpha)
+    """``MIS(setting, beta, alpha).light_weight(pdf_light, pdf_bsdf)``, for one-off use."""
+    return MIS(setting, beta, alpha).light_weight(pdf_light, pdf_bsdf)
 
 
 def bsdf_weight(pdf_bsdf, pdf_light, setting="power", beta=2.0, alpha=0.1):
-    """MIS weight ``(n,)`` of emitters found by BSDF-sampled rays.
-
-    Parameters
-    ----------
-    pdf_bsdf : (n,) float64
-        Density of the ray's direction under BSDF sampling.
-    pdf_light : (n,) float64
-        Density with which next-event estimation picks the same point (zero where it cannot).
-    setting, beta, alpha
-        As in :func:`light_weight`.
-    """
-    if setting == "light":
-        # Light sampling owns every emitter it can reach; rays keep the rest (none is lost).
-        return np.where(np.asarray(pdf_light) > 0, 0.0, 1.0)
-    if setting == "bsdf":
-        return np.where(np.asarray(pdf_bsdf) > 0, 1.0, 0.0)
-    return mis_weight(pdf_bsdf, pdf_light, setting, beta, alpha)
+    """``MIS(setting, beta, alpha).bsdf_weight(pdf_bsdf, pdf_light)``, for one-off use."""
+    return MIS(setting, beta, alpha).bsdf_weight(pdf_bsdf, pdf_light)

@@ -15,7 +15,8 @@ import pytest
 
 from sampling_lab.core.accel import Accel
 from sampling_lab.core.camera import generate_rays
-from sampling_lab.core.integrators.bdpt import mis_weight
+from sampling_lab.core.integrators.bdpt import strategy_weight
+from sampling_lab.core.sampling.mis import MIS
 from sampling_lab.core.integrators.common import strategies, strategy_pass_names
 from sampling_lab.core.render import RenderSettings, check_settings, render
 from sampling_lab.core.scenes import cornell_box, cornell_sphere
@@ -66,8 +67,8 @@ def test_mis_weights_of_all_strategies_sum_to_one_for_every_heuristic(heuristic)
                 can &= ~delta[k - 1] if k >= 2 else direct
             else:
                 can &= ~delta[s - 1] & ~delta[s]
-            w = mis_weight(p_light, p_camera, delta, s, delta_light, heuristic, 2.0, 0.1,
-                           direct=direct)
+            w = strategy_weight(MIS(heuristic, 2.0, 0.1), p_light, p_camera, delta, s,
+                                delta_light, direct=direct)
             assert np.isfinite(w).all() and (w >= 0).all() and (w <= 1 + 1e-12).all()
             total += np.where(can, w, 0.0)
             possible |= can
