@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .film import Film, PixelFilter
-from .integrators import INTEGRATORS
-from .integrators.common import BatchOutput, Counters, strategy_pass_names
+from .integrators import INTEGRATORS, integrator_class
+from .integrators.base import UNIT_PATHS, Counters
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
 from .prepare import PreparedScene, prepare
 from .sampling.distributions import DISTRIBUTION_METHODS
@@ -40,9 +40,6 @@ from .sampling.mis import HEURISTICS, MIS_SETTINGS
 from .sampling.samplers import make_sampler
 from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
-# Target number of paths per work unit: large enough for NumPy to amortise Python overhead,
-# small enough that a unit takes well under a second (cancel latency) and fits in memory.
-UNIT_PATHS = 1 << 15
 # Work units per pass when the image is small: a pass keeps several threads busy. The pass size
 # must not depend on the thread count, or the film's sums would be added in another order.
 PASS_UNITS = 8
@@ -266,27 +263,26 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     if hasattr(sampler, "width"):
         # Screen-space samplers (blue-noise masks) need the image width to find vertical neighbours.
         sampler.width = cam.width
-    integrator = INTEGRATORS[settings.integrator]
+    integrator = integrator_class(settings.integrator)(prep, settings)
     pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
-    result = RenderResult(film, messages=list(scene.messages), prepared=prep)
-    if settings.integrator in ("light", "bdpt") and len(scene.lights):
+    result = RenderResult(film, messages=list(scene.messages), prepared=prep,
+                          layer_names=list(integrator.layers))
+    if integrator.splats and len(scene.lights):
         soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
         if soft:
             result.messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
                                    f"is rendered as a plain sphere light")
     bounce_bits = VIS_DIFFUSE | VIS_GLOSSY | VIS_TRANSMISSION
-    if (settings.integrator in ("light", "bdpt") and len(scene.visibility)
+    if (integrator.splats and len(scene.visibility)
             and np.any((np.asarray(scene.visibility) & bounce_bits) != bounce_bits)):
         result.messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
                                f"visibility are honoured by path tracing only; camera paths "
                                f"bounce with Camera visibility, light paths with Shadow")
-    if settings.strategy_views and getattr(integrator, "HAS_STRATEGY_VIEWS", False):
-        result.layer_names = strategy_pass_names(settings.strategy_max_length)
 
     n_pix = film.n_pixels
     total_spp = settings.spp if settings.spp > 0 else None
     # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
-    unit_paths = getattr(integrator, "UNIT_PATHS", UNIT_PATHS)
+    unit_paths = integrator.unit_paths
     # Sized by the whole frame, so a region's pixels sum their samples in the same passes as a
     # full-frame render (bit-identical pixels).
     spp_per_pass = max(1, min(unit_paths * PASS_UNITS // (cam.width * cam.height), 64))
@@ -308,25 +304,21 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         # Streams and camera rays are indexed by frame pixel, the film by window pixel.
         frame_pixels = (y0 + pixels // film.width) * cam.width + x0 + pixels % film.width
         local = Counters()
-        out = integrator.render_samples(prep, settings, pixel_filter,
-                                        sampler.stream(frame_pixels, samples), local)
+        out = integrator.render_samples(sampler.stream(frame_pixels, samples), pixel_filter,
+                                        local)
         return pixels, out, local
 
     def accumulate(pixels, out, local):
         """Add one unit's output to the film (in unit order: the image is deterministic)."""
         counters.add(local)
-        if not isinstance(out, BatchOutput):
-            film.add_samples(pixels, out)
-            return
         film.add_samples(pixels, out.radiance)
-        if out.splat_xy is not None and len(out.splat_xy):
-            film.splat(out.splat_xy, out.splat_value, pixel_filter)
+        if out.splats is not None and len(out.splats.xy):
+            film.splat(out.splats.xy, out.splats.value, pixel_filter)
         film.add_splat_paths(out.light_paths)
-        for name, entry in (out.layers or {}).items():
-            if entry[0] == "camera":
-                film.add_layer(name, pixels, entry[1])
-            else:
-                film.splat_layer(name, entry[1], entry[2], pixel_filter)
+        for name, values in out.camera_layers.items():
+            film.add_layer(name, pixels, values)
+        for name, splats in out.splat_layers.items():
+            film.splat_layer(name, splats.xy, splats.value, pixel_filter)
 
     def report(fraction):
         if progress is None:

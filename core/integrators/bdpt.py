@@ -30,7 +30,7 @@ Limitations
     Perspective cameras only (light subpaths must be able to reach the film). Object ray
     visibility is honoured for camera rays and shadow rays; light subpath rays trace every
     object. Soft Falloff point lights are rendered as spheres, and sphere lights shine on
-    points inside them only through ``s <= 1`` strategies (:mod:`core.emitters`).
+    points inside them only through ``s <= 1`` strategies (:mod:`core.lights.emission`).
 Render region
     A region is rendered as a smaller film: camera subpaths start in the region's pixels only,
     each with its one light subpath as in a full render (so the region costs its share of the
@@ -54,24 +54,19 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from ..camera import camera_pdf, camera_position, importance, project
-from ..emitters import Emission
 from ..materials.bsdf import IMPORTANCE, RADIANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..sampling.mis import MIS
-from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_SUN, VIS_CAMERA, VIS_SHADOW
-from .common import (BatchOutput, camera_rays, intersect_by_class, max_component,
-                     russian_roulette, surface_interaction)
-from .path import geometric_side_valid, ray_class
+from ..scene import VIS_CAMERA, VIS_SHADOW
+from .base import BatchOutput, Integrator, Splats
+from .common import (camera_rays, geometric_side_valid, intersect_by_class, max_component,
+                     ray_class, russian_roulette, strategy_pass_names, surface_interaction)
 
-HAS_STRATEGY_VIEWS = True
-# Paths per work unit of the render loop: a BDPT sample costs 5-16 path-tracing samples, so
-# units are smaller than the path tracer's to keep cancel and progress within a second (a call
-# has ~0.1 s of fixed Python cost, so much smaller units would be slower).
-UNIT_PATHS = 1 << 13
 # Paths per chunk: keeps the subpath arrays (depth x paths) small.
 CHUNK = 8192
 # Sample dimensions: 0-1 pixel filter; per camera vertex: BSDF lobe, BSDF 2-D, roulette, light
@@ -143,27 +138,24 @@ class Subpath:
 
 
 class _Context:
-    """What the stages of one chunk share."""
+    """What the stages of one chunk share: the integrator's per-render constants, this
+    batch's counters and the light subpaths' endpoints once sampled."""
 
-    def __init__(self, prep, settings, counters, emission, pixel_filter, light_only):
-        self.prep = prep
-        self.settings = settings
+    def __init__(self, integrator, counters, emission, pixel_filter):
+        self.prep = integrator.prep
+        self.settings = integrator.settings
         self.counters = counters
         self.emission = emission
-        self.cam = prep.scene.camera
-        self.cam_pos = camera_position(self.cam)
-        self.smooth = prep.scene.corner_normals is not None
-        self.mis = MIS.from_settings(settings)
-        self.light_only = light_only
-        self.views = bool(getattr(settings, "strategy_views", False)) and not light_only
-        self.view_length = int(getattr(settings, "strategy_max_length", 0))
+        self.cam = integrator.cam
+        self.cam_pos = integrator.cam_pos
+        self.smooth = integrator.smooth
+        self.mis = integrator.mis
+        self.weighs = integrator.weighs
+        self.view_length = integrator.view_length
         # Light paths reach edge pixels through the filter's reach outside the image.
         self.film_margin = 0.5 * pixel_filter.support
-        # A render region is a smaller film: splats outside it are not traced, and camera rays
-        # are drawn over its pixels only (their density, for MIS, is over the region's area).
-        self.window = getattr(settings, "region", None)
-        self.film_pixels = (None if self.window is None else
-                            (self.window[2] - self.window[0]) * (self.window[3] - self.window[1]))
+        self.window = integrator.window
+        self.film_pixels = integrator.film_pixels
         self.light_points = None  # the light subpaths' endpoints, once sampled
 
 
@@ -376,29 +368,47 @@ def _walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, m
         vis = ray_class(smp.lobe[keep])
 
 
-def _accumulate(ctx, out, name_s, name_t, rows, value, weight):
-    """Add a strategy's contributions to the image and, if views are on, to its layers."""
-    out["L"][rows] += value * weight[:, None]
-    if ctx.views and name_s + name_t - 1 <= ctx.view_length:
-        key = f"Strategy s{name_s} t{name_t}"
-        layers = out["layers"]
-        for name, v in ((key, value), (key + " weighted", value * weight[:, None])):
-            if name not in layers:
-                layers[name] = ("camera", np.zeros_like(out["L"]))
-            layers[name][1][rows] += v
+class Tally:
+    """What one batch's strategies add up to: the image (one value per camera sample), the
+    light-path splats and, with strategy views of paths up to ``view_length`` segments, one
+    image per strategy ``(s, t)``: its own estimate and its MIS-weighted share."""
 
+    def __init__(self, n, view_length):
+        self.image = np.zeros((n, 3))
+        self.splats = []
+        self.view_length = view_length  # 0: no strategy views
+        self.camera_layers = {}
+        self.splat_layers = {}
 
-def _splat(ctx, out, s, xy, value, weight):
-    out["splat_xy"].append(xy)
-    out["splat_value"].append(value * weight[:, None])
-    if ctx.views and s <= ctx.view_length:
-        key = f"Strategy s{s} t1"
-        layers = out["layers"]
-        for name, v in ((key, value), (key + " weighted", value * weight[:, None])):
-            if name not in layers:
-                layers[name] = ("splat", [], [])
-            layers[name][1].append(xy)
-            layers[name][2].append(v)
+    def add(self, s, t, rows, value, weight):
+        """Add strategy ``(s, t)``'s contributions to the camera samples ``rows``."""
+        self.image[rows] += value * weight[:, None]
+        if s + t - 1 <= self.view_length:
+            key = f"Strategy s{s} t{t}"
+            layers = self.camera_layers
+            for name, v in ((key, value), (key + " weighted", value * weight[:, None])):
+                if name not in layers:
+                    layers[name] = np.zeros_like(self.image)
+                layers[name][rows] += v
+
+    def splat(self, s, xy, value, weight):
+        """Add strategy ``(s, 1)``'s contributions at film positions ``xy``."""
+        self.splats.append(Splats(xy, value * weight[:, None]))
+        if s <= self.view_length:
+            key = f"Strategy s{s} t1"
+            for name, v in ((key, value), (key + " weighted", value * weight[:, None])):
+                self.splat_layers.setdefault(name, []).append(Splats(xy, v))
+
+    def output(self, light_paths):
+        """The batch's :class:`BatchOutput`: no NaN, Inf or negative value in the image."""
+        image = self.image
+        image[~np.isfinite(image).all(axis=1)] = 0.0
+        splats = Splats.join(self.splats)
+        return BatchOutput(np.maximum(image, 0.0), Splats(splats.xy, np.maximum(splats.value, 0.0)),
+                           light_paths,
+                           {name: np.where(np.isfinite(v), v, 0.0)
+                            for name, v in self.camera_layers.items()},
+                           {name: Splats.join(parts) for name, parts in self.splat_layers.items()})
 
 
 # ------------------------------------------------------------------------------------ s = 0
@@ -417,9 +427,7 @@ def _camera_emission(ctx, cam_sub, out):
                 found.append((escaped, np.full(escaped.size, ls.world_index),
                               np.zeros((escaped.size, 3)), np.zeros((escaped.size, 3)),
                               np.full(escaped.size, np.inf)))
-            for li in np.nonzero(ls.lights.kind == LIGHT_SUN)[0] if ls.n_lights else []:
-                if ls.delta[li] or (j == 1 and not ls.lights.visible_camera[li]):
-                    continue
+            for li in ls.infinite_lamps(camera=j == 1):
                 found.append((escaped, np.full(escaped.size, li), np.zeros((escaped.size, 3)),
                               np.zeros((escaped.size, 3)), np.full(escaped.size, np.inf)))
         found += _lamp_hits(ctx, o, d, hits.t, j == 1)
@@ -445,60 +453,23 @@ def _camera_emission(ctx, cam_sub, out):
                 continue
             lr, index, q, normal, t, r, value = (lr[ok], index[ok], q[ok], normal[ok], t[ok],
                                                  r[ok], value[ok])
-            if ctx.light_only:
+            if not ctx.weighs:
                 weight = np.ones(lr.size)  # light tracing sees emitters through the camera
             else:
                 if j == 1:  # distances from the pinhole, not from the near clipping plane
                     t = np.where(np.isfinite(t), np.linalg.norm(q - ctx.cam_pos, axis=1), t)
                 weight = _s0_weight(ctx, cam_sub, j, r, index, q, normal, t, -d[lr],
                                     pdf_prev[lr], prev_delta[lr])
-            _accumulate(ctx, out, 0, j + 1, r, value, weight)
+            out.add(0, j + 1, r, value, weight)
 
     return handle
 
 
 def _lamp_hits(ctx, o, d, tmax, camera):
     """Points where rays meet lamp shapes (spheres, area lights) before ``tmax``:
-    a list of ``(rows, emitter index, point, normal, distance)``."""
-    lights = ctx.prep.lights.lights
-    out = []
-    for li in ctx.prep.lights.shape_lights:
-        if camera and not lights.visible_camera[li]:
-            continue
-        kind = lights.kind[li]
-        if kind == LIGHT_POINT:
-            c, r = lights.position[li], lights.radius[li]
-            oc = o - c
-            b = _dot(oc, d)
-            cc = _dot(oc, oc) - r * r
-            disc = b * b - cc
-            root = np.sqrt(np.maximum(disc, 0.0))
-            t = np.where(cc > 0, -b - root, -b + root)
-            rows = np.nonzero((disc > 0) & (t > 0) & (t < tmax))[0]
-            if rows.size:
-                q = o[rows] + d[rows] * t[rows, None]
-                normal = (q - c) / r
-                out.append((rows, np.full(rows.size, li), q, normal, t[rows]))
-        elif kind != LIGHT_SUN:
-            n_l = lights.direction[li]
-            ax, ay = lights.axis_x[li], lights.axis_y[li]
-            denom = d @ n_l
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = ((lights.position[li] - o) @ n_l) / denom
-            hit = (denom < 0) & (t > 0) & (t < tmax)
-            q = o + d * np.where(hit, t, 0.0)[:, None]
-            rel = q - lights.position[li]
-            gram = np.array([[ax @ ax, ax @ ay], [ax @ ay, ay @ ay]])
-            if not np.linalg.det(gram) > 0:
-                continue
-            x, y = np.linalg.solve(gram, np.stack([rel @ ax, rel @ ay]))
-            inside = ((np.abs(x) <= 0.5) & (np.abs(y) <= 0.5) if kind != LIGHT_DISK
-                      else x * x + y * y <= 0.25)
-            rows = np.nonzero(hit & inside)[0]
-            if rows.size:
-                out.append((rows, np.full(rows.size, li), q[rows],
-                            np.broadcast_to(n_l, (rows.size, 3)).copy(), t[rows]))
-    return out
+    a list of ``(rows, emitter index, point, normal, distance)`` (see
+    :meth:`core.lights.LightSampler.lamp_points`)."""
+    return ctx.prep.lights.lamp_points(o, d, tmax, camera)
 
 
 def _s0_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_delta):
@@ -595,7 +566,7 @@ def _connect(ctx, L, C, s, t, out, fresh=None):
     else:
         conn["y"], conn["w_y"] = yv.take(keep), w_y[keep]
     weight = _connect_weight(ctx, L, C, s, t, rows[keep], conn, fresh)
-    _accumulate(ctx, out, s, t, rows[keep], value[keep], weight)
+    out.add(s, t, rows[keep], value[keep], weight)
 
 
 def _connect_weight(ctx, L, C, s, t, rows, conn, fresh):
@@ -684,7 +655,7 @@ def _connect_camera(ctx, L, s, out):
         return
     rows, w, w_y, dist, value, film_xy, cos_theta = (rows[keep], w[keep], w_y[keep], dist[keep],
                                                      value[keep], film_xy[keep], cos_theta[keep])
-    if ctx.light_only:
+    if not ctx.weighs:
         weight = np.ones(rows.size)
     else:
         yv = yv.take(keep)
@@ -702,7 +673,7 @@ def _connect_camera(ctx, L, s, out):
             p_camera[i] = L.pdf_rev[i, rows]
         weight = strategy_weight(ctx.mis, p_light, p_camera, delta, s,
                                  ctx.light_points.delta_light[rows])
-    _splat(ctx, out, s, film_xy, value, weight)
+    out.splat(s, film_xy, value, weight)
 
 
 def _connect_emitter_to_camera(ctx, L, out):
@@ -751,7 +722,7 @@ def _connect_emitter_to_camera(ctx, L, out):
     p_light = [pts.pdf_origin[rows], np.ones(m)]
     weight = strategy_weight(ctx.mis, p_light, p_camera, [np.zeros(m, bool)] * 2, 1,
                              np.zeros(m, bool), direct=np.ones(m, bool))
-    _splat(ctx, out, 1, film_xy, value, weight)
+    out.splat(1, film_xy, value, weight)
 
 
 # ------------------------------------------------------------------------------------ driver
@@ -812,32 +783,86 @@ def _camera_subpath(ctx, pixel_filter, stream, n, depth, out):
     return C
 
 
-def render_samples(prep, settings, pixel_filter, stream, counters, light_only=False):
-    """Image contributions of one BDPT sample (a camera and a light subpath) per entry of
-    ``stream``; see the module docstring. ``light_only`` keeps the strategies of light
-    tracing (:mod:`.light`). Returns a :class:`BatchOutput`."""
-    n = len(stream)
-    if n > CHUNK:
-        return _in_chunks(prep, settings, pixel_filter, stream, counters, light_only)
-    cam = prep.scene.camera
-    if cam.type != "PERSP":
-        raise ValueError("light tracing and BDPT need a perspective camera "
-                         "(an orthographic camera cannot be reached from the lights)")
-    emission = getattr(prep, "emission", None)
-    if emission is None:
-        emission = prep.emission = Emission(prep.lights, prep.scene.vertices)
-    ctx = _Context(prep, settings, counters, emission, pixel_filter, light_only)
-    counters.camera_samples += n
-    segments = settings.max_bounces + 2  # longest path, in segments
-    depth = segments                      # vertices per subpath, endpoint included
-    out = {"L": np.zeros((n, 3)), "splat_xy": [], "splat_value": [], "layers": {}}
+class Bidirectional(Integrator):
+    """The estimators built from a camera and a light subpath per sample (light tracing and
+    BDPT): subpaths, the strategies every one of them uses (emitters seen by the camera
+    subpath, ``s = 0``; light vertices seen by the pinhole, ``t = 1``), and the chunking.
 
-    # Light tracing keeps the camera's first segment only: emitters seen directly.
-    C = _camera_subpath(ctx, pixel_filter, stream, n, 1 if light_only else depth, out)
-    base = DIMS_CAMERA + (depth + 1) * DIMS_PER_CAMERA_VERTEX
-    L = _light_subpath(ctx, stream, n, base, depth)
+    A subclass says how many camera vertices it traces (:meth:`camera_depth`), whether it
+    weighs its strategies by MIS (``weighs``) and which strategies it adds
+    (:meth:`connect`).
+    """
 
-    if not light_only:
+    splats = True
+    weighs: ClassVar[bool] = True
+
+    def __init__(self, prep, settings):
+        super().__init__(prep, settings)
+        self.cam = prep.scene.camera
+        if self.cam.type != "PERSP":
+            raise ValueError("light tracing and BDPT need a perspective camera "
+                             "(an orthographic camera cannot be reached from the lights)")
+        self.cam_pos = camera_position(self.cam)
+        self.smooth = prep.scene.corner_normals is not None
+        self.mis = MIS.from_settings(settings)
+        self.view_length = (int(settings.strategy_max_length)
+                            if self.strategy_views and settings.strategy_views else 0)
+        if self.view_length:
+            self.layers = tuple(strategy_pass_names(self.view_length))
+        # A render region is a smaller film: splats outside it are not traced, and camera rays
+        # are drawn over its pixels only (their density, for MIS, is over the region's area).
+        self.window = settings.region
+        self.film_pixels = (None if self.window is None else
+                            (self.window[2] - self.window[0]) * (self.window[3] - self.window[1]))
+
+    def camera_depth(self, depth):
+        """Vertices of the camera subpaths when light subpaths have ``depth``."""
+        return depth
+
+    def connect(self, ctx, stream, C, L, out):
+        """Strategies beyond ``s = 0`` and ``t = 1``: none here."""
+
+    def render_samples(self, stream, pixel_filter, counters):
+        """Image contributions of one sample (a camera and a light subpath) per entry of
+        ``stream``, in chunks of at most ``CHUNK`` paths."""
+        n = len(stream)
+        if n > CHUNK:
+            parts = []
+            for start in range(0, n, CHUNK):
+                part = copy.copy(stream)
+                part.compact(np.arange(start, min(start + CHUNK, n)))
+                parts.append(self.render_samples(part, pixel_filter, counters))
+            return BatchOutput.join(parts)
+        prep, settings = self.prep, self.settings
+        emission = prep.emission  # built by core.prepare.prepare
+        ctx = _Context(self, counters, emission, pixel_filter)
+        counters.camera_samples += n
+        depth = settings.max_bounces + 2  # vertices per subpath (endpoint included)
+        out = Tally(n, ctx.view_length)
+        C = _camera_subpath(ctx, pixel_filter, stream, n, self.camera_depth(depth), out)
+        base = DIMS_CAMERA + (depth + 1) * DIMS_PER_CAMERA_VERTEX
+        L = _light_subpath(ctx, stream, n, base, depth)
+        self.connect(ctx, stream, C, L, out)
+        for s in range(2, depth + 1):
+            if not L.valid[s - 1].any():
+                break
+            _connect_camera(ctx, L, s, out)
+        return out.output(n)
+
+
+class BDPT(Bidirectional):
+    """Bidirectional path tracing (see the module docstring)."""
+
+    # A BDPT sample costs 5-16 path-tracing samples, so units are smaller than the path
+    # tracer's to keep cancel and progress within a second (a call has ~0.1 s of fixed Python
+    # cost, so much smaller units would be slower).
+    unit_paths = 1 << 13
+    strategy_views = True
+
+    def connect(self, ctx, stream, C, L, out):
+        """Strategies ``s >= 1, t >= 2`` (a fresh emitter point for ``s = 1``), then
+        ``s = 1, t = 1``."""
+        depth = C.valid.shape[0]
         for t in range(2, depth + 1):
             zj = t - 1
             if not C.valid[zj].any():
@@ -846,59 +871,15 @@ def render_samples(prep, settings, pixel_filter, stream, counters, light_only=Fa
             stream.skip_to(DIMS_CAMERA + (zj - 1) * DIMS_PER_CAMERA_VERTEX + 4)
             u_sel = stream.next_1d()
             u_pos = stream.next_2d()
-            fresh = emission.sample_points(u_sel, u_pos, counters)
+            fresh = ctx.emission.sample_points(u_sel, u_pos, ctx.counters)
             _connect(ctx, L, C, 1, t, out, fresh)
-            for s in range(2, segments + 2 - t):
+            for s in range(2, depth + 2 - t):
                 if not L.valid[s - 1].any():
                     break
                 _connect(ctx, L, C, s, t, out)
-    if not light_only:
         _connect_emitter_to_camera(ctx, L, out)
-    for s in range(2, segments + 1):
-        if not L.valid[s - 1].any():
-            break
-        _connect_camera(ctx, L, s, out)
-
-    image = out["L"]
-    image[~np.isfinite(image).all(axis=1)] = 0.0
-    xy = np.concatenate(out["splat_xy"]) if out["splat_xy"] else np.zeros((0, 2))
-    value = np.concatenate(out["splat_value"]) if out["splat_value"] else np.zeros((0, 3))
-    layers = {}
-    for name, entry in out["layers"].items():
-        if entry[0] == "camera":
-            layers[name] = ("camera", np.where(np.isfinite(entry[1]), entry[1], 0.0))
-        else:
-            layers[name] = ("splat", np.concatenate(entry[1]), np.concatenate(entry[2]))
-    return BatchOutput(np.maximum(image, 0.0), xy, np.maximum(value, 0.0), n, layers)
 
 
-def _in_chunks(prep, settings, pixel_filter, stream, counters, light_only):
-    """:func:`render_samples` on consecutive chunks of ``CHUNK`` paths, outputs joined."""
-    outs = []
-    n = len(stream)
-    for start in range(0, n, CHUNK):
-        part = copy.copy(stream)
-        part.compact(np.arange(start, min(start + CHUNK, n)))
-        outs.append(render_samples(prep, settings, pixel_filter, part, counters, light_only))
-    layers = {}
-    for o in outs:
-        for name, entry in o.layers.items():
-            layers.setdefault(name, []).append(entry)
-    joined = {}
-    for name, entries in layers.items():
-        if entries[0][0] == "camera":
-            continue  # filled below, aligned with the chunks
-        joined[name] = ("splat", np.concatenate([e[1] for e in entries]),
-                        np.concatenate([e[2] for e in entries]))
-    for name in layers:
-        if name in joined:
-            continue
-        parts = []
-        for o in outs:
-            entry = o.layers.get(name)
-            parts.append(entry[1] if entry is not None else np.zeros_like(o.radiance))
-        joined[name] = ("camera", np.concatenate(parts))
-    return BatchOutput(np.concatenate([o.radiance for o in outs]),
-                       np.concatenate([o.splat_xy for o in outs]),
-                       np.concatenate([o.splat_value for o in outs]),
-                       sum(o.light_paths for o in outs), joined)
+render_samples = BDPT.one_batch
+# Read by addon/cli.py until it asks integrator_class(name).strategy_views.
+HAS_STRATEGY_VIEWS = BDPT.strategy_views

@@ -8,6 +8,8 @@ import numpy as np
 
 from ..accel import Hits
 from ..camera import generate_rays
+from ..materials.bsdf import LOBE_DIFFUSE, LOBE_TRANSMIT
+from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 
 def max_component(v):
@@ -29,59 +31,33 @@ def russian_roulette(beta, alive, u_rr, settings, bounce):
     return alive & (max_component(beta) > 0), beta
 
 
-@dataclass
-class Counters:
-    """Work done by one batch (summed by the render loop).
+def ray_class(lobe):
+    """Object ray visibility class of rays leaving a vertex by the sampled ``lobe (k,)`` bits.
 
-    Attributes
-    ----------
-    rays : int
-        Rays traced (camera, bounce and shadow rays).
-    camera_samples : int
-        Camera paths started.
-    distribution_s : float
-        Seconds spent in discrete choices (light and emissive-triangle selection).
-    distribution_samples : int
-        Discrete draws made in that time.
+    As Cycles: transmissions trace with ``VIS_TRANSMISSION``, diffuse reflections with
+    ``VIS_DIFFUSE``, glossy and singular reflections with ``VIS_GLOSSY``.
     """
-
-    rays: int = 0
-    camera_samples: int = 0
-    distribution_s: float = 0.0
-    distribution_samples: int = 0
-
-    def add(self, other: "Counters"):
-        """Accumulate another batch's counts into this one."""
-        self.rays += other.rays
-        self.camera_samples += other.camera_samples
-        self.distribution_s += other.distribution_s
-        self.distribution_samples += other.distribution_samples
+    lobe = np.asarray(lobe)
+    return np.where((lobe & LOBE_TRANSMIT) != 0, VIS_TRANSMISSION,
+                    np.where((lobe & LOBE_DIFFUSE) != 0, VIS_DIFFUSE, VIS_GLOSSY)).astype(np.int32)
 
 
-@dataclass
-class BatchOutput:
-    """What an integrator returns for one batch when it does more than one radiance per sample.
+def geometric_side_valid(ng, wo, wi, transmit):
+    """Whether ``wi (k, 3)`` leaves on the intended side of the *geometric* surface.
 
-    Attributes
-    ----------
-    radiance : (n, 3) float64
-        Camera-sample estimates, one per entry of the batch's stream (may be all zero).
-    splat_xy : (m, 2) float64 or None
-        Film positions (pixels, y up) of light-path contributions.
-    splat_value : (m, 3) float64 or None
-        Their values, for :meth:`core.film.Film.splat` with the render's pixel filter.
-    light_paths : int
-        Light paths traced (the splat estimator's denominator).
-    layers : dict
-        Extra images by pass name (see :func:`strategy_pass_names`): ``name -> ('camera',
-        values (n, 3))`` per camera sample, or ``name -> ('splat', xy (m, 2), values (m, 3))``.
+    Shading normals tilt BSDF lobes away from the true surface, so a direction can be above the
+    shading hemisphere yet below the geometry: light would leak through, or paths continue
+    inside closed objects (pbrt's and Cycles' light-leak rule). A reflection (``transmit``
+    false) is valid only if ``wi . ng`` has the sign of ``wo . ng``, a transmission only if the
+    opposite sign. ``wo`` may be any vector on the viewer's side of ``ng`` (the incoming
+    direction, or ``ns`` already flipped toward it). Contributions of invalid directions are
+    zeroed; pdfs are left as they are (MIS weights of other strategies are unaffected).
     """
-
-    radiance: np.ndarray
-    splat_xy: np.ndarray = None
-    splat_value: np.ndarray = None
-    light_paths: int = 0
-    layers: dict = None
+    cos_o = np.einsum("ij,ij->i", ng, wo)
+    cos_i = np.einsum("ij,ij->i", ng, wi)
+    same = cos_o * cos_i > 0
+    opposite = cos_o * cos_i < 0
+    return np.where(transmit, opposite, same)
 
 
 def strategies(max_length):

@@ -10,8 +10,8 @@ What it estimates
     (BDPT's ``s = 0, t = 2``), so that the sky and sun disks seen directly count too.
 Bias and consistency
     Unbiased for paths of up to ``max_bounces + 1`` scattering vertices, as the path tracer,
-    except for the approximations of :mod:`core.emitters` (sphere lights do not light points
-    inside them).
+    except for the approximations of :mod:`core.lights.emission` (sphere lights do not light
+    points inside them).
 Render region
     One light path per camera sample of the region's pixels, and only splats that reach a
     region pixel are connected and kept, divided by the light paths traced: unbiased, at the
@@ -28,18 +28,23 @@ When it fails
 
 from __future__ import annotations
 
-from . import bdpt
-
-# Paths per work unit (a light-tracing sample costs 2-5 path-tracing samples).
-UNIT_PATHS = 1 << 14
+from .bdpt import Bidirectional
 
 
-def render_samples(prep, settings, pixel_filter, stream, counters):
-    """One light path (and one camera ray for emitters seen directly) per entry of ``stream``.
+class LightTracer(Bidirectional):
+    """Light tracing: one light path and one camera ray per sample (see the module docstring).
 
-    Returns
-    -------
-    core.integrators.common.BatchOutput
-        Camera-sample radiance (emitters seen directly) and the light paths' splats.
+    Each strategy stands alone (weight one): ``s = 0, t = 2`` for emitters the camera ray
+    sees, ``t = 1`` for every light vertex the pinhole sees.
     """
-    return bdpt.render_samples(prep, settings, pixel_filter, stream, counters, light_only=True)
+
+    # A light-tracing sample costs 2-5 path-tracing samples.
+    unit_paths = 1 << 14
+    weighs = False
+
+    def camera_depth(self, depth):
+        """The camera ray only: emitters seen directly."""
+        return 1
+
+
+render_samples = LightTracer.one_batch

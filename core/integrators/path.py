@@ -45,30 +45,21 @@ from __future__ import annotations
 import numpy as np
 
 from ..accel import Hits
-from ..materials.bsdf import (KIND_DIELECTRIC, LOBE_DIFFUSE, LOBE_TRANSMIT, RADIANCE, eval_bsdf,
-                              pdf_bsdf, sample_bsdf)
+from ..materials.bsdf import (KIND_DIELECTRIC, LOBE_TRANSMIT, RADIANCE, eval_bsdf, pdf_bsdf,
+                              sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..sampling.mis import MIS
-from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
-from .common import (Counters, add_emitters_along_rays, camera_rays, intersect_by_class,
-                     max_component, russian_roulette, surface_interaction)
+from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
+from .base import BatchOutput, Integrator
+from .common import (add_emitters_along_rays, camera_rays, geometric_side_valid,
+                     intersect_by_class, max_component, ray_class, russian_roulette,
+                     surface_interaction)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
 DIMS_CAMERA = 2
 DIMS_PER_BOUNCE = 7
-
-
-def ray_class(lobe):
-    """Object ray visibility class of rays leaving a vertex by the sampled ``lobe (k,)`` bits.
-
-    As Cycles: transmissions trace with ``VIS_TRANSMISSION``, diffuse reflections with
-    ``VIS_DIFFUSE``, glossy and singular reflections with ``VIS_GLOSSY``.
-    """
-    lobe = np.asarray(lobe)
-    return np.where((lobe & LOBE_TRANSMIT) != 0, VIS_TRANSMISSION,
-                    np.where((lobe & LOBE_DIFFUSE) != 0, VIS_DIFFUSE, VIS_GLOSSY)).astype(np.int32)
 
 
 class _LambertShading:
@@ -151,122 +142,106 @@ class _BSDFShading:
                 & (p.eta == 1.0))
 
 
-def geometric_side_valid(ng, wo, wi, transmit):
-    """Whether ``wi (k, 3)`` leaves on the intended side of the *geometric* surface.
+class PathTracer(Integrator):
+    """Path tracing with next-event estimation and MIS (see the module docstring).
 
-    Shading normals tilt BSDF lobes away from the true surface, so a direction can be above the
-    shading hemisphere yet below the geometry: light would leak through, or paths continue
-    inside closed objects (pbrt's and Cycles' light-leak rule). A reflection (``transmit``
-    false) is valid only if ``wi . ng`` has the sign of ``wo . ng``, a transmission only if the
-    opposite sign. ``wo`` may be any vector on the viewer's side of ``ng`` (the incoming
-    direction, or ``ns`` already flipped toward it). Contributions of invalid directions are
-    zeroed; pdfs are left as they are (MIS weights of other strategies are unaffected).
+    Built once per render: the MIS and whether next-event estimation runs at all.
     """
-    cos_o = np.einsum("ij,ij->i", ng, wo)
-    cos_i = np.einsum("ij,ij->i", ng, wi)
-    same = cos_o * cos_i > 0
-    opposite = cos_o * cos_i < 0
-    return np.where(transmit, opposite, same)
 
+    def __init__(self, prep, settings):
+        super().__init__(prep, settings)
+        self.mis = MIS.from_settings(settings)
+        # BSDF sampling alone never samples lights: skip NEE and its shadow rays altogether.
+        self.use_nee = self.mis.samples_lights
 
-def render_samples(prep, settings, pixel_filter, stream, counters: Counters):
-    """Radiance of one camera path per entry of ``stream``.
+    def render_samples(self, stream, pixel_filter, counters):
+        """Radiance of one camera path per entry of ``stream`` (finite, non-negative)."""
+        prep, settings, mis = self.prep, self.settings, self.mis
+        n = len(stream)
+        L = np.zeros((n, 3))
+        counters.camera_samples += n
+        o, d, tmax = camera_rays(prep, pixel_filter, stream)
+        rows_of = np.arange(n)
+        beta = np.ones((n, 3))
+        pdf_prev = np.zeros(n)
+        use_mis = np.zeros(n, bool)
+        vis = np.full(n, VIS_CAMERA, np.int32)
+        # Camera rays, also after passing straight through transparent surfaces.
+        camera_ray = np.ones(n, bool)
 
-    Parameters
-    ----------
-    prep : core.prepare.PreparedScene
-    settings : core.render.RenderSettings
-    pixel_filter : core.film.PixelFilter
-    stream : core.sampling.stream.SampleStream
-        One sample vector per path (pixel, sample index).
-    counters : Counters
-        Incremented with the rays traced.
+        for bounce in range(settings.max_bounces + 2):
+            # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
+            hits = intersect_by_class(prep.accel, o, d, tmax, vis)
+            counters.rays += o.shape[0]
+            _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis)
+            if bounce == settings.max_bounces + 1:
+                break  # this segment only gathered emission (Cycles' "terminate on next surface")
 
-    Returns
-    -------
-    (n, 3) float64
-        Radiance estimates, finite and non-negative.
-    """
-    n = len(stream)
-    L = np.zeros((n, 3))
-    counters.camera_samples += n
-    mis = MIS.from_settings(settings)
-    # BSDF sampling alone never samples lights: skip NEE and its shadow rays altogether.
-    use_nee = mis.samples_lights
-    o, d, tmax = camera_rays(prep, pixel_filter, stream)
-    rows_of = np.arange(n)
-    beta = np.ones((n, 3))
-    pdf_prev = np.zeros(n)
-    use_mis = np.zeros(n, bool)
-    vis = np.full(n, VIS_CAMERA, np.int32)
-    # Camera rays, also after passing straight through transparent surfaces.
-    camera_ray = np.ones(n, bool)
-    lambert_only = prep.lambert_only
+            # Compact to surface hits; degenerate triangles end the path.
+            live = np.nonzero(hits.hit)[0]
+            live = live[prep.tri_area[hits.prim[live]] > 0]
+            if live.size == 0:
+                break
+            si = surface_interaction(prep, hits, d, live)
+            stream.compact(live)
+            rows_of, beta = rows_of[live], beta[live]
+            vis, camera_ray = vis[live], camera_ray[live]
+            # This bounce's numbers, all drawn up front in the order of their dimensions: the
+            # BSDF lobe number also chooses the component of mixed materials before NEE needs it.
+            stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
+            u_sel = stream.next_1d()
+            u_light = stream.next_2d()
+            u_lobe = stream.next_1d()
+            u_bsdf = stream.next_2d()
+            u_rr = stream.next_1d()
+            shading = self._shading(si, hits, live, u_lobe)
 
-    for bounce in range(settings.max_bounces + 2):
-        # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
-        hits = intersect_by_class(prep.accel, o, d, tmax, vis)
-        counters.rays += o.shape[0]
-        _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis)
-        if bounce == settings.max_bounces + 1:
-            break  # this segment only gathered emission (Cycles' "terminate on next surface")
+            # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
+            if self.use_nee:
+                nee = (np.arange(live.size) if shading.nee_rows is None else shading.nee_rows)
+                if nee.size:
+                    _next_event(prep, shading, si, nee, u_sel[nee], u_light[nee], beta, L,
+                                rows_of, mis, counters)
 
-        # Compact to surface hits; degenerate triangles end the path.
-        live = np.nonzero(hits.hit)[0]
-        live = live[prep.tri_area[hits.prim[live]] > 0]
-        if live.size == 0:
-            break
-        si = surface_interaction(prep, hits, d, live)
-        stream.compact(live)
-        rows_of, beta = rows_of[live], beta[live]
-        vis, camera_ray = vis[live], camera_ray[live]
-        # This bounce's numbers, all drawn up front in the order of their dimensions: the BSDF
-        # lobe number also chooses the component of mixed materials before NEE needs it.
-        stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
-        u_sel = stream.next_1d()
-        u_light = stream.next_2d()
-        u_lobe = stream.next_1d()
-        u_bsdf = stream.next_2d()
-        u_rr = stream.next_1d()
-        if lambert_only:
+            # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
+            wi, weight, pdf_b, delta, vis_next, through = shading.sample(u_bsdf)
+            beta = beta * weight
+            alive = (pdf_b > 0) & np.isfinite(beta).all(axis=1)
+
+            alive, beta = russian_roulette(beta, alive, u_rr, settings, bounce)
+            keep = np.nonzero(alive)[0]
+            if keep.size == 0:
+                break
+            stream.compact(keep)
+            rows_of, beta = rows_of[keep], beta[keep]
+            o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
+            d = wi[keep]
+            tmax = np.full(keep.size, np.inf)
+            pdf_prev = pdf_b[keep]
+            use_mis = ~delta[keep]
+            through = through[keep]
+            camera_ray = camera_ray[keep] & through
+            vis = np.where(through, vis[keep], vis_next[keep])
+
+        # No NaN or Inf reaches the film: a non-finite estimate is dropped (counted as zero).
+        bad = ~np.isfinite(L).all(axis=1)
+        L[bad] = 0.0
+        return BatchOutput(np.maximum(L, 0.0))
+
+    def _shading(self, si, hits, live, u_lobe):
+        """Stage *surface shading* of the hits ``live``: Lambert in world space when every
+        material is diffuse, else the BSDF in local frames."""
+        prep = self.prep
+        if prep.lambert_only:
             shading = _LambertShading(prep, si)
             if prep.scene.textures:
                 shading.set_base_color(*prep.textured_base_color(si.prim, hits.u[live],
                                                                  hits.v[live]))
-        else:
-            shading = _BSDFShading(prep, si, u_lobe, hits.u[live], hits.v[live])
+            return shading
+        return _BSDFShading(prep, si, u_lobe, hits.u[live], hits.v[live])
 
-        # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
-        if use_nee:
-            nee = (np.arange(live.size) if shading.nee_rows is None else shading.nee_rows)
-            if nee.size:
-                _next_event(prep, shading, si, nee, u_sel[nee], u_light[nee], beta, L, rows_of,
-                            mis, counters)
 
-        # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
-        wi, weight, pdf_b, delta, vis_next, through = shading.sample(u_bsdf)
-        beta = beta * weight
-        alive = (pdf_b > 0) & np.isfinite(beta).all(axis=1)
-
-        alive, beta = russian_roulette(beta, alive, u_rr, settings, bounce)
-        keep = np.nonzero(alive)[0]
-        if keep.size == 0:
-            break
-        stream.compact(keep)
-        rows_of, beta = rows_of[keep], beta[keep]
-        o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
-        d = wi[keep]
-        tmax = np.full(keep.size, np.inf)
-        pdf_prev = pdf_b[keep]
-        use_mis = ~delta[keep]
-        through = through[keep]
-        camera_ray = camera_ray[keep] & through
-        vis = np.where(through, vis[keep], vis_next[keep])
-
-    # No NaN or Inf reaches the film: a non-finite estimate is dropped (counted as zero).
-    bad = ~np.isfinite(L).all(axis=1)
-    L[bad] = 0.0
-    return np.maximum(L, 0.0)
+render_samples = PathTracer.one_batch
 
 
 def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sampling_lab.core.sampling.mis import HEURISTICS, mis_weight
+from sampling_lab.core.sampling.mis import HEURISTICS, MIS, mis_weight
 
 EPS = np.finfo(np.float64).eps
 
@@ -114,3 +114,52 @@ def test_weights_sum_to_one_for_pdfs_near_the_float_limit(heuristic, kw, big):
 def test_unknown_heuristic_is_rejected():
     with pytest.raises(ValueError, match="heuristic"):
         mis_weight(np.ones(1), np.ones(1), "nearest")
+
+
+# ------------------------------------------------------------------ the MIS value object
+def _mis(heuristic, kw):
+    return MIS(heuristic, kw.get("beta", 2.0), kw.get("alpha", 0.1))
+
+
+@pytest.mark.parametrize("heuristic, kw", VARIANTS, ids=IDS)
+def test_two_strategy_weights_are_the_stack_weights_with_k_two(heuristic, kw):
+    """The path tracer's pair is the k = 2 case of the one weight over a stack of densities."""
+    a, b = pdf_pairs(seed=5, n=5000)
+    # Densities whose powers (beta <= 8) stay finite without the pair's rescaling.
+    keep = (a > 1e-30) & (b > 1e-30) & (a < 1e30) & (b < 1e30)
+    a, b = a[keep], b[keep]
+    mis = _mis(heuristic, kw)
+    stack = np.stack([a, b])
+    np.testing.assert_allclose(mis.pair_weight(a, b), mis.weight(stack, 0), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(mis.pair_weight(b, a), mis.weight(stack, 1), rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("heuristic, kw", VARIANTS, ids=IDS)
+@pytest.mark.parametrize("k", [1, 2, 3, 5, 9])
+def test_weights_of_a_stack_of_strategies_sum_to_one(heuristic, kw, k):
+    """Over the strategies that can make a sample (positive, finite density), the weights sum
+    to one; a strategy that cannot make it (zero density) gets weight zero."""
+    rng = np.random.default_rng(k)
+    m = 4000
+    densities = np.exp(rng.normal(0, 3, (k, m)))
+    densities[rng.random((k, m)) < 0.2] = 0.0
+    densities[0] = np.where(densities.max(axis=0) > 0, densities[0], 1.0)  # one can, at least
+    possible = densities > 0
+    mis = _mis(heuristic, kw)
+    weights = np.stack([mis.weight(densities, s, possible) for s in range(k)])
+    assert np.isfinite(weights).all() and (weights >= 0).all()
+    np.testing.assert_allclose(weights.sum(axis=0), 1.0, rtol=1e-12)
+    np.testing.assert_array_equal(weights[~possible], 0.0)
+
+
+def test_mis_is_built_once_from_the_settings_and_rejects_unknown_settings():
+    from sampling_lab.core.render import RenderSettings
+
+    mis = MIS.from_settings(RenderSettings(mis_heuristic="cutoff", mis_beta=3.0, mis_alpha=0.25))
+    assert (mis.setting, mis.beta, mis.alpha) == ("cutoff", 3.0, 0.25)
+    assert mis.samples_lights and not MIS("bsdf").samples_lights
+    with pytest.raises(ValueError, match="heuristic"):
+        MIS("nearest")
+    # The single strategies weigh a pair, not a stack.
+    with pytest.raises(ValueError, match="single strategy"):
+        MIS("light").weight(np.ones((2, 1)), 0)
