@@ -1,4 +1,7 @@
-"""Per-render derived data: Embree scenes, triangle normals and areas, the light sampler."""
+"""Per-render derived data: Embree scenes, triangle normals and areas, the light tables.
+
+Everything here is built once per render, before any worker thread starts, and only read
+afterwards."""
 
 from __future__ import annotations
 
@@ -8,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import Accel
-from .lights import LightSampler
+from .lights import Emission, LightSampler
 from .materials.bsdf import BSDFParams, is_delta_only
 from .sampling.distributions import Segmented1D
 from .scene import Scene
@@ -81,6 +84,9 @@ class PreparedScene:
         Every material a triangle uses is a single diffuse BSDF (no mixtures): integrators may
         take a world-space Lambert path.
     lights : LightSampler
+        Next-event estimation and the emitters rays find.
+    emission : core.lights.Emission
+        How light paths leave the same emitters (light tracing, BDPT).
     shift : (3,) float64
         World position of the local frame's origin: everything above is in world space minus
         ``shift`` (see :func:`recentred`).
@@ -104,6 +110,7 @@ class PreparedScene:
     material_mix: Segmented1D = None
     material_mix_count: np.ndarray = None
     lambert_only: bool = False
+    emission: Emission = None
 
     def bsdf(self, prim):
         """BSDF parameters of the hit triangles' own material rows ``(k,)`` and whether each
@@ -176,7 +183,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
 
     ``light_selection`` (``'power' | 'uniform'``), ``light_sampling`` (``'area' |
     'solid_angle'``) and ``distribution`` (``'cdf' | 'alias'``) configure the
-    :class:`core.lights.LightSampler`; ``distribution`` also draws mixed materials' components.
+    :class:`core.lights.LightSampler` (and the :class:`core.lights.Emission` of light paths over
+    it); ``distribution`` also draws mixed materials' components.
     Unknown values raise ``ValueError``.
     """
     scene, shift = recentred(scene)
@@ -205,7 +213,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used]))
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
-                         mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only)
+                         mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only,
+                         Emission(lights, scene.vertices))
 
 
 def mixture_table(weights, rows):

@@ -1,0 +1,123 @@
+"""Ray tests against lamp shapes: the one implementation of each, shared by next-event
+estimation, BSDF-sampled rays that find lamps (path tracing) and BDPT's lamp vertices.
+
+Lamps are not scene geometry (Embree never sees them, and they never block light), so rays meet
+them here, analytically, up to the distance ``tmax`` of the first surface.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import dot
+
+
+def sphere_roots(b, cc):
+    """Distances along unit directions to a sphere: roots of ``t^2 - 2 b t + cc = 0``.
+
+    Parameters
+    ----------
+    b : (n,) float64
+        ``dot(d, c - o)``: the direction against the vector from the origin to the centre.
+    cc : (n,) float64
+        ``|c - o|^2 - r^2`` (positive outside the sphere).
+
+    Returns
+    -------
+    disc : (n,) float64
+        The discriminant ``b^2 - cc`` (the ray misses where it is negative).
+    near, far : (n,) float64
+        ``b -/+ sqrt(max(disc, 0))``: where the ray enters and leaves the sphere.
+    """
+    disc = b * b - cc
+    root = np.sqrt(np.maximum(disc, 0.0))
+    return disc, b - root, b + root
+
+
+def ray_sphere(o, d, center, radius, tmax):
+    """Where rays ``o + t d`` meet a sphere's surface in ``(0, tmax)``: from outside its near
+    side, from inside its far wall.
+
+    Parameters
+    ----------
+    o, d : (n, 3) float64
+        Origins and unit directions.
+    center : (3,) float64
+    radius : float
+    tmax : (n,) float64
+
+    Returns
+    -------
+    rows : (m,) int64
+        Rays that meet the surface.
+    t : (n,) float64
+        Distance to it (meaningful on ``rows``).
+    outside : (n,) bool
+        Whether the origin is outside the sphere.
+    to_c : (n, 3) float64
+        ``center - o``.
+    """
+    to_c = center - o
+    cc = dot(to_c, to_c) - radius * radius
+    disc, near, far = sphere_roots(dot(to_c, d), cc)
+    outside = cc > 0
+    t = np.where(outside, near, far)
+    rows = np.nonzero((disc > 0) & (t > 0) & (t < tmax))[0]
+    return rows, t, outside, to_c
+
+
+def ray_facing_disk(o, d, center, radius, tmax):
+    """Where rays meet the disk of ``radius`` about ``center`` that faces each ray's origin
+    (a Soft Falloff point light as seen from there), before ``tmax``.
+
+    Returns
+    -------
+    rows : (m,) int64
+    t : (n,) float64
+    denom : (n,) float64
+        Cosine between the ray and the disk's normal (negative on ``rows``).
+    """
+    oc = o - center
+    d_o = np.sqrt(dot(oc, oc))
+    light_n = oc / np.maximum(d_o, 1e-300)[:, None]
+    denom = dot(d, light_n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -d_o / denom
+    hit = (denom < 0) & (t > 0) & (t < tmax) & (d_o > 0)
+    h = oc + d * np.where(hit, t, 0.0)[:, None]
+    rows = np.nonzero(hit & (dot(h, h) <= radius * radius))[0]
+    return rows, t, denom
+
+
+def ray_parallelogram(o, d, position, normal, axis_x, axis_y, tmax, disk):
+    """Where rays meet the emitting face of an area light before ``tmax``.
+
+    The light is the parallelogram ``position + x axis_x + y axis_y``, ``|x|, |y| <= 1/2``
+    (``disk``: the ellipse ``x^2 + y^2 <= 1/4`` inscribed in it), emitting toward ``normal``:
+    one-sided, a ray must travel against ``normal``. The in-plane coordinates come from the
+    dual basis, so sheared lights are hit where area sampling puts their points.
+
+    Returns
+    -------
+    None for a light of zero size, else
+    rows : (m,) int64
+    t : (n,) float64
+    denom : (n,) float64
+        ``dot(d, normal)`` (negative on ``rows``).
+    q : (n, 3) float64
+        The ray's point in the light's plane (``o`` where it misses).
+    """
+    denom = np.einsum("ij,j->i", d, normal)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.einsum("ij,j->i", position - o, normal) / denom
+    hit = (denom < 0) & (t > 0) & (t < tmax)
+    q = o + d * np.where(hit, t, 0.0)[:, None]
+    rel = q - position
+    gram = np.array([[axis_x @ axis_x, axis_x @ axis_y], [axis_x @ axis_y, axis_y @ axis_y]])
+    if not np.linalg.det(gram) > 0:
+        return None
+    x, y = np.linalg.solve(gram, np.stack([np.einsum("ij,j->i", rel, axis_x),
+                                           np.einsum("ij,j->i", rel, axis_y)]))
+    inside = x * x + y * y <= 0.25 if disk else (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5)
+    rows = np.nonzero(hit & inside)[0]
+    return rows, t, denom, q

@@ -1,0 +1,161 @@
+"""Emissive triangles: mesh faces whose material has an Emission (Strength is radiance,
+emitted from both faces).
+
+All triangles that share an emission material form one light, as an emissive object would:
+light selection chooses the material first, then one of its triangles in proportion to its power
+(area x luminance). Next-event estimation samples a point uniformly by area, or
+(``light_sampling='solid_angle'``) uniformly over the spherical triangle it subtends (Arvo 1995)
+where that warp is well conditioned. Light paths leave a uniform point by a cosine about either
+face (probability 1/2 each). Emissive triangles are scene geometry: Embree finds them, and
+:meth:`EmissiveTriangles.pdf_li` gives a hit the density next-event estimation would have.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..sampling import warps
+from .area import area_point_pdf, cosine_from_faces, solid_angle_pdf
+from .base import LUMINANCE, LightFamily, dot
+
+
+class EmissiveTriangles(LightFamily):
+    """The emissive triangles of a scene, grouped by material (see :class:`~.base.LightFamily`).
+
+    Emitter rows ``k + i`` of the sampler (after its ``k`` lamps) are ``emissive[i]``.
+
+    Attributes
+    ----------
+    emissive : (e,) int64
+        Triangle rows of the emitters, contiguous per emission material.
+    tri_emitter : (t,) int64
+        Emitter row of every triangle (-1 for triangles that do not emit).
+    n_groups : int
+        Emission materials (lights) among them.
+    group_start : (n_groups,) int64
+        First emitter of each group.
+    emit_group : (e,) int64
+        Group of each emitter.
+    emit_power : (e,) float64
+        Power of each emitter (area x luminance x 2 pi: both faces).
+    emit_v0, emit_e1, emit_e2, emit_normal : (e, 3) float64
+    emit_area : (e,) float64
+    emit_radiance : (e, 3) float64
+        The emitters' own copies, so that sampling gathers from small arrays.
+    """
+
+    def __init__(self, sampler, scene, tri_area, tri_normal, tri_v0, tri_e1, tri_e2):
+        super().__init__(sampler)
+        k = len(scene.lights)
+        emission = scene.materials.emission[scene.material].astype(np.float64)
+        tri_power = (emission @ LUMINANCE) * (2 * np.pi * tri_area)
+        emissive = np.nonzero((emission.max(axis=1) > 0) & (tri_area > 0))[0]
+        # One light per emission material: its triangles are contiguous rows.
+        emissive = emissive[np.argsort(scene.material[emissive], kind="stable")]
+        groups, group_start = np.unique(scene.material[emissive], return_index=True)
+        self.n_groups = groups.size
+        self.group_start = group_start
+        self.emissive = emissive
+        self.tri_emitter = np.full(scene.n_triangles, -1, np.int64)
+        self.tri_emitter[emissive] = k + np.arange(emissive.size)
+        self.tri_area = tri_area
+        self.tri_normal = tri_normal
+        self.tri_emission = emission
+        self.tri_v0, self.tri_e1, self.tri_e2 = tri_v0, tri_e1, tri_e2
+        self.emit_v0 = tri_v0[emissive]
+        self.emit_e1 = tri_e1[emissive]
+        self.emit_e2 = tri_e2[emissive]
+        self.emit_normal = tri_normal[emissive]
+        self.emit_area = tri_area[emissive]
+        self.emit_radiance = emission[emissive]
+        self.emit_power = tri_power[emissive]
+        self.emit_group = np.repeat(np.arange(groups.size),
+                                    np.diff(np.append(group_start, emissive.size)))
+
+    def group_power(self):
+        """Power ``(n_groups,)`` of each emission material's triangles together."""
+        if not self.emissive.size:
+            return np.zeros(0)
+        return np.add.reduceat(self.emit_power, self.group_start)
+
+    def use_spherical(self, a, b, c, p):
+        """Solid angles ``(n,)`` of triangles ``a, b, c (n, 3)`` from ``p (n, 3)`` and where the
+        spherical-triangle warp is used, ``(n,)`` bool.
+
+        Area sampling never needs the solid angle: it is not computed then (zeros).
+        """
+        if not self.sampler.solid_angle:
+            return np.zeros(p.shape[0]), np.zeros(p.shape[0], bool)
+        omega = warps.spherical_triangle_solid_angle(a, b, c, p)
+        use = ((omega >= warps.MIN_SPHERICAL_SOLID_ANGLE)
+               & (omega <= warps.MAX_SPHERICAL_SOLID_ANGLE))
+        return omega, use
+
+    def _point(self, e, u):
+        """Uniform points ``(m, 3)`` on emitters ``e (m,)`` by ``u (m, 2)``."""
+        b = warps.sample_uniform_triangle(u)
+        return self.emit_v0[e] + b[:, 1:2] * self.emit_e1[e] + b[:, 2:3] * self.emit_e2[e]
+
+    # ------------------------------------------------------------------ next-event estimation
+    def sample_li(self, m, e, p, u, pmf, out, counters=None):
+        """Uniformly by area or by solid angle; both faces emit."""
+        v0, e1, e2 = self.emit_v0[e], self.emit_e1[e], self.emit_e2[e]
+        q = self._point(e, u[m])
+        omega, sph = self.use_spherical(v0, v0 + e1, v0 + e2, p[m])
+        if sph.any():
+            ps, nrm = p[m[sph]], self.emit_normal[e[sph]]
+            w = warps.sample_spherical_triangle(u[m[sph]], v0[sph], v0[sph] + e1[sph],
+                                                v0[sph] + e2[sph], ps)
+            # The sampled point is where the direction meets the triangle's plane.
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = dot(v0[sph] - ps, nrm) / dot(w, nrm)
+            q[sph] = ps + w * np.where(np.isfinite(t) & (t > 0), t, 0.0)[:, None]
+        area_point_pdf(m, p, q, self.emit_normal[e], self.emit_area[e], self.emit_radiance[e],
+                       pmf, False, out)
+        solid_angle_pdf(m, sph, omega, pmf, out.pdf)
+
+    def pdf_li(self, prim, p_prev, dist, cos_light):
+        """Solid-angle pdf with which NEE from ``p_prev`` picks the hit point on triangle ``prim``.
+
+        Parameters
+        ----------
+        prim : (n,) int
+            Hit triangles (emissive ones; others give 0).
+        p_prev : (n, 3) float64
+        dist : (n,) float64
+            Distance from ``p_prev`` to the hit.
+        cos_light : (n,) float64
+            |cos| between the ray and the triangle normal.
+        """
+        ls = self.sampler
+        e = self.tri_emitter[prim]
+        sel = np.where(e >= 0, ls.select_prob[np.maximum(e, 0)] if ls.n_emitters else 0.0, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pdf = sel * dist * dist / (np.abs(cos_light) * self.tri_area[prim])
+        if ls.solid_angle and prim.size:
+            # The same decision as sample_li: by solid angle where the warp is well conditioned.
+            v0 = self.tri_v0[prim]
+            omega, sph = self.use_spherical(v0, v0 + self.tri_e1[prim], v0 + self.tri_e2[prim],
+                                            p_prev)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                pdf = np.where(sph, sel / omega, pdf)
+        return np.where(np.isfinite(pdf), pdf, 0.0)
+
+    # ------------------------------------------------------------------ light paths
+    def sample_le_origin(self, m, e, u, pmf, out):
+        out.p[m] = self._point(e, u[m])
+        out.normal[m] = self.emit_normal[e]
+        out.pdf[m] = pmf[m] / self.emit_area[e]
+
+    def sample_le_direction(self, m, e, pts, u, out):
+        """A cosine about either face."""
+        cosine_from_faces(m, pts.normal[m], u[m], np.ones(m.size, bool), out)
+
+    def le(self, m, e, cos, w, receiver, out):
+        out[m] = self.emit_radiance[e] * (cos[m] != 0)[:, None]
+
+    def pdf_le_origin(self, m, e, sel, w, out):
+        out[m] = sel[m] / self.emit_area[e]
+
+    def pdf_le_direction(self, m, e, cos, w, out):
+        out[m] = 0.5 * np.abs(cos[m]) / np.pi
