@@ -264,120 +264,19 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         # Screen-space samplers (blue-noise masks) need the image width to find vertical neighbours.
         sampler.width = cam.width
     integrator = integrator_class(settings.integrator)(prep, settings)
-    pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
-    result = RenderResult(film, messages=list(scene.messages), prepared=prep,
-                          layer_names=list(integrator.layers))
-    if integrator.splats and len(scene.lights):
-        soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
-        if soft:
-            result.messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
-                                   f"is rendered as a plain sphere light")
-    bounce_bits = VIS_DIFFUSE | VIS_GLOSSY | VIS_TRANSMISSION
-    if (integrator.splats and len(scene.visibility)
-            and np.any((np.asarray(scene.visibility) & bounce_bits) != bounce_bits)):
-        result.messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
-                               f"visibility are honoured by path tracing only; camera paths "
-                               f"bounce with Camera visibility, light paths with Shadow")
-
-    n_pix = film.n_pixels
-    total_spp = settings.spp if settings.spp > 0 else None
-    # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
-    unit_paths = integrator.unit_paths
-    # Sized by the whole frame, so a region's pixels sum their samples in the same passes as a
-    # full-frame render (bit-identical pixels).
-    spp_per_pass = max(1, min(unit_paths * PASS_UNITS // (cam.width * cam.height), 64))
-    threads = thread_count(settings)
-    counters = Counters()
-    done_spp = 0
-    t_start = time.perf_counter()
-
-    def elapsed():
-        return time.perf_counter() - t_start
-
-    def out_of_time():
-        return settings.time_limit > 0 and elapsed() >= settings.time_limit
-
-    def run_unit(unit):
-        p0, p1, s0, k = unit
-        pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
-        samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
-        # Streams and camera rays are indexed by frame pixel, the film by window pixel.
-        frame_pixels = (y0 + pixels // film.width) * cam.width + x0 + pixels % film.width
-        local = Counters()
-        out = integrator.render_samples(sampler.stream(frame_pixels, samples), pixel_filter,
-                                        local)
-        return pixels, out, local
-
-    def accumulate(pixels, out, local):
-        """Add one unit's output to the film (in unit order: the image is deterministic)."""
-        counters.add(local)
-        film.add_samples(pixels, out.radiance)
-        if out.splats is not None and len(out.splats.xy):
-            film.splat(out.splats.xy, out.splats.value, pixel_filter)
-        film.add_splat_paths(out.light_paths)
-        for name, values in out.camera_layers.items():
-            film.add_layer(name, pixels, values)
-        for name, splats in out.splat_layers.items():
-            film.splat_layer(name, splats.xy, splats.value, pixel_filter)
-
-    def report(fraction):
-        if progress is None:
-            return
-        el = elapsed()
-        sps = counters.camera_samples / el if el > 0 else 0.0
-        spp_txt = f"{done_spp}/{total_spp}" if total_spp else f"{done_spp}"
-        progress(min(fraction, 1.0), f"Sample {spp_txt} | {sps / 1e6:.2f} M samples/s | "
-                                     f"{counters.rays / max(el, 1e-9) / 1e6:.2f} M rays/s | "
-                                     f"{distribution_text(prep.lights, counters)}")
-
-    cancelled = False
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        while not cancelled:
-            if total_spp is not None and done_spp >= total_spp:
-                break
-            if out_of_time():
-                break
-            k = spp_per_pass if total_spp is None else min(spp_per_pass, total_spp - done_spp)
-            units = _units(n_pix, done_spp, k, unit_paths)
-            # Keep at most `threads` units in flight so cancel and time limits answer quickly.
-            pending = []
-            finished_units = 0
-            i = 0
-            while i < len(units) or pending:
-                while i < len(units) and len(pending) < threads:
-                    pending.append(pool.submit(run_unit, units[i]))
-                    i += 1
-                accumulate(*pending.pop(0).result())
-                finished_units += 1
-                stop = (cancel is not None and cancel()) or out_of_time()
-                if finished_units < len(units):  # the end of a pass is reported below
-                    if total_spp:
-                        report((done_spp + k * finished_units / len(units)) / total_spp)
-                    else:
-                        report(elapsed() / settings.time_limit)
-                if stop:
-                    cancelled = cancel is not None and cancel()
-                    for f in pending:  # finish what is running; its samples are kept
-                        accumulate(*f.result())
-                    pending = []
-                    i = len(units)
-                    break
-            if finished_units == len(units):
-                done_spp += k
-                report(done_spp / total_spp if total_spp else elapsed() / settings.time_limit)
-            if on_update is not None:
-                on_update(result)
-            if i >= len(units) and finished_units < len(units):
-                break
-
-    t = elapsed()
-    result.cancelled = cancelled
+    result = RenderResult(film, messages=list(scene.messages) + _messages(scene, settings,
+                                                                          integrator),
+                          layer_names=list(integrator.layers), prepared=prep)
+    passes = _Passes(settings, integrator, sampler, film, cam, progress, cancel)
+    result.cancelled = passes.run(lambda: on_update is not None and on_update(result))
+    t = passes.elapsed()
+    counters = passes.counters
     result.stats = {
         "time_s": t,
         "prepare_s": prepare_s,
         "prepared_reused": prepared is not None,
-        "threads": threads,
-        "spp": done_spp,
+        "threads": passes.threads,
+        "spp": passes.done_spp,
         "samples": counters.camera_samples,
         "samples_per_s": counters.camera_samples / t if t > 0 else 0.0,
         "rays": counters.rays,
@@ -392,6 +291,140 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                                        / max(counters.distribution_samples, 1)),
     }
     return result
+
+
+def _messages(scene, settings, integrator):
+    """What a render with light paths tells the user once about the scene."""
+    messages = []
+    if integrator.splats and len(scene.lights):
+        soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
+        if soft:
+            messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
+                            f"is rendered as a plain sphere light")
+    bounce_bits = VIS_DIFFUSE | VIS_GLOSSY | VIS_TRANSMISSION
+    if (integrator.splats and len(scene.visibility)
+            and np.any((np.asarray(scene.visibility) & bounce_bits) != bounce_bits)):
+        messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
+                        f"visibility are honoured by path tracing only; camera paths "
+                        f"bounce with Camera visibility, light paths with Shadow")
+    return messages
+
+
+class _Passes:
+    """The passes of one render: work units run on worker threads, accumulated into the film
+    in unit order, with progress, cancel and the time limit checked between units."""
+
+    def __init__(self, settings, integrator, sampler, film, cam, progress, cancel):
+        self.settings, self.integrator, self.sampler, self.film = settings, integrator, sampler, film
+        self.frame_width = cam.width
+        self.progress, self.cancel = progress, cancel
+        self.pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
+        self.total_spp = settings.spp if settings.spp > 0 else None
+        # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
+        self.unit_paths = integrator.unit_paths
+        # Sized by the whole frame, so a region's pixels sum their samples in the same passes as
+        # a full-frame render (bit-identical pixels).
+        self.spp_per_pass = max(1, min(self.unit_paths * PASS_UNITS // (cam.width * cam.height),
+                                       64))
+        self.threads = thread_count(settings)
+        self.counters = Counters()
+        self.done_spp = 0
+        self.t_start = time.perf_counter()
+
+    def elapsed(self):
+        return time.perf_counter() - self.t_start
+
+    def out_of_time(self):
+        return self.settings.time_limit > 0 and self.elapsed() >= self.settings.time_limit
+
+    def run_unit(self, unit):
+        """Render one work unit ``(pixel_start, pixel_stop, first_sample, n_samples)``."""
+        film = self.film
+        p0, p1, s0, k = unit
+        pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
+        samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
+        # Streams and camera rays are indexed by frame pixel, the film by window pixel.
+        frame_pixels = ((film.y0 + pixels // film.width) * self.frame_width + film.x0
+                        + pixels % film.width)
+        local = Counters()
+        out = self.integrator.render_samples(self.sampler.stream(frame_pixels, samples),
+                                             self.pixel_filter, local)
+        return pixels, out, local
+
+    def accumulate(self, pixels, out, local):
+        """Add one unit's output to the film (in unit order: the image is deterministic)."""
+        film, pixel_filter = self.film, self.pixel_filter
+        self.counters.add(local)
+        film.add_samples(pixels, out.radiance)
+        if out.splats is not None and len(out.splats.xy):
+            film.splat(out.splats.xy, out.splats.value, pixel_filter)
+        film.add_splat_paths(out.light_paths)
+        for name, values in out.camera_layers.items():
+            film.add_layer(name, pixels, values)
+        for name, splats in out.splat_layers.items():
+            film.splat_layer(name, splats.xy, splats.value, pixel_filter)
+
+    def report(self, fraction):
+        if self.progress is None:
+            return
+        el = self.elapsed()
+        counters = self.counters
+        sps = counters.camera_samples / el if el > 0 else 0.0
+        spp_txt = f"{self.done_spp}/{self.total_spp}" if self.total_spp else f"{self.done_spp}"
+        self.progress(min(fraction, 1.0),
+                      f"Sample {spp_txt} | {sps / 1e6:.2f} M samples/s | "
+                      f"{counters.rays / max(el, 1e-9) / 1e6:.2f} M rays/s | "
+                      f"{distribution_text(self.integrator.prep.lights, counters)}")
+
+    def run(self, on_pass):
+        """Run passes until the sample count, the time limit or ``cancel``; calls ``on_pass()``
+        after every pass. Returns whether the render was cancelled."""
+        cancelled = False
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            while not cancelled:
+                if self.total_spp is not None and self.done_spp >= self.total_spp:
+                    break
+                if self.out_of_time():
+                    break
+                k = (self.spp_per_pass if self.total_spp is None
+                     else min(self.spp_per_pass, self.total_spp - self.done_spp))
+                units = _units(self.film.n_pixels, self.done_spp, k, self.unit_paths)
+                finished, cancelled = self._run_pass(pool, units, k)
+                if finished == len(units):
+                    self.done_spp += k
+                    self.report(self.done_spp / self.total_spp if self.total_spp
+                                else self.elapsed() / self.settings.time_limit)
+                on_pass()
+                if finished < len(units):
+                    break
+        return cancelled
+
+    def _run_pass(self, pool, units, k):
+        """Run the ``units`` of one pass of ``k`` samples per pixel. Returns the number of
+        units finished and whether the render was cancelled."""
+        cancel, total_spp = self.cancel, self.total_spp
+        # Keep at most `threads` units in flight so cancel and time limits answer quickly.
+        pending = []
+        finished = 0
+        i = 0
+        while i < len(units) or pending:
+            while i < len(units) and len(pending) < self.threads:
+                pending.append(pool.submit(self.run_unit, units[i]))
+                i += 1
+            self.accumulate(*pending.pop(0).result())
+            finished += 1
+            stop = (cancel is not None and cancel()) or self.out_of_time()
+            if finished < len(units):  # the end of a pass is reported by run()
+                if total_spp:
+                    self.report((self.done_spp + k * finished / len(units)) / total_spp)
+                else:
+                    self.report(self.elapsed() / self.settings.time_limit)
+            if stop:
+                cancelled = cancel is not None and cancel()
+                for f in pending:  # finish what is running; its samples are kept
+                    self.accumulate(*f.result())
+                return finished, cancelled
+        return finished, False
 
 
 def preparation_key(scene, settings):
