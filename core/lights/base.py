@@ -25,6 +25,13 @@ def dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
+def length_and_direction(v):
+    """Lengths ``(n,)`` of vectors ``v (n, 3)`` and their unit directions ``(n, 3)`` (zero
+    vectors stay zero)."""
+    length = np.sqrt(dot(v, v))
+    return length, v / np.maximum(length, 1e-300)[:, None]
+
+
 def unit(v):
     """``v (3,)`` scaled to unit length (straight down for a zero vector)."""
     v = np.asarray(v, np.float64)
@@ -131,3 +138,12 @@ class LightFamily:
 
     def __init__(self, sampler):
         self.sampler = sampler
+
+    def is_delta(self, li):
+        """Whether lamps ``li (k,)`` of this family are delta lights (no ray can hit them)."""
+        return np.zeros(li.shape[0], bool)
+
+    def lamp_power(self, li, radius):
+        """Estimated power ``(k,)`` of lamps ``li`` in a scene of bounding ``radius``, for light
+        selection."""
+        return self.sampler.lights.power[li]

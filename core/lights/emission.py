@@ -34,7 +34,6 @@ from typing import NamedTuple
 import numpy as np
 
 from ..sampling import warps
-from ..scene import LIGHT_SUN
 from .base import LeDirections, LeOrigins, dot
 
 
@@ -85,7 +84,7 @@ class Emission:
         self.ls = lights
         pts = [np.asarray(vertices, np.float64).reshape(-1, 3)]
         if lights.n_lights:
-            pts.append(lights.lights.position[lights.lights.kind != LIGHT_SUN])
+            pts.append(lights.lights.position[~lights.is_infinite(np.arange(lights.n_lights))])
         pts = np.concatenate(pts)
         if pts.size:
             lo, hi = pts.min(axis=0), pts.max(axis=0)

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..sampling import warps
 from ..scene import LIGHT_POINT, Lights
-from .base import LUMINANCE, LightFamily, dot, light_row, unit
+from .base import LUMINANCE, LightFamily, dot, length_and_direction, light_row, unit
 from .shapes import ray_facing_disk, ray_sphere, sphere_roots
 
 
@@ -86,6 +86,10 @@ class PointLights(LightFamily):
         super().__init__(sampler)
         self.lights = sampler.lights
 
+    def is_delta(self, li):
+        """Points of radius 0."""
+        return self.lights.radius[li] <= 0
+
     # ------------------------------------------------------------------ next-event estimation
     def sample_li(self, m, li, p, u, pmf, out, counters=None):
         """Delta points; spheres by their cone of directions (or uniformly from inside);
@@ -94,8 +98,7 @@ class PointLights(LightFamily):
         c = lights.position[li]
         r = lights.radius[li]
         to_c = c - p[m]
-        d_c = np.sqrt(dot(to_c, to_c))
-        axis = to_c / np.maximum(d_c, 1e-300)[:, None]
+        d_c, axis = length_and_direction(to_c)
         point = r <= 0
         soft = lights.soft_falloff[li] & ~point
         sphere = ~point & ~soft
@@ -114,9 +117,7 @@ class PointLights(LightFamily):
         # Soft falloff: a uniform point on the disk of radius r facing the receiver.
         disk = warps.sample_uniform_disk_concentric(uu) * r[:, None]
         q = c + disk[:, 0:1] * s_ + disk[:, 1:2] * t_
-        to_q = q - p[m]
-        t_disk = np.sqrt(dot(to_q, to_q))
-        w_disk = to_q / np.maximum(t_disk, 1e-300)[:, None]
+        t_disk, w_disk = length_and_direction(q - p[m])
         cos_disk = dot(w_disk, axis)
         with np.errstate(divide="ignore", invalid="ignore"):
             pdf_disk = t_disk**2 / (np.pi * r * r * cos_disk)

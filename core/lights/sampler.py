@@ -89,14 +89,14 @@ class LightSampler:
         self.world_map, self.world_dist = world.world_map, world.dist
         self.has_world = world.emits
         self.n_emitters = k + tris.emissive.size + int(world.emits)
-        self.delta = np.zeros(self.n_emitters, bool)
-        self.delta[:k] = ((lights.kind == LIGHT_POINT) & (lights.radius <= 0)) | (
-            (lights.kind == LIGHT_SUN) & (lights.angle <= 0))
-        # Lights a ray can hit: spheres, area lights and sun disks.
-        self.shape_lights = np.nonzero(~self.delta[:k])[0]
         self.emitter_family = np.concatenate([
             np.array([_LAMP_FAMILY[int(kind)] for kind in lights.kind], np.int64),
             np.full(tris.emissive.size, TRIANGLES), np.full(int(world.emits), WORLD)])
+        self.delta = np.zeros(self.n_emitters, bool)
+        for family, rows in self._lamp_families():
+            self.delta[rows] = family.is_delta(rows)
+        # Lights a ray can hit: spheres, area lights and sun disks.
+        self.shape_lights = np.nonzero(~self.delta[:k])[0]
         # Row of each family's first emitter: what a family's own rows are counted from.
         self.family_first = np.array([0, 0, 0, k, 0])
 
@@ -117,13 +117,20 @@ class LightSampler:
             radius = 1.0
         radius = max(radius, 1e-3)
         power = np.array(self.lights.power, np.float64)
-        power[self.lights.kind == LIGHT_SUN] *= np.pi * radius**2
+        for family, rows in self._lamp_families():
+            power[rows] = family.lamp_power(rows, radius)
         power = np.concatenate([power, self.triangles.group_power()])
         if self.has_world:
             power = np.concatenate([power, [self.world_light.power(radius)]])
         return power
 
     # ------------------------------------------------------------------ emitter rows
+    def _lamp_families(self):
+        """``(family, lamp rows)`` of each lamp family."""
+        lamp_family = self.emitter_family[:self.n_lights]
+        for f in (POINT, SUN, AREA):
+            yield self.families[f], np.nonzero(lamp_family == f)[0]
+
     def families_of(self, index):
         """``(family, rows, local index)`` for every family that emitter rows ``index (n,)``
         (-1: none) use: the batch rows that chose it and their rows in its own table."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import dot
+from .base import dot, length_and_direction
 
 
 def sphere_roots(b, cc):
@@ -78,8 +78,7 @@ def ray_facing_disk(o, d, center, radius, tmax):
         Cosine between the ray and the disk's normal (negative on ``rows``).
     """
     oc = o - center
-    d_o = np.sqrt(dot(oc, oc))
-    light_n = oc / np.maximum(d_o, 1e-300)[:, None]
+    d_o, light_n = length_and_direction(oc)
     denom = dot(d, light_n)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -d_o / denom

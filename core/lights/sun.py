@@ -44,6 +44,14 @@ class SunLights(LightFamily):
         super().__init__(sampler)
         self.lights = sampler.lights
 
+    def is_delta(self, li):
+        """Suns of angle 0."""
+        return self.lights.angle[li] <= 0
+
+    def lamp_power(self, li, radius):
+        """Irradiance times the cross-section of the scene's bounding sphere."""
+        return self.lights.power[li] * (np.pi * radius**2)
+
     def _cone(self, li, axis, u):
         """Directions about ``axis`` (the sun's direction, or its reverse) by ``u``: the axis
         for angle 0, else uniform in the disk's cone; and the pdf of each."""
