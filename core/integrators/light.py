@@ -28,7 +28,7 @@ When it fails
 
 from __future__ import annotations
 
-from .bdpt import Bidirectional
+from .bidir import Bidirectional
 
 
 class LightTracer(Bidirectional):

@@ -7,7 +7,7 @@ samples and returns the weight of one of them. The path tracer is its two-strate
 (:meth:`MIS.pair_weight`, and :meth:`MIS.light_weight` / :meth:`MIS.bsdf_weight` for next-event
 estimation against BSDF sampling); bidirectional path tracing is its ``k``-strategy case (one
 strategy per way of splitting a path into a light and a camera subpath, see
-:mod:`core.integrators.bdpt_mis`).
+:mod:`core.integrators.mis_densities`).
 
 Settings (``MIS_SETTINGS``):
 

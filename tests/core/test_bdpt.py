@@ -15,7 +15,7 @@ import pytest
 
 from sampling_lab.core.accel import Accel
 from sampling_lab.core.camera import generate_rays
-from sampling_lab.core.integrators.bdpt import strategy_weight
+from sampling_lab.core.integrators.mis_densities import strategy_weight
 from sampling_lab.core.sampling.mis import MIS
 from sampling_lab.core.integrators.common import strategies, strategy_pass_names
 from sampling_lab.core.render import RenderSettings, check_settings, render

@@ -1,0 +1,182 @@
+"""The bidirectional estimators' common driver: light tracing (:mod:`.light`) and BDPT
+(:mod:`.bdpt`) are :class:`Bidirectional` integrators.
+
+Per sample, a camera subpath and a light subpath (:mod:`.subpaths`); the strategies every
+bidirectional estimator uses, ``s = 0`` (emitters the camera subpath finds,
+:mod:`.camera_hits`) and ``t = 1`` (light vertices seen by the pinhole, :mod:`.connections`);
+a subclass adds its own (:meth:`Bidirectional.connect`). Batches are cut into chunks of
+``CHUNK`` paths so that the subpath arrays stay small.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import ClassVar
+
+import numpy as np
+
+from ..camera import camera_pdf, camera_position
+from ..materials.bsdf import IMPORTANCE, RADIANCE
+from ..sampling.mis import MIS
+from ..scene import VIS_CAMERA, VIS_SHADOW
+from .base import BatchOutput, Integrator
+from .camera_hits import camera_emission
+from .common import camera_rays, max_component, strategy_pass_names
+from .connections import connect_camera
+from .strategy_views import Tally
+from .subpaths import Subpath, walk
+
+# Paths per chunk: keeps the subpath arrays (depth x paths) small.
+CHUNK = 8192
+# Sample dimensions: 0-1 pixel filter; per camera vertex: BSDF lobe, BSDF 2-D, roulette, light
+# selection, light point 2-D (for s = 1); then the light subpath: selection, point 2-D,
+# direction 2-D, and per light vertex: lobe, BSDF 2-D, roulette.
+DIMS_CAMERA = 2
+DIMS_PER_CAMERA_VERTEX = 7
+DIMS_LIGHT_START = 5
+DIMS_PER_LIGHT_VERTEX = 4
+
+
+class _Context:
+    """What the stages of one chunk share: the integrator's per-render constants, this
+    batch's counters and the light subpaths' endpoints once sampled."""
+
+    def __init__(self, integrator, counters, pixel_filter):
+        self.prep = integrator.prep
+        self.settings = integrator.settings
+        self.counters = counters
+        self.emission = integrator.emission
+        self.cam = integrator.cam
+        self.cam_pos = integrator.cam_pos
+        self.smooth = integrator.smooth
+        self.mis = integrator.mis
+        self.weighs = integrator.weighs
+        self.view_length = integrator.view_length
+        # Light paths reach edge pixels through the filter's reach outside the image.
+        self.film_margin = 0.5 * pixel_filter.support
+        self.window = integrator.window
+        self.film_pixels = integrator.film_pixels
+        self.light_points = None  # the light subpaths' endpoints, once sampled
+
+
+def _light_subpath(ctx, stream, n, base, depth):
+    """Stage *generate light subpath*: emitter point and direction, then the random walk."""
+    em, prep = ctx.emission, ctx.prep
+    L = Subpath.empty(depth, n)
+    stream.skip_to(base)
+    u_sel = stream.next_1d()
+    u_pos = stream.next_2d()
+    u_dir = stream.next_2d()
+    pts = em.sample_points(u_sel, u_pos, ctx.counters)
+    origin, w, pdf_dir, cos_l, le = em.sample_directions(pts, u_dir)
+    ctx.light_points = pts
+    L.valid[0] = pts.index >= 0
+    L.p[0] = np.where(pts.infinite[:, None], origin, pts.p)
+    L.ng[0] = pts.normal
+    L.pdf_fwd[0] = pts.pdf_origin
+    L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
+    L.d_prev[0] = np.where(pts.infinite, np.inf, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
+    good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & np.isfinite(beta).all(1)
+    rows = np.nonzero(good)[0]
+    rows = rows[max_component(beta[rows]) > 0]
+    if depth < 2 or rows.size == 0:
+        return L
+    # Rays leave lamps (not geometry) from the point itself, emissive triangles pushed off.
+    o = origin[rows]
+    k = prep.lights.n_lights
+    tri = np.nonzero((pts.index[rows] >= k) & ~pts.infinite[rows])[0]
+    if tri.size:
+        prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
+        o[tri] = prep.accel.offset_origin(o[tri], pts.normal[rows][tri], prim, w[rows][tri])
+    walk(ctx, L, o, w[rows], np.full(rows.size, np.inf), beta[rows], pdf_dir[rows],
+         np.zeros(rows.size, bool), np.full(rows.size, VIS_SHADOW, np.int32), rows, stream,
+         IMPORTANCE, lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX, depth)
+    return L
+
+
+def _camera_subpath(ctx, pixel_filter, stream, n, depth, out):
+    """Stage *generate camera subpath*, adding the emitters it finds (``s = 0``) to ``out``."""
+    prep, cam = ctx.prep, ctx.cam
+    C = Subpath.empty(depth, n)
+    o, d, tmax = camera_rays(prep, pixel_filter, stream)
+    C.valid[0] = True
+    C.p[0] = ctx.cam_pos
+    C.d_prev[0] = 0.0
+    C.beta[0] = 1.0
+    m = np.asarray(cam.to_world, np.float64)
+    axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+    pdf_cam = camera_pdf(cam, d @ axis, ctx.film_pixels)
+    walk(ctx, C, o, d, tmax, np.ones((n, 3)), pdf_cam, np.zeros(n, bool),
+         np.full(n, VIS_CAMERA, np.int32), np.arange(n), stream, RADIANCE,
+         lambda j: DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX, depth,
+         camera_emission(ctx, C, out))
+    return C
+
+
+class Bidirectional(Integrator):
+    """The estimators built from a camera and a light subpath per sample (light tracing and
+    BDPT): subpaths, the strategies every one of them uses (emitters seen by the camera
+    subpath, ``s = 0``; light vertices seen by the pinhole, ``t = 1``), and the chunking.
+
+    A subclass says how many camera vertices it traces (:meth:`camera_depth`), whether it
+    weighs its strategies by MIS (``weighs``) and which strategies it adds
+    (:meth:`connect`).
+    """
+
+    splats = True
+    weighs: ClassVar[bool] = True
+
+    def __init__(self, prep, settings):
+        super().__init__(prep, settings)
+        self.cam = prep.scene.camera
+        if self.cam.type != "PERSP":
+            raise ValueError("light tracing and BDPT need a perspective camera "
+                             "(an orthographic camera cannot be reached from the lights)")
+        self.cam_pos = camera_position(self.cam)
+        self.emission = prep.emission  # built by core.prepare.prepare
+        self.smooth = prep.scene.corner_normals is not None
+        self.mis = MIS.from_settings(settings)
+        self.view_length = (int(settings.strategy_max_length)
+                            if self.strategy_views and settings.strategy_views else 0)
+        if self.view_length:
+            self.layers = tuple(strategy_pass_names(self.view_length))
+        # A render region is a smaller film: splats outside it are not traced, and camera rays
+        # are drawn over its pixels only (their density, for MIS, is over the region's area).
+        self.window = settings.region
+        self.film_pixels = (None if self.window is None else
+                            (self.window[2] - self.window[0]) * (self.window[3] - self.window[1]))
+
+    def camera_depth(self, depth):
+        """Vertices of the camera subpaths when light subpaths have ``depth``."""
+        return depth
+
+    def connect(self, ctx, stream, C, L, out):
+        """Strategies beyond ``s = 0`` and ``t = 1``: none here."""
+
+    def render_samples(self, stream, pixel_filter, counters):
+        """Image contributions of one sample (a camera and a light subpath) per entry of
+        ``stream``, in chunks of at most ``CHUNK`` paths."""
+        n = len(stream)
+        if n > CHUNK:
+            parts = []
+            for start in range(0, n, CHUNK):
+                part = copy.copy(stream)
+                part.compact(np.arange(start, min(start + CHUNK, n)))
+                parts.append(self.render_samples(part, pixel_filter, counters))
+            return BatchOutput.join(parts)
+        settings = self.settings
+        ctx = _Context(self, counters, pixel_filter)
+        counters.camera_samples += n
+        depth = settings.max_bounces + 2  # vertices per subpath (endpoint included)
+        out = Tally(n, ctx.view_length)
+        C = _camera_subpath(ctx, pixel_filter, stream, n, self.camera_depth(depth), out)
+        base = DIMS_CAMERA + (depth + 1) * DIMS_PER_CAMERA_VERTEX
+        L = _light_subpath(ctx, stream, n, base, depth)
+        self.connect(ctx, stream, C, L, out)
+        for s in range(2, depth + 1):
+            if not L.valid[s - 1].any():
+                break
+            connect_camera(ctx, L, s, out)
+        return out.output(n)

@@ -1,0 +1,188 @@
+"""MIS densities of bidirectional path tracing: for a path made by strategy ``(s, t)``, the
+densities with which every other strategy ``(s', t')`` would make it, from the subpaths' stored
+per-vertex densities (Veach 1997, sec. 10.2; pbrt-v4's ``MISWeight``).
+
+Each function here builds the per-vertex density lists of one kind of strategy and hands them
+to :func:`strategy_weight`, which forms the stack of strategy densities (as ratios to the
+sampling strategy's) and asks the render's :class:`core.sampling.mis.MIS` for the weight: BDPT
+is the ``k``-strategy case of the same weight the path tracer uses for two.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..camera import camera_pdf
+from .subpaths import dot, to_area
+
+
+def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
+    """MIS weight ``(m,)`` of strategy ``s`` for paths of ``k + 1`` vertices ``x_0..x_k``.
+
+    Parameters
+    ----------
+    mis : core.sampling.mis.MIS
+        The render's heuristic (not a single-strategy setting).
+    p_light, p_camera : list of k + 1 arrays (m,)
+        ``p_light[i]``: density with which the light side makes ``x_i`` (from ``x_{i-1}``;
+        ``x_0``'s: the emitter's origin density); ``p_camera[i]``: the same from the camera
+        side (``x_k`` is the pinhole). The density of strategy ``s'`` is
+        ``prod_{i < s'} p_light[i] * prod_{i >= s'} p_camera[i]``; only ratios are formed.
+    delta : list of k + 1 arrays (m,) bool
+        Vertices scattered by a delta lobe: strategies connecting at them are impossible.
+    s : int
+        The strategy that made the paths (light vertices used).
+    delta_light : (m,) bool
+        ``x_0`` is a point or a directional delta light: ``s' = 0`` is impossible.
+    direct : (m,) bool or None
+        For ``k = 1`` (an emitter seen directly): whether ``s' = 1, t' = 1`` (a point on the
+        emitter connected to the pinhole) can make the path: finite emitters seen by the camera,
+        not infinite ones. None: it cannot.
+
+    Notes
+    -----
+    Strategies ``s' = 0..k`` (``t' = k + 1 - s' >= 1``).
+    """
+    k = len(p_light) - 1
+    m = delta_light.shape[0]
+    ratio = [None] * (k + 1)
+    ratio[s] = np.ones(m)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for sp in range(s - 1, -1, -1):
+            num, den = p_camera[sp], p_light[sp]
+            ratio[sp] = np.where(den > 0, ratio[sp + 1] * num / np.where(den > 0, den, 1.0), 0.0)
+        for sp in range(s + 1, k + 1):
+            num, den = p_light[sp - 1], p_camera[sp - 1]
+            ratio[sp] = np.where(den > 0, ratio[sp - 1] * num / np.where(den > 0, den, 1.0), 0.0)
+    terms, valid = [], []
+    for sp in range(k + 1):
+        if sp == 0:
+            ok = ~delta_light
+        elif sp == k:
+            if k >= 2:
+                ok = ~delta[k - 1]
+            else:
+                ok = np.zeros(m, bool) if direct is None else np.asarray(direct, bool)
+        else:
+            ok = ~delta[sp - 1] & ~delta[sp]
+        if sp == s:
+            ok = np.ones(m, bool)
+        r = np.nan_to_num(ratio[sp], nan=0.0, posinf=np.inf)
+        valid.append(ok & (r > 0))
+        terms.append(np.where(ok, r, 0.0))
+    w = mis.weight(np.stack(terms), s, np.stack(valid))
+    return np.where(np.isfinite(w), w, 0.0)
+
+
+def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_delta):
+    """MIS weight of emitters found by the camera subpath's segment from ``z_{j-1}``."""
+    em = ctx.emission
+    k = j
+    m = r.size
+    infinite = em.is_infinite(index)
+    p_light = [None] * (k + 1)
+    p_camera = [None] * (k + 1)
+    delta = [np.zeros(m, bool) for _ in range(k + 1)]
+    p_light[0] = em.pdf_origin(index, w_travel)
+    cos_l = np.where(infinite, 1.0, np.abs(dot(normal, w_travel)))
+    p_camera[0] = np.where(prev_delta, 1.0, to_area(pdf_prev, cos_l, t))
+    # The emitter makes z_{j-1} by its direction density.
+    cos_z = np.abs(dot(cam.ng[j - 1, r], w_travel))
+    pdf_dir = em.pdf_direction(index, normal, w_travel)
+    p_light[1] = np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, t))
+    for i in range(1, k + 1):
+        zi = k - i
+        p_camera[i] = cam.pdf_fwd[zi, r] if zi > 0 else np.ones(m)
+        if i >= 2:
+            p_light[i] = cam.pdf_rev[zi, r] if zi > 0 else np.ones(m)
+        if 0 < zi:
+            delta[i] = cam.delta[zi, r]
+    delta_light = np.zeros(m, bool)
+    return strategy_weight(ctx.mis, p_light, p_camera, delta, 0, delta_light, direct=~infinite)
+
+
+def connection_weight(ctx, L, C, s, t, rows, conn, fresh):
+    """MIS weight of a connection ``y = x_{s-1}`` (light side) -> ``z = x_s`` (camera side).
+
+    ``conn`` holds the connection's ``w`` (from z to y, world), ``dist``, ``infinite``,
+    ``y_normal``, the gathered camera vertex ``z`` and ``w`` in its frame ``w_z``; and either
+    the emitter ``index`` (``s = 1``) or the gathered light vertex ``y`` and ``-w`` in its frame
+    ``w_y``.
+    """
+    em = ctx.emission
+    k = s + t - 1
+    m = rows.size
+    zj = t - 1
+    w, dist, infinite, y_normal = conn["w"], conn["dist"], conn["infinite"], conn["y_normal"]
+    zv, w_z = conn["z"], conn["w_z"]
+    p_light = [None] * (k + 1)
+    p_camera = [None] * (k + 1)
+    delta = [np.zeros(m, bool) for _ in range(k + 1)]
+    cos_z = np.abs(dot(zv.ng, w))
+    # Light side: stored densities up to y, then y -> z, then z -> z_{t-2}.
+    if s == 1:
+        p_light[0] = fresh.pdf_origin[rows]
+        cos_y = np.where(infinite | fresh.delta_light[rows], 1.0, np.abs(dot(y_normal, w)))
+        pdf_dir = em.pdf_direction(conn["index"], y_normal, -w)
+        p_light[1] = np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, dist))
+        delta_light = fresh.delta_light[rows]
+    else:
+        yv, w_y = conn["y"], conn["w_y"]
+        for i in range(s):
+            p_light[i] = L.pdf_fwd[i, rows]
+            if 0 < i < s - 1:
+                delta[i] = L.delta[i, rows]
+        cos_y = np.abs(dot(y_normal, w))
+        p_light[s] = to_area(yv.pdf_toward(w_y), cos_z, dist)
+        delta_light = ctx.light_points.delta_light[rows]
+    if zj >= 2:
+        p_light[s + 1] = to_area(zv.pdf_back(w_z), C.cos_prev[zj, rows], C.d_prev[zj, rows])
+    for i in range(s + 2, k + 1):
+        zi = k - i
+        p_light[i] = C.pdf_rev[zi, rows] if zi > 0 else np.ones(m)
+    # Camera side: stored densities down to z, then z -> y, then y -> y_{s-2}.
+    for i in range(s, k + 1):
+        zi = k - i
+        p_camera[i] = C.pdf_fwd[zi, rows] if zi > 0 else np.ones(m)
+        if s < i < k:
+            delta[i] = C.delta[zi, rows]
+    pdf_zy = zv.pdf_toward(w_z)
+    p_camera[s - 1] = np.where(infinite, pdf_zy, to_area(pdf_zy, cos_y, dist))
+    if s >= 2:
+        p_camera[s - 2] = to_area(yv.pdf_back(w_y), L.cos_prev[s - 1, rows],
+                                  L.d_prev[s - 1, rows])
+        for i in range(s - 2):
+            p_camera[i] = L.pdf_rev[i, rows]
+    return strategy_weight(ctx.mis, p_light, p_camera, delta, s, delta_light)
+
+
+def splat_weight(ctx, L, s, rows, yv, w, w_y, dist, cos_theta):
+    """MIS weight of strategy ``t = 1``: light vertex ``y = x_{s-1}`` (gathered as ``yv``, with
+    ``w`` toward the pinhole, ``w_y`` in its frame, ``dist`` away, at ``cos_theta`` to the view
+    axis) seen by the pinhole."""
+    yj = s - 1
+    k = s
+    m = rows.size
+    p_light = [L.pdf_fwd[i, rows] for i in range(s)] + [np.ones(m)]
+    delta = [np.zeros(m, bool)] + [L.delta[i, rows] for i in range(1, s - 1)] + [
+        np.zeros(m, bool), np.zeros(m, bool)]
+    p_camera = [None] * (k + 1)
+    p_camera[k] = np.ones(m)
+    pdf_cam = camera_pdf(ctx.cam, cos_theta, ctx.film_pixels)
+    p_camera[s - 1] = to_area(pdf_cam, np.abs(dot(yv.ng, w)), dist)
+    p_camera[s - 2] = to_area(yv.pdf_back(w_y), L.cos_prev[yj, rows], L.d_prev[yj, rows])
+    for i in range(s - 2):
+        p_camera[i] = L.pdf_rev[i, rows]
+    return strategy_weight(ctx.mis, p_light, p_camera, delta, s,
+                           ctx.light_points.delta_light[rows])
+
+
+def direct_weight(ctx, rows, cos_theta, cos_l, dist):
+    """MIS weight of strategy ``s = 1, t = 1``: the light subpaths' points ``rows`` on finite
+    emitters (cosine ``cos_l`` there, ``dist`` away, at ``cos_theta`` to the view axis) seen
+    by the pinhole, against the camera ray that hits them."""
+    m = rows.size
+    p_camera = [to_area(camera_pdf(ctx.cam, cos_theta, ctx.film_pixels), cos_l, dist), np.ones(m)]
+    p_light = [ctx.light_points.pdf_origin[rows], np.ones(m)]
+    return strategy_weight(ctx.mis, p_light, p_camera, [np.zeros(m, bool)] * 2, 1,
+                           np.zeros(m, bool), direct=np.ones(m, bool))

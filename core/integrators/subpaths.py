@@ -1,0 +1,236 @@
+"""Subpaths of the bidirectional estimators (light tracing, BDPT): their vertices, the random
+walk that makes them, and the densities in area measure that MIS compares.
+
+A :class:`Subpath` holds a batch of subpaths depth-major; :func:`walk` extends one from its
+endpoint (the pinhole, or a point on an emitter) by BSDF sampling, in radiance mode from the
+camera and in importance mode from the lights; :class:`Gathered` is one vertex of it, gathered
+for the rows of a connection.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
+from ..materials.frame import shading_frame, to_local, to_world
+from .common import (geometric_side_valid, intersect_by_class, ray_class, russian_roulette,
+                     surface_interaction)
+
+
+def dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _empty_params(n):
+    return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
+                      np.zeros((n, 3)))
+
+
+def _scatter_params(dst, rows, src):
+    dst.kind[rows] = src.kind
+    dst.color[rows] = src.color
+    dst.alpha[rows] = src.alpha
+    dst.eta[rows] = src.eta
+    dst.tint[rows] = src.tint
+
+
+@dataclass
+class Subpath:
+    """Vertices of a batch of subpaths, depth-major: arrays of shape ``(D, n, ...)``.
+
+    Vertex 0 is the endpoint (the pinhole, or the point on the emitter); vertices ``1..D-1``
+    are surface hits. ``pdf_fwd`` is the density with which the subpath's own sampling made
+    the vertex, ``pdf_rev`` the density with which the other side would make it (known once
+    the next vertex is sampled); both are in area measure, solid angle for infinite light
+    endpoints, and one next to a delta vertex (the discrete choices cancel in MIS ratios).
+    ``d_prev`` and ``cos_prev`` are the distance to the previous vertex and the cosine there
+    (along the edge, geometric normal; one for points, the pinhole and infinite endpoints),
+    used to turn solid-angle densities at this vertex into area densities at the previous one.
+    """
+
+    valid: np.ndarray
+    p: np.ndarray
+    ng: np.ndarray
+    prim: np.ndarray
+    fs: np.ndarray
+    ft: np.ndarray
+    fn: np.ndarray
+    wo: np.ndarray
+    wo_local: np.ndarray
+    params: list
+    connectible: np.ndarray
+    delta: np.ndarray
+    beta: np.ndarray
+    pdf_fwd: np.ndarray
+    pdf_rev: np.ndarray
+    d_prev: np.ndarray
+    cos_prev: np.ndarray
+
+    @staticmethod
+    def empty(depth, n):
+        z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
+        return Subpath(np.zeros((depth, n), bool), z3(), z3(), np.zeros((depth, n), np.int64),
+                       z3(), z3(), z3(), z3(), z3(), [None] * depth,
+                       np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
+                       np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
+                       np.ones((depth, n)))
+
+
+class Gathered:
+    """Vertex ``j`` of a subpath for the rows of one connection: what evaluating its BSDF
+    needs, gathered once (parameters, shading frame, incoming direction)."""
+
+    def __init__(self, ctx, sub, j, rows, mode):
+        self.smooth, self.mode = ctx.smooth, mode
+        self.params = sub.params[j].take(rows)
+        self.fs, self.ft, self.fn = sub.fs[j, rows], sub.ft[j, rows], sub.fn[j, rows]
+        self.wo, self.wo_l, self.ng = sub.wo[j, rows], sub.wo_local[j, rows], sub.ng[j, rows]
+
+    def take(self, idx):
+        """The rows ``idx`` of this gather (after shadow rays removed some)."""
+        out = object.__new__(Gathered)
+        out.smooth, out.mode = self.smooth, self.mode
+        out.params = self.params.take(idx)
+        for name in ("fs", "ft", "fn", "wo", "wo_l", "ng"):
+            setattr(out, name, getattr(self, name)[idx])
+        return out
+
+    def local(self, w):
+        """World directions ``w (m, 3)`` in the vertices' shading frames."""
+        return to_local(w, self.fs, self.ft, self.fn)
+
+    def f(self, w, w_l):
+        """``f |cos|`` toward ``w`` (world) / ``w_l`` (local), with the geometric-side rule and,
+        in importance mode, the shading-normal correction (Veach 5.3)."""
+        f = eval_bsdf(self.params, self.wo_l, w_l, self.mode)
+        if self.smooth:
+            f *= smooth_factor(self.ng, self.fn, self.wo, w, self.wo_l, w_l, self.mode)[:, None]
+        return f
+
+    def pdf_toward(self, w_l):
+        """Solid-angle density of sampling ``w_l`` given the incoming direction."""
+        return pdf_bsdf(self.params, self.wo_l, w_l)
+
+    def pdf_back(self, w_l):
+        """Solid-angle density of sampling the incoming direction given ``w_l``."""
+        return pdf_bsdf(self.params, w_l, self.wo_l)
+
+
+def smooth_factor(ng, ns, wo, wi, wo_l, wi_l, mode):
+    transmit = wo_l[:, 2] * wi_l[:, 2] < 0
+    ok = geometric_side_valid(ng, wo, wi, transmit).astype(np.float64)
+    if mode == IMPORTANCE:
+        num = np.abs(dot(wo, ns)) * np.abs(dot(wi, ng))
+        den = np.abs(dot(wo, ng)) * np.abs(dot(wi, ns))
+        ok *= np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    return ok
+
+
+def to_area(pdf_sa, cos_at, dist):
+    """Solid-angle density -> area density at a point ``dist`` away (cosine ``cos_at`` there);
+    unchanged toward infinite endpoints (``dist = inf``)."""
+    finite = np.isfinite(dist)
+    d2 = np.where(finite, dist * dist, 1.0)
+    return np.where(finite, pdf_sa * np.abs(cos_at) / np.maximum(d2, 1e-300), pdf_sa)
+
+
+def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mode, dims_of,
+         depth, on_segment=None):
+    """Stage *random walk*: extend ``sub`` from vertex 0 with the rays ``o, d`` of ``rows``.
+
+    Vertices ``1..depth-1`` are made. ``pdf_prev (m,)`` is the solid-angle density of the first
+    ray (the disk's area density for infinite light endpoints, whose ``d_prev`` is inf),
+    ``prev_delta`` whether it came from a delta lobe, ``beta (m, 3)`` its throughput. With
+    ``on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)`` (the camera side, for ``s = 0``)
+    one more segment is traced after the last vertex, for the emitters it finds.
+    """
+    prep, settings = ctx.prep, ctx.settings
+    last = depth + int(on_segment is not None)
+    for j in range(1, last):
+        hits = intersect_by_class(prep.accel, o, d, tmax, vis)
+        ctx.counters.rays += o.shape[0]
+        if on_segment is not None:
+            on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)
+        if j == depth:
+            break
+        live = np.nonzero(hits.hit)[0]
+        live = live[prep.tri_area[hits.prim[live]] > 0]
+        if live.size == 0:
+            break
+        si = surface_interaction(prep, hits, d, live)
+        r = rows[live]
+        stream.skip_to(dims_of(j))
+        u_lobe = stream.next_1d()[r]
+        u_bsdf = stream.next_2d()[r]
+        u_rr = stream.next_1d()[r]
+        params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
+                                                      hits.v[live])
+        if ctx.smooth:
+            front = np.where(dot(si.ns, si.ng) < 0, -1.0, 1.0)
+            fs, ft, fn = shading_frame(si.ns * front[:, None])
+        else:
+            fs, ft, fn = shading_frame(si.ng)
+        wo_l = to_local(si.wo, fs, ft, fn)
+
+        dist = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l, params, delta_only,
+                             beta, pdf_prev, prev_delta)
+        if j == depth - 1 and on_segment is None:
+            break
+
+        # Sample the BSDF for the next vertex; the reverse density goes to vertex j - 1.
+        smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode)
+        wi = to_world(smp.wi, fs, ft, fn)
+        weight = smp.weight
+        if ctx.smooth:
+            weight = weight * smooth_factor(si.ng, fn, si.wo, wi, wo_l, smp.wi, mode)[:, None]
+        back = to_area(pdf_bsdf(params, smp.wi, wo_l), sub.cos_prev[j, r], dist)
+        sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
+        sub.delta[j, r] = smp.delta
+        beta = beta[live] * weight
+        alive = (smp.pdf > 0) & np.isfinite(beta).all(axis=1)
+        alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1)
+        keep = np.nonzero(alive)[0]
+        if keep.size == 0:
+            break
+        rows = r[keep]
+        beta = beta[keep]
+        o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
+        d = wi[keep]
+        tmax = np.full(keep.size, np.inf)
+        pdf_prev = smp.pdf[keep]
+        prev_delta = smp.delta[keep]
+        vis = ray_class(smp.lobe[keep])
+
+
+def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, beta, pdf_prev,
+                  prev_delta):
+    """Store the surface hits ``live`` as vertex ``j`` of the subpaths ``r`` of ``sub``, with the
+    shading ``frame`` (three (k, 3) axes), ``wo_l`` in it and the chosen BSDF ``params``;
+    ``beta``, ``pdf_prev`` and ``prev_delta`` are those of the rays that found them. Returns
+    the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint)."""
+    # The edge from vertex j - 1, then the forward density in area measure (times the cosine
+    # alone after an infinite endpoint, whose rays are parallel).
+    if j == 1:
+        dist = np.linalg.norm(si.p - sub.p[0, r], axis=1)
+        dist = np.where(np.isfinite(sub.d_prev[0, r]), dist, np.inf)
+        sub.cos_prev[j, r] = sub.cos_prev[0, r]
+    else:
+        dist = hits.t[live]
+        sub.cos_prev[j, r] = np.abs(dot(sub.ng[j - 1, r], si.wo))
+    cos_here = np.abs(dot(si.ng, si.wo))
+    fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
+                   to_area(pdf_prev[live], cos_here, dist))
+    sub.valid[j, r] = True
+    sub.p[j, r], sub.ng[j, r], sub.prim[j, r] = si.p, si.ng, si.prim
+    sub.fs[j, r], sub.ft[j, r], sub.fn[j, r] = frame
+    sub.wo[j, r], sub.wo_local[j, r] = si.wo, wo_l
+    if sub.params[j] is None:
+        sub.params[j] = _empty_params(sub.valid.shape[1])
+    _scatter_params(sub.params[j], r, params)
+    sub.connectible[j, r] = ~delta_only
+    sub.beta[j, r] = beta[live]
+    sub.d_prev[j, r] = dist
+    sub.pdf_fwd[j, r] = np.where(prev_delta[live], 1.0, fwd)
+    return dist
