@@ -177,7 +177,7 @@ class AreaLights(LightFamily):
             return None
         rows, t, _, q = hit
         n_l = self.lights.direction[li]
-        return rows, q[rows], np.broadcast_to(n_l, (rows.size, 3)).copy(), t[rows]
+        return rows, q, np.broadcast_to(n_l, (rows.size, 3)).copy(), t[rows]
 
     # ------------------------------------------------------------------ light paths
     def sample_le_origin(self, m, li, u, pmf, out):

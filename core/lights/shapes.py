@@ -103,20 +103,20 @@ def ray_parallelogram(o, d, position, normal, axis_x, axis_y, tmax, disk):
     t : (n,) float64
     denom : (n,) float64
         ``dot(d, normal)`` (negative on ``rows``).
-    q : (n, 3) float64
-        The ray's point in the light's plane (``o`` where it misses).
+    q : (m, 3) float64
+        Where the rays ``rows`` meet the light.
     """
     denom = np.einsum("ij,j->i", d, normal)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.einsum("ij,j->i", position - o, normal) / denom
-    hit = (denom < 0) & (t > 0) & (t < tmax)
-    q = o + d * np.where(hit, t, 0.0)[:, None]
-    rel = q - position
     gram = np.array([[axis_x @ axis_x, axis_x @ axis_y], [axis_x @ axis_y, axis_y @ axis_y]])
     if not np.linalg.det(gram) > 0:
         return None
+    # Only rays that reach the plane in time need its coordinates (the solve is the cost).
+    rows = np.nonzero((denom < 0) & (t > 0) & (t < tmax))[0]
+    q = o[rows] + d[rows] * t[rows, None]
+    rel = q - position
     x, y = np.linalg.solve(gram, np.stack([np.einsum("ij,j->i", rel, axis_x),
                                            np.einsum("ij,j->i", rel, axis_y)]))
     inside = x * x + y * y <= 0.25 if disk else (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5)
-    rows = np.nonzero(hit & inside)[0]
-    return rows, t, denom, q
+    return rows[inside], t, denom, q[inside]
