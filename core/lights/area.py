@@ -90,7 +90,7 @@ class AreaLights(LightFamily):
 
     def __init__(self, sampler):
         super().__init__(sampler)
-        self.lights = lights = sampler.lights
+        lights = self.lights
         # Sheared rectangles are parallelograms: the spherical-rectangle warp does not apply.
         ax, ay = lights.axis_x, lights.axis_y
         cross = np.linalg.norm(ax, axis=1) * np.linalg.norm(ay, axis=1)

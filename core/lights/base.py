@@ -138,6 +138,7 @@ class LightFamily:
 
     def __init__(self, sampler):
         self.sampler = sampler
+        self.lights = sampler.lights  # the lamp table (core.scene.Lights)
 
     def is_delta(self, li):
         """Whether lamps ``li (k,)`` of this family are delta lights (no ray can hit them)."""
@@ -146,4 +147,4 @@ class LightFamily:
     def lamp_power(self, li, radius):
         """Estimated power ``(k,)`` of lamps ``li`` in a scene of bounding ``radius``, for light
         selection."""
-        return self.sampler.lights.power[li]
+        return self.lights.power[li]

@@ -82,10 +82,6 @@ class PointLights(LightFamily):
     """The point, spot and sphere lamps of a :class:`~.sampler.LightSampler` (see
     :class:`~.base.LightFamily` for the contract)."""
 
-    def __init__(self, sampler):
-        super().__init__(sampler)
-        self.lights = sampler.lights
-
     def is_delta(self, li):
         """Points of radius 0."""
         return self.lights.radius[li] <= 0

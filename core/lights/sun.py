@@ -40,10 +40,6 @@ class SunLights(LightFamily):
 
     infinite = True
 
-    def __init__(self, sampler):
-        super().__init__(sampler)
-        self.lights = sampler.lights
-
     def is_delta(self, li):
         """Suns of angle 0."""
         return self.lights.angle[li] <= 0
