@@ -1,0 +1,377 @@
+"""Blender materials -> rows of :class:`core.scene.Materials`.
+
+A material's surface shader becomes a :class:`Surface`: one of the core's closed set of BSDFs
+(diffuse, conductor, dielectric, layered coat over diffuse) or a mixture of them. The Principled
+BSDF becomes the mixture Cycles' Principled weighs; Mix Shaders are flattened into mixtures;
+the other BSDF nodes map one to one; anything else is reported and rendered as diffuse.
+:class:`MaterialTable` numbers the materials a scene uses and lays out their rows.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ...core.scene import (
+    MAT_CONDUCTOR,
+    MAT_DIELECTRIC,
+    MAT_DIFFUSE,
+    MAT_LAYERED,
+    Materials,
+)
+from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
+from .textures import surface_texture
+
+# Cycles shades surfaces without a material as a 0.8 grey diffuse.
+DEFAULT_SURFACE_NAME = "Default Surface"
+DEFAULT_SURFACE_COLOR = (0.8, 0.8, 0.8)
+
+# Principled BSDF inputs whose non-zero value adds a lobe the core materials do not have.
+_PRINCIPLED_LOBES = (
+    ("Coat Weight", "coat"),
+    ("Sheen Weight", "sheen"),
+    ("Subsurface Weight", "subsurface"),
+)
+
+# Most components a mixture keeps (the largest weights, renormalised; reported beyond).
+MAX_COMPONENTS = 8
+
+
+class Surface(NamedTuple):
+    """One row of :class:`core.scene.Materials`, as translated from a Blender material."""
+
+    kind: int = MAT_DIFFUSE
+    base_color: np.ndarray = np.array(DEFAULT_SURFACE_COLOR)
+    emission: np.ndarray = np.zeros(3)
+    roughness: float = 0.5
+    ior: float = 1.5
+    metallic: float = 0.0
+    transmission: float = 0.0
+    specular_ior_level: float = 0.5
+    specular_tint: np.ndarray = np.ones(3)
+    texture: np.ndarray = None  # (h, w, 3) float32 base colour image, see surface_texture
+    texture_mode: tuple = ("Linear", "REPEAT")  # the image node's interpolation, extension
+    # A mixture: ((weight, Surface), ...) of plain surfaces (see mix_surfaces); this row's own
+    # BSDF fields are then unused, its emission is the mixture's.
+    components: tuple = ()
+
+
+def _diffuse(color, emission=None):
+    return Surface(MAT_DIFFUSE, np.asarray(color, np.float64),
+                   np.zeros(3) if emission is None else emission)
+
+
+_BLACK = Surface(MAT_DIFFUSE, np.zeros(3), np.zeros(3))
+
+
+def material_surface(material, messages):
+    """Core material (kind, colours, roughness, IOR, ...) and emitted radiance of a material.
+
+    Parameters
+    ----------
+    material : bpy.types.Material or None
+    messages : Messages
+
+    Returns
+    -------
+    Surface
+        ``emission`` is radiance, emitted from both faces.
+    """
+    if material is None:
+        return _diffuse(DEFAULT_SURFACE_COLOR)
+    owner = f"Material '{material.name}'"
+    if not uses_nodes(material) or material.node_tree is None:
+        return _diffuse(material.diffuse_color[:3])
+    tree = material.node_tree
+    output = active_output(tree, 'ShaderNodeOutputMaterial')
+    if output is None:
+        # Cycles renders a material without an output as black.
+        return _BLACK
+    for name in ("Volume", "Displacement"):
+        socket = output.inputs.get(name)
+        if socket is not None and follow_link(socket) is not None:
+            messages.add(f"{owner}: {name.lower()} is not supported yet; ignored")
+    return _shader_surface(follow_link(output.inputs["Surface"]), owner, messages)
+
+
+def _distribution_note(node, read, owner, what="GGX"):
+    """Report a rough microfacet node whose distribution is not single-scattering GGX."""
+    distribution = getattr(node, "distribution", 'GGX')
+    if distribution not in {'GGX', 'SHARP'} and read.value(node, "Roughness") > 0:
+        read.messages.add(f"{owner}: {distribution} distribution of node '{node_name(node)}' "
+                          f"is not supported yet; rendered as {what}")
+
+
+def _shader_surface(source, owner, messages, depth=0):
+    """Translate the shader node feeding a Surface socket (``source = (node, socket)``)."""
+    if source is None:
+        return _BLACK
+    node, _ = source
+    read = NodeReader(owner, messages)
+    kind = node.bl_idname
+    if kind == 'ShaderNodeMixShader' and depth < 16:
+        # Cycles weighs input 1 by 1 - Fac and input 2 by Fac (nested mixes multiply).
+        fac = min(max(read.value(node, "Fac", 0.5), 0.0), 1.0)
+        parts = [(1.0 - fac, _shader_surface(follow_link(node.inputs[1]), owner, messages,
+                                             depth + 1)),
+                 (fac, _shader_surface(follow_link(node.inputs[2]), owner, messages,
+                                       depth + 1))]
+        return mix_surfaces(parts, owner, messages)
+    texture = surface_texture(node, owner, messages)
+    if kind == 'ShaderNodeBsdfPrincipled':
+        read.ignored_if_linked(node, "Normal", "the normal input")
+        return _principled_surface(node, read, owner, texture)
+    surface = _node_surface(node, read, owner, messages)
+    if texture is not None:
+        surface = surface._replace(texture=texture[0], texture_mode=texture[1])
+    return surface
+
+
+def _node_surface(node, read, owner, messages):
+    """Translate one shader node other than a Mix Shader or a Principled BSDF."""
+    kind = node.bl_idname
+    name = node_name(node)
+    if kind not in {'ShaderNodeMixShader', 'ShaderNodeEmission'}:
+        read.ignored_if_linked(node, "Normal", "the normal input")
+
+    if kind == 'ShaderNodeBsdfDiffuse':
+        if read.value(node, "Roughness") > 0:
+            messages.add(f"{owner}: Oren-Nayar roughness of node '{name}' is not "
+                         f"supported yet; rendered as Lambertian")
+        return _diffuse(read.color(node, "Color"))
+
+    if kind == 'ShaderNodeEmission':
+        emission = read.color(node, "Color") * read.value(node, "Strength")
+        return Surface(MAT_DIFFUSE, np.zeros(3), emission)
+
+    if kind in {'ShaderNodeBsdfGlossy', 'ShaderNodeBsdfAnisotropic'}:
+        _distribution_note(node, read, owner)
+        if read.value(node, "Anisotropy") != 0:
+            messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
+                         f"rendered isotropic")
+        return Surface(MAT_CONDUCTOR, read.color(node, "Color", (1.0, 1.0, 1.0)), np.zeros(3),
+                       roughness=read.value(node, "Roughness", 0.5))
+
+    if kind in {'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction'}:
+        _distribution_note(node, read, owner)
+        if kind == 'ShaderNodeBsdfRefraction':
+            messages.add(f"{owner}: node '{name}' (refraction only) is not supported yet; "
+                         f"rendered as glass (with Fresnel reflection)")
+        color = read.color(node, "Color", (1.0, 1.0, 1.0))
+        return Surface(MAT_DIELECTRIC, color, np.zeros(3),
+                       roughness=read.value(node, "Roughness", 0.0),
+                       ior=read.value(node, "IOR", 1.5), transmission=1.0, specular_tint=color)
+
+    if kind == 'ShaderNodeBsdfTransparent':
+        _transparent_note(owner, messages, f"node '{name}'")
+        return _transparent(read.color(node, "Color", (1.0, 1.0, 1.0)))
+
+    messages.add(f"{owner}: node '{name}' is not supported yet; rendered as diffuse")
+    if node.inputs.get("Color") is not None and node.inputs["Color"].type == 'RGBA':
+        return _diffuse(read.color(node, "Color"))
+    return _diffuse(DEFAULT_SURFACE_COLOR)
+
+
+def _transparent(color):
+    """Transparent BSDF: a smooth dielectric of IOR 1 (straight through, tinted by ``color``)."""
+    color = np.asarray(color, np.float64)
+    return Surface(MAT_DIELECTRIC, color, np.zeros(3), roughness=0.0, ior=1.0,
+                   transmission=1.0, specular_tint=color)
+
+
+def _transparent_note(owner, messages, what):
+    messages.add(f"{owner}: {what} is rendered as a pass-through (glass of IOR 1) that still "
+                 f"blocks shadow rays and counts as a transmission bounce")
+
+
+def _surface_key(surface):
+    """What makes two plain surfaces the same BSDF (to merge equal mixture components)."""
+    return (surface.kind, tuple(np.round(surface.base_color, 9)), surface.roughness,
+            surface.ior, surface.specular_ior_level, tuple(np.round(surface.specular_tint, 9)),
+            id(surface.texture), surface.texture_mode)
+
+
+def mix_surfaces(parts, owner, messages):
+    """The mixture of ``parts = [(weight, Surface), ...]`` (weights summing to 1).
+
+    Nested mixtures are flattened (their weights multiply); emission is the weighted sum;
+    components of zero weight are dropped and equal ones merged. A mixture of untextured
+    diffuse surfaces is the diffuse surface of the blended colour (Lambert is linear in its
+    albedo); a mixture left with one component is that component.
+    """
+    flat = []
+    emission = np.zeros(3)
+    for weight, surface in parts:
+        emission = emission + weight * np.asarray(surface.emission, np.float64)
+        inner = surface.components or ((1.0, surface),)
+        for w, component in inner:
+            if weight * w > 0:
+                flat.append((weight * w, component._replace(emission=np.zeros(3),
+                                                            components=())))
+    merged = {}
+    for w, component in flat:
+        key = _surface_key(component)
+        w0, _ = merged.get(key, (0.0, component))
+        merged[key] = (w0 + w, component)
+    flat = sorted(merged.values(), key=lambda wc: -wc[0])
+    if not flat:
+        return _BLACK._replace(emission=emission)
+    if all(c.kind == MAT_DIFFUSE and c.texture is None for _, c in flat):
+        color = sum(w * np.asarray(c.base_color, np.float64) for w, c in flat)
+        return _diffuse(color / sum(w for w, _ in flat), emission)
+    if len(flat) == 1:
+        return flat[0][1]._replace(emission=emission)
+    if len(flat) > MAX_COMPONENTS:
+        messages.add(f"{owner}: mixtures of more than {MAX_COMPONENTS} BSDFs are not "
+                     f"supported yet; the {MAX_COMPONENTS} largest are kept")
+        flat = flat[:MAX_COMPONENTS]
+    total = sum(w for w, _ in flat)
+    components = tuple((w / total, c) for w, c in flat)
+    main = components[0][1]
+    return main._replace(emission=emission, texture=None, components=components)
+
+
+def _principled_surface(node, read, owner, texture=None):
+    """Principled BSDF -> a mixture of conductor (metallic), dielectric (transmission), coat
+    over diffuse and, for Alpha < 1, a transparent pass-through.
+
+    Weights as Cycles' Principled: transparent ``1 - a``, then of the rest ``a``: metal ``m``,
+    glass ``(1 - m) t`` and the opaque dielectric ``(1 - m)(1 - t)``; emission is scaled by
+    ``a`` too. ``texture`` (pixels, modes) drives the base colour of every component but the
+    transparent one.
+    """
+    messages = read.messages
+    name = node_name(node)
+    base = read.color(node, "Base Color", DEFAULT_SURFACE_COLOR)
+    emission = read.color(node, "Emission Color") * read.value(node, "Emission Strength")
+    metallic = min(max(read.value(node, "Metallic"), 0.0), 1.0)
+    transmission = min(max(read.value(node, "Transmission Weight"), 0.0), 1.0)
+    roughness = min(max(read.value(node, "Roughness", 0.5), 0.0), 1.0)
+    ior = read.value(node, "IOR", 1.5)
+    level = min(max(read.value(node, "Specular IOR Level", 0.5), 0.0), 1.0)
+    tint = read.color(node, "Specular Tint", (1.0, 1.0, 1.0))
+    lobes = [label for socket, label in _PRINCIPLED_LOBES if read.value(node, socket) > 0]
+    if lobes:
+        messages.add(f"{owner}: {', '.join(lobes)} of node '{name}' "
+                     f"{'is' if len(lobes) == 1 else 'are'} not supported yet; ignored")
+    alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
+    if read.value(node, "Anisotropic") != 0:
+        messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
+                     f"rendered isotropic")
+    distribution = getattr(node, "distribution", 'GGX')
+    if distribution != 'GGX' and roughness > 0:
+        messages.add(f"{owner}: {distribution} distribution of node '{name}' is not "
+                     f"supported yet; rendered as GGX")
+
+    weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
+               MAT_LAYERED: (1 - metallic) * (1 - transmission)}
+    if metallic > 0 and np.any(tint != 1.0):
+        messages.add(f"{owner}: metallic specular tint (F82) of node '{name}' is not "
+                     f"supported yet; ignored")
+    if weights[MAT_DIELECTRIC] > 0 and level != 0.5:
+        messages.add(f"{owner}: specular IOR level of transmissive node '{name}' is not "
+                     f"supported yet; ignored")
+    pixels, mode = texture if texture is not None else (None, ("Linear", "REPEAT"))
+    parts = [(w, Surface(kind, base, np.zeros(3), roughness, ior,
+                         float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
+                         tint, pixels, mode))
+             for kind, w in weights.items() if w > 0]
+    parts = [(alpha * w, surface) for w, surface in parts]
+    if alpha < 1.0:
+        _transparent_note(owner, messages, f"alpha of node '{name}'")
+        parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
+    surface = mix_surfaces(parts, owner, messages)
+    return surface._replace(emission=alpha * emission, metallic=metallic,
+                            transmission=transmission)
+
+
+class MaterialTable:
+    """Rows of :class:`core.scene.Materials`: one per distinct Blender material used, plus the
+    component rows of the mixtures among them (after their mixture row)."""
+
+    def __init__(self, messages):
+        self.messages = messages
+        self._rows = {}
+        self.names = []
+        self.surfaces = []
+        self.mixes = []  # per row: ((component row, weight), ...)
+
+    def row(self, material):
+        """Row index of ``material`` (None: Cycles' default surface), adding it if new."""
+        key = material.original.as_pointer() if material is not None else 0
+        index = self._rows.get(key)
+        if index is None:
+            surface = material_surface(material, self.messages)
+            name = material.name if material is not None else DEFAULT_SURFACE_NAME
+            index = self._add(name, surface)
+            self._rows[key] = index
+            if surface.components:
+                self.mixes[index] = tuple(
+                    (self._add(f"{name} [{i}]", component), weight)
+                    for i, (weight, component) in enumerate(surface.components))
+        return index
+
+    def _add(self, name, surface):
+        index = len(self.names)
+        self.names.append(name)
+        self.surfaces.append(surface._replace(
+            base_color=np.clip(surface.base_color, 0.0, 1.0),
+            emission=np.maximum(surface.emission, 0.0),
+            specular_tint=np.clip(surface.specular_tint, 0.0, 1.0)))
+        self.mixes.append(((index, 1.0),))
+        return index
+
+    def build(self):
+        if not self.names:
+            return Materials.from_lists([], np.zeros((0, 3)), np.zeros((0, 3)))
+        col = {field: [getattr(s, field) for s in self.surfaces] for field in Surface._fields}
+        width = max(len(mix) for mix in self.mixes)
+        mix_rows = np.zeros((len(self.names), width), np.int32)
+        mix_weights = np.zeros((len(self.names), width), np.float32)
+        for index, mix in enumerate(self.mixes):
+            rows, weights = zip(*mix)
+            mix_rows[index] = rows[0]  # padding: the first component, of weight 0
+            mix_rows[index, :len(rows)] = rows
+            mix_weights[index, :len(rows)] = np.asarray(weights) / np.sum(weights)
+        return Materials.from_lists(
+            self.names, col["base_color"], col["emission"], kinds=col["kind"],
+            roughness=col["roughness"], ior=col["ior"], metallic=col["metallic"],
+            transmission=col["transmission"], specular_ior_level=col["specular_ior_level"],
+            specular_tint=col["specular_tint"], texture=self._texture_index()[0],
+            mix_rows=mix_rows, mix_weights=mix_weights)
+
+    def _texture_index(self):
+        """``(m,) int32`` index into the distinct textures per row (-1 for untextured rows),
+        and those textures as ``[(pixels, (interpolation, extension)), ...]``."""
+        index, distinct, found = [], [], {}
+        for s in self.surfaces:
+            if s.texture is None:
+                index.append(-1)
+                continue
+            key = (id(s.texture), s.texture_mode)
+            if key not in found:
+                found[key] = len(distinct)
+                distinct.append((s.texture, s.texture_mode))
+            index.append(found[key])
+        return np.asarray(index, np.int32), distinct
+
+    @property
+    def textures(self):
+        """Distinct base colour images in order of first use (``Scene.textures``)."""
+        return [pixels for pixels, _ in self._texture_index()[1]]
+
+    @property
+    def texture_modes(self):
+        """``(interpolations, extensions)`` of :attr:`textures` (``Scene.texture_*``)."""
+        modes = [mode for _, mode in self._texture_index()[1]]
+        return [m[0] for m in modes], [m[1] for m in modes]
+
+    def texture_rows(self):
+        """``(m,) int32`` index into :attr:`textures` per row, -1 for untextured rows."""
+        return self._texture_index()[0]
+
+    def textured(self, rows):
+        """Whether any of the material rows ``rows`` (or their components) has a texture."""
+        return any(self.surfaces[c].texture is not None
+                   for r in np.unique(rows) for c, _ in self.mixes[int(r)])
