@@ -1,6 +1,6 @@
 """Scene tables: the flat, struct-of-arrays description every integrator reads.
 
-The exporter (``addon/export.py``) and the built-in scenes (``core/scenes.py``) both produce a
+The exporter (``addon/export/``) and the built-in scenes (``core/scenes.py``) both produce a
 :class:`Scene`. Everything is in world space, in Blender units and Cycles' light units (see
 ``docs/CONVENTIONS.md``): lights carry the *radiometric* quantity the integrators need
 (intensity, radiance or irradiance), already converted from Blender's Watts by

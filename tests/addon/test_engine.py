@@ -373,10 +373,11 @@ def test_extension_archive_holds_the_addon_and_nothing_else(tmp_path):
     assert proc.returncode == 0, proc.stdout + proc.stderr
     names = zipfile.ZipFile(archive).namelist()
     for required in ("blender_manifest.toml", "__init__.py", "addon/engine.py",
-                     "addon/export.py", "core/scene.py", "core/render.py"):
+                     "addon/export/__init__.py", "core/scene.py", "core/render.py"):
         assert required in names
     for name in names:
-        assert not name.startswith((".venv/", ".git/", "tests/", "bench/", "docs/", "out/")), name
+        assert not name.startswith((".venv/", ".git/", "tests/", "bench/", "tools/", "docs/",
+                                    "out/")), name
         assert "__pycache__" not in name and not name.endswith(".pyc"), name
 
 
