@@ -34,6 +34,7 @@ from .film import Film, PixelFilter
 from .integrators import INTEGRATORS, integrator_class
 from .integrators.base import UNIT_PATHS, Counters
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
+from .options import DEFAULTS, validate
 from .prepare import PreparedScene, prepare
 from .sampling.distributions import DISTRIBUTION_METHODS
 from .sampling.mis import HEURISTICS, MIS_SETTINGS
@@ -47,7 +48,9 @@ PASS_UNITS = 8
 
 @dataclass
 class RenderSettings:
-    """What to render and how. Field names match the add-on's properties and the CLI flags.
+    """What to render and how. Every field but ``region`` is an option of
+    :data:`core.options.OPTIONS` (its values, range, default and description; the add-on's
+    properties and the CLI flags are made from it), checked by :func:`check_settings`.
 
     Sampling strategies of the path tracer (see :mod:`core.sampling.mis` and
     :class:`core.lights.LightSampler`): ``mis_heuristic`` in ``MIS_SETTINGS`` ('balance',
@@ -66,25 +69,25 @@ class RenderSettings:
     left) and ``y0 <= y < y1`` (from the bottom); None renders the whole frame.
     """
 
-    integrator: str = "path"
-    sampler: str = "independent"
-    spp: int = 16
-    time_limit: float = 0.0
-    seed: int = 0
-    max_bounces: int = 8
-    use_russian_roulette: bool = True
-    rr_min_bounces: int = 3
-    mis_heuristic: str = "power"
-    mis_beta: float = 2.0
-    mis_alpha: float = 0.1
-    light_selection: str = "power"
-    light_sampling: str = "area"
-    distribution: str = "cdf"
-    filter_type: str = "BLACKMAN_HARRIS"
-    filter_width: float = 1.5
-    threads: int = 0
-    strategy_views: bool = False
-    strategy_max_length: int = 3
+    integrator: str = DEFAULTS["integrator"]
+    sampler: str = DEFAULTS["sampler"]
+    spp: int = DEFAULTS["spp"]
+    time_limit: float = DEFAULTS["time_limit"]
+    seed: int = DEFAULTS["seed"]
+    max_bounces: int = DEFAULTS["max_bounces"]
+    use_russian_roulette: bool = DEFAULTS["use_russian_roulette"]
+    rr_min_bounces: int = DEFAULTS["rr_min_bounces"]
+    mis_heuristic: str = DEFAULTS["mis_heuristic"]
+    mis_beta: float = DEFAULTS["mis_beta"]
+    mis_alpha: float = DEFAULTS["mis_alpha"]
+    light_selection: str = DEFAULTS["light_selection"]
+    light_sampling: str = DEFAULTS["light_sampling"]
+    distribution: str = DEFAULTS["distribution"]
+    filter_type: str = DEFAULTS["filter_type"]
+    filter_width: float = DEFAULTS["filter_width"]
+    threads: int = DEFAULTS["threads"]
+    strategy_views: bool = DEFAULTS["strategy_views"]
+    strategy_max_length: int = DEFAULTS["strategy_max_length"]
     region: tuple = None
 
 
@@ -189,9 +192,8 @@ def check_settings(scene, settings):
     """Raise ``ValueError`` with a user-facing message for settings that cannot render."""
     if scene.camera is None:
         raise ValueError("the scene has no camera: add one and make it the scene camera")
-    if settings.integrator not in INTEGRATORS:
-        raise ValueError(f"unknown integrator {settings.integrator!r}; choose from "
-                         f"{', '.join(INTEGRATORS)}")
+    # Each option against its menu or range (core.options), then what options need together.
+    validate(settings)
     if settings.spp <= 0 and settings.time_limit <= 0:
         raise ValueError("set a sample count or a time limit")
     if scene.camera.width <= 0 or scene.camera.height <= 0:
@@ -201,23 +203,12 @@ def check_settings(scene, settings):
         if not (0 <= x0 < x1 <= scene.camera.width and 0 <= y0 < y1 <= scene.camera.height):
             raise ValueError(f"the render region {tuple(settings.region)} is not a non-empty "
                              f"window of the {scene.camera.width} x {scene.camera.height} frame")
-    for name, allowed in (("mis_heuristic", MIS_SETTINGS), ("light_selection", LIGHT_SELECTIONS),
-                          ("light_sampling", LIGHT_SAMPLINGS),
-                          ("distribution", DISTRIBUTION_METHODS)):
-        if getattr(settings, name) not in allowed:
-            raise ValueError(f"unknown {name.replace('_', ' ')} {getattr(settings, name)!r}; "
-                             f"choose from {', '.join(allowed)}")
     if settings.integrator == "bdpt" and settings.mis_heuristic not in HEURISTICS:
         raise ValueError(f"BDPT weighs all its strategies with one heuristic: choose from "
                          f"{', '.join(HEURISTICS)}, not {settings.mis_heuristic!r}")
     if settings.integrator in ("light", "bdpt") and scene.camera.type != "PERSP":
         raise ValueError(f"{settings.integrator} needs a perspective camera: light paths "
                          f"cannot reach an orthographic one")
-    if not (np.isfinite(settings.mis_beta) and settings.mis_beta > 0):
-        raise ValueError(f"the MIS power heuristic's beta must be positive, not "
-                         f"{settings.mis_beta!r}")
-    if not 0.0 <= settings.mis_alpha <= 1.0:
-        raise ValueError(f"the MIS cutoff alpha must be in [0, 1], not {settings.mis_alpha!r}")
 
 
 def render(scene, settings: RenderSettings, progress=None, cancel=None, on_update=None,

@@ -1,0 +1,369 @@
+"""Render options: one record per setting, the one source of the UI, the CLI and validation.
+
+Every field of :class:`core.render.RenderSettings` (but the render region) has an
+:class:`Option` in :data:`OPTIONS`: its name, the values it takes (for a menu, each with a label
+and a description), its default, its range and its description. From these records
+
+- the add-on builds its properties (``addon/properties.py``: ``EnumProperty`` items, defaults,
+  limits and tooltips), and reads them back into core values;
+- the command line builds its flags (``cli.py``: choices, help text, defaults, type checks);
+- :func:`validate` checks a ``RenderSettings``, with one message shape for every option:
+  ``"mis_heuristic: 'veach' is not one of power, balance, ..."``.
+
+Names: a menu value is lower case in core (``'blackman_harris'``); its Blender identifier is the
+same in upper case (``'BLACKMAN_HARRIS'``), which presets and ``.blend`` files store.
+
+Where a core module already lists what exists (``INTEGRATORS``, ``MIS_SETTINGS``,
+``LIGHT_SELECTIONS``, ``LIGHT_SAMPLINGS``, ``DISTRIBUTION_METHODS``, the samplers), the menu's
+values are that list and this module adds their labels and descriptions; importing it fails if
+a value has no text or a text names no value, so the lists cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+from .integrators import INTEGRATORS
+from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
+from .sampling.distributions import DISTRIBUTION_METHODS
+from .sampling.mis import MIS_SETTINGS
+from .sampling.samplers import available as available_samplers
+from .sampling.samplers import sampler_class
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One value of a menu option: ``value`` in core, ``label`` and ``description`` in the UI."""
+
+    value: str
+    label: str
+    description: str
+
+    @property
+    def identifier(self):
+        """Blender's identifier of the value (presets and .blend files store it)."""
+        return self.value.upper()
+
+
+@dataclass(frozen=True)
+class Option:
+    """One render setting.
+
+    Parameters
+    ----------
+    name : str
+        Field of ``core.render.RenderSettings``.
+    kind : type
+        ``str`` (a menu of ``choices``), ``int``, ``float`` or ``bool``.
+    label : str
+        Name shown in the UI.
+    description : str
+        What the setting does: the UI's tooltip and the CLI's help.
+    default : object
+    choices : tuple of Choice
+        The menu, in the order the UI shows it (``kind`` str only).
+    minimum, maximum : float or None
+        Closed range of a number.
+    prop : str or None
+        Name of the add-on's property (default ``name``).
+    flag : str or None
+        The ``render`` command's flag (default ``--`` + ``name`` with dashes).
+    """
+
+    name: str
+    kind: type
+    label: str
+    description: str
+    default: object
+    choices: tuple = ()
+    minimum: float | None = None
+    maximum: float | None = None
+    prop: str | None = None
+    flag: str | None = None
+
+    @property
+    def values(self):
+        """Core values of a menu, in UI order."""
+        return tuple(c.value for c in self.choices)
+
+    @property
+    def prop_name(self):
+        return self.prop or self.name
+
+    @property
+    def flag_name(self):
+        return self.flag or "--" + self.name.replace("_", "-")
+
+    def allowed(self):
+        """The allowed values as a user reads them: ``'a, b, c'`` or ``'[lo, hi]'``."""
+        if self.choices:
+            return ", ".join(self.values)
+        if self.kind is bool:
+            return "True, False"
+        lo = "-inf" if self.minimum is None else f"{self.minimum:g}"
+        hi = "inf" if self.maximum is None else f"{self.maximum:g}"
+        if self.kind is int:
+            lo, hi = (str(v) if v is not None else t for v, t in ((self.minimum, lo),
+                                                                 (self.maximum, hi)))
+        return f"[{lo}, {hi}]"
+
+    def check(self, value):
+        """Raise ``ValueError("<name>: <value> is not ...")`` unless ``value`` is allowed."""
+        if self.choices:
+            if value not in self.values:
+                raise ValueError(f"{self.name}: {value!r} is not one of {self.allowed()}")
+            return
+        is_bool = type(value).__name__ in ("bool", "bool_")
+        if self.kind is bool:
+            if not is_bool:
+                raise ValueError(f"{self.name}: {value!r} is not one of {self.allowed()}")
+            return
+        wanted = numbers.Integral if self.kind is int else numbers.Real
+        if not (isinstance(value, wanted) and not is_bool and math.isfinite(value)
+                and (self.minimum is None or value >= self.minimum)
+                and (self.maximum is None or value <= self.maximum)):
+            what = "an integer" if self.kind is int else "a number"
+            raise ValueError(f"{self.name}: {value!r} is not {what} in {self.allowed()}")
+
+    def parse(self, text):
+        """A value from command-line text, checked (``ValueError`` names the option)."""
+        if self.choices:
+            value = text.lower()
+        else:
+            try:
+                value = self.kind(text)
+            except ValueError:
+                raise ValueError(f"{self.name}: {text!r} is not a number in "
+                                 f"{self.allowed()}") from None
+        self.check(value)
+        return value
+
+
+def _choices(values, texts):
+    """Menu of ``values`` (a core module's list) in the order of ``texts`` (value -> label,
+    description); raises if either names a value the other lacks."""
+    if set(values) != set(texts):
+        raise RuntimeError(f"option texts {sorted(texts)} do not match the values "
+                           f"{sorted(values)}")
+    return tuple(Choice(v, *texts[v]) for v in texts)
+
+
+def sampler_choices(names=None):
+    """Menu of the samplers ``core.sampling.samplers.available()`` lists, each with its class's
+    ``label`` and ``description`` (else its docstring's first line). A sampler module that fails
+    to import is left out, so one broken sampler cannot stop the add-on or the CLI."""
+    out = []
+    for name in available_samplers() if names is None else names:
+        try:
+            cls = sampler_class(name)
+        except Exception:  # noqa: BLE001 - a sampler being written must not break the others
+            continue
+        label = getattr(cls, "label", None) or name.replace("_", " ").title()
+        doc = (cls.__doc__ or "").strip().split("\n")[0].strip()
+        description = getattr(cls, "description", None) or doc or f"{label} sampler"
+        out.append(Choice(name, str(label), str(description).strip().rstrip(".")))
+    return tuple(out)
+
+
+_INTEGRATOR_TEXT = {
+    "path": (
+        "Path Tracing",
+        "Unidirectional path tracing with next-event estimation and multiple importance "
+        "sampling. Unbiased and consistent; the reference estimator the others are compared "
+        "with"),
+    "light": (
+        "Light Tracing",
+        "Particles traced from the lights, each vertex connected to the camera and splatted onto "
+        "the film. Unbiased; good for caustics seen directly (light through glass or off a "
+        "mirror onto a diffuse surface), but it cannot find paths the camera sees through a "
+        "specular surface (mirrors and glass in view render black). No MIS: one strategy per "
+        "path"),
+    "bdpt": (
+        "Bidirectional",
+        "Bidirectional path tracing: a camera subpath and a light subpath, joined by every "
+        "connection strategy (s light vertices, t camera vertices) and combined by multiple "
+        "importance sampling with the Light Sampling panel's MIS heuristic. Unbiased; robust "
+        "for caustics and indirectly lit scenes, where one strategy's noise is another's "
+        "strength"),
+}
+
+_MIS_TEXT = {
+    "power": (
+        "Power Heuristic",
+        "Multiple importance sampling of light and BSDF samples with weights p^beta / sum "
+        "p^beta (Veach). Unbiased; beta = 2 is the usual choice, cutting noise from both small "
+        "lights and broad reflections"),
+    "balance": (
+        "Balance Heuristic",
+        "MIS with weights proportional to each strategy's density (the power heuristic with "
+        "beta = 1). Unbiased; provably close to the best weights, a little noisier than power"),
+    "maximum": (
+        "Maximum Heuristic",
+        "MIS where the strategy with the larger density takes the whole sample. Unbiased; "
+        "the limit of the power heuristic for large beta"),
+    "cutoff": (
+        "Cutoff Heuristic",
+        "MIS where strategies whose density is below alpha times the largest get weight zero "
+        "and the rest share by the balance heuristic. Unbiased"),
+    "none": (
+        "None (Average)",
+        "Both strategies with constant weight 1/2: the unweighted average of light sampling and "
+        "BSDF sampling. Unbiased, but without MIS's variance reduction: each strategy's noisy "
+        "cases are only halved"),
+    "bsdf": (
+        "BSDF Sampling Only",
+        "No light sampling: direct light only where a BSDF-sampled ray happens to hit an "
+        "emitter (weight one). Unbiased for area, mesh, sphere and sun-disk lights, but point, "
+        "spot and sharp sun lights can never be hit and render black: a teaching baseline"),
+    "light": (
+        "Light Sampling Only",
+        "Next-event estimation only (weight one); emitters found by rays after a bounce are "
+        "dropped where light sampling could have picked them. Unbiased; emitters seen directly "
+        "by the camera still show. Noisy for glossy surfaces and huge lights"),
+}
+
+_LIGHT_SELECTION_TEXT = {
+    "power": (
+        "Power",
+        "Choose the light to sample in proportion to its estimated emitted power. Unbiased; "
+        "best when brighter lights contribute more"),
+    "uniform": (
+        "Uniform",
+        "Choose every light with the same probability: each lamp, each emission material (all "
+        "triangles sharing it count as one light, and a triangle inside it is chosen in "
+        "proportion to area times radiance) and the world. Unbiased; lights that emit nothing "
+        "are skipped"),
+}
+
+_LIGHT_SAMPLING_TEXT = {
+    "area": (
+        "Area",
+        "Sample points uniformly over the surface of area lights and emissive triangles. "
+        "Unbiased; noisy close to large lights, whose near parts are undersampled"),
+    "solid_angle": (
+        "Solid Angle",
+        "Sample directions uniformly over the solid angle that an emitter subtends: spherical "
+        "triangles (Arvo) for emissive triangles, spherical rectangles (Urena et al.) for "
+        "square and rectangular area lights. Unbiased; much less noise near large lights. Disk "
+        "and ellipse lights, and emitters seen under a tiny or near-hemispherical solid angle, "
+        "stay area-sampled"),
+}
+
+_DISTRIBUTION_TEXT = {
+    "cdf": (
+        "CDF Inversion",
+        "Discrete choices (which light, which emissive triangle, which component of a mixed "
+        "material) by binary search in a cumulative distribution: O(log n) per sample, "
+        "preserves the stratification of the sampler's numbers"),
+    "alias": (
+        "Alias Table",
+        "Discrete choices by Walker's alias method (Vose's construction): O(1) per sample after "
+        "an O(n) build, but scrambles the stratification of the sampler's numbers"),
+}
+
+# The pixel filters core.film.PixelFilter implements and the UI offers (this list is the source).
+FILTER_CHOICES = (
+    Choice("box", "Box", "Box filter: every sample counts only for the pixel it falls in"),
+    Choice("blackman_harris", "Blackman-Harris",
+           "Blackman-Harris window, as Cycles' default pixel filter (importance sampled, so "
+           "every camera sample has weight one). Cycles doubles the width for this filter: a "
+           "width of 1.5 pixels gives a 3 pixel wide footprint"),
+)
+
+
+def _menu(name, label, description, default, choices, **kw):
+    return Option(name, str, label, description, default, choices=choices, **kw)
+
+
+OPTIONS = {o.name: o for o in (
+    _menu("integrator", "Integrator",
+          "Light transport estimator: which Monte Carlo estimator of the rendering equation "
+          "computes each pixel", "path", _choices(INTEGRATORS, _INTEGRATOR_TEXT)),
+    _menu("sampler", "Sampler",
+          "How the random numbers of each pixel sample are generated: independent, stratified, "
+          "low-discrepancy or blue-noise sequences trade the same work for a different error",
+          "independent", sampler_choices()),
+    Option("spp", int, "Samples",
+           "Number of samples per pixel. The render stops after this many, or earlier when the "
+           "time limit runs out", 16, minimum=0, maximum=1 << 24,
+           prop="samples"),
+    Option("time_limit", float, "Time Limit",
+           "Stop rendering after this many seconds, keeping the samples taken so far. Zero "
+           "means no limit (render all samples)", 0.0, minimum=0.0, flag="--time"),
+    Option("seed", int, "Seed",
+           "Seed of the sample streams. The same seed, samples and scene give the same image; "
+           "change it to get an independent render of the same scene (e.g. to measure "
+           "variance)", 0, minimum=0, maximum=(1 << 31) - 1),
+    Option("max_bounces", int, "Max Bounces",
+           "Maximum number of surface interactions of a path. Cutting paths short loses the "
+           "light they would have carried (a bias toward darker images)", 8, minimum=0,
+           maximum=1024, flag="--max-depth"),
+    Option("use_russian_roulette", bool, "Russian Roulette",
+           "Terminate low-throughput paths at random and reweight the survivors. Unbiased: it "
+           "trades a little variance for a lot less work on long paths", True,
+           flag="--russian-roulette"),
+    Option("rr_min_bounces", int, "Min Bounces",
+           "Number of bounces every path survives before Russian roulette may terminate it", 3,
+           minimum=0, maximum=1024),
+    _menu("mis_heuristic", "MIS",
+          "How light sampling (next-event estimation) and BSDF sampling are combined for direct "
+          "light: a multiple importance sampling heuristic, their plain average, or one "
+          "strategy alone. Bidirectional weights all its connection strategies with the same "
+          "heuristic. Light tracing has no MIS", "power", _choices(MIS_SETTINGS, _MIS_TEXT),
+          flag="--mis"),
+    Option("mis_beta", float, "Beta",
+           "Exponent of the power heuristic: 1 is the balance heuristic, 2 the usual choice, "
+           "large values approach the maximum heuristic", 2.0, minimum=0.01, maximum=100.0),
+    Option("mis_alpha", float, "Alpha",
+           "Cutoff of the cutoff heuristic: a strategy whose density is below alpha times the "
+           "largest one gets weight zero (0 is the balance heuristic, 1 the maximum heuristic)",
+           0.1, minimum=0.0, maximum=1.0),
+    _menu("light_selection", "Light Selection",
+          "How next-event estimation chooses which light to sample", "power",
+          _choices(LIGHT_SELECTIONS, _LIGHT_SELECTION_TEXT)),
+    _menu("light_sampling", "Area Lights",
+          "Path Tracing only: how next-event estimation samples a point on an area light or "
+          "emissive triangle, uniformly by area or uniformly over the solid angle it covers. "
+          "Light Tracing and Bidirectional start their light paths on emitters sampled by area",
+          "area", _choices(LIGHT_SAMPLINGS, _LIGHT_SAMPLING_TEXT)),
+    _menu("distribution", "Discrete Sampling",
+          "Data structure for discrete choices (lights, emissive triangles, mixed materials' "
+          "components): CDF inversion or an alias table. Its build and sampling times are shown "
+          "in the render stats", "cdf", _choices(DISTRIBUTION_METHODS, _DISTRIBUTION_TEXT)),
+    _menu("filter_type", "Pixel Filter",
+          "Pixel reconstruction filter: how camera samples spread over pixels",
+          "blackman_harris", FILTER_CHOICES),
+    Option("filter_width", float, "Width",
+           "Pixel filter width in pixels (as Cycles' filter width)", 1.5, minimum=0.01,
+           maximum=10.0),
+    Option("threads", int, "Threads",
+           "Worker threads; 0 is one per CPU core (in Blender: Render > Performance > Threads)",
+           0, minimum=0, maximum=1024),
+    Option("strategy_views", bool, "Strategy Views",
+           "Bidirectional only: write two render passes per BDPT strategy (s, t) with s light "
+           "and t camera vertices, for paths up to Max Path Length: the strategy's own estimate "
+           "(as if it were the only one) and its MIS-weighted share of the image (the weighted "
+           "shares of one path length add up to that length's part of Combined)", False,
+           prop="use_strategy_views"),
+    Option("strategy_max_length", int, "Max Path Length",
+           "Longest path, in segments, that gets strategy views: 1 is emitters seen directly, "
+           "2 direct light, 3 one indirect bounce, and so on. A path of k segments has k + 1 "
+           "strategies, so the number of passes grows quadratically", 3, minimum=1, maximum=8),
+)}
+
+DEFAULTS = {name: option.default for name, option in OPTIONS.items()}
+
+
+def validate(settings):
+    """Check every option of ``settings`` (a ``RenderSettings``) against :data:`OPTIONS`.
+
+    Raises
+    ------
+    ValueError
+        ``"<option>: <value> is not one of <allowed>"`` for the first value out of its menu or
+        range.
+    """
+    for name, option in OPTIONS.items():
+        option.check(getattr(settings, name))
