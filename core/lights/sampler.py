@@ -99,6 +99,7 @@ class LightSampler:
         self.shape_lights = np.nonzero(~self.delta[:k])[0]
         # Row of each family's first emitter: what a family's own rows are counted from.
         self.family_first = np.array([0, 0, 0, k, 0])
+        self.present_families = np.unique(self.emitter_family)
 
         self.selector = SELECTIONS[selection](self._power(scene), k, tris, world.emits, method)
         self.light_dist = self.selector.light_dist
@@ -134,14 +135,18 @@ class LightSampler:
     def families_of(self, index):
         """``(family, rows, local index)`` for every family that emitter rows ``index (n,)``
         (-1: none) use: the batch rows that chose it and their rows in its own table."""
-        if self.emitter_family.size:
-            fam = np.where(index >= 0, self.emitter_family[np.maximum(index, 0)], -1)
+        present = self.present_families
+        if present.size == 1:
+            # One family (a single lamp, or only emissive meshes): no per-row lookup.
+            groups = [(present[0], np.nonzero(index >= 0)[0])]
         else:
-            fam = np.full(index.shape[0], -1)
-        for f, family in enumerate(self.families):
-            m = np.nonzero(fam == f)[0]
+            fam = self.emitter_family[np.maximum(index, 0)] if present.size else index
+            if present.size and (index < 0).any():
+                fam = np.where(index >= 0, fam, -1)
+            groups = [(f, np.nonzero(fam == f)[0]) for f in present]
+        for f, m in groups:
             if m.size:
-                yield family, m, index[m] - self.family_first[f]
+                yield self.families[f], m, index[m] - self.family_first[f]
 
     def is_infinite(self, index):
         """Whether emitter rows ``index (n,)`` are the world or suns."""

@@ -91,16 +91,21 @@ class EmissiveTriangles(LightFamily):
                & (omega <= warps.MAX_SPHERICAL_SOLID_ANGLE))
         return omega, use
 
-    def _point(self, e, u):
-        """Uniform points ``(m, 3)`` on emitters ``e (m,)`` by ``u (m, 2)``."""
+    def _corners(self, e):
+        """First vertex and edges ``(m, 3)`` of emitters ``e (m,)``."""
+        return self.emit_v0[e], self.emit_e1[e], self.emit_e2[e]
+
+    @staticmethod
+    def _point(v0, e1, e2, u):
+        """Uniform points ``(m, 3)`` on triangles ``v0, e1, e2 (m, 3)`` by ``u (m, 2)``."""
         b = warps.sample_uniform_triangle(u)
-        return self.emit_v0[e] + b[:, 1:2] * self.emit_e1[e] + b[:, 2:3] * self.emit_e2[e]
+        return v0 + b[:, 1:2] * e1 + b[:, 2:3] * e2
 
     # ------------------------------------------------------------------ next-event estimation
     def sample_li(self, m, e, p, u, pmf, out, counters=None):
         """Uniformly by area or by solid angle; both faces emit."""
-        v0, e1, e2 = self.emit_v0[e], self.emit_e1[e], self.emit_e2[e]
-        q = self._point(e, u[m])
+        v0, e1, e2 = self._corners(e)
+        q = self._point(v0, e1, e2, u[m])
         omega, sph = self.use_spherical(v0, v0 + e1, v0 + e2, p[m])
         if sph.any():
             ps, nrm = p[m[sph]], self.emit_normal[e[sph]]
@@ -143,7 +148,7 @@ class EmissiveTriangles(LightFamily):
 
     # ------------------------------------------------------------------ light paths
     def sample_le_origin(self, m, e, u, pmf, out):
-        out.p[m] = self._point(e, u[m])
+        out.p[m] = self._point(*self._corners(e), u[m])
         out.normal[m] = self.emit_normal[e]
         out.pdf[m] = pmf[m] / self.emit_area[e]
 
