@@ -1,4 +1,4 @@
-"""``python -m sampling_lab ...``: see :mod:`sampling_lab.addon.cli`."""
+"""``python -m sampling_lab ...``: the command line of :mod:`sampling_lab.cli`."""
 
 import os
 import sys
@@ -8,6 +8,6 @@ import sys
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-from .addon.cli import main  # noqa: E402
+from .cli import main  # noqa: E402
 
 sys.exit(main())

@@ -6,9 +6,25 @@ import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy.types import Operator
 
+NO_TOOLS = ("Sampler Lab needs a source checkout of Sampling Lab: its report writer is "
+            "tools/sampler_lab.py, which the extension archive leaves out (there, run "
+            "'python -m sampling_lab samplers --output DIR' from a checkout)")
+
+
+def _report_writer():
+    """``tools.sampler_lab`` of a source checkout, or None in an installed extension archive."""
+    import importlib
+
+    try:
+        return importlib.import_module("..tools.sampler_lab", __package__)
+    except ModuleNotFoundError as exc:
+        if not (exc.name or "").endswith(("tools", "tools.sampler_lab")):
+            raise
+        return None
+
 
 class SAMPLINGLAB_OT_sampler_lab(Operator):
-    """Measure every sampler: its first points, Fourier spectrum, star discrepancy and the variance of a checkerboard integral against the sample count. Writes CSV files, PNG plots and a markdown table (SAMPLERS.md) to a folder"""
+    """Measure every sampler: its first points, Fourier spectrum, star discrepancy and the variance of a checkerboard integral against the sample count. Writes CSV files, PNG plots and a markdown table (SAMPLERS.md) to a folder. Needs a source checkout of Sampling Lab (its report writer is in tools/, which the extension archive leaves out)"""
 
     bl_idname = "samplinglab.sampler_lab"
     bl_label = "Sampler Lab"
@@ -35,12 +51,18 @@ class SAMPLINGLAB_OT_sampler_lab(Operator):
         default=False,
     )
 
+    @classmethod
+    def poll(cls, context):
+        if _report_writer() is None:
+            cls.poll_message_set(NO_TOOLS)
+            return False
+        return True
+
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
         return {'RUNNING_MODAL'}
 
     def execute(self, context):
-        from ..core.sampling.lab import run
         from ..core.sampling.samplers import available
 
         if self.directory.startswith("//") and not bpy.data.filepath:
@@ -59,7 +81,7 @@ class SAMPLINGLAB_OT_sampler_lab(Operator):
 
         wm.progress_begin(0, max(total, 1))
         try:
-            result = run(output=folder, n=self.points, quick=self.quick,
+            result = _report_writer().run(output=folder, n=self.points, quick=self.quick,
                          markdown=os.path.join(folder, "SAMPLERS.md"), log=log)
         except (OSError, ValueError) as exc:
             self.report({'ERROR'}, f"Sampler Lab: {exc}")

@@ -121,7 +121,8 @@ class Option:
                 raise ValueError(f"{self.name}: {value!r} is not one of {self.allowed()}")
             return
         wanted = numbers.Integral if self.kind is int else numbers.Real
-        if not (isinstance(value, wanted) and not is_bool and math.isfinite(value)
+        # NaN fails every comparison; infinity passes only an open end (time_limit: no limit).
+        if not (isinstance(value, wanted) and not is_bool and not math.isnan(value)
                 and (self.minimum is None or value >= self.minimum)
                 and (self.maximum is None or value <= self.maximum)):
             what = "an integer" if self.kind is int else "a number"

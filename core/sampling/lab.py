@@ -1,30 +1,28 @@
 """Sampler lab: every sampler's points, spectrum, discrepancy and variance, measured side by side.
 
-``python -m sampling_lab samplers [--n 256] [--output docs/samplers] [--quick]`` (or the
-"Sampler Lab" operator in Blender) runs :func:`run` over every sampler that
-:func:`core.sampling.samplers.available` lists and writes, into the output folder:
+The measures only; ``tools/sampler_lab.py`` writes them as CSV files, plots and a markdown table
+(``python -m sampling_lab samplers``, and Blender's "Sampler Lab" operator in a source checkout).
+:func:`measure_sampler` takes one sampler through all of them, with the sizes of :data:`QUICK`
+or :data:`FULL`:
 
-``points_<name>.csv`` / ``.png``
+Points
     The first N 2-D points of pixel 0, dimension 0 (``stream.sample(0, 2)`` for sample indices
-    ``0 .. N-1``, the sampler made with ``spp = N``) and their scatter plot.
-``spectrum_<name>.csv`` / ``.png``
+    ``0 .. N-1``, the sampler made with ``spp = N``): :func:`sample_points`.
+Spectrum
     The radially averaged periodogram ``P(k) = |sum_j exp(-2 pi i k . x_j)|^2 / N`` over integer
-    frequencies ``k``, averaged over ``realizations`` pixels (independent randomizations of the
-    sampler), with its standard error. White noise has ``E[P(k)] = 1`` for every ``k != 0``;
-    blue noise is below 1 at low frequencies. Frequencies are also given in units of
-    ``sqrt(N)`` (the mean point spacing's frequency). A sampler whose set is only shifted from
-    pixel to pixel (the blue-noise samplers) has the same periodogram in every pixel: its
-    average shows one set's spectrum and its spread is zero.
-``checkerboard.csv`` / ``.png``
+    frequencies ``k`` (:func:`periodogram`, :func:`radial_average`), averaged over
+    ``realizations`` pixels (independent randomizations of the sampler), with its standard
+    error. White noise has ``E[P(k)] = 1`` for every ``k != 0``; blue noise is below 1 at low
+    frequencies (:func:`low_frequency_power`, the band ``0 < |k| <= sqrt(N) / 2``). A sampler
+    whose set is only shifted from pixel to pixel (the blue-noise samplers) has the same
+    periodogram in every pixel: its average shows one set's spectrum and its spread is zero.
+Star discrepancy
+    Exact, of the N points (pixel 0, and the mean over realizations): :func:`star_discrepancy`.
+Checkerboard variance
     The variance of a pixel's estimate of the checkerboard integral (:func:`checkerboard`)
     against the sample count n, over ``pixels`` independent pixels for each n (a different
     seed for each n, so the points of one n are independent of the others'), with log-log
-    slopes fitted over n >= 16 (:func:`checkerboard_study`).
-``summary.csv``, ``points.png``, ``spectra.png`` and the markdown table (``SAMPLERS.md``
-    beside the output folder unless given): per sampler the star discrepancy of the N points
-    (pixel 0, and the mean over realizations), the checkerboard slope with its standard error
-    (:func:`core.metrics.convergence_slope`), and the mean periodogram in the low-frequency
-    band ``0 < |k| <= sqrt(N) / 2``.
+    slopes fitted over n >= 16 (:func:`checkerboard_study`, :func:`fit_slope`).
 
 The checkerboard integrand
     The lecture's example, ``f = 1`` where ``floor(x) + floor(y)`` is even, tilted: here
@@ -36,23 +34,17 @@ The checkerboard integrand
     axis-aligned boxes only, and edges that no sampler's strata line up with are what a
     renderer meets. (An axis-aligned board with dyadic edges is integrated exactly by
     (0, 2)-nets at n = 4, 16, ..., which says nothing about edges in general.)
-
-Matplotlib (Agg) draws the PNGs when it is installed; without it (Blender does not ship it) the
-CSV files and the table are still written and the result says that the plots were skipped.
 """
 
 from __future__ import annotations
 
-import argparse
-import csv
 import math
-import os
 import time
 
 import numpy as np
 
 from ..metrics import convergence_slope
-from .samplers import available, make_sampler, sampler_class
+from .samplers import make_sampler, sampler_class
 
 CHECKERBOARD_INTEGRAL = 0.5
 STAR_MAX_POINTS = 8192
@@ -300,40 +292,13 @@ def checkerboard_study(name, ns, pixels, seed=0, fit_from=16):
 
 
 # ---------------------------------------------------------------------------------------------
-# The lab run: CSV, PNG, markdown
+# One sampler, every measure
 # ---------------------------------------------------------------------------------------------
 
 QUICK = {"n": 64, "realizations": 8, "star_realizations": 4, "pixels": 256,
          "ns": (4, 16, 64, 256), "progressive_ns": ()}
 FULL = {"n": 256, "realizations": 64, "star_realizations": 16, "pixels": 1024,
         "ns": (4, 16, 64, 256, 1024), "progressive_ns": (4096,)}
-
-
-def _write_csv(path, header, rows):
-    tmp = path + ".tmp"
-    with open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        for r in rows:
-            w.writerow([_fmt(v) for v in r])
-    os.replace(tmp, path)
-
-
-def _fmt(v):
-    if isinstance(v, float):
-        return f"{v:.9g}"
-    return v
-
-
-def _pyplot():
-    try:
-        import matplotlib
-    except ImportError:
-        return None
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _label(name):
@@ -373,268 +338,3 @@ def measure_sampler(name, cfg, seed=0):
         "checkerboard": rows, "slope": fit[0], "slope_se": fit[1], "slope_se_sampling": fit[2],
         "seconds": time.perf_counter() - t0,
     }
-
-
-def _plot_points(plt, m, path):
-    fig, ax = plt.subplots(figsize=(4, 4.3))
-    _draw_points(ax, m)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def _draw_points(ax, m):
-    p = m["points"]
-    ax.scatter(p[:, 0], p[:, 1], s=max(2.0, 600.0 / m["n"]), c="k", linewidths=0)
-    ax.set_xlim(0, 1)
-    ax.set_ylim(0, 1)
-    ax.set_aspect("equal")
-    ax.set_xticks([0, 0.5, 1])
-    ax.set_yticks([0, 0.5, 1])
-    ax.set_title(f"{m['label']} (N={m['n']})", fontsize=9)
-
-
-def _plot_spectrum(plt, m, path):
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(9, 4))
-    k = m["k_max"]
-    img = m["power_mean"].copy()
-    img[k, k] = np.nan  # k = 0 holds N, not noise
-    a0.imshow(img, origin="lower", extent=(-k - 0.5, k + 0.5, -k - 0.5, k + 0.5),
-              cmap="magma", vmin=0, vmax=2.5)
-    a0.set_title(f"{m['label']}: periodogram (mean)", fontsize=9)
-    a0.set_xlabel("k_x")
-    a0.set_ylabel("k_y")
-    f = m["radius"] / math.sqrt(m["n"])
-    a1.plot(f, m["radial_mean"], "k-", lw=1)
-    a1.fill_between(f, m["radial_mean"] - 2 * m["radial_se"], m["radial_mean"] + 2 * m["radial_se"],
-                    color="0.7", lw=0)
-    a1.axhline(1.0, color="tab:red", lw=0.8, ls="--", label="white noise")
-    a1.axvline(LOW_BAND, color="tab:blue", lw=0.8, ls=":", label="low band edge")
-    a1.set_xlabel("|k| / sqrt(N)")
-    a1.set_ylabel("radially averaged power")
-    a1.set_ylim(0, max(2.5, float(np.nanmax(m["radial_mean"])) * 1.05))
-    a1.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def _plot_overview(plt, results, out):
-    cols = min(5, len(results))
-    rows = -(-len(results) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(2.6 * cols, 2.8 * rows), squeeze=False)
-    for ax in axes.ravel():
-        ax.axis("off")
-    for ax, m in zip(axes.ravel(), results):
-        ax.axis("on")
-        _draw_points(ax, m)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "points.png"), dpi=100)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for m in results:
-        ax.plot(m["radius"] / math.sqrt(m["n"]), m["radial_mean"], lw=1, label=m["label"])
-    ax.axhline(1.0, color="k", lw=0.8, ls="--")
-    ax.set_xlabel("|k| / sqrt(N)")
-    ax.set_ylabel("radially averaged power")
-    ax.set_ylim(0, 3)
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "spectra.png"), dpi=100)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(7, 5))
-    for m in results:
-        rs = [r for r in m["checkerboard"] if r["variance"] > 0]
-        ns = np.array([r["n"] for r in rs], float)
-        v = np.array([r["variance"] for r in rs])
-        e = np.array([r["variance_se"] for r in rs])
-        ax.errorbar(ns, v, yerr=2 * e, marker="o", ms=3, lw=1, capsize=2,
-                    label=f"{m['label']} ({m['slope']:.2f})")
-    ns = np.array(sorted({r["n"] for m in results for r in m["checkerboard"]}), float)
-    ax.plot(ns, 0.25 / ns, "k--", lw=0.8, label="1/(4n): independent")
-    ax.plot(ns, 0.25 / ns[0] ** -0.5 * ns ** -1.5, "k:", lw=0.8, label="slope -1.5")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("samples per pixel n")
-    ax.set_ylabel("variance of the pixel estimate")
-    ax.set_title("tilted checkerboard (I = 1/2)", fontsize=9)
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "checkerboard.png"), dpi=100)
-    plt.close(fig)
-
-
-def _markdown(results, failures, cfg, quick, out, md_path):
-    rel = os.path.relpath(out, os.path.dirname(os.path.abspath(md_path)))
-    n = cfg["n"]
-    lines = [
-        "# Samplers measured",
-        "",
-        "Written by `python -m sampling_lab samplers` (`core/sampling/lab.py`; "
-        f"{'quick' if quick else 'full'} settings). N = {n} points of pixel 0, dimension 0; "
-        f"star discrepancy exact (pixel 0, and mean over {cfg['star_realizations']} pixels); "
-        "checkerboard: variance of the pixel estimate of the tilted checkerboard "
-        f"(I = 1/2) over {cfg['pixels']} pixels for n = {', '.join(map(str, cfg['ns']))}"
-        + (f" (and {', '.join(map(str, cfg['progressive_ns']))} for progressive samplers)"
-           if cfg["progressive_ns"] else "")
-        + ", log-log slope fitted over n >= 16 ± its standard error (independent sampling: -1; "
-        "n = 4 is in the CSV and the plot: there near-regular patterns alias with the board); "
-        "low-frequency "
-        f"power: mean periodogram over 0 < |k| <= sqrt(N)/2 and {cfg['realizations']} pixels "
-        "(white noise: 1).",
-        "",
-        f"| sampler | star discrepancy (N={n}) | checkerboard slope ± se "
-        f"| variance × n at n={cfg['ns'][-1]} | low-frequency power |",
-        "|---|---|---|---|---|",
-    ]
-    for m in results:
-        last = [r for r in m["checkerboard"] if r["n"] == cfg["ns"][-1]]
-        vn = f"{last[0]['variance'] * last[0]['n']:.3g}" if last else "-"
-        slope = "-" if math.isnan(m["slope"]) else f"{m['slope']:.2f} ± {m['slope_se']:.2f}"
-        lines.append(f"| {m['label']} (`{m['name']}`) | {m['star_pixel0']:.4f} "
-                     f"(mean {m['star_mean']:.4f}) | {slope} | {vn} | "
-                     f"{m['low_power']:.3f} ± {m['low_power_se']:.3f} |")
-    for name, err in failures:
-        lines.append(f"| `{name}` | failed: {err} | | | |")
-    lines += [
-        "",
-        "Reading it: the slope's ± is the fit's scatter (`convergence_slope`); "
-        "`summary.csv` also gives the error propagated from the variances alone. Samplers that "
-        "serve one point set per n shifted from pixel to pixel (the blue-noise ones) show the "
-        "spectrum of that set, so their low-frequency power has no spread. A blue-noise "
-        "set's variance follows its residual power at the board's own frequencies "
-        "(|k| of 1 to 3): Lloyd's 20 steps leave that power high for large N, so its slope "
-        "flattens (see `core/sampling/samplers/lloyd.py`).",
-    ]
-    lines += ["", f"![points]({rel}/points.png)", "", f"![spectra]({rel}/spectra.png)", "",
-              f"![checkerboard]({rel}/checkerboard.png)", ""]
-    tmp = md_path + ".tmp"
-    with open(tmp, "w") as f:
-        f.write("\n".join(lines))
-    os.replace(tmp, md_path)
-
-
-def run(output="docs/samplers", n=None, quick=False, markdown=None, samplers=None, seed=0,
-        log=print):
-    """Measure every available sampler and write the files listed in the module docstring.
-
-    Parameters
-    ----------
-    output : str
-        Folder for CSV and PNG files (created).
-    n : int or None
-        Points per set (default 256, or 64 with ``quick``).
-    quick : bool
-        Fewer realizations, pixels and sample counts (for tests and previews).
-    markdown : str or None
-        Path of the markdown table; default ``SAMPLERS.md`` in the output folder's parent.
-    samplers : list of str or None
-        Names to measure (default: all available).
-    seed : int
-    log : callable(str)
-
-    Returns
-    -------
-    dict
-        ``results`` (per-sampler measures), ``failures`` (name, message), ``files``,
-        ``plots`` (False when matplotlib is missing), ``markdown``.
-    """
-    cfg = dict(QUICK if quick else FULL)
-    if n is not None:
-        if int(n) < 2:
-            raise ValueError("the lab needs at least 2 points per set")
-        if int(n) > STAR_MAX_POINTS:
-            raise ValueError(f"at most {STAR_MAX_POINTS} points (exact star discrepancy)")
-        cfg["n"] = int(n)
-    out = os.path.abspath(output)
-    os.makedirs(out, exist_ok=True)
-    md_path = os.path.abspath(markdown) if markdown else os.path.join(os.path.dirname(out),
-                                                                       "SAMPLERS.md")
-    plt = _pyplot()
-    if plt is None:
-        log("sampler lab: matplotlib is not installed; writing CSV files and the table only")
-    names = list(samplers) if samplers else available()
-    results, failures, files = [], [], []
-    for name in names:
-        try:
-            m = measure_sampler(name, cfg, seed=seed)
-        except Exception as exc:  # one broken sampler must not hide the others' results
-            failures.append((name, f"{type(exc).__name__}: {exc}"))
-            log(f"sampler lab: {name}: {type(exc).__name__}: {exc}")
-            continue
-        results.append(m)
-        log(f"sampler lab: {name}: star {m['star_pixel0']:.4f}, slope {m['slope']:.2f} ± "
-            f"{m['slope_se']:.2f}, low power {m['low_power']:.3f} ({m['seconds']:.1f} s)")
-        p = os.path.join(out, f"points_{name}.csv")
-        _write_csv(p, ["i", "x", "y"], [(i, float(x), float(y)) for i, (x, y) in enumerate(m["points"])])
-        files.append(p)
-        p = os.path.join(out, f"spectrum_{name}.csv")
-        _write_csv(p, ["k", "k_over_sqrt_n", "power", "power_se", "frequencies"],
-                   [(float(k), float(k / math.sqrt(m["n"])), float(v), float(e), int(c))
-                    for k, v, e, c in zip(m["radius"], m["radial_mean"], m["radial_se"],
-                                          m["ring_count"])])
-        files.append(p)
-        if plt is not None:
-            for kind, fn in (("points", _plot_points), ("spectrum", _plot_spectrum)):
-                p = os.path.join(out, f"{kind}_{name}.png")
-                fn(plt, m, p)
-                files.append(p)
-    p = os.path.join(out, "checkerboard.csv")
-    _write_csv(p, ["sampler", "n", "pixels", "mean", "variance", "variance_se",
-                   "independent_variance"],
-               [(r["sampler"], r["n"], r["pixels"], r["mean"], r["variance"], r["variance_se"],
-                 r["independent_variance"]) for m in results for r in m["checkerboard"]])
-    files.append(p)
-    p = os.path.join(out, "summary.csv")
-    _write_csv(p, ["sampler", "n", "star_discrepancy", "star_discrepancy_mean",
-                   "star_discrepancy_se", "checkerboard_slope", "checkerboard_slope_se",
-                   "checkerboard_slope_se_sampling", "low_frequency_power",
-                   "low_frequency_power_se", "seconds"],
-               [(m["name"], m["n"], m["star_pixel0"], m["star_mean"], m["star_se"], m["slope"],
-                 m["slope_se"], m["slope_se_sampling"], m["low_power"], m["low_power_se"],
-                 m["seconds"]) for m in results])
-    files.append(p)
-    if plt is not None and results:
-        _plot_overview(plt, results, out)
-        files += [os.path.join(out, f) for f in ("points.png", "spectra.png", "checkerboard.png")]
-    _markdown(results, failures, cfg, quick, out, md_path)
-    files.append(md_path)
-    return {"results": results, "failures": failures, "files": files, "plots": plt is not None,
-            "markdown": md_path}
-
-
-def build_parser(parser=None):
-    """Arguments of the ``samplers`` command (added to ``parser`` if given)."""
-    p = parser or argparse.ArgumentParser(prog="python -m sampling_lab samplers",
-                                          description=__doc__.splitlines()[0])
-    p.add_argument("--n", type=int, default=None,
-                   help="points per set (default 256; 64 with --quick)")
-    p.add_argument("--output", default="docs/samplers", help="folder for CSV and PNG files")
-    p.add_argument("--markdown", default=None,
-                   help="markdown table path (default: SAMPLERS.md beside the output folder)")
-    p.add_argument("--quick", action="store_true", help="small sizes (seconds, for tests)")
-    p.add_argument("--sampler", action="append", default=None,
-                   help="measure only this sampler (repeatable; default: all available)")
-    p.add_argument("--seed", type=int, default=0)
-    return p
-
-
-def main(argv=None, args=None):
-    """Entry point of ``python -m sampling_lab samplers``: returns the exit code.
-
-    Give either ``argv`` (the command's own arguments) or ``args`` (an ``argparse`` namespace
-    made by :func:`build_parser`, as ``addon/cli.py`` does).
-    """
-    if args is None:
-        args = build_parser().parse_args(argv)
-    unknown = [s for s in (args.sampler or []) if s not in available()]
-    if unknown:
-        raise ValueError(f"unknown sampler(s) {', '.join(unknown)}; choose from "
-                         f"{', '.join(available())}")
-    res = run(output=args.output, n=args.n, quick=args.quick, markdown=args.markdown,
-              samplers=args.sampler, seed=args.seed)
-    print(f"sampler lab: wrote {len(res['files'])} files to {os.path.abspath(args.output)} "
-          f"and {res['markdown']}")
-    return 1 if res["failures"] else 0

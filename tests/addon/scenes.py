@@ -1,6 +1,6 @@
 """Test scenes, render settings, and an EXR reader.
 
-The scene builders and their building blocks live in ``sampling_lab.bench.bpy_scenes`` (the
+The scene builders and their building blocks live in ``sampling_lab.tools.bpy_scenes`` (the
 benchmarks render the same scenes) and are re-exported here: every builder works on the given
 (normally empty, see the ``empty_scene`` fixture) scene, adds a camera and sets it as the scene
 camera, and returns a dict of the objects it made by role.
@@ -13,7 +13,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from sampling_lab.bench.bpy_scenes import (  # noqa: F401  (re-exported for the tests)
+from sampling_lab.tools.bpy_scenes import (  # noqa: F401  (re-exported for the tests)
     GREEN,
     RED,
     SKY_H,
@@ -72,9 +72,9 @@ def set_cycles_unbiased(scene, samples=64, seed=0, max_bounces=8):
 
     No clamping, no glossy blur, no light threshold, no adaptive sampling, no denoising, CPU,
     Blackman-Harris 1.5 pixel filter (Cycles' default), equal bounce limits for every ray type
-    (the benchmark's :func:`sampling_lab.bench.blender_scene.configure_cycles`).
+    (the benchmark's :func:`sampling_lab.tools.blender_scene.configure_cycles`).
     """
-    from sampling_lab.bench.blender_scene import configure_cycles
+    from sampling_lab.tools.blender_scene import configure_cycles
 
     scene.render.engine = 'CYCLES'
     configure_cycles(scene, samples, seed=seed, max_bounces=max_bounces)

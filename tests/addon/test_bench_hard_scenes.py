@@ -8,7 +8,7 @@ about speed (``docs/CONVENTIONS.md``, "Tests": speed is never asserted).
 import csv
 import math
 
-from sampling_lab.bench import hard_scenes
+from sampling_lab.tools import hard_scenes
 
 
 def test_bench_scenes_writes_finite_figures_for_path_and_cycles(tmp_path):

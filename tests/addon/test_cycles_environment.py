@@ -1,6 +1,6 @@
 """An environment-lit scene agrees with Cycles, and the exporter reads Environment Textures.
 
-The world is an Environment Texture (a small float image, ``bench/bpy_scenes.sky_pixels``: a
+The world is an Environment Texture (a small float image, ``tools/bpy_scenes.sky_pixels``: a
 colour gradient along both image axes and a bright spot) into a Background node. A diffuse
 plane and a flat-shaded UV sphere are lit by it, and the camera sees the sky directly, so that
 the equirectangular lookup (orientation, row order, bilinear interpolation) is compared pixel
@@ -26,7 +26,7 @@ sky_pixels = S.sky_pixels
 
 
 def environment_scene(scene, strength=1.5):
-    """The shared environment scene (``bench/bpy_scenes.py``) at this module's resolution."""
+    """The shared environment scene (``tools/bpy_scenes.py``) at this module's resolution."""
     return S.environment_scene(scene, RESOLUTION, strength)
 
 

@@ -212,7 +212,7 @@ def test_bdpt_beats_path_tracing_given_four_times_the_samples_on_a_small_light_c
     """A small sphere light seen through glass: the path tracer is unbiased but finds the
     caustic by chance; BDPT at a quarter of its samples has a lower relMSE against a long
     light-tracing reference on the walls seen directly. (The equal-time margin is measured in
-    bench/, never asserted here.)"""
+    tools/, never asserted here.)"""
     scene = cornell_sphere(24, 24, "glass", "sphere", light_radius=0.02)
     mask = _not_ball(scene)
     kw = dict(max_bounces=4)
@@ -366,7 +366,7 @@ def test_every_sampler_drives_light_tracing_and_bdpt(sampler):
 
 def test_bdpt_views_figure_shows_every_strategy_and_the_weighted_shares_make_the_image(
         tmp_path):
-    from sampling_lab.bench.bdpt_views import run
+    from sampling_lab.tools.bdpt_views import run
     path, means = run("cornell_area", (16, 16), 4, max_length=3, output=str(tmp_path))
     assert (tmp_path / "bdpt_views_cornell_area.png").stat().st_size > 0
     assert set(means) == set(strategy_pass_names(3))

@@ -3,7 +3,7 @@ every usage error exits with code 2 and one line on stderr.
 
 Renders and a few usage errors run as ``sys.executable -m sampling_lab ...``, as a user runs them
 (exit code, stdout and stderr of the real entry point); the other usage errors call
-``addon.cli.main(argv)``, which is what ``__main__`` runs, one after another in a single helper
+``cli.main(argv)``, which is what ``__main__`` runs, one after another in a single helper
 process, so the test process never imports the add-on (and with it ``bpy``). All processes start
 together (``cli_runs``) so the suite waits for them once.
 """
@@ -51,7 +51,7 @@ RUNS = {
 # Runs main(argv) for each case with Python-level stdout and stderr captured.
 DRIVER = """
 import contextlib, io, json, sys
-from sampling_lab.addon.cli import main
+from sampling_lab.cli import main
 results = {}
 for name, argv in json.loads(sys.argv[1]).items():
     out, err = io.StringIO(), io.StringIO()

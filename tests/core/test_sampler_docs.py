@@ -1,7 +1,7 @@
 """The sampler figures committed in ``docs/`` are what ``python -m sampling_lab samplers`` computes.
 
 ``docs/samplers/summary.csv``, ``docs/samplers/checkerboard.csv`` and the table in
-``docs/SAMPLERS.md`` are written by :func:`core.sampling.lab.run` with its full settings and seed
+``docs/SAMPLERS.md`` are written by :func:`tools.sampler_lab.run` with its full settings and seed
 0. Every figure in them except the ``seconds`` column is a deterministic function of the code:
 the samplers are deterministic in (pixel, sample index, dimension, seed) and the blue-noise
 tables depend only on (kind, N, set seed, generator version). So a fresh run must reproduce them.
@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sampling_lab.core.sampling import lab
 from sampling_lab.core.sampling.samplers import available, bluenoise
+from sampling_lab.tools import sampler_lab
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 RTOL = 1e-7
@@ -52,11 +52,11 @@ def fresh(tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("SAMPLING_LAB_CACHE", str(out / "cache"))
         # The PNGs are not figures; drawing them would only cost time.
-        mp.setattr(lab, "_pyplot", lambda: None)
+        mp.setattr(sampler_lab, "_pyplot", lambda: None)
         bluenoise.clear_memo()
         try:
-            res = lab.run(output=str(out / "samplers"), markdown=str(out / "SAMPLERS.md"),
-                          seed=0, log=lambda message: None)
+            res = sampler_lab.run(output=str(out / "samplers"), markdown=str(out / "SAMPLERS.md"),
+                                  seed=0, log=lambda message: None)
         finally:
             bluenoise.clear_memo()
     assert not res["failures"], res["failures"]

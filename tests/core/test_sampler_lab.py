@@ -15,11 +15,12 @@ import math
 import numpy as np
 import pytest
 
-from sampling_lab.addon import cli
+from sampling_lab import cli
 from sampling_lab.core.sampling import lab
 from sampling_lab.core.sampling.lab import (checkerboard, low_frequency_power, periodogram,
                                             radial_average, star_discrepancy)
 from sampling_lab.core.sampling.samplers import available
+from sampling_lab.tools import sampler_lab
 from tests.helpers import z_for_false_failure
 
 SAMPLERS = available()
@@ -222,11 +223,15 @@ def read_csv(path):
         return list(csv.DictReader(f))
 
 
-def test_samplers_command_writes_csv_png_and_markdown(tmp_path, capsys):
-    out = tmp_path / "docs" / "samplers"
-    code = cli.main(["samplers", "--quick", "--n", "16", "--output", str(out)])
+def test_samplers_command_writes_csv_png_and_markdown_inside_its_output_folder(tmp_path, capsys):
+    folder = tmp_path / "lab"
+    code = cli.main(["samplers", "--quick", "--n", "16", "--output", str(folder)])
     assert code == 0
-    md = tmp_path / "docs" / "SAMPLERS.md"
+    # Laid out as docs/: the table at the top, its figures in samplers/; nothing outside.
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lab"]
+    assert sorted(p.name for p in folder.iterdir()) == ["SAMPLERS.md", "samplers"]
+    out = folder / "samplers"
+    md = folder / "SAMPLERS.md"
     assert md.is_file()
     text = md.read_text()
     for name in SAMPLERS:
@@ -258,9 +263,9 @@ def test_samplers_command_rejects_bad_arguments(tmp_path, capsys):
 
 
 def test_lab_without_matplotlib_writes_tables_and_reports_failures(tmp_path, monkeypatch):
-    monkeypatch.setattr(lab, "_pyplot", lambda: None)
+    monkeypatch.setattr(sampler_lab, "_pyplot", lambda: None)
     messages = []
-    res = lab.run(output=str(tmp_path / "out"), n=8, quick=True,
+    res = sampler_lab.run(output=str(tmp_path / "out"), n=8, quick=True,
                   markdown=str(tmp_path / "table.md"), samplers=["independent", "no-such"],
                   log=messages.append)
     assert not res["plots"]
@@ -272,11 +277,12 @@ def test_lab_without_matplotlib_writes_tables_and_reports_failures(tmp_path, mon
     assert any("matplotlib" in m for m in messages)
 
 
-def test_lab_main_takes_its_own_arguments(tmp_path):
-    out, md = tmp_path / "lab", tmp_path / "table.md"
-    assert lab.main(["--quick", "--n", "8", "--output", str(out), "--markdown", str(md),
-                     "--sampler", "independent"]) == 0
-    assert (out / "points_independent.csv").is_file() and "independent" in md.read_text()
+def test_lab_run_writes_the_table_beside_its_files_by_default(tmp_path):
+    res = sampler_lab.run(output=str(tmp_path / "lab"), n=8, quick=True,
+                          samplers=["independent"], log=lambda message: None)
+    assert res["markdown"] == str(tmp_path / "lab" / "SAMPLERS.md")
+    assert "independent" in (tmp_path / "lab" / "SAMPLERS.md").read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lab"]
 
 
 @pytest.mark.parametrize("name", [s for s in ("poisson_disk", "lloyd", "cvt") if s in SAMPLERS])

@@ -377,7 +377,7 @@ def test_zero_size_lights_and_a_light_on_a_surface_leave_no_nan(config):
 
 CLI_DRIVER = """
 import contextlib, io, json, sys
-from sampling_lab.addon.cli import main
+from sampling_lab.cli import main
 results = {}
 for name, argv in json.loads(sys.argv[1]).items():
     out, err = io.StringIO(), io.StringIO()
@@ -393,7 +393,7 @@ print(json.dumps(results))
 
 @pytest.fixture(scope="module")
 def cli_results(tmp_path_factory):
-    """Runs ``addon.cli.main`` in a helper process (the test process never imports the add-on)."""
+    """Runs ``cli.main`` in a helper process."""
     tmp = tmp_path_factory.mktemp("cli_strategies")
     base = ["render", "cornell", "--spp", "2", "--resolution", "16x16", "-o", f"{tmp}/a.exr"]
     cases = {

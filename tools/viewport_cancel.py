@@ -1,6 +1,6 @@
 """Cancel latency of the rendered viewport: how long stopping its worker thread takes.
 
-``python -m sampling_lab.bench.viewport_cancel [--size 960x540] [--repeats 12] [--bounces 8]
+``python -m sampling_lab.tools.viewport_cancel [--size 960x540] [--repeats 12] [--bounces 8]
 [--integrator path]``
 
 The viewport (``addon/viewport.py``) renders on a worker thread; a restart or the end of

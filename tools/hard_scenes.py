@@ -26,9 +26,9 @@ process:
    cross-check, the raw relMSE against the Cycles reference.
 
 Output: ``hard_scenes.csv`` (one row per scene and render) and ``hard_scenes_summary.csv``
-(references, agreement, machine, load averages) in ``output``, a montage PNG and a markdown
-report (default ``docs/HARD_SCENES.md``, the PNG copied to ``images/`` beside it). Figures,
-never asserted (``docs/CONVENTIONS.md``, "Tests").
+(references, agreement, machine, load averages) in ``output`` (default ``out/bench-scenes``),
+and the markdown report ``HARD_SCENES.md`` with its montage in ``images/hard_scenes.png``, laid
+out as in ``docs/``, where ``update_docs`` copies them. Figures, never asserted (``docs/CONVENTIONS.md``, "Tests").
 """
 
 from __future__ import annotations
@@ -36,7 +36,6 @@ from __future__ import annotations
 import datetime
 import math
 import os
-import shutil
 import sys
 import time
 import traceback
@@ -57,6 +56,7 @@ from .cornell import (
     _stage,
     _write_csv,
 )
+from .outputs import publish
 
 
 def _glossy_plates(bs, scene, size):
@@ -101,6 +101,8 @@ SCENES = {
 MATERIAL_SCENES = ("glossy_plates", "glass_sphere", "mirror_ball", "environment")
 # Diffuse interreflection and the two caustics: where light tracing and BDPT differ most from
 # path tracing.
+# What docs/ shows, relative to the output folder (and to docs/).
+DOCS_FILES = ("HARD_SCENES.md", "images/hard_scenes.png")
 INTEGRATOR_SCENES = ("cornell", "glass_sphere", "mirror_ball")
 # Cycles' rate is measured on about this many camera samples.
 CALIBRATION_SAMPLES = 1 << 18
@@ -110,7 +112,7 @@ REFERENCE_INTEGRATOR = "path"
 
 
 def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), reference_spp=1024,
-        cycles=True, output="bench/results", docs="docs/HARD_SCENES.md", *,
+        cycles=True, output="out/bench-scenes", report=True, update_docs=False, *,
         reference_seconds=None, sampler="independent", threads=2, max_bounces=8, seed=0,
         command=None):
     """Render every scene with each integrator and Cycles for ``seconds``; write the figures.
@@ -131,9 +133,12 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
     cycles : bool
         Include Cycles (renders; the scenes are built in ``bpy`` either way).
     output : str
-        Folder for ``hard_scenes.csv``, ``hard_scenes_summary.csv``, ``hard_scenes.png``.
-    docs : str or None
-        Markdown report to write (None: none).
+        Folder of everything written: ``hard_scenes.csv``, ``hard_scenes_summary.csv``, the
+        report ``HARD_SCENES.md`` and its montage ``images/hard_scenes.png``.
+    report : bool
+        Write the markdown report.
+    update_docs : bool
+        Also copy the report and its figure (:data:`DOCS_FILES`) into the repository's docs/.
     reference_seconds : float or None
         Time cap of each reference render; None picks ``max(30, 8 * seconds)``, 0 removes it.
     sampler : str
@@ -303,14 +308,16 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
                [{"key": k, "value": v} for k, v in summary.items()]
                + [{"key": f"{s['scene']}.{k}", "value": v} for s in scene_rows
                   for k, v in s.items() if k != "scene"])
-    png = os.path.join(output, "hard_scenes.png")
-    _write_montage(png, montage)
-    if docs:
-        _write_report(docs, png, rows, scene_rows, summary, integrators, cycles, seconds,
-                      command)
-    print(f"\nwrote {output}/hard_scenes.csv, hard_scenes_summary.csv, hard_scenes.png"
-          f"{' and ' + docs if docs else ''}; took {summary['bench_seconds']:.0f} s, load "
-          f"average at end {summary['load_end']}")
+    os.makedirs(os.path.join(output, "images"), exist_ok=True)
+    _write_montage(os.path.join(output, DOCS_FILES[1]), montage)
+    if report:
+        _write_report(os.path.join(output, DOCS_FILES[0]), rows, scene_rows, summary,
+                      integrators, cycles, seconds, command)
+    print(f"\nwrote {output}/hard_scenes.csv, hard_scenes_summary.csv, {DOCS_FILES[1]}"
+          f"{' and ' + DOCS_FILES[0] if report else ''}; took {summary['bench_seconds']:.0f} s, "
+          f"load average at end {summary['load_end']}")
+    if update_docs and report and status == 0:
+        publish(output, DOCS_FILES)
     return status
 
 
@@ -364,13 +371,8 @@ def _fmt(v, digits=2):
         f"{v:.{digits}e}"
 
 
-def _write_report(path, png, rows, scene_rows, summary, integrators, cycles, seconds, command):
-    folder = os.path.dirname(os.path.abspath(path))
-    # The figure is copied next to the report (bench/results/ is not in the repository).
-    os.makedirs(os.path.join(folder, "images"), exist_ok=True)
-    image_rel = "images/hard_scenes.png"
-    if os.path.isfile(png):
-        shutil.copyfile(png, os.path.join(folder, image_rel))
+def _write_report(path, rows, scene_rows, summary, integrators, cycles, seconds, command):
+    image_rel = DOCS_FILES[1]
     cmd = command or "python -m sampling_lab bench-scenes"
     lines = [
         "# Hard scenes: equal-time error against Cycles",
@@ -384,11 +386,11 @@ def _write_report(path, png, rows, scene_rows, summary, integrators, cycles, sec
         f"Every render gets **{seconds:g} s of wall clock** ({summary['resolution']}, "
         f"{summary['max_bounces']} bounces, {summary['threads']} threads, Blackman-Harris 1.5, "
         f"{summary['sampler']} sampler for ours, Cycles' defaults otherwise under "
-        "`bench.blender_scene.configure_cycles`: no clamping, no glossy blur, no light "
+        "`tools.blender_scene.configure_cycles`: no clamping, no glossy blur, no light "
         "threshold, no adaptive sampling, no denoising, caustics on). Times are the wall clock "
         "of the whole render call (ours: scene preparation included; Cycles: synchronisation, "
         "BVH and EXR writing included). Cycles renders the sample count its rate, measured on "
-        "the same scene just before, fits into the budget. See `bench/hard_scenes.py` for the "
+        "the same scene just before, fits into the budget. See `tools/hard_scenes.py` for the "
         "method.",
         "",
         f"Reference: our `{summary['reference_integrator']}` integrator with another seed, to "

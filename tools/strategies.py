@@ -24,9 +24,10 @@ scene: the time the baseline (independent sampler, power heuristic) took at the 
 count. *Efficiency* is ``1 / (relMSE x time)`` of the largest render relative to the baseline's
 (above 1: better than the baseline; for a 1/N estimator it does not depend on N).
 
-Outputs: ``output/strategies.csv`` (every render), ``output/strategies_summary.csv`` (the
-equal-time table), ``output/strategies_<scene>.png`` (log-log curves), and with ``docs`` a
-markdown report with the table and the figures (copied next to it in ``images/``). Figures only,
+Outputs, all in ``output`` (default ``out/bench-strategies``): ``strategies.csv`` (every
+render), ``strategies_summary.csv`` (the equal-time table), the reference cache, and the
+markdown report ``STRATEGIES.md`` with its log-log curves in ``images/strategies_<scene>.png``
+(laid out as in ``docs/``, where ``update_docs`` copies them: :data:`DOCS_FILES`). Figures only,
 never asserted; ``quick`` is a seconds-long smoke run at a tiny resolution.
 """
 
@@ -36,7 +37,6 @@ import csv
 import datetime
 import os
 import platform
-import shutil
 import sys
 import time
 import traceback
@@ -47,10 +47,13 @@ from ..core.render import RenderSettings, render
 from ..core.sampling.mis import MIS_SETTINGS
 from ..core.sampling.samplers import available as available_samplers
 from ..core.scenes import cornell_box
+from .outputs import publish
 
 # relMSE regulariser, as bench/cornell.py: (img - ref)^2 / (ref^2 + EPS).
 EPS = 1e-2
 SCENES = {"cornell_mesh": "mesh", "cornell_area": "area"}
+# What docs/ shows, relative to the output folder (and to docs/).
+DOCS_FILES = ("STRATEGIES.md",) + tuple(f"images/strategies_{name}.png" for name in SCENES)
 FULL = dict(resolution=(128, 128), spps=(4, 16, 64), reference_spp=1024)
 QUICK = dict(resolution=(32, 32), spps=(2, 8), reference_spp=64)
 MAX_BOUNCES = 8
@@ -113,8 +116,8 @@ def equal_time(times, errors, budget):
     return float(np.exp(e[i] + slope * (x - t[i])))
 
 
-def run(quick=False, resolution=None, seconds=None, output="bench/results", docs=None,
-        settings=None):
+def run(quick=False, resolution=None, seconds=None, output="out/bench-strategies",
+        settings=None, update_docs=False):
     """Run the strategies benchmark; print the table and write CSV, plots and the report.
 
     Parameters
@@ -127,12 +130,11 @@ def run(quick=False, resolution=None, seconds=None, output="bench/results", docs
         Equal-time budget in CPU seconds; None uses the baseline's CPU time at the largest
         sample count.
     output : str
-        Folder for CSV, reference cache and plots.
-    docs : str or None
-        Markdown report to write (figures go to ``images/`` beside it). None: ``docs/STRATEGIES.md``
-        in a full run, nothing in a quick one.
+        Folder of everything written: CSV, reference cache, report and its figures.
     settings : list or None
         Subset of :func:`settings_list` (for tests).
+    update_docs : bool
+        Also copy the report and its figures (:data:`DOCS_FILES`) into the repository's docs/.
 
     Returns
     -------
@@ -145,9 +147,7 @@ def run(quick=False, resolution=None, seconds=None, output="bench/results", docs
     if seconds is not None and not seconds > 0:
         print("sampling_lab bench-strategies: --seconds must be positive", file=sys.stderr)
         return 2
-    if docs is None and not quick:
-        docs = "docs/STRATEGIES.md"
-    os.makedirs(output, exist_ok=True)
+    os.makedirs(os.path.join(output, "images"), exist_ok=True)
     w, h = cfg["resolution"]
     rows, summary, failures = [], [], []
     todo = settings or settings_list()
@@ -205,16 +205,18 @@ def run(quick=False, resolution=None, seconds=None, output="bench/results", docs
                                               budget),
                 budget_cpu_s=round(budget, 3), spp=spp, cpu_s=round(t, 3), rel_mse=err,
                 efficiency_vs_baseline=(1.0 / (err * t)) / base_eff if err > 0 else float("nan")))
-        _plot(scene_name, curves, os.path.join(output, f"strategies_{scene_name}.png"), (w, h),
+        _plot(scene_name, curves, os.path.join(output, "images", f"strategies_{scene_name}.png"), (w, h),
               cfg["reference_spp"])
 
     _write_csv(os.path.join(output, "strategies.csv"), rows)
     _write_csv(os.path.join(output, "strategies_summary.csv"), summary)
     print()
     print(_markdown_table(summary))
-    if docs:
-        _write_docs(docs, output, summary, cfg, (w, h), time.perf_counter() - t_bench)
-        print(f"\nwrote {docs}")
+    report = os.path.join(output, "STRATEGIES.md")
+    _write_docs(report, summary, cfg, (w, h), time.perf_counter() - t_bench)
+    print(f"\nwrote {report}")
+    if update_docs and not failures:
+        publish(output, DOCS_FILES)
     for f in failures:
         print(f"FAILED: {f}", file=sys.stderr)
     print(f"bench-strategies: {time.perf_counter() - t_bench:.0f} s")
@@ -346,16 +348,10 @@ def _notes(summary):
     return "\n".join(lines)
 
 
-def _write_docs(docs, output, summary, cfg, resolution, elapsed):
+def _write_docs(docs, summary, cfg, resolution, elapsed):
     folder = os.path.dirname(os.path.abspath(docs))
-    images = os.path.join(folder, "images")
-    os.makedirs(images, exist_ok=True)
-    figures = []
-    for scene_name in SCENES:
-        src = os.path.join(output, f"strategies_{scene_name}.png")
-        if os.path.isfile(src):
-            shutil.copyfile(src, os.path.join(images, f"strategies_{scene_name}.png"))
-            figures.append(f"![{scene_name}](images/strategies_{scene_name}.png)")
+    figures = [f"![{scene_name}](images/strategies_{scene_name}.png)" for scene_name in SCENES
+               if os.path.isfile(os.path.join(folder, "images", f"strategies_{scene_name}.png"))]
     w, h = resolution
     text = f"""# Sampling strategies: error at equal time
 
@@ -363,13 +359,13 @@ Generated by `python -m sampling_lab bench-strategies` ({datetime.date.today()},
 {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, {THREADS} render threads). Times are
 the process's CPU seconds (both threads, table building included): the machine may be shared,
 and CPU time measures the work rather than the neighbours' load; they still carry some noise.
-See `bench/strategies.py` for the method.
+See `tools/strategies.py` for the method.
 
 Scenes: the Cornell box of `core.scenes.cornell_box` with its mesh light (an emissive quad, two
 triangles) and with its square area light, {w}x{h}, {MAX_BOUNCES} bounces. Every setting is
 rendered at {', '.join(str(s) for s in cfg['spps'])} spp; relMSE (`(img - ref)^2 / (ref^2 + {EPS:g})`, reference
 noise subtracted) is measured against a {cfg['reference_spp']}-spp path-traced reference (independent
-sampler, power heuristic), cached in `bench/results/`. *Equal-time relMSE* interpolates each
+sampler, power heuristic), cached in the output folder. *Equal-time relMSE* interpolates each
 setting's log-log curve at the baseline's CPU time at {cfg['spps'][-1]} spp; *vs baseline* is its ratio
 to the baseline's (below 1 is better); *efficiency* is `1 / (relMSE x CPU time)` at {cfg['spps'][-1]} spp
 relative to the baseline (above 1 is better). Baseline: `sampler=independent` (power heuristic,

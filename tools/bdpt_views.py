@@ -6,6 +6,8 @@ and Strategy Views on, then lays the per-strategy images out in a grid, one row 
 ``k`` (segments) and one column per number of light vertices ``s``, twice: each strategy's own
 estimate (as if it were the only strategy: noise shows where it is bad), and its MIS-weighted
 share (what it adds to the image: the rows sum to the light of that length). Figures only.
+The command writes the figure into ``<output>/images/`` (default ``out/bdpt-views``), laid out as
+in ``docs/``, where ``--update-docs`` copies it.
 """
 
 from __future__ import annotations
@@ -18,6 +20,9 @@ from ..core.integrators.common import strategies
 from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN
 
+# The figure's folder, in the output folder as in docs/.
+DOCS_FOLDER = "images"
+
 
 def _tonemap(img, scale):
     """Display ``img (h, w, 3)`` with ``scale`` mapped to white, sRGB-encoded, row 0 on top."""
@@ -27,7 +32,7 @@ def _tonemap(img, scale):
 
 
 def run(scene="glass_caustic", size=(96, 96), spp=64, max_length=4, max_bounces=None,
-        output="docs/images", seed=0, progress=None):
+        output="out/bdpt-views/images", seed=0, progress=None):
     """Render the views and write ``bdpt_views_<scene>.png`` (own estimates and weighted shares)
     into ``output``. Returns the PNG path and the per-strategy image means as a dict."""
     import matplotlib

@@ -1,0 +1,310 @@
+"""Command line: ``python -m sampling_lab render|samplers|bench|... ``.
+
+``render SCENE -o OUT.exr`` renders a built-in scene (no Blender needed) or a ``.blend`` file (with
+the ``bpy`` module, like ``blender -b file.blend -f N``: the file's camera, resolution, frame and
+Sampling Lab settings unless overridden) and writes a multilayer EXR (Combined, Variance, Sample
+Count, and with ``--strategy-views`` BDPT's per-strategy layers) atomically. A progress bar goes
+to stderr; ``--json`` prints one JSON line of figures to stdout. Its option flags, their help,
+defaults and checks are made from :data:`core.options.OPTIONS`, the registry the add-on's
+properties and the core's validation read too.
+
+The other commands are the tools of ``tools/`` (benchmarks and the sampler lab): each writes
+into ``out/<command>/`` or its ``--output`` folder, and into the repository's ``docs/`` only
+with ``--update-docs``.
+
+Usage errors, unknown names and unreadable files exit with code 2 and a one-line message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+
+from .core import scenes as builtin_scenes
+from .core.integrators import integrator_class
+from .core.options import OPTIONS
+from .core.render import RenderSettings, render, used_settings
+
+PROG = "sampling_lab"
+DESCRIPTION = ("Sampling Lab: render scenes with Monte Carlo estimators and samplers, and "
+               "measure them (Blender is needed only to read a .blend file)")
+
+
+class UsageError(Exception):
+    """A mistake in the command line or its inputs: exit code 2, one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(message)
+
+
+class _Help(argparse.HelpFormatter):
+    """Appends ``(default: ...)`` to every option whose help does not say its default."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if ("%(default)" in text or "default:" in text or not action.option_strings
+                or action.default in (None, argparse.SUPPRESS)):
+            return text
+        return text + (" (default: off)" if action.default is False
+                       else " (default: %(default)s)")
+
+
+def _resolution(text):
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"resolution must look like 640x480, not {text!r}")
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError("resolution must be at least 1x1")
+    return w, h
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, not {text!r}")
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, not {text}")
+    return value
+
+
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, not {text!r}")
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, not {text}")
+    return value
+
+
+def _option_type(option):
+    """argparse ``type`` of a registry option: its own parse and check, its own message."""
+    def parse(text):
+        try:
+            return option.parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = option.name
+    return parse
+
+
+# The render command's option flags, in help order (all of core.options.OPTIONS).
+RENDER_OPTIONS = ("integrator", "sampler", "max_bounces", "use_russian_roulette",
+                  "rr_min_bounces", "mis_heuristic", "mis_beta", "mis_alpha", "light_selection",
+                  "light_sampling", "distribution", "filter_type", "filter_width",
+                  "strategy_views", "strategy_max_length", "seed", "threads")
+
+
+def _option_help(option):
+    what = (f"one of {option.allowed()}" if option.choices
+            else "" if option.kind is bool else f"in {option.allowed()}")
+    default = option.default
+    if option.kind is bool:
+        default = "on" if default else "off"
+    return (f"{option.description}{'; ' + what if what else ''} (default: {default}; a .blend "
+            f"file: its own setting)").replace("%", "%%")
+
+
+def add_option(parser, option, **kw):
+    """The flag of registry ``option``: default None, so a .blend file's setting stays unless
+    the flag is given."""
+    if option.kind is bool:
+        action = (argparse.BooleanOptionalAction if option.default
+                  else "store_true")
+        return parser.add_argument(option.flag_name, action=action, default=None,
+                                   help=_option_help(option), **kw)
+    metavar = option.name.split("_")[-1].upper() if not option.choices else "NAME"
+    return parser.add_argument(option.flag_name, type=_option_type(option), default=None,
+                               metavar=metavar, help=_option_help(option), **kw)
+
+
+def _add_render_parser(sub):
+    r = sub.add_parser("render", help="render a built-in scene or a .blend file to an EXR file",
+                       description="Render a built-in scene or a .blend file to a multilayer "
+                                   "EXR file", formatter_class=_Help)
+    r.add_argument("scene", help=f".blend path or built-in scene: "
+                                 f"{', '.join(builtin_scenes.BUILTIN)}")
+    r.add_argument("-o", "--output", required=True, metavar="OUT.exr", help="output .exr path")
+    halt = r.add_mutually_exclusive_group()
+    add_option(halt, OPTIONS["spp"])
+    add_option(halt, OPTIONS["time_limit"])
+    for name in RENDER_OPTIONS:
+        add_option(r, OPTIONS[name])
+    r.add_argument("--resolution", type=_resolution, default=None, metavar="WxH",
+                   help="image size (default: 256x256; a .blend file: its own)")
+    r.add_argument("--frame", type=int, default=None,
+                   help="frame of a .blend to render (default: its current frame)")
+    r.add_argument("--png", action="store_true", help="also write an sRGB PNG preview beside OUT")
+    r.add_argument("--json", action="store_true", help="print one JSON line of figures")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def build_parser():
+    parser = _Parser(prog=PROG, description=DESCRIPTION, formatter_class=_Help)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser,
+                                metavar="COMMAND")
+    _add_render_parser(sub)
+    from .tools import commands
+
+    commands.add_parsers(sub, formatter_class=_Help)
+    return parser
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr (redrawn in place on a terminal, every 10 % otherwise)."""
+
+    def __init__(self, stream=sys.stderr, quiet=False):
+        self.stream = stream
+        self.quiet = quiet
+        self.tty = stream.isatty()
+        self.last_decile = -1
+
+    def __call__(self, fraction, text):
+        if self.quiet:
+            return
+        fraction = min(max(fraction, 0.0), 1.0)
+        bar = "#" * int(30 * fraction) + "-" * (30 - int(30 * fraction))
+        line = f"[{bar}] {100 * fraction:5.1f}% {text}"
+        if self.tty:
+            self.stream.write("\r" + line)
+        elif int(10 * fraction) > self.last_decile:
+            self.last_decile = int(10 * fraction)
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self):
+        if self.tty and not self.quiet:
+            self.stream.write("\n")
+
+
+def load_scene(args):
+    """Scene and the settings it carries, from a built-in name or a .blend file."""
+    settings = RenderSettings()
+    name = args.scene
+    if name.lower().endswith(".blend") or os.path.sep in name:
+        if not os.path.isfile(name) or not os.access(name, os.R_OK):
+            raise UsageError(f"cannot read scene file {name!r}")
+        from .addon.blendfile import is_blend_file, load_blend
+
+        if not is_blend_file(name):
+            raise UsageError(f"{name!r} is not a .blend file")
+        try:
+            scene, file_settings = load_blend(os.path.abspath(name), frame=args.frame,
+                                              resolution=args.resolution)
+        except (RuntimeError, ValueError) as exc:
+            raise UsageError(f"cannot render {name!r}: {str(exc).strip().splitlines()[-1]}")
+        settings = file_settings
+    else:
+        if name not in builtin_scenes.BUILTIN:
+            raise UsageError(f"unknown scene {name!r}; built-in scenes: "
+                             f"{', '.join(builtin_scenes.BUILTIN)} (or give a .blend path)")
+        w, h = args.resolution or (256, 256)
+        scene = builtin_scenes.BUILTIN[name](w, h)
+    return scene, settings
+
+
+def _dest(option):
+    return option.flag_name[2:].replace("-", "_")
+
+
+def apply_flags(settings, args):
+    """Set every registry option given on the command line; returns their names."""
+    given = [name for name, o in OPTIONS.items() if getattr(args, _dest(o), None) is not None]
+    for name in given:
+        setattr(settings, name, getattr(args, _dest(OPTIONS[name])))
+    # --spp and --time exclude each other: the one given halts the render alone.
+    if "time_limit" in given:
+        settings.spp = 0
+    elif "spp" in given:
+        settings.time_limit = 0.0
+    return given
+
+
+def _notes(settings, given):
+    """Tell the user once about flags that the chosen integrator does not use."""
+    used = used_settings(settings)
+    for name in ("mis_heuristic", "mis_beta", "mis_alpha", "light_selection", "light_sampling",
+                 "distribution"):
+        if name in given and used[name] != getattr(settings, name):
+            print(f"note: {OPTIONS[name].flag_name} {getattr(settings, name)} does not apply to "
+                  f"{settings.integrator} with --mis {settings.mis_heuristic}: it uses "
+                  f"{used[name]}", file=sys.stderr)
+    if settings.strategy_views and not integrator_class(settings.integrator).strategy_views:
+        print(f"note: the {settings.integrator} integrator writes no strategy views "
+              f"(only bdpt does)", file=sys.stderr)
+
+
+def cmd_render(args):
+    if not args.output.lower().endswith(".exr"):
+        raise UsageError(f"output must be an .exr file, not {args.output!r}")
+    scene, settings = load_scene(args)
+    _notes(settings, apply_flags(settings, args))
+    for message in scene.messages:
+        print(f"note: {message}", file=sys.stderr)
+
+    from .core.exr import write_multilayer, write_png_preview
+
+    bar = ProgressBar(quiet=args.quiet)
+    interrupted = []
+    # Ctrl-C cancels like Esc in Blender: the samples taken so far are still written.
+    previous = signal.signal(signal.SIGINT, lambda *_: interrupted.append(True))
+    try:
+        result = render(scene, settings, progress=bar, cancel=lambda: bool(interrupted))
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        bar.close()
+    if result.cancelled:
+        print(f"{PROG}: cancelled; writing the samples taken", file=sys.stderr)
+    # BDPT's strategy views (empty unless asked for) go into the same file as extra layers.
+    layers = result.layers()
+    write_multilayer(args.output, {
+        "Combined": result.combined(),
+        "Variance": result.variance(),
+        "Sample Count": result.sample_count()[..., None],
+        **layers,
+    })
+    if args.png:
+        write_png_preview(os.path.splitext(args.output)[0] + ".png", result.combined()[..., :3])
+    stats = dict(result.stats)
+    stats.update(output=os.path.abspath(args.output), integrator=settings.integrator,
+                 sampler=settings.sampler, width=scene.camera.width, height=scene.camera.height,
+                 strategy_views=settings.strategy_views,
+                 strategy_max_length=settings.strategy_max_length,
+                 layers=list(layers))
+    if args.json:
+        print(json.dumps(stats))
+    elif not args.quiet:
+        png = f" and {os.path.splitext(args.output)[0]}.png" if args.png else ""
+        print(f"wrote {args.output}{png}: {stats['spp']} spp in {stats['time_s']:.2f} s, "
+              f"{stats['samples_per_s'] / 1e6:.3f} M samples/s, "
+              f"{stats['rays_per_s'] / 1e6:.2f} M rays/s", file=sys.stderr)
+    return 0
+
+
+def main(argv=None):
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    try:
+        args = build_parser().parse_args(argv)
+        args.argv = list(sys.argv[1:] if argv is None else argv)
+        if args.command == "render":
+            return cmd_render(args)
+        try:
+            return args.run(args)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+    except UsageError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,151 @@
+"""The tools' subcommands of the command line: benchmarks and the sampler lab.
+
+Each command writes into ``out/<command>/`` or its ``--output`` folder and nowhere else; with
+``--update-docs`` it also copies its report and the figures ``docs/`` shows into the repository's
+``docs/`` (:mod:`.outputs`). ``cli.build_parser`` adds these parsers beside ``render``; each sets
+``run``, the function that carries the command out and returns its exit code.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..cli import _option_type, _positive_float, _positive_int, _resolution
+from ..core import scenes as builtin_scenes
+from ..core.integrators import INTEGRATORS
+from ..core.options import OPTIONS
+from .outputs import add_output_arguments
+
+
+def _bench(args):
+    from .cornell import run
+
+    return run(resolution=args.resolution, seconds=args.seconds,
+               reference_spp=args.reference_spp, cycles=not args.no_cycles, output=args.output)
+
+
+def _bench_strategies(args):
+    from .strategies import run
+
+    if args.update_docs and args.quick:
+        raise ValueError("--update-docs needs the full run docs/ shows, not --quick")
+    return run(quick=args.quick, resolution=args.resolution, seconds=args.seconds,
+               output=args.output, update_docs=args.update_docs)
+
+
+def _bench_scenes(args):
+    from .hard_scenes import run
+
+    command = "python -m sampling_lab " + " ".join(args.argv)
+    return run(scenes=args.scenes, integrators=args.integrators, seconds=args.seconds,
+               size=args.size, reference_spp=args.reference_spp, cycles=not args.no_cycles,
+               output=args.output, update_docs=args.update_docs,
+               reference_seconds=args.reference_seconds, sampler=args.sampler, command=command)
+
+
+def _bdpt_views(args):
+    from .bdpt_views import DOCS_FOLDER, run
+    from .outputs import publish
+
+    path, means = run(scene=args.scene, size=args.size, spp=args.spp,
+                      max_length=args.max_length,
+                      output=os.path.join(args.output, DOCS_FOLDER))
+    for name, mean in means.items():
+        print(f"{name:32s} image mean {mean:.5g}")
+    print(path)
+    if args.update_docs:
+        publish(args.output, [f"{DOCS_FOLDER}/{os.path.basename(path)}"])
+    return 0
+
+
+def _bench_caustic(args):
+    from .caustic import run
+
+    run(size=args.size, seconds=args.seconds, reference_seconds=args.reference_seconds,
+        output=args.output, update_docs=args.update_docs)
+    return 0
+
+
+def _samplers(args):
+    from .sampler_lab import main
+
+    return main(args)
+
+
+def _add(sub, name, summary, run, **kw):
+    p = sub.add_parser(name, help=summary, description=summary[0].upper() + summary[1:], **kw)
+    p.set_defaults(run=run)
+    return p
+
+
+def add_parsers(sub, **kw):
+    """Add every tool's subcommand to ``sub`` (argparse subparsers); ``kw`` to each parser."""
+    from .sampler_lab import add_arguments as samplers_arguments
+
+    samplers_arguments(_add(sub, "samplers", "sampler lab: points, spectra, star discrepancy "
+                            "and checkerboard variance of every sampler (CSV, PNG, markdown)",
+                            _samplers, **kw))
+    b = _add(sub, "bench", "speed against error of embreex, our path tracer and Cycles on the "
+             "Cornell box (figures, not tests)", _bench, **kw)
+    b.add_argument("--resolution", type=_resolution, default=(256, 256), metavar="WxH",
+                   help="image size (default: 256x256)")
+    b.add_argument("--seconds", type=_positive_float, default=10.0,
+                   help="equal-time budget per renderer")
+    b.add_argument("--reference-spp", type=_positive_int, default=1024,
+                   help="samples per pixel of the references (capped by time)")
+    b.add_argument("--no-cycles", action="store_true", help="skip the Cycles comparison")
+    add_output_arguments(b, "bench")
+    s = _add(sub, "bench-strategies", "equal-time error of every sampler and MIS setting on "
+             "the Cornell box (STRATEGIES.md)", _bench_strategies, **kw)
+    s.add_argument("--quick", action="store_true", help="tiny smoke run (seconds, not minutes)")
+    s.add_argument("--resolution", type=_resolution, default=None, metavar="WxH",
+                   help="image size (default: 128x128; 32x32 with --quick)")
+    s.add_argument("--seconds", type=_positive_float, default=None,
+                   help="equal-time budget in CPU seconds (default: the baseline's time at its "
+                        "largest sample count)")
+    add_output_arguments(s, "bench-strategies", "STRATEGIES.md and its figures")
+    _add_bench_scenes(sub, **kw)
+    v = _add(sub, "bdpt-views", "BDPT's per-strategy images in one figure, by path length "
+             "(images/bdpt_views_<scene>.png)", _bdpt_views, **kw)
+    v.add_argument("--scene", default="glass_caustic", choices=sorted(builtin_scenes.BUILTIN),
+                   help="built-in scene")
+    v.add_argument("--size", type=_resolution, default=(96, 96), metavar="WxH",
+                   help="image size (default: 96x96)")
+    v.add_argument("--spp", type=_positive_int, default=32, help="samples per pixel")
+    v.add_argument("--max-length", type=_positive_int, default=4,
+                   help="longest path shown, in segments")
+    add_output_arguments(v, "bdpt-views", "the figure (images/bdpt_views_<scene>.png)")
+    c = _add(sub, "bench-caustic", "equal-time error of path, light and BDPT on the "
+             "small-light glass caustic (CAUSTIC.md)", _bench_caustic, **kw)
+    c.add_argument("--size", type=_resolution, default=(64, 64), metavar="WxH",
+                   help="image size (default: 64x64)")
+    c.add_argument("--seconds", type=_positive_float, default=8.0,
+                   help="equal wall-clock budget of every render")
+    c.add_argument("--reference-seconds", type=_positive_float, default=120.0,
+                   help="time of the BDPT reference render")
+    add_output_arguments(c, "bench-caustic", "CAUSTIC.md")
+
+
+def _add_bench_scenes(sub, **kw):
+    from .hard_scenes import INTEGRATOR_SCENES, MATERIAL_SCENES, SCENES
+
+    h = _add(sub, "bench-scenes", "equal-time error of our integrators and Cycles on hard "
+             "scenes (HARD_SCENES.md)", _bench_scenes, **kw)
+    h.add_argument("--scenes", nargs="+", default=list(SCENES), metavar="SCENE",
+                   help=f"from: {', '.join(SCENES)} (default: all; materials: "
+                        f"{' '.join(MATERIAL_SCENES)}; integrators: {' '.join(INTEGRATOR_SCENES)})")
+    h.add_argument("--integrators", nargs="+", default=None, metavar="NAME",
+                   help=f"from: {', '.join(INTEGRATORS)} (default: all of them)")
+    h.add_argument("--seconds", type=_positive_float, default=4.0,
+                   help="equal wall-clock budget of every render")
+    h.add_argument("--size", type=_resolution, default=(64, 64), metavar="WxH",
+                   help="image size (default: 64x64)")
+    h.add_argument("--reference-spp", type=_positive_int, default=1024,
+                   help="samples per pixel of the references (capped by time)")
+    h.add_argument("--reference-seconds", type=float, default=None,
+                   help="time cap of each reference (default: max(30, 8 x --seconds); 0: none)")
+    h.add_argument("--sampler", type=_option_type(OPTIONS["sampler"]), default="independent",
+                   metavar="NAME", help=f"sampler of our equal-time renders: one of "
+                                        f"{OPTIONS['sampler'].allowed()}")
+    h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
+    add_output_arguments(h, "bench-scenes", "HARD_SCENES.md and its figure")
