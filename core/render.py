@@ -306,7 +306,8 @@ class _Passes:
     in unit order, with progress, cancel and the time limit checked between units."""
 
     def __init__(self, settings, integrator, sampler, film, cam, progress, cancel):
-        self.settings, self.integrator, self.sampler, self.film = settings, integrator, sampler, film
+        self.settings, self.integrator = settings, integrator
+        self.sampler, self.film = sampler, film
         self.frame_width = cam.width
         self.progress, self.cancel = progress, cancel
         self.pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)

@@ -3,7 +3,15 @@ render loop relies on; see :mod:`.base`).
 
 ``INTEGRATORS`` maps a name to the estimator's module (its docstring is the estimator's manual
 page); :func:`integrator_class` gives the :class:`.base.Integrator` subclass a render builds.
-Shared stages are in :mod:`.common`; no estimator module imports another.
+No estimator module imports another:
+
+- :mod:`.path`: path tracing (:class:`.path.PathTracer`);
+- :mod:`.light` and :mod:`.bdpt`: light tracing and bidirectional path tracing, both
+  :class:`.bidir.Bidirectional` integrators over the same subpaths (:mod:`.subpaths`), ``s = 0``
+  hits (:mod:`.camera_hits`), connections (:mod:`.connections`), MIS densities
+  (:mod:`.mis_densities`) and per-strategy images (:mod:`.strategy_views`);
+- :mod:`.common`: stages every estimator shares (camera rays, intersection, surface
+  interactions, emitters along rays, Russian roulette).
 """
 
 from . import bdpt, light, path

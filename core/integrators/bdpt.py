@@ -90,6 +90,5 @@ class BDPT(Bidirectional):
         connect_emitter_to_camera(ctx, L, out)
 
 
+# One work unit without a render loop (tests, one-off use); a render builds BDPT once.
 render_samples = BDPT.one_batch
-# Read by addon/cli.py until it asks integrator_class(name).strategy_views.
-HAS_STRATEGY_VIEWS = BDPT.strategy_views

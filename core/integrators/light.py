@@ -47,4 +47,5 @@ class LightTracer(Bidirectional):
         return 1
 
 
+# One work unit without a render loop (tests, one-off use); a render builds LightTracer once.
 render_samples = LightTracer.one_batch

@@ -241,6 +241,7 @@ class PathTracer(Integrator):
         return _BSDFShading(prep, si, u_lobe, hits.u[live], hits.v[live])
 
 
+# One work unit without a render loop (tests, one-off use); a render builds PathTracer once.
 render_samples = PathTracer.one_batch
 
 

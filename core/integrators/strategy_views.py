@@ -49,8 +49,8 @@ class Tally:
         image = self.image
         image[~np.isfinite(image).all(axis=1)] = 0.0
         splats = Splats.join(self.splats)
-        return BatchOutput(np.maximum(image, 0.0), Splats(splats.xy, np.maximum(splats.value, 0.0)),
-                           light_paths,
+        return BatchOutput(np.maximum(image, 0.0),
+                           Splats(splats.xy, np.maximum(splats.value, 0.0)), light_paths,
                            {name: np.where(np.isfinite(v), v, 0.0)
                             for name, v in self.camera_layers.items()},
                            {name: Splats.join(parts) for name, parts in self.splat_layers.items()})
