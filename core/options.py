@@ -121,10 +121,12 @@ class Option:
                 raise ValueError(f"{self.name}: {value!r} is not one of {self.allowed()}")
             return
         wanted = numbers.Integral if self.kind is int else numbers.Real
+        # Blender stores floats in single precision: its 0.01 is 0.0099999998.
+        slack = 1e-6 if self.kind is float else 0.0
         # NaN fails every comparison; infinity passes only an open end (time_limit: no limit).
         if not (isinstance(value, wanted) and not is_bool and not math.isnan(value)
-                and (self.minimum is None or value >= self.minimum)
-                and (self.maximum is None or value <= self.maximum)):
+                and (self.minimum is None or value >= self.minimum - slack * abs(self.minimum))
+                and (self.maximum is None or value <= self.maximum + slack * abs(self.maximum))):
             what = "an integer" if self.kind is int else "a number"
             raise ValueError(f"{self.name}: {value!r} is not {what} in {self.allowed()}")
 

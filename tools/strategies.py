@@ -161,31 +161,8 @@ def run(quick=False, resolution=None, seconds=None, output="out/bench-strategies
         scene = cornell_box(w, h, light)
         curves = {}
         for group, name, overrides in todo:
-            points = []
-            for k, spp in enumerate(cfg["spps"]):
-                try:
-                    cpu0 = time.process_time()
-                    res = render(scene, RenderSettings(spp=spp, seed=1 + k,
-                                                       max_bounces=MAX_BOUNCES, threads=THREADS,
-                                                       **overrides))
-                    cpu = time.process_time() - cpu0
-                except Exception as exc:  # noqa: BLE001 - one broken setting must not stop all
-                    traceback.print_exc()
-                    failures.append(f"{scene_name} {name}: {type(exc).__name__}: {exc}")
-                    points = []
-                    break
-                s = res.stats
-                t = cpu
-                err, raw = rel_mse_corrected(res.combined()[..., :3].astype(np.float64), ref,
-                                             ref_var)
-                points.append((spp, t, err))
-                rows.append(dict(scene=scene_name, group=group, setting=name, spp=spp,
-                                 cpu_s=round(t, 5),
-                                 wall_s=round(s["time_s"] + s["prepare_s"], 5),
-                                 rel_mse=err, rel_mse_raw=raw,
-                                 samples_per_s=s["samples_per_s"],
-                                 distribution_build_ms=1e3 * s["distribution_build_s"],
-                                 distribution_ns_per_sample=s["distribution_ns_per_sample"]))
+            points = _curve(scene, scene_name, group, name, overrides, cfg, ref, ref_var, rows,
+                            failures)
             if points:
                 curves[(group, name)] = points
                 spp, t, err = points[-1]
@@ -195,18 +172,9 @@ def run(quick=False, resolution=None, seconds=None, output="out/bench-strategies
         if base is None:
             failures.append(f"{scene_name}: the baseline failed; no equal-time table")
             continue
-        budget = seconds or base[-1][1]
-        base_eff = 1.0 / (base[-1][2] * base[-1][1])
-        for (group, name), points in curves.items():
-            spp, t, err = points[-1]
-            summary.append(dict(
-                scene=scene_name, group=group, setting=name,
-                equal_time_rel_mse=equal_time([p[1] for p in points], [p[2] for p in points],
-                                              budget),
-                budget_cpu_s=round(budget, 3), spp=spp, cpu_s=round(t, 3), rel_mse=err,
-                efficiency_vs_baseline=(1.0 / (err * t)) / base_eff if err > 0 else float("nan")))
-        _plot(scene_name, curves, os.path.join(output, "images", f"strategies_{scene_name}.png"), (w, h),
-              cfg["reference_spp"])
+        summary += _equal_time_rows(scene_name, curves, seconds or base[-1][1])
+        _plot(scene_name, curves, os.path.join(output, "images", f"strategies_{scene_name}.png"),
+              (w, h), cfg["reference_spp"])
 
     _write_csv(os.path.join(output, "strategies.csv"), rows)
     _write_csv(os.path.join(output, "strategies_summary.csv"), summary)
@@ -221,6 +189,47 @@ def run(quick=False, resolution=None, seconds=None, output="out/bench-strategies
         print(f"FAILED: {f}", file=sys.stderr)
     print(f"bench-strategies: {time.perf_counter() - t_bench:.0f} s")
     return 1 if failures else 0
+
+
+def _curve(scene, scene_name, group, name, overrides, cfg, ref, ref_var, rows, failures):
+    """One setting rendered at every sample count: ``[(spp, cpu_s, rel_mse)]`` (empty if it
+    failed: the failure is recorded and the other settings still run); rows go to ``rows``."""
+    points = []
+    for k, spp in enumerate(cfg["spps"]):
+        try:
+            cpu0 = time.process_time()
+            res = render(scene, RenderSettings(spp=spp, seed=1 + k, max_bounces=MAX_BOUNCES,
+                                               threads=THREADS, **overrides))
+            t = time.process_time() - cpu0
+        except Exception as exc:  # noqa: BLE001 - one broken setting must not stop all
+            traceback.print_exc()
+            failures.append(f"{scene_name} {name}: {type(exc).__name__}: {exc}")
+            return []
+        s = res.stats
+        err, raw = rel_mse_corrected(res.combined()[..., :3].astype(np.float64), ref, ref_var)
+        points.append((spp, t, err))
+        rows.append(dict(scene=scene_name, group=group, setting=name, spp=spp,
+                         cpu_s=round(t, 5), wall_s=round(s["time_s"] + s["prepare_s"], 5),
+                         rel_mse=err, rel_mse_raw=raw, samples_per_s=s["samples_per_s"],
+                         distribution_build_ms=1e3 * s["distribution_build_s"],
+                         distribution_ns_per_sample=s["distribution_ns_per_sample"]))
+    return points
+
+
+def _equal_time_rows(scene_name, curves, budget):
+    """The equal-time table's rows of one scene: each setting at ``budget`` CPU seconds, and
+    its efficiency relative to the baseline."""
+    base = curves[("sampler", BASELINE)]
+    base_eff = 1.0 / (base[-1][2] * base[-1][1])
+    out = []
+    for (group, name), points in curves.items():
+        spp, t, err = points[-1]
+        out.append(dict(
+            scene=scene_name, group=group, setting=name,
+            equal_time_rel_mse=equal_time([p[1] for p in points], [p[2] for p in points], budget),
+            budget_cpu_s=round(budget, 3), spp=spp, cpu_s=round(t, 3), rel_mse=err,
+            efficiency_vs_baseline=(1.0 / (err * t)) / base_eff if err > 0 else float("nan")))
+    return out
 
 
 def _write_csv(path, rows):
