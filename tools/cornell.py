@@ -33,17 +33,12 @@ Everything printed is also written to ``output/`` as CSV, with a PNG of the four
 
 from __future__ import annotations
 
-import csv
-import datetime
 import os
-import platform
 import statistics
 import sys
-import tempfile
 import threading
 import time
 import traceback
-from importlib import metadata
 
 import numpy as np
 
@@ -51,9 +46,8 @@ from ..core.exr import write_png_preview
 from ..core.metrics import rel_mse
 from ..core.render import RenderSettings, render
 from ..core.scenes import cornell_box
-
-# relMSE regulariser (core.metrics.rel_mse's default): (img - ref)^2 / (ref^2 + EPS).
-EPS = 1e-2
+from .common import EPS, loadavg, machine_summary, mean_ratio, stage, write_csv
+from .cycles import CyclesRunner
 # Rays in the raw embreex batch, and how often each thread count is timed (best is kept).
 EMBREE_RAYS = 1 << 21
 EMBREE_REPEATS = 3
@@ -67,7 +61,7 @@ TARGET_FRACTION = 0.5
 
 
 def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
-        output="bench/results", *, reference_seconds=None, threads=2, max_bounces=8, seed=0):
+        output="out/bench", *, reference_seconds=None, threads=2, max_bounces=8, seed=0):
     """Run the Cornell box benchmark, print its figures and write them to ``output``.
 
     Parameters
@@ -102,181 +96,222 @@ def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
         reference_seconds = max(REFERENCE_MIN_SECONDS, REFERENCE_TIME_FACTOR * seconds)
     os.makedirs(output, exist_ok=True)
     t_bench = time.perf_counter()
-    pixels = width * height
-    scene = cornell_box(width, height, light="mesh")
-    summary = _machine_summary()
-    summary.update(resolution=f"{width}x{height}", max_bounces=max_bounces, threads=threads,
-                   equal_time_s=seconds, reference_spp_requested=reference_spp,
-                   reference_seconds_cap=reference_seconds, triangles=scene.n_triangles)
+    bench = _Bench(cornell_box(width, height, light="mesh"), seconds, reference_spp,
+                   reference_seconds, threads, max_bounces, seed)
+    bench.summary.update(resolution=f"{width}x{height}", max_bounces=max_bounces,
+                         threads=threads, equal_time_s=seconds,
+                         reference_spp_requested=reference_spp,
+                         reference_seconds_cap=reference_seconds,
+                         triangles=bench.scene.n_triangles)
     print(f"Sampling Lab bench: Cornell box (mesh light), {width}x{height}, {max_bounces} bounces, "
-          f"{threads} threads")
-    print(f"machine: {summary['cpu']}, {summary['cpus']} CPUs, load average at start "
-          f"{summary['load_start']}; {summary['date']}")
+          f"{threads} threads\nmachine: {bench.summary['cpu']}, {bench.summary['cpus']} CPUs, "
+          f"load average at start {bench.summary['load_start']}; {bench.summary['date']}")
+    ceiling = bench.ceiling()
+    bench.fixed_spp(cycles)
+    bench.equal_time_and_references()
+    bench.errors()
+    print()
+    _print_table(bench.rows, seconds)
+    bench.targets(ceiling[threads]["rays_per_s"])
+    bench.summary.update(load_end=loadavg(), bench_seconds=time.perf_counter() - t_bench)
+    write_csv(os.path.join(output, "cornell_embree.csv"),
+              [dict(threads=k, **v) for k, v in ceiling.items()])
+    write_csv(os.path.join(output, "cornell_renderers.csv"), bench.rows)
+    write_csv(os.path.join(output, "cornell_summary.csv"),
+              [{"key": k, "value": v} for k, v in bench.summary.items()])
+    _write_montage(os.path.join(output, "cornell_images.png"), bench.images)
+    print(f"\nwrote {output}/cornell_{{embree,renderers,summary}}.csv and cornell_images.png "
+          f"(top: PT ref | Cycles ref; bottom: equal time PT | Cycles); bench took "
+          f"{bench.summary['bench_seconds']:.0f} s, load average at end "
+          f"{bench.summary['load_end']}")
+    return bench.status
 
-    # 1. The ceiling: raw embreex on the same triangles.
-    _stage("raw embreex throughput")
-    ceiling = embree_throughput(scene, EMBREE_RAYS, (1, threads) if threads > 1 else (1,),
-                                EMBREE_REPEATS, seed)
-    ceiling_rps = ceiling[threads]["rays_per_s"]
-    print("\n1. Raw embreex closest-hit throughput (incoherent rays, best of "
-          f"{EMBREE_REPEATS}, {EMBREE_RAYS} rays)")
-    for k, row in ceiling.items():
-        print(f"   {k} thread{'s' if k > 1 else ' '}: {row['rays_per_s'] / 1e6:7.2f} M rays/s "
-              f"(median {row['rays'] / row['median_s'] / 1e6:.2f}; hit fraction "
-              f"{row['hit_fraction']:.3f})")
 
-    # 2 and 3. Throughput at a fixed sample count, ours and Cycles interleaved, best of two:
-    # the machine may be shared, and a load spike should not decide the comparison.
-    status = 0
-    cy = None
-    fixed = RenderSettings(spp=FIXED_SPP, seed=seed, max_bounces=max_bounces, threads=threads)
-    _stage(f"our path tracer, {FIXED_SPP} spp")
-    ours_fixed = render(scene, fixed)
-    if cycles:
-        _stage(f"Cycles: kernel loading, fixed cost, {FIXED_SPP} spp")
-        try:
-            cy = CyclesRunner(scene, threads, max_bounces)
-            cy.measure_fixed_cost(seed)
-            cy.measure_fixed_spp(FIXED_SPP, seed)
-        except Exception:  # noqa: BLE001 - report and carry on with the other figures
-            traceback.print_exc()
-            print("\nCycles failed (traceback above); continuing without it")
-            cy, status = None, 1
-    _stage(f"our path tracer, {FIXED_SPP} spp, again")
-    again = render(scene, fixed)
-    if again.stats["time_s"] < ours_fixed.stats["time_s"]:
-        ours_fixed = again
-    if cy is not None:
-        _stage(f"Cycles, {FIXED_SPP} spp, again")
-        cy.measure_fixed_spp(FIXED_SPP, seed)
+class _Bench:
+    """One run of the benchmark: its scene and settings, the rows, the summary, the Cycles
+    runner; one method per step of the module docstring."""
 
-    rows = [_ours_row("fixed spp", ours_fixed, pixels)]
-    ours_rps = ours_fixed.stats["rays_per_s"]
-    ours_sps = ours_fixed.stats["samples_per_s"]
-    print(f"\n2. Our path tracer, {FIXED_SPP} spp, {threads} threads (best of 2)")
-    print(f"   {ours_sps / 1e6:.3f} M samples/s, {ours_rps / 1e6:.2f} M rays/s "
-          f"({ours_fixed.stats['rays'] / max(ours_fixed.stats['samples'], 1):.2f} rays per "
-          f"sample), {ours_fixed.stats['time_s']:.2f} s")
-    print(f"   = {ours_rps / ceiling_rps:.3f} x raw embreex ({threads} threads)")
-    if cy is not None:
-        rows.append(_cycles_row("fixed spp", FIXED_SPP, cy.t_fixed, pixels, cy.fixed_image))
-        print(f"\n3. Cycles (bpy {summary.get('bpy', '')}), CPU, {threads} threads, "
+    def __init__(self, scene, seconds, reference_spp, reference_seconds, threads, max_bounces,
+                 seed):
+        self.scene, self.seconds, self.seed = scene, seconds, seed
+        self.reference_spp, self.reference_seconds = reference_spp, reference_seconds
+        self.threads, self.max_bounces = threads, max_bounces
+        self.pixels = scene.camera.width * scene.camera.height
+        self.summary = machine_summary()
+        self.rows, self.status, self.cy = [], 0, None
+
+    def settings(self, **kw):
+        return RenderSettings(**{**dict(seed=self.seed, max_bounces=self.max_bounces,
+                                        threads=self.threads), **kw})
+
+    def ceiling(self):
+        """1. Raw embreex on the same triangles: rates by thread count."""
+        stage("raw embreex throughput")
+        ceiling = embree_throughput(self.scene, EMBREE_RAYS,
+                                    (1, self.threads) if self.threads > 1 else (1,),
+                                    EMBREE_REPEATS, self.seed)
+        print("\n1. Raw embreex closest-hit throughput (incoherent rays, best of "
+              f"{EMBREE_REPEATS}, {EMBREE_RAYS} rays)")
+        for k, row in ceiling.items():
+            print(f"   {k} thread{'s' if k > 1 else ' '}: {row['rays_per_s'] / 1e6:7.2f} M rays/s "
+                  f"(median {row['rays'] / row['median_s'] / 1e6:.2f}; hit fraction "
+                  f"{row['hit_fraction']:.3f})")
+        self.ceiling_rps = ceiling[self.threads]["rays_per_s"]
+        return ceiling
+
+    def fixed_spp(self, cycles):
+        """2 and 3. Throughput at a fixed sample count, ours and Cycles interleaved, best of
+        two: the machine may be shared, and a load spike should not decide the comparison."""
+        fixed = self.settings(spp=FIXED_SPP)
+        stage(f"our path tracer, {FIXED_SPP} spp")
+        ours = render(self.scene, fixed)
+        if cycles:
+            stage(f"Cycles: kernel loading, fixed cost, {FIXED_SPP} spp")
+            try:
+                self.cy = CyclesRunner(self.scene, self.threads, self.max_bounces)
+                self.cy.measure_fixed_cost(self.seed)
+                self.cy.measure_fixed_spp(FIXED_SPP, self.seed)
+            except Exception:  # noqa: BLE001 - report and carry on with the other figures
+                traceback.print_exc()
+                print("\nCycles failed (traceback above); continuing without it")
+                self.cy, self.status = None, 1
+        stage(f"our path tracer, {FIXED_SPP} spp, again")
+        again = render(self.scene, fixed)
+        if again.stats["time_s"] < ours.stats["time_s"]:
+            ours = again
+        if self.cy is not None:
+            stage(f"Cycles, {FIXED_SPP} spp, again")
+            self.cy.measure_fixed_spp(FIXED_SPP, self.seed)
+        self.rows.append(_ours_row("fixed spp", ours, self.pixels))
+        self.ours_rps, self.ours_sps = ours.stats["rays_per_s"], ours.stats["samples_per_s"]
+        print(f"\n2. Our path tracer, {FIXED_SPP} spp, {self.threads} threads (best of 2)")
+        print(f"   {self.ours_sps / 1e6:.3f} M samples/s, {self.ours_rps / 1e6:.2f} M rays/s "
+              f"({ours.stats['rays'] / max(ours.stats['samples'], 1):.2f} rays per "
+              f"sample), {ours.stats['time_s']:.2f} s")
+        print(f"   = {self.ours_rps / self.ceiling_rps:.3f} x raw embreex ({self.threads} threads)")
+        if self.cy is not None:
+            self._print_cycles_fixed(ours)
+
+    def _print_cycles_fixed(self, ours):
+        cy = self.cy
+        self.rows.append(_cycles_row("fixed spp", FIXED_SPP, cy.t_fixed, self.pixels,
+                                     cy.fixed_image))
+        print(f"\n3. Cycles (bpy {self.summary.get('bpy', '')}), CPU, {self.threads} threads, "
               f"{FIXED_SPP} spp (best of 2)")
         print(f"   first render in the process (1 spp, kernel loading): {cy.t_cold:.2f} s; "
               f"fixed cost of a render (1 spp, best of 2): {cy.t_one:.2f} s")
         print(f"   {cy.gross_sps / 1e6:.3f} M samples/s gross ({cy.t_fixed:.2f} s wall), "
               f"{cy.net_sps / 1e6:.3f} M net of the fixed cost, "
               f"{cy.clock_sps / 1e6:.3f} M by Cycles' own render-time clock")
-        ratio = _mean_ratio(ours_fixed.combined(), cy.fixed_image)
+        ratio = mean_ratio(ours.combined(), cy.fixed_image)
         print(f"   image mean, ours / Cycles at {FIXED_SPP} spp: {ratio:.4f}")
-        summary.update(cycles_cold_s=cy.t_cold, cycles_fixed_cost_s=cy.t_one,
-                       cycles_gross_samples_per_s=cy.gross_sps,
-                       cycles_net_samples_per_s=cy.net_sps,
-                       cycles_clock_samples_per_s=cy.clock_sps,
-                       mean_ratio_ours_over_cycles_fixed_spp=ratio)
+        self.summary.update(cycles_cold_s=cy.t_cold, cycles_fixed_cost_s=cy.t_one,
+                            cycles_gross_samples_per_s=cy.gross_sps,
+                            cycles_net_samples_per_s=cy.net_sps,
+                            cycles_clock_samples_per_s=cy.clock_sps,
+                            mean_ratio_ours_over_cycles_fixed_spp=ratio)
 
-    # 4. Equal time, then the references (longest last).
-    _stage(f"equal time, {seconds:g} s each")
-    ours_eq = render(scene, RenderSettings(spp=0, time_limit=seconds, seed=seed,
-                                           max_bounces=max_bounces, threads=threads))
-    rows.append(_ours_row("equal time", ours_eq, pixels))
-    img_cy_eq = None
-    if cy is not None:
-        spp_eq, t_eq, img_cy_eq = cy.equal_time(seconds, seed)
-        rows.append(_cycles_row("equal time", spp_eq, t_eq, pixels, img_cy_eq))
+    def equal_time_and_references(self):
+        """4. Equal time, then the references (longest last)."""
+        stage(f"equal time, {self.seconds:g} s each")
+        ours_eq = render(self.scene, self.settings(spp=0, time_limit=self.seconds))
+        self.rows.append(_ours_row("equal time", ours_eq, self.pixels))
+        img_cy_eq = None
+        if self.cy is not None:
+            spp_eq, t_eq, img_cy_eq = self.cy.equal_time(self.seconds, self.seed)
+            self.rows.append(_cycles_row("equal time", spp_eq, t_eq, self.pixels, img_cy_eq))
+        stage(f"our reference: {self.reference_spp} spp or {self.reference_seconds:g} s")
+        self.ours_ref = render(self.scene, self.settings(
+            spp=self.reference_spp, time_limit=self.reference_seconds, seed=self.seed + 1))
+        self.rows.append(_ours_row("reference", self.ours_ref, self.pixels))
+        self.ref = self.ours_ref.combined()[..., :3].astype(np.float64)
+        ref_var = self.ours_ref.variance().astype(np.float64)
+        self.ref_floor = float(np.mean(ref_var / (self.ref * self.ref + EPS)))
+        self.ref_spp = self.ours_ref.stats["samples"] / self.pixels
+        self.cy_ref = None
+        if self.cy is not None:
+            spp_ref = max(1, int(self.ours_ref.stats["samples"] // self.pixels))
+            if self.reference_seconds > 0:
+                spp_ref = min(spp_ref, self.cy.spp_for(self.reference_seconds))
+            stage(f"Cycles reference: {spp_ref} spp")
+            self.t_cy_ref, cy_ref = self.cy.render(spp_ref, self.seed + 1)
+            self.spp_cy_ref = spp_ref
+            self.rows.append(_cycles_row("reference", spp_ref, self.t_cy_ref, self.pixels, cy_ref))
+            self.cy_ref = cy_ref[..., :3].astype(np.float64)
+        self.images = [self.ref, self.cy_ref, ours_eq.combined()[..., :3], img_cy_eq]
 
-    _stage(f"our reference: {reference_spp} spp or {reference_seconds:g} s")
-    ours_ref = render(scene, RenderSettings(spp=reference_spp, time_limit=reference_seconds,
-                                            seed=seed + 1, max_bounces=max_bounces,
-                                            threads=threads))
-    rows.append(_ours_row("reference", ours_ref, pixels))
-    ref = ours_ref.combined()[..., :3].astype(np.float64)
-    ref_var = ours_ref.variance().astype(np.float64)
-    ref_floor = float(np.mean(ref_var / (ref * ref + EPS)))
-    ref_spp = ours_ref.stats["samples"] / pixels
-    cy_ref = None
-    if cy is not None:
-        spp_ref = max(1, int(ours_ref.stats["samples"] // pixels))
-        if reference_seconds > 0:
-            spp_ref = min(spp_ref, cy.spp_for(reference_seconds))
-        _stage(f"Cycles reference: {spp_ref} spp")
-        t_ref, cy_ref = cy.render(spp_ref, seed + 1)
-        rows.append(_cycles_row("reference", spp_ref, t_ref, pixels, cy_ref))
-        cy_ref = cy_ref[..., :3].astype(np.float64)
+    def errors(self):
+        """4. Each image's error against the references, and the references' agreement."""
+        for row in self.rows:
+            img = row.pop("_image")
+            if row["run"] == "reference":
+                continue
+            row["relmse_vs_pt_ref"] = rel_mse(img, self.ref, EPS)
+            row["relmse_vs_pt_ref_corrected"] = row["relmse_vs_pt_ref"] - self.ref_floor
+            # Unbiased Monte Carlo error falls as 1 / time: scale to exactly the budget.
+            row["relmse_at_budget"] = (row["relmse_vs_pt_ref_corrected"] * row["time_s"]
+                                       / self.seconds)
+            if self.cy_ref is not None:
+                row["relmse_vs_cycles_ref"] = rel_mse(img, self.cy_ref, EPS)
+        print(f"\n4. Error at equal time ({self.seconds:g} s each; relMSE = mean (x - ref)^2 / "
+              f"(ref^2 + {EPS:g}) over pixels and RGB)")
+        print(f"   PT reference: {self.ref_spp:.1f} spp in {self.ours_ref.stats['time_s']:.1f} s "
+              f"(seed {self.seed + 1}); its own noise (mean variance / (ref^2 + eps)) = "
+              f"{self.ref_floor:.3e}, subtracted in 'corrected'")
+        eq_spp = max(r["spp"] for r in self.rows if r["run"] == "equal time")
+        if self.ref_spp < 2 * eq_spp:
+            print(f"   warning: the reference has {self.ref_spp:.0f} spp, less than twice the "
+                  f"{eq_spp:.0f} spp of the equal-time images: the corrected errors are noisy")
+        if self.cy is not None:
+            self._agreement()
+        self.summary.update(pt_reference_spp=self.ref_spp, pt_reference_noise=self.ref_floor)
 
-    for row in rows:
-        img = row.pop("_image")
-        if row["run"] == "reference":
-            continue
-        row["relmse_vs_pt_ref"] = rel_mse(img, ref, EPS)
-        row["relmse_vs_pt_ref_corrected"] = row["relmse_vs_pt_ref"] - ref_floor
-        # Unbiased Monte Carlo error falls as 1 / time: scale to exactly the budget.
-        row["relmse_at_budget"] = row["relmse_vs_pt_ref_corrected"] * row["time_s"] / seconds
-        if cy_ref is not None:
-            row["relmse_vs_cycles_ref"] = rel_mse(img, cy_ref, EPS)
+    def _cycles_equal_time_row(self):
+        return next(r for r in self.rows if r["renderer"] == "Cycles" and r["run"] == "equal time")
 
-    print(f"\n4. Error at equal time ({seconds:g} s each; relMSE = mean (x - ref)^2 / "
-          f"(ref^2 + {EPS:g}) over pixels and RGB)")
-    print(f"   PT reference: {ref_spp:.1f} spp in {ours_ref.stats['time_s']:.1f} s (seed "
-          f"{seed + 1}); its own noise (mean variance / (ref^2 + eps)) = {ref_floor:.3e}, "
-          "subtracted in 'corrected'")
-    eq_spp = max(r["spp"] for r in rows if r["run"] == "equal time")
-    if ref_spp < 2 * eq_spp:
-        print(f"   warning: the reference has {ref_spp:.0f} spp, less than twice the {eq_spp:.0f} "
-              "spp of the equal-time images: the corrected errors are noisy")
-    if cy is not None:
-        cy_eq_row = next(r for r in rows if r["renderer"] == "Cycles" and r["run"] == "equal time")
-        consistency = rel_mse(cy_ref, ref, EPS)
+    def _agreement(self):
+        cy_eq_row = self._cycles_equal_time_row()
+        consistency = rel_mse(self.cy_ref, self.ref, EPS)
         # Noise alone gives our reference's noise plus the Cycles reference's, estimated from
         # the equal-time Cycles error scaled by its sample count (variance ~ 1 / spp).
-        noise_only = ref_floor + max(cy_eq_row["relmse_vs_pt_ref_corrected"], 0.0) * (
-            cy_eq_row["spp"] / spp_ref)
-        mean_ratio = _mean_ratio(ref, cy_ref)
-        print(f"   Cycles reference: {spp_ref} spp in {t_ref:.1f} s (seed {seed + 1})")
+        noise_only = self.ref_floor + max(cy_eq_row["relmse_vs_pt_ref_corrected"], 0.0) * (
+            cy_eq_row["spp"] / self.spp_cy_ref)
+        ratio = mean_ratio(self.ref, self.cy_ref)
+        print(f"   Cycles reference: {self.spp_cy_ref} spp in {self.t_cy_ref:.1f} s (seed "
+              f"{self.seed + 1})")
         print(f"   consistency of the references: relMSE(Cycles ref, PT ref) = {consistency:.3e}, "
-              f"noise alone ~ {noise_only:.3e}; image mean PT / Cycles = {mean_ratio:.4f}")
-        summary.update(reference_consistency_relmse=consistency,
-                       reference_consistency_noise_only=noise_only,
-                       reference_mean_ratio_pt_over_cycles=mean_ratio, cycles_reference_spp=spp_ref)
-    summary.update(pt_reference_spp=ref_spp, pt_reference_noise=ref_floor)
-    print()
-    _print_table(rows, seconds)
+              f"noise alone ~ {noise_only:.3e}; image mean PT / Cycles = {ratio:.4f}")
+        self.summary.update(reference_consistency_relmse=consistency,
+                            reference_consistency_noise_only=noise_only,
+                            reference_mean_ratio_pt_over_cycles=ratio,
+                            cycles_reference_spp=self.spp_cy_ref)
 
-    # 5. Targets (figures, not asserts).
-    print("\n5. Targets")
-    hold = ours_rps >= TARGET_FRACTION * ceiling_rps
-    print(f"   rays/s    >= {TARGET_FRACTION} x raw embreex ({threads} threads): "
-          f"{ours_rps / 1e6:.2f} M vs {TARGET_FRACTION * ceiling_rps / 1e6:.2f} M needed "
-          f"-> {'holds' if hold else 'MISSED'} (ratio {ours_rps / ceiling_rps:.3f})")
-    summary.update(target_rays_ratio=ours_rps / ceiling_rps, target_rays_holds=hold)
-    if cy is not None:
+    def targets(self, ceiling_rps):
+        """5. Targets (figures, not asserts)."""
+        print("\n5. Targets")
+        ours_rps, ours_sps = self.ours_rps, self.ours_sps
+        hold = ours_rps >= TARGET_FRACTION * ceiling_rps
+        print(f"   rays/s    >= {TARGET_FRACTION} x raw embreex ({self.threads} threads): "
+              f"{ours_rps / 1e6:.2f} M vs {TARGET_FRACTION * ceiling_rps / 1e6:.2f} M needed "
+              f"-> {'holds' if hold else 'MISSED'} (ratio {ours_rps / ceiling_rps:.3f})")
+        self.summary.update(target_rays_ratio=ours_rps / ceiling_rps, target_rays_holds=hold)
+        if self.cy is None:
+            return
+        cy = self.cy
         hold_s = ours_sps >= TARGET_FRACTION * cy.net_sps
         print(f"   samples/s >= {TARGET_FRACTION} x Cycles (net): {ours_sps / 1e6:.3f} M vs "
               f"{TARGET_FRACTION * cy.net_sps / 1e6:.3f} M needed -> "
               f"{'holds' if hold_s else 'MISSED'} (ratio {ours_sps / cy.net_sps:.3f}; "
               f"{ours_sps / cy.gross_sps:.3f} of Cycles' gross rate)")
-        pt_eq = next(r for r in rows if r["renderer"] == "ours" and r["run"] == "equal time")
+        pt_eq = next(r for r in self.rows if r["renderer"] == "ours" and r["run"] == "equal time")
+        cy_eq_row = self._cycles_equal_time_row()
         if pt_eq["relmse_at_budget"] > 0 and cy_eq_row["relmse_at_budget"] > 0:
             eff = pt_eq["relmse_at_budget"] / cy_eq_row["relmse_at_budget"]
             print(f"   (not a target) error at equal time, ours / Cycles = {eff:.2f}")
-            summary.update(equal_time_error_ours_over_cycles=eff)
-        summary.update(target_samples_ratio_net=ours_sps / cy.net_sps,
-                       target_samples_ratio_gross=ours_sps / cy.gross_sps,
-                       target_samples_holds=hold_s)
-
-    # Files.
-    summary.update(load_end=_loadavg(), bench_seconds=time.perf_counter() - t_bench)
-    _write_csv(os.path.join(output, "cornell_embree.csv"),
-               [dict(threads=k, **v) for k, v in ceiling.items()])
-    _write_csv(os.path.join(output, "cornell_renderers.csv"), rows)
-    _write_csv(os.path.join(output, "cornell_summary.csv"),
-               [{"key": k, "value": v} for k, v in summary.items()])
-    images = [ref, cy_ref, ours_eq.combined()[..., :3], img_cy_eq]
-    _write_montage(os.path.join(output, "cornell_images.png"), images)
-    print(f"\nwrote {output}/cornell_{{embree,renderers,summary}}.csv and cornell_images.png "
-          f"(top: PT ref | Cycles ref; bottom: equal time PT | Cycles); bench took "
-          f"{summary['bench_seconds']:.0f} s, load average at end {summary['load_end']}")
-    return status
+            self.summary.update(equal_time_error_ours_over_cycles=eff)
+        self.summary.update(target_samples_ratio_net=ours_sps / cy.net_sps,
+                            target_samples_ratio_gross=ours_sps / cy.gross_sps,
+                            target_samples_holds=hold_s)
 
 
 # --------------------------------------------------------------------------- raw embreex
@@ -333,86 +368,6 @@ def _trace_parallel(emb, origins, directions, k):
     return time.perf_counter() - t0
 
 
-# --------------------------------------------------------------------------- Cycles
-
-
-class CyclesRunner:
-    """The benchmark's Cycles scene and its measured costs: cold start, fixed cost, rate.
-
-    ``blender_scene`` renders a scene already built in ``bpy`` (``core_scene`` is then its
-    export, for the pixel count); by default ``core_scene`` is rebuilt in a new empty file.
-    """
-
-    def __init__(self, core_scene, threads, max_bounces, blender_scene=None):
-        from . import blender_scene as bs
-
-        self.bs = bs
-        if blender_scene is None:
-            bs.import_bpy().ops.wm.read_homefile(use_empty=True)
-            blender_scene = bs.build_blender_scene(core_scene)
-        # A scene built elsewhere may still name another engine (EEVEE in an empty file).
-        blender_scene.render.engine = "CYCLES"
-        self.scene = blender_scene
-        self.threads = threads
-        self.max_bounces = max_bounces
-        self.pixels = core_scene.camera.width * core_scene.camera.height
-        self.tmp = tempfile.TemporaryDirectory(prefix="sampling_lab_bench_")
-        self.t_fixed = np.inf
-        self.last_times = {}
-
-    def render(self, spp, seed):
-        """Render ``spp`` samples: (wall seconds, (h, w, 4) float32 Combined)."""
-        self.bs.configure_cycles(self.scene, spp, seed=seed, threads=self.threads,
-                                 max_bounces=self.max_bounces)
-        t, passes, self.last_times = self.bs.render_cycles(
-            self.scene, os.path.join(self.tmp.name, "cycles.exr"))
-        return t, passes["Combined"]
-
-    def measure_fixed_cost(self, seed):
-        """Cold first render, then the cost of a 1-spp render (sync, BVH, kernels, film, EXR)."""
-        self.t_cold, _ = self.render(1, seed)
-        self.t_one = min(self.render(1, seed)[0] for _ in range(2))
-
-    def measure_fixed_spp(self, spp, seed):
-        """Time ``spp`` samples; the fastest of repeated calls is kept."""
-        t, img = self.render(spp, seed)
-        if t < self.t_fixed:
-            self.fixed_spp, self.t_fixed, self.fixed_image = spp, t, img
-            clock = self.last_times.get("render_time", float("nan"))
-            self.clock_sps = self.pixels * spp / clock if clock > 0 else float("nan")
-
-    @property
-    def gross_sps(self):
-        return self.pixels * self.fixed_spp / self.t_fixed
-
-    @property
-    def net_sps(self):
-        marginal = self.t_fixed - self.t_one
-        return self.pixels * (self.fixed_spp - 1) / marginal if marginal > 0 else self.gross_sps
-
-    def spp_for(self, seconds, rate=None):
-        """Sample count whose render, fixed cost included, should take ``seconds``."""
-        rate = self.net_sps if rate is None else rate
-        return max(1, int(round(1 + (seconds - self.t_one) * rate / self.pixels)))
-
-    def equal_time(self, seconds, seed, tolerance=0.15):
-        """Render about ``seconds`` of wall clock: (spp, seconds taken, image).
-
-        The sample count comes from the measured rate; if the render misses the budget by more
-        than ``tolerance`` (the machine got busier or quieter), it is planned again from the
-        rate that render showed, once, and the render closer to the budget is kept.
-        """
-        spp = self.spp_for(seconds)
-        t, img = self.render(spp, seed)
-        if abs(t / seconds - 1) > tolerance and t > self.t_one and spp > 1:
-            rate = self.pixels * (spp - 1) / (t - self.t_one)
-            spp2 = self.spp_for(seconds, rate)
-            t2, img2 = self.render(spp2, seed)
-            if abs(t2 - seconds) < abs(t - seconds):
-                spp, t, img = spp2, t2, img2
-        return spp, t, img
-
-
 # --------------------------------------------------------------------------- rows and files
 
 
@@ -452,18 +407,6 @@ def _print_table(rows, seconds):
           "reference")
 
 
-def _write_csv(path, rows):
-    keys = []
-    for r in rows:
-        keys += [k for k in r if k not in keys and not k.startswith("_")]
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()
-                        if not k.startswith("_")})
-
-
 def _write_montage(path, images):
     """2 x 2 montage (row 0 at the bottom): ``images`` = [top-left, top-right, bottom-left,
     bottom-right]; missing images are black."""
@@ -475,39 +418,3 @@ def _write_montage(path, images):
     top = np.concatenate([tiles[0], gap_v, tiles[1]], axis=1)
     bottom = np.concatenate([tiles[2], gap_v, tiles[3]], axis=1)
     write_png_preview(path, np.concatenate([bottom, gap_h, top], axis=0))
-
-
-def _mean_ratio(a, b):
-    return float(np.mean(np.asarray(a)[..., :3], dtype=np.float64)
-                 / np.mean(np.asarray(b)[..., :3], dtype=np.float64))
-
-
-def _stage(text):
-    print(f"[bench {time.strftime('%H:%M:%S')}] {text} ...", file=sys.stderr, flush=True)
-
-
-def _loadavg():
-    try:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        return "n/a"
-
-
-def _machine_summary():
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            names = [ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")]
-        cpu = names[0] if names else cpu
-    except OSError:
-        pass
-    out = {"date": datetime.datetime.now().astimezone().isoformat(timespec="minutes"),
-           "cpu": cpu, "cpus": os.cpu_count(), "python": platform.python_version(),
-           "numpy": np.__version__, "load_start": _loadavg(),
-           "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "unset")}
-    for package in ("embreex", "bpy"):
-        try:
-            out[package] = metadata.version(package)
-        except metadata.PackageNotFoundError:
-            out[package] = "n/a"
-    return out

@@ -33,29 +33,22 @@ out as in ``docs/``, where ``update_docs`` copies them. Figures, never asserted 
 
 from __future__ import annotations
 
-import datetime
 import math
 import os
 import sys
 import time
 import traceback
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.exr import write_png_preview
 from ..core.integrators import INTEGRATORS
 from ..core.metrics import rel_mse
 from ..core.render import RenderSettings, render
 from ..core.sampling.samplers import available as available_samplers
-from .cornell import (
-    EPS,
-    CyclesRunner,
-    _loadavg,
-    _machine_summary,
-    _mean_ratio,
-    _stage,
-    _write_csv,
-)
+from .common import EPS, loadavg, machine_summary, mean_ratio, stage, write_csv
+from .cycles import CyclesRunner
+from .hard_scenes_report import print_scene, write_montage, write_report
 from .outputs import publish
 
 
@@ -101,14 +94,14 @@ SCENES = {
 MATERIAL_SCENES = ("glossy_plates", "glass_sphere", "mirror_ball", "environment")
 # Diffuse interreflection and the two caustics: where light tracing and BDPT differ most from
 # path tracing.
-# What docs/ shows, relative to the output folder (and to docs/).
-DOCS_FILES = ("HARD_SCENES.md", "images/hard_scenes.png")
 INTEGRATOR_SCENES = ("cornell", "glass_sphere", "mirror_ball")
 # Cycles' rate is measured on about this many camera samples.
 CALIBRATION_SAMPLES = 1 << 18
 REFERENCE_MIN_SECONDS = 30.0
 REFERENCE_TIME_FACTOR = 8.0
 REFERENCE_INTEGRATOR = "path"
+# What docs/ shows, relative to the output folder (and to docs/).
+DOCS_FILES = ("HARD_SCENES.md", "images/hard_scenes.png")
 
 
 def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), reference_spp=1024,
@@ -154,29 +147,16 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
         arguments.
     """
     integrators = list(INTEGRATORS) if integrators is None else list(integrators)
-    unknown = ([s for s in scenes if s not in SCENES]
-               + [i for i in integrators if i not in INTEGRATORS]
-               + ([] if sampler in available_samplers() else [sampler]))
     width, height = (int(x) for x in size)
-    if unknown or not scenes or not integrators:
-        print(f"sampling_lab bench-scenes: unknown or missing names {unknown}; scenes: "
-              f"{', '.join(SCENES)}; integrators: {', '.join(INTEGRATORS)}; samplers: "
-              f"{', '.join(available_samplers())}", file=sys.stderr)
-        return 2
-    if width < 1 or height < 1 or not seconds > 0 or reference_spp < 1:
-        print("sampling_lab bench-scenes: --size, --seconds and --reference-spp must be positive",
-              file=sys.stderr)
+    if not _arguments_valid(scenes, integrators, sampler, width, height, seconds, reference_spp):
         return 2
     if reference_seconds is None:
         reference_seconds = max(REFERENCE_MIN_SECONDS, REFERENCE_TIME_FACTOR * seconds)
-    os.makedirs(output, exist_ok=True)
-    from . import blender_scene
-    bpy = blender_scene.import_bpy()
-    from ..addon.export import export_scene
-    from . import bpy_scenes
-
+    os.makedirs(os.path.join(output, "images"), exist_ok=True)
+    bench = _Bench(integrators, seconds, width, height, reference_spp, reference_seconds, cycles,
+                   sampler, threads, max_bounces, seed)
     t_bench = time.perf_counter()
-    summary = _machine_summary()
+    summary = machine_summary()
     summary.update(resolution=f"{width}x{height}", max_bounces=max_bounces, threads=threads,
                    equal_time_s=seconds, reference_spp_requested=reference_spp,
                    reference_seconds_cap=reference_seconds, integrators=" ".join(integrators),
@@ -184,141 +164,215 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
                    sampler=sampler)
     print(f"Sampling Lab bench-scenes: {', '.join(scenes)}; integrators {', '.join(integrators)}"
           f"{' and Cycles' if cycles else ''}; {width}x{height}, {seconds:g} s each, "
-          f"{max_bounces} bounces, {threads} threads")
-    print(f"machine: {summary['cpu']}, {summary['cpus']} CPUs, load average at start "
-          f"{summary['load_start']}; {summary['date']}")
-    rows, scene_rows, montage, status = [], [], [], 0
+          f"{max_bounces} bounces, {threads} threads\nmachine: {summary['cpu']}, "
+          f"{summary['cpus']} CPUs, load average at start {summary['load_start']}; "
+          f"{summary['date']}")
+    rows, scene_rows, montage = [], [], []
     for name in scenes:
-        builder, _ = SCENES[name]
-        _stage(f"{name}: build and export")
+        scene_out, info, tiles = bench.scene(name)
+        rows += scene_out
+        scene_rows.append(info)
+        montage.append(tiles)
+        print_scene(info, scene_out, seconds)
+    summary.update(load_end=loadavg(), bench_seconds=time.perf_counter() - t_bench)
+    _write_tables(output, rows, summary, scene_rows)
+    write_montage(os.path.join(output, DOCS_FILES[1]), montage)
+    if report:
+        write_report(os.path.join(output, DOCS_FILES[0]), DOCS_FILES[1], rows, scene_rows,
+                     summary, integrators, cycles, seconds, command,
+                     {name: description for name, (_, description) in SCENES.items()})
+    print(f"\nwrote {output}/hard_scenes.csv, hard_scenes_summary.csv, {DOCS_FILES[1]}"
+          f"{' and ' + DOCS_FILES[0] if report else ''}; took {summary['bench_seconds']:.0f} s, "
+          f"load average at end {summary['load_end']}")
+    if update_docs and report and bench.status == 0:
+        publish(output, DOCS_FILES)
+    return bench.status
+
+
+def _write_tables(output, rows, summary, scene_rows):
+    write_csv(os.path.join(output, "hard_scenes.csv"), rows)
+    write_csv(os.path.join(output, "hard_scenes_summary.csv"),
+               [{"key": k, "value": v} for k, v in summary.items()]
+               + [{"key": f"{s['scene']}.{k}", "value": v} for s in scene_rows
+                  for k, v in s.items() if k != "scene"])
+
+
+def _arguments_valid(scenes, integrators, sampler, width, height, seconds, reference_spp):
+    """Whether the names and sizes can be benchmarked; says why not on stderr."""
+    unknown = ([s for s in scenes if s not in SCENES]
+               + [i for i in integrators if i not in INTEGRATORS]
+               + ([] if sampler in available_samplers() else [sampler]))
+    if unknown or not scenes or not integrators:
+        print(f"sampling_lab bench-scenes: unknown or missing names {unknown}; scenes: "
+              f"{', '.join(SCENES)}; integrators: {', '.join(INTEGRATORS)}; samplers: "
+              f"{', '.join(available_samplers())}", file=sys.stderr)
+        return False
+    if width < 1 or height < 1 or not seconds > 0 or reference_spp < 1:
+        print("sampling_lab bench-scenes: --size, --seconds and --reference-spp must be positive",
+              file=sys.stderr)
+        return False
+    return True
+
+
+@dataclass
+class _Bench:
+    """One run's settings; :meth:`scene` benchmarks one scene. ``status`` becomes 1 when a
+    render fails (the others are still reported)."""
+
+    integrators: list
+    seconds: float
+    width: int
+    height: int
+    reference_spp: int
+    reference_seconds: float
+    cycles: bool
+    sampler: str
+    threads: int
+    max_bounces: int
+    seed: int
+    status: int = 0
+
+    @property
+    def pixels(self):
+        return self.width * self.height
+
+    def settings(self, **kw):
+        return RenderSettings(**{**dict(seed=self.seed, max_bounces=self.max_bounces,
+                                        threads=self.threads), **kw})
+
+    def scene(self, name):
+        """Build, render and measure scene ``name``: its rows, its info and its montage row."""
+        from . import blender_scene, bpy_scenes
+        from ..addon.export import export_scene
+
+        bpy = blender_scene.import_bpy()
+        stage(f"{name}: build and export")
         bpy.ops.wm.read_homefile(use_empty=True)
         bl_scene = bpy.context.scene
-        builder(bpy_scenes, bl_scene, (width, height))
+        SCENES[name][0](bpy_scenes, bl_scene, (self.width, self.height))
         core_scene = export_scene(bpy.context.evaluated_depsgraph_get())
-        pixels = width * height
         info = {"scene": name, "triangles": core_scene.n_triangles,
-                "load_start": _loadavg(), "notes": "; ".join(core_scene.messages)}
-        settings = dict(seed=seed, max_bounces=max_bounces, threads=threads)
+                "load_start": loadavg(), "notes": "; ".join(core_scene.messages)}
+        cy = self.calibrate_cycles(name, core_scene, bl_scene, info) if self.cycles else None
+        images, scene_out = self.equal_time(name, core_scene, cy)
+        ref, ref_floor, ref_samples = self.reference(name, core_scene, info)
+        cy_ref, spp_ref = (self.cycles_reference(name, cy, ref_samples, info) if cy is not None
+                           else (None, None))
+        _errors(scene_out, ref, ref_floor, cy_ref, self.seconds)
+        if cy_ref is not None:
+            _agreement(info, scene_out, ref, ref_floor, cy_ref, spp_ref)
+        info["load_end"] = loadavg()
+        return scene_out, info, [ref, cy_ref] + [images.get(k) for k in self.integrators
+                                                  + ["Cycles"]]
 
-        cy = None
-        if cycles:
-            _stage(f"{name}: Cycles calibration")
-            try:
-                cy = CyclesRunner(core_scene, threads, max_bounces, blender_scene=bl_scene)
-                cy.measure_fixed_cost(seed)
-                cy.measure_fixed_spp(max(1, CALIBRATION_SAMPLES // pixels), seed)
-                info.update(cycles_cold_s=cy.t_cold, cycles_fixed_cost_s=cy.t_one,
-                            cycles_net_samples_per_s=cy.net_sps)
-            except Exception:  # noqa: BLE001 - report and carry on with our integrators
-                traceback.print_exc()
-                print(f"{name}: Cycles failed (traceback above); continuing without it")
-                cy, status = None, 1
+    def calibrate_cycles(self, name, core_scene, bl_scene, info):
+        stage(f"{name}: Cycles calibration")
+        try:
+            cy = CyclesRunner(core_scene, self.threads, self.max_bounces, blender_scene=bl_scene)
+            cy.measure_fixed_cost(self.seed)
+            cy.measure_fixed_spp(max(1, CALIBRATION_SAMPLES // self.pixels), self.seed)
+        except Exception:  # noqa: BLE001 - report and carry on with our integrators
+            traceback.print_exc()
+            print(f"{name}: Cycles failed (traceback above); continuing without it")
+            self.status = 1
+            return None
+        info.update(cycles_cold_s=cy.t_cold, cycles_fixed_cost_s=cy.t_one,
+                    cycles_net_samples_per_s=cy.net_sps)
+        return cy
 
-        images = {}
-        scene_out = []
-        for integ in integrators:
-            _stage(f"{name}: {integ}, {seconds:g} s")
+    def equal_time(self, name, core_scene, cy):
+        """Every integrator, and Cycles, for ``seconds``: images by renderer, and rows."""
+        images, scene_out = {}, []
+        for integ in self.integrators:
+            stage(f"{name}: {integ}, {self.seconds:g} s")
             try:
                 t0 = time.perf_counter()
-                res = render(core_scene, RenderSettings(integrator=integ, spp=0,
-                                                        time_limit=seconds, sampler=sampler,
-                                                        **settings))
+                res = render(core_scene, self.settings(integrator=integ, spp=0,
+                                                       time_limit=self.seconds,
+                                                       sampler=self.sampler))
                 wall = time.perf_counter() - t0
             except Exception:  # noqa: BLE001 - an integrator in progress must not stop the rest
                 traceback.print_exc()
                 print(f"{name}: integrator {integ!r} failed (traceback above)")
-                status = 1
+                self.status = 1
                 continue
             img = res.combined()[..., :3]
             images[integ] = img
-            scene_out.append(_row(name, integ, "equal time", res.stats["samples"] / pixels,
+            scene_out.append(_row(name, integ, "equal time", res.stats["samples"] / self.pixels,
                                   wall, res.stats["samples"], img,
                                   wall - res.stats.get("time_s", wall)))
         if cy is not None:
-            _stage(f"{name}: Cycles, {seconds:g} s")
+            stage(f"{name}: Cycles, {self.seconds:g} s")
             try:
-                spp_eq, t_eq, img = cy.equal_time(seconds, seed)
+                spp_eq, t_eq, img = cy.equal_time(self.seconds, self.seed)
                 images["Cycles"] = img[..., :3]
                 scene_out.append(_row(name, "Cycles", "equal time", spp_eq, t_eq,
-                                      spp_eq * pixels, img[..., :3], cy.t_one))
+                                      spp_eq * self.pixels, img[..., :3], cy.t_one))
             except Exception:  # noqa: BLE001
                 traceback.print_exc()
-                status = 1
+                self.status = 1
+        return images, scene_out
 
-        # References: ours with its variance, then Cycles at the sample count ours reached.
-        _stage(f"{name}: reference ({REFERENCE_INTEGRATOR}), {reference_spp} spp or "
-               f"{reference_seconds:g} s")
+    def reference(self, name, core_scene, info):
+        """Our reference with its variance: image, noise floor (relMSE) and camera samples."""
+        stage(f"{name}: reference ({REFERENCE_INTEGRATOR}), {self.reference_spp} spp or "
+               f"{self.reference_seconds:g} s")
         t0 = time.perf_counter()
-        ref_res = render(core_scene, RenderSettings(
-            integrator=REFERENCE_INTEGRATOR, spp=reference_spp, time_limit=reference_seconds,
-            **dict(settings, seed=seed + 1)))
+        ref_res = render(core_scene, self.settings(
+            integrator=REFERENCE_INTEGRATOR, spp=self.reference_spp,
+            time_limit=self.reference_seconds, seed=self.seed + 1))
         ref_wall = time.perf_counter() - t0
         ref = ref_res.combined()[..., :3].astype(np.float64)
         ref_floor = float(np.mean(ref_res.variance().astype(np.float64) / (ref * ref + EPS)))
-        ref_spp = ref_res.stats["samples"] / pixels
-        info.update(pt_reference_spp=ref_spp, pt_reference_s=ref_wall,
-                    pt_reference_noise=ref_floor)
-        cy_ref = None
-        if cy is not None:
-            spp_ref = max(1, int(ref_res.stats["samples"] // pixels))
-            if reference_seconds > 0:
-                spp_ref = min(spp_ref, cy.spp_for(reference_seconds))
-            _stage(f"{name}: Cycles reference, {spp_ref} spp")
-            try:
-                t_ref, cy_ref = cy.render(spp_ref, seed + 1)
-                cy_ref = cy_ref[..., :3].astype(np.float64)
-                info.update(cycles_reference_spp=spp_ref, cycles_reference_s=t_ref)
-            except Exception:  # noqa: BLE001
-                traceback.print_exc()
-                status = 1
+        info.update(pt_reference_spp=ref_res.stats["samples"] / self.pixels,
+                    pt_reference_s=ref_wall, pt_reference_noise=ref_floor)
+        return ref, ref_floor, ref_res.stats["samples"]
 
-        for row in scene_out:
-            img = row.pop("_image")
-            raw = rel_mse(img, ref, EPS)
-            row["relmse_vs_ref"] = raw
-            row["relmse_corrected"] = raw - ref_floor
-            # Unbiased Monte Carlo error falls as 1 / (sampling time): scale to exactly the
-            # budget, the fixed cost of the render excluded from both times.
-            sampling, budget = row["time_s"] - row["fixed_s"], seconds - row["fixed_s"]
-            row["relmse_at_budget"] = (row["relmse_corrected"] * sampling / budget
-                                       if sampling > 0 and budget > 0 else float("nan"))
-            row["relmse_vs_cycles_ref"] = (rel_mse(img, cy_ref, EPS) if cy_ref is not None
-                                           else float("nan"))
-            row["mean_over_ref"] = _mean_ratio(img, ref)
-        if cy_ref is not None:
-            cy_row = next((r for r in scene_out if r["renderer"] == "Cycles"), None)
-            info["reference_consistency_relmse"] = rel_mse(cy_ref, ref, EPS)
-            # Noise alone: our reference's, plus the Cycles reference's estimated from the
-            # equal-time Cycles error scaled by sample count (variance ~ 1 / spp).
-            info["reference_consistency_noise_only"] = ref_floor + (
-                max(cy_row["relmse_corrected"], 0.0) * cy_row["spp"] / spp_ref
-                if cy_row is not None else float("nan"))
-            info["reference_mean_ratio_pt_over_cycles"] = _mean_ratio(ref, cy_ref)
-            info["reference_channel_ratios"] = " ".join(
-                f"{a / b:.4f}" for a, b in zip(ref.mean(axis=(0, 1)), cy_ref.mean(axis=(0, 1))))
-        info["load_end"] = _loadavg()
-        rows += scene_out
-        scene_rows.append(info)
-        montage.append([ref, cy_ref] + [images.get(k) for k in integrators + ["Cycles"]])
-        _print_scene(info, scene_out, seconds)
+    def cycles_reference(self, name, cy, ref_samples, info):
+        """Cycles at the sample count our reference reached (capped by the same time)."""
+        spp_ref = max(1, int(ref_samples // self.pixels))
+        if self.reference_seconds > 0:
+            spp_ref = min(spp_ref, cy.spp_for(self.reference_seconds))
+        stage(f"{name}: Cycles reference, {spp_ref} spp")
+        try:
+            t_ref, cy_ref = cy.render(spp_ref, self.seed + 1)
+        except Exception:  # noqa: BLE001
+            traceback.print_exc()
+            self.status = 1
+            return None, spp_ref
+        info.update(cycles_reference_spp=spp_ref, cycles_reference_s=t_ref)
+        return cy_ref[..., :3].astype(np.float64), spp_ref
 
-    summary.update(load_end=_loadavg(), bench_seconds=time.perf_counter() - t_bench)
-    _write_csv(os.path.join(output, "hard_scenes.csv"), rows)
-    _write_csv(os.path.join(output, "hard_scenes_summary.csv"),
-               [{"key": k, "value": v} for k, v in summary.items()]
-               + [{"key": f"{s['scene']}.{k}", "value": v} for s in scene_rows
-                  for k, v in s.items() if k != "scene"])
-    os.makedirs(os.path.join(output, "images"), exist_ok=True)
-    _write_montage(os.path.join(output, DOCS_FILES[1]), montage)
-    if report:
-        _write_report(os.path.join(output, DOCS_FILES[0]), rows, scene_rows, summary,
-                      integrators, cycles, seconds, command)
-    print(f"\nwrote {output}/hard_scenes.csv, hard_scenes_summary.csv, {DOCS_FILES[1]}"
-          f"{' and ' + DOCS_FILES[0] if report else ''}; took {summary['bench_seconds']:.0f} s, "
-          f"load average at end {summary['load_end']}")
-    if update_docs and report and status == 0:
-        publish(output, DOCS_FILES)
-    return status
+
+def _errors(scene_out, ref, ref_floor, cy_ref, seconds):
+    """Each equal-time row's errors against the references."""
+    for row in scene_out:
+        img = row.pop("_image")
+        raw = rel_mse(img, ref, EPS)
+        row["relmse_vs_ref"] = raw
+        row["relmse_corrected"] = raw - ref_floor
+        # Unbiased Monte Carlo error falls as 1 / (sampling time): scale to exactly the
+        # budget, the fixed cost of the render excluded from both times.
+        sampling, budget = row["time_s"] - row["fixed_s"], seconds - row["fixed_s"]
+        row["relmse_at_budget"] = (row["relmse_corrected"] * sampling / budget
+                                   if sampling > 0 and budget > 0 else float("nan"))
+        row["relmse_vs_cycles_ref"] = (rel_mse(img, cy_ref, EPS) if cy_ref is not None
+                                       else float("nan"))
+        row["mean_over_ref"] = mean_ratio(img, ref)
+
+
+def _agreement(info, scene_out, ref, ref_floor, cy_ref, spp_ref):
+    """How well our reference and Cycles' agree, against what their noise alone would give."""
+    cy_row = next((r for r in scene_out if r["renderer"] == "Cycles"), None)
+    info["reference_consistency_relmse"] = rel_mse(cy_ref, ref, EPS)
+    # Noise alone: our reference's, plus the Cycles reference's estimated from the
+    # equal-time Cycles error scaled by sample count (variance ~ 1 / spp).
+    info["reference_consistency_noise_only"] = ref_floor + (
+        max(cy_row["relmse_corrected"], 0.0) * cy_row["spp"] / spp_ref
+        if cy_row is not None else float("nan"))
+    info["reference_mean_ratio_pt_over_cycles"] = mean_ratio(ref, cy_ref)
+    info["reference_channel_ratios"] = " ".join(
+        f"{a / b:.4f}" for a, b in zip(ref.mean(axis=(0, 1)), cy_ref.mean(axis=(0, 1))))
 
 
 def _row(scene, renderer, run_name, spp, seconds, samples, image, fixed_s):
@@ -327,144 +381,3 @@ def _row(scene, renderer, run_name, spp, seconds, samples, image, fixed_s):
     return {"scene": scene, "renderer": renderer, "run": run_name, "spp": float(spp),
             "time_s": seconds, "fixed_s": fixed_s,
             "samples_per_s": samples / seconds if seconds > 0 else math.nan, "_image": image}
-
-
-def _print_scene(info, rows, seconds):
-    print(f"\n{info['scene']}: reference {info['pt_reference_spp']:.0f} spp "
-          f"({info['pt_reference_s']:.1f} s), its noise {info['pt_reference_noise']:.2e}")
-    if "reference_mean_ratio_pt_over_cycles" in info:
-        print(f"   references: image mean ours / Cycles = "
-              f"{info['reference_mean_ratio_pt_over_cycles']:.4f} (RGB "
-              f"{info['reference_channel_ratios']}); relMSE between them "
-              f"{info['reference_consistency_relmse']:.2e}, noise alone ~ "
-              f"{info['reference_consistency_noise_only']:.2e}")
-    for r in rows:
-        print(f"   {r['renderer']:<8} {r['spp']:8.1f} spp {r['time_s']:6.2f} s "
-              f"{r['samples_per_s'] / 1e6:7.3f} M samples/s  relMSE {r['relmse_vs_ref']:.3e} "
-              f"corrected {r['relmse_corrected']:.3e}  @{seconds:g} s "
-              f"{r['relmse_at_budget']:.3e}  vs Cycles ref {r['relmse_vs_cycles_ref']:.3e}")
-
-
-def _write_montage(path, montage):
-    """One row per scene (first scene on top): references, then the equal-time images."""
-    if not montage:
-        return
-    h, w = next(im for im in montage[0] if im is not None).shape[:2]
-    gap_v = np.ones((h, 2, 3))
-    strips = []
-    for tiles in montage:
-        parts = []
-        for im in tiles:
-            parts += [np.zeros((h, w, 3)) if im is None else np.asarray(im, np.float64)[..., :3],
-                      gap_v]
-        strips.append(np.concatenate(parts[:-1], axis=1))
-    gap_h = np.ones((2, strips[0].shape[1], 3))
-    # Row 0 is the bottom of the image: stack the last scene first.
-    out = []
-    for strip in reversed(strips):
-        out += [strip, gap_h]
-    write_png_preview(path, np.concatenate(out[:-1], axis=0))
-
-
-def _fmt(v, digits=2):
-    return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else \
-        f"{v:.{digits}e}"
-
-
-def _write_report(path, rows, scene_rows, summary, integrators, cycles, seconds, command):
-    image_rel = DOCS_FILES[1]
-    cmd = command or "python -m sampling_lab bench-scenes"
-    lines = [
-        "# Hard scenes: equal-time error against Cycles",
-        "",
-        f"Generated by `{cmd}` ({summary['date']}, {summary['bench_seconds']:.0f} s in all). "
-        f"Machine: {summary['cpu']}, {summary['cpus']} CPUs, Python {summary['python']}, NumPy "
-        f"{summary['numpy']}, embreex {summary['embreex']}, bpy {summary['bpy']}; "
-        f"**load average {summary['load_start']} at the start and {summary['load_end']} at the "
-        "end** (1, 5, 15 min; the machine is shared, so every rate is a lower bound).",
-        "",
-        f"Every render gets **{seconds:g} s of wall clock** ({summary['resolution']}, "
-        f"{summary['max_bounces']} bounces, {summary['threads']} threads, Blackman-Harris 1.5, "
-        f"{summary['sampler']} sampler for ours, Cycles' defaults otherwise under "
-        "`tools.blender_scene.configure_cycles`: no clamping, no glossy blur, no light "
-        "threshold, no adaptive sampling, no denoising, caustics on). Times are the wall clock "
-        "of the whole render call (ours: scene preparation included; Cycles: synchronisation, "
-        "BVH and EXR writing included). Cycles renders the sample count its rate, measured on "
-        "the same scene just before, fits into the budget. See `tools/hard_scenes.py` for the "
-        "method.",
-        "",
-        f"Reference: our `{summary['reference_integrator']}` integrator with another seed, to "
-        f"{summary['reference_spp_requested']} spp or {summary['reference_seconds_cap']:g} s; "
-        "Cycles rendered the same sample count (another seed) as a second reference, and the "
-        "two are compared below. relMSE = mean over pixels and RGB of (x − ref)² / (ref² + "
-        f"{EPS:g}). *corrected*: minus the reference's own noise (its per-pixel variance), an "
-        f"unbiased estimate of the error against the converged image; *@{seconds:g} s*: "
-        f"corrected × (time − fixed) / ({seconds:g} s − fixed), the error at exactly the "
-        "budget, where *fixed* is the part of a render that takes no samples (our scene "
-        "preparation, Cycles' fixed cost of a render, measured on a 1-spp render): the column "
-        "to compare; *vs Cycles ref*: raw relMSE against the Cycles reference (a cross-check "
-        "that does not depend on our reference); *mean / ref*: image mean over the "
-        "reference's.",
-        "",
-        "| scene | renderer | spp | time s | M samples/s | relMSE | corrected | "
-        f"@{seconds:g} s | vs Cycles ref | mean / ref |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r['scene']} | {r['renderer']} | {r['spp']:.1f} | {r['time_s']:.2f} | "
-            f"{r['samples_per_s'] / 1e6:.3f} | {_fmt(r['relmse_vs_ref'])} | "
-            f"{_fmt(r['relmse_corrected'])} | **{_fmt(r['relmse_at_budget'])}** | "
-            f"{_fmt(r['relmse_vs_cycles_ref'])} | {r['mean_over_ref']:.4f} |")
-    lines += ["", "Error at equal time relative to Cycles (@ budget, ours / Cycles; above 1: "
-              "Cycles is better):", ""]
-    for s in scene_rows:
-        cy = next((r for r in rows if r["scene"] == s["scene"] and r["renderer"] == "Cycles"),
-                  None)
-        parts = []
-        for integ in integrators:
-            r = next((r for r in rows if r["scene"] == s["scene"] and r["renderer"] == integ),
-                     None)
-            if r is None:
-                parts.append(f"`{integ}` failed")
-            elif cy is not None and cy["relmse_at_budget"] > 0 and math.isfinite(
-                    r["relmse_at_budget"]):
-                parts.append(f"`{integ}` {r['relmse_at_budget'] / cy['relmse_at_budget']:.3g} ×")
-            else:
-                parts.append(f"`{integ}` –")
-        lines.append(f"- {s['scene']}: " + ", ".join(parts))
-    lines += ["", "## References and their agreement", "",
-              "| scene | triangles | ours: spp | s | noise | Cycles: spp | s | mean ours / "
-              "Cycles (RGB) | relMSE between | noise alone | load at start / end |",
-              "|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---|"]
-    for s in scene_rows:
-        cells = [s["scene"], str(s["triangles"]), f"{s['pt_reference_spp']:.0f}",
-                 f"{s['pt_reference_s']:.1f}", _fmt(s["pt_reference_noise"])]
-        if "cycles_reference_s" in s:
-            cells += [str(s["cycles_reference_spp"]), f"{s['cycles_reference_s']:.1f}"]
-        else:
-            cells += ["–", "–"]
-        if "reference_mean_ratio_pt_over_cycles" in s:
-            cells += [f"{s['reference_mean_ratio_pt_over_cycles']:.4f} "
-                      f"({s['reference_channel_ratios']})",
-                      _fmt(s["reference_consistency_relmse"]),
-                      _fmt(s["reference_consistency_noise_only"])]
-        else:
-            cells += ["–", "–", "–"]
-        cells.append(f"{s['load_start']} / {s['load_end']}")
-        lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "If the relMSE between the references is close to what their noise alone "
-              "gives and the mean ratio is close to 1, the two renderers converge to the same "
-              "image and the equal-time figures compare like with like.", "", "## Scenes", ""]
-    for s in scene_rows:
-        lines.append(f"- `{s['scene']}`: {SCENES[s['scene']][1]}."
-                     + (f" Export notes: {s['notes']}." if s["notes"] else ""))
-    columns = ["our reference", "Cycles reference"] + [f"`{i}` at {seconds:g} s"
-                                                        for i in integrators]
-    if cycles:
-        columns.append(f"Cycles at {seconds:g} s")
-    lines += ["", f"![hard scenes]({image_rel})", "",
-              "One row per scene, in the order of the table; columns: " + ", ".join(columns)
-              + " (linear values, sRGB-encoded, no tone mapping).", ""]
-    with open(path, "w") as f:
-        f.write("\n".join(lines))

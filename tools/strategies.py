@@ -49,7 +49,7 @@ from ..core.sampling.samplers import available as available_samplers
 from ..core.scenes import cornell_box
 from .outputs import publish
 
-# relMSE regulariser, as bench/cornell.py: (img - ref)^2 / (ref^2 + EPS).
+# relMSE regulariser, as tools/common.py: (img - ref)^2 / (ref^2 + EPS).
 EPS = 1e-2
 SCENES = {"cornell_mesh": "mesh", "cornell_area": "area"}
 # What docs/ shows, relative to the output folder (and to docs/).
