@@ -72,6 +72,12 @@ def _samplers(args):
     return main(args)
 
 
+def _size(parser, default, flag="--size", text=None):
+    """The image size flag: ``WxH``."""
+    text = text or f"image size (default: {default[0]}x{default[1]})"
+    parser.add_argument(flag, type=_resolution, default=default, metavar="WxH", help=text)
+
+
 def _add(sub, name, summary, run, **kw):
     p = sub.add_parser(name, help=summary, description=summary[0].upper() + summary[1:], **kw)
     p.set_defaults(run=run)
@@ -87,8 +93,7 @@ def add_parsers(sub, **kw):
                             _samplers, **kw))
     b = _add(sub, "bench", "speed against error of embreex, our path tracer and Cycles on the "
              "Cornell box (figures, not tests)", _bench, **kw)
-    b.add_argument("--resolution", type=_resolution, default=(256, 256), metavar="WxH",
-                   help="image size (default: 256x256)")
+    _size(b, (256, 256), "--resolution")
     b.add_argument("--seconds", type=_positive_float, default=10.0,
                    help="equal-time budget per renderer")
     b.add_argument("--reference-spp", type=_positive_int, default=1024,
@@ -98,8 +103,7 @@ def add_parsers(sub, **kw):
     s = _add(sub, "bench-strategies", "equal-time error of every sampler and MIS setting on "
              "the Cornell box (STRATEGIES.md)", _bench_strategies, **kw)
     s.add_argument("--quick", action="store_true", help="tiny smoke run (seconds, not minutes)")
-    s.add_argument("--resolution", type=_resolution, default=None, metavar="WxH",
-                   help="image size (default: 128x128; 32x32 with --quick)")
+    _size(s, None, "--resolution", text="image size (default: 128x128; 32x32 with --quick)")
     s.add_argument("--seconds", type=_positive_float, default=None,
                    help="equal-time budget in CPU seconds (default: the baseline's time at its "
                         "largest sample count)")
@@ -109,16 +113,14 @@ def add_parsers(sub, **kw):
              "(images/bdpt_views_<scene>.png)", _bdpt_views, **kw)
     v.add_argument("--scene", default="glass_caustic", choices=sorted(builtin_scenes.BUILTIN),
                    help="built-in scene")
-    v.add_argument("--size", type=_resolution, default=(96, 96), metavar="WxH",
-                   help="image size (default: 96x96)")
+    _size(v, (96, 96))
     v.add_argument("--spp", type=_positive_int, default=32, help="samples per pixel")
     v.add_argument("--max-length", type=_positive_int, default=4,
                    help="longest path shown, in segments")
     add_output_arguments(v, "bdpt-views", "the figure (images/bdpt_views_<scene>.png)")
     c = _add(sub, "bench-caustic", "equal-time error of path, light and BDPT on the "
              "small-light glass caustic (CAUSTIC.md)", _bench_caustic, **kw)
-    c.add_argument("--size", type=_resolution, default=(64, 64), metavar="WxH",
-                   help="image size (default: 64x64)")
+    _size(c, (64, 64))
     c.add_argument("--seconds", type=_positive_float, default=8.0,
                    help="equal wall-clock budget of every render")
     c.add_argument("--reference-seconds", type=_positive_float, default=120.0,
@@ -138,8 +140,7 @@ def _add_bench_scenes(sub, **kw):
                    help=f"from: {', '.join(INTEGRATORS)} (default: all of them)")
     h.add_argument("--seconds", type=_positive_float, default=4.0,
                    help="equal wall-clock budget of every render")
-    h.add_argument("--size", type=_resolution, default=(64, 64), metavar="WxH",
-                   help="image size (default: 64x64)")
+    _size(h, (64, 64))
     h.add_argument("--reference-spp", type=_positive_int, default=1024,
                    help="samples per pixel of the references (capped by time)")
     h.add_argument("--reference-seconds", type=float, default=None,
