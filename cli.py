@@ -96,11 +96,8 @@ def _option_type(option):
     return parse
 
 
-# The render command's option flags, in help order (all of core.options.OPTIONS).
-RENDER_OPTIONS = ("integrator", "sampler", "max_bounces", "use_russian_roulette",
-                  "rr_min_bounces", "mis_heuristic", "mis_beta", "mis_alpha", "light_selection",
-                  "light_sampling", "distribution", "filter_type", "filter_width",
-                  "strategy_views", "strategy_max_length", "seed", "threads")
+# The halting options exclude each other; every other registry option is a flag of its own.
+HALTING = ("spp", "time_limit")
 
 
 def _option_help(option):
@@ -117,8 +114,7 @@ def add_option(parser, option, **kw):
     """The flag of registry ``option``: default None, so a .blend file's setting stays unless
     the flag is given."""
     if option.kind is bool:
-        action = (argparse.BooleanOptionalAction if option.default
-                  else "store_true")
+        action = argparse.BooleanOptionalAction if option.default else "store_true"
         return parser.add_argument(option.flag_name, action=action, default=None,
                                    help=_option_help(option), **kw)
     metavar = option.name.split("_")[-1].upper() if not option.choices else "NAME"
@@ -134,10 +130,8 @@ def _add_render_parser(sub):
                                  f"{', '.join(builtin_scenes.BUILTIN)}")
     r.add_argument("-o", "--output", required=True, metavar="OUT.exr", help="output .exr path")
     halt = r.add_mutually_exclusive_group()
-    add_option(halt, OPTIONS["spp"])
-    add_option(halt, OPTIONS["time_limit"])
-    for name in RENDER_OPTIONS:
-        add_option(r, OPTIONS[name])
+    for name, option in OPTIONS.items():
+        add_option(halt if name in HALTING else r, option)
     r.add_argument("--resolution", type=_resolution, default=None, metavar="WxH",
                    help="image size (default: 256x256; a .blend file: its own)")
     r.add_argument("--frame", type=int, default=None,
@@ -148,6 +142,7 @@ def _add_render_parser(sub):
 
 
 def build_parser():
+    """The whole command line: ``render`` and the tools' commands (:mod:`.tools.commands`)."""
     parser = _Parser(prog=PROG, description=DESCRIPTION, formatter_class=_Help)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser,
                                 metavar="COMMAND")
