@@ -70,7 +70,7 @@ def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
         r = np.nan_to_num(ratio[sp], nan=0.0, posinf=np.inf)
         valid.append(ok & (r > 0))
         terms.append(np.where(ok, r, 0.0))
-    w = mis.weight(np.stack(terms), s, np.stack(valid))
+    w = mis.weight(terms, s, valid)
     return np.where(np.isfinite(w), w, 0.0)
 
 

@@ -31,6 +31,7 @@ cannot make the sample (``'bsdf'`` apart from delta lights, which it cannot see)
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,39 +81,46 @@ class MIS:
 
         Parameters
         ----------
-        densities : (k, m) float64
+        densities : sequence of k arrays (m,) float64
             Density with which each strategy makes each sample, in one common measure and any
             common scale (ratios to one of them are enough); zero for a strategy that cannot make
             the sample; finite or ``inf``, never NaN where a weight is wanted.
         s : int
             The strategy that made the samples.
-        possible : (k, m) bool or None
+        possible : sequence of k arrays (m,) bool, or None
             Which strategies can make each sample (counted by ``'none'`` and in the ties of
             ``'maximum'``); None: all of them.
+
+        Notes
+        -----
+        Sums run over the strategies in order (``((r_0 + r_1) + r_2) + ...``), one vectorised
+        operation per strategy: no stacked copies of the densities.
         """
         r = densities
         h = self.setting
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             if h == "balance":
-                return r[s] / r.sum(axis=0)
+                return r[s] / _total(r)
             if h == "power":
-                rb = r ** self.beta
-                return rb[s] / rb.sum(axis=0)
+                rb = [x ** self.beta for x in r]
+                return rb[s] / _total(rb)
             if h == "none":
                 if possible is None:
-                    return np.full(r.shape[1:], 1.0 / r.shape[0])
-                return possible[s] / possible.sum(axis=0)
-            top = r.max(axis=0)
+                    return np.full(np.broadcast_shapes(*(np.shape(x) for x in r)), 1.0 / len(r))
+                return possible[s] / _count(possible)
+            top = functools.reduce(np.maximum, r)
             if h == "maximum":
-                best = r >= top
-                ties = (best if possible is None else possible & best).sum(axis=0)
-                return np.where(r[s] >= top, 1.0 / np.maximum(ties, 1), 0.0)
-            if h == "cutoff":
-                keep = r >= self.alpha * top
+                best = [x >= top for x in r]
                 if possible is not None:
-                    keep = possible & keep
-                return np.where(r[s] >= self.alpha * top,
-                                r[s] / np.where(keep, r, 0.0).sum(axis=0), 0.0)
+                    best = [p & b for p, b in zip(possible, best)]
+                return np.where(r[s] >= top, 1.0 / np.maximum(_count(best), 1), 0.0)
+            if h == "cutoff":
+                floor = self.alpha * top
+                keep = [x >= floor for x in r]
+                if possible is not None:
+                    keep = [p & k for p, k in zip(possible, keep)]
+                kept = _total([np.where(k, x, 0.0) for k, x in zip(keep, r)])
+                return np.where(r[s] >= floor, r[s] / kept, 0.0)
         raise ValueError(f"the MIS setting {h!r} is a single strategy, not a heuristic "
                          f"that weighs several: choose from {', '.join(HEURISTICS)}")
 
@@ -132,7 +140,7 @@ class MIS:
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             ra = np.where(np.isinf(m), np.where(np.isinf(a), 1.0, 0.0), a / m)
             rb = np.where(np.isinf(m), np.where(np.isinf(b), 1.0, 0.0), b / m)
-        w = self.weight(np.stack(np.broadcast_arrays(ra, rb)), 0)
+        w = self.weight((ra, rb), 0)
         # Where A cannot produce the sample at all, or B cannot, the answer is exact.
         w = np.where(a <= 0, 0.0, np.where(b <= 0, 1.0, w))
         return np.nan_to_num(w, nan=0.0)
@@ -170,6 +178,16 @@ class MIS:
         if self.setting == "bsdf":
             return np.where(np.asarray(pdf_bsdf) > 0, 1.0, 0.0)
         return self.pair_weight(pdf_bsdf, pdf_light)
+
+
+def _total(arrays):
+    """Sum of the ``arrays``, added in order."""
+    return functools.reduce(np.add, arrays)
+
+
+def _count(masks):
+    """How many of the boolean ``masks`` are true, per element (int64)."""
+    return functools.reduce(np.add, masks[1:], np.asarray(masks[0], np.int64))
 
 
 def mis_weight(pdf_a, pdf_b, heuristic="power", beta=2.0, alpha=0.1):
