@@ -138,7 +138,8 @@ class Option:
             try:
                 value = self.kind(text)
             except ValueError:
-                raise ValueError(f"{self.name}: {text!r} is not a number in "
+                what = "an integer" if self.kind is int else "a number"
+                raise ValueError(f"{self.name}: {text!r} is not {what} in "
                                  f"{self.allowed()}") from None
         self.check(value)
         return value

@@ -249,7 +249,8 @@ def test_cli_strategy_max_length_out_of_range_exits_2_with_one_line(tmp_path, va
     assert run.returncode == 2
     lines = run.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("sampling_lab: error:"), run.stderr
-    assert "path length" in lines[0]
+    # The registry's message: the option and its range.
+    assert "strategy_max_length" in lines[0] and "in [1, 8]" in lines[0]
     assert not (tmp_path / "a.exr").exists()
 
 
