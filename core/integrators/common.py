@@ -111,6 +111,13 @@ def intersect_by_class(accel, o, d, tmax, vis):
     return hits
 
 
+def surface_hits(prep, hits):
+    """Stage *compact*: the rows ``(k,)`` of ``hits`` on a surface; rays that escaped or hit a
+    degenerate (zero-area) triangle end their paths."""
+    live = np.nonzero(hits.hit)[0]
+    return live[prep.tri_area[hits.prim[live]] > 0]
+
+
 @dataclass
 class Interaction:
     """Surface points of a batch of hits.

@@ -54,7 +54,7 @@ from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .common import (add_emitters_along_rays, camera_rays, geometric_side_valid,
                      intersect_by_class, max_component, ray_class, russian_roulette,
-                     surface_interaction)
+                     surface_hits, surface_interaction)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -178,8 +178,7 @@ class PathTracer(Integrator):
                 break  # this segment only gathered emission (Cycles' "terminate on next surface")
 
             # Compact to surface hits; degenerate triangles end the path.
-            live = np.nonzero(hits.hit)[0]
-            live = live[prep.tri_area[hits.prim[live]] > 0]
+            live = surface_hits(prep, hits)
             if live.size == 0:
                 break
             si = surface_interaction(prep, hits, d, live)

@@ -16,7 +16,7 @@ import numpy as np
 from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from .common import (geometric_side_valid, intersect_by_class, ray_class, russian_roulette,
-                     surface_interaction)
+                     surface_hits, surface_interaction)
 
 
 def dot(a, b):
@@ -155,8 +155,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)
         if j == depth:
             break
-        live = np.nonzero(hits.hit)[0]
-        live = live[prep.tri_area[hits.prim[live]] > 0]
+        live = surface_hits(prep, hits)
         if live.size == 0:
             break
         si = surface_interaction(prep, hits, d, live)
