@@ -10,7 +10,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 from bpy.types import PropertyGroup
 
-from ..core.options import OPTIONS
+from ..core.options import OPTIONS, identifier, menu_value
 
 
 def enum_items(option):
@@ -25,7 +25,7 @@ def _property(name, **ui):
     o = OPTIONS[name]
     common = dict(name=o.label, description=o.description, **ui)
     if o.choices:
-        return EnumProperty(items=enum_items(o), default=o.default.upper(), **common)
+        return EnumProperty(items=enum_items(o), default=identifier(o.default), **common)
     if o.kind is bool:
         return BoolProperty(default=o.default, **common)
     limits = {k: v for k, v in (("min", o.minimum), ("max", o.maximum)) if v is not None}
@@ -42,7 +42,7 @@ def core_values(props):
         if not hasattr(props, o.prop_name):
             continue
         value = getattr(props, o.prop_name)
-        out[name] = value.lower() if o.choices else o.kind(value)
+        out[name] = menu_value(value) if o.choices else o.kind(value)
     return out
 
 

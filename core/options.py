@@ -33,6 +33,16 @@ from .sampling.samplers import available as available_samplers
 from .sampling.samplers import sampler_class
 
 
+def identifier(value):
+    """Blender's identifier of a menu value: ``'blackman_harris'`` -> ``'BLACKMAN_HARRIS'``."""
+    return value.upper()
+
+
+def menu_value(text):
+    """The core value of a Blender identifier or of command-line text (any case)."""
+    return text.lower()
+
+
 @dataclass(frozen=True)
 class Choice:
     """One value of a menu option: ``value`` in core, ``label`` and ``description`` in the UI."""
@@ -44,7 +54,7 @@ class Choice:
     @property
     def identifier(self):
         """Blender's identifier of the value (presets and .blend files store it)."""
-        return self.value.upper()
+        return identifier(self.value)
 
 
 @dataclass(frozen=True)
@@ -133,7 +143,7 @@ class Option:
     def parse(self, text):
         """A value from command-line text, checked (``ValueError`` names the option)."""
         if self.choices:
-            value = text.lower()
+            value = menu_value(text)
         else:
             try:
                 value = self.kind(text)
