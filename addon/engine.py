@@ -29,32 +29,16 @@ def missing_modules():
 
 
 def render_settings(props):
-    """``core.render.RenderSettings`` from the scene's ``SamplingLabSettings``."""
+    """``core.render.RenderSettings`` from the scene's ``SamplingLabSettings``: every option of
+    the registry (``core.options``) read through ``properties.core_values``."""
     from ..core.render import RenderSettings
+    from .properties import core_values
 
-    return RenderSettings(
-        integrator=props.integrator.lower(),
-        sampler=props.sampler.lower(),
-        spp=int(props.samples),
-        time_limit=float(props.time_limit),
-        seed=frame_seed(props),
-        max_bounces=int(props.max_bounces),
-        use_russian_roulette=bool(props.use_russian_roulette),
-        rr_min_bounces=int(props.rr_min_bounces),
-        mis_heuristic=props.mis_heuristic.lower(),
-        mis_beta=float(props.mis_beta),
-        mis_alpha=float(props.mis_alpha),
-        light_selection=props.light_selection.lower(),
-        light_sampling=props.light_sampling.lower(),
-        distribution=props.distribution.lower(),
-        filter_type=props.filter_type,
-        filter_width=float(props.filter_width),
-        strategy_views=bool(props.use_strategy_views),
-        strategy_max_length=int(props.strategy_max_length),
-        # Render > Performance > Threads: Blender resolves Auto to the core count, as Cycles
-        # reads it.
-        threads=int(props.id_data.render.threads),
-    )
+    values = core_values(props)
+    # Animate Seed, and Render > Performance > Threads: Blender resolves Auto to the core
+    # count, as Cycles reads it.
+    values.update(seed=frame_seed(props), threads=int(props.id_data.render.threads))
+    return RenderSettings(**values)
 
 
 def frame_seed(props):

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..core.progressive import (  # noqa: F401  (the viewport's worker, re-exported)
     START_RESOLUTION, Frame, ProgressiveRender, progressive_stages, texture_pixels)
+from ..core.scene import Camera
 from ..core.view_camera import camera_from_matrices, camera_view_camera
 
 # Seconds between the redraw timer's looks at the running renders.
@@ -198,6 +199,7 @@ class ViewportSession:
     def __init__(self):
         self.renderer = ProgressiveRender()
         self.scene = None          # core.scene.Scene as exported (camera: the render camera)
+        self.scene_has_camera = False
         self.settings = None
         self.key = None            # settings_key of the export
         self.view = None           # View of the running render
@@ -240,10 +242,13 @@ class ViewportSession:
             self.scene = None
             self.renderer.cancel()
             return False
-        camera_object = camera_object or scene.camera or next(
-            (ob for ob in scene.objects if ob.type == 'CAMERA'), None)
+        camera_object = camera_object or scene.camera
+        # A free view needs no camera object: it replaces the camera by the view's own (a
+        # camera view of a scene without camera objects is reported by view_camera).
+        placeholder = None if camera_object is not None else Camera(np.eye(4), 1, 1)
         try:
-            self.scene = export.export_scene(depsgraph, camera_object)
+            self.scene = export.export_scene(depsgraph, camera_object, camera=placeholder)
+            self.scene_has_camera = placeholder is None
         except export.ExportError as ex:
             self.error = str(ex).removeprefix("Sampling Lab: ")
             self.scene = None
@@ -266,7 +271,7 @@ class ViewportSession:
         if self.scene is None or (not self.dirty and view == self.view):
             return False
         try:
-            camera = view_camera(view, self.scene.camera)
+            camera = view_camera(view, self.scene.camera if self.scene_has_camera else None)
         except ValueError as ex:
             self.error = str(ex)
             self.renderer.cancel()

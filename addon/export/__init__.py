@@ -59,7 +59,7 @@ __all__ = [
 SKIPPED_TYPES = {'CAMERA', 'EMPTY', 'ARMATURE', 'LATTICE', 'SPEAKER', 'LIGHT_PROBE'}
 
 
-def export_scene(depsgraph, camera_object=None):
+def export_scene(depsgraph, camera_object=None, camera=None):
     """Translate an evaluated depsgraph into a :class:`core.scene.Scene`.
 
     Parameters
@@ -70,6 +70,9 @@ def export_scene(depsgraph, camera_object=None):
     camera_object : bpy.types.Object or None
         Camera to render from; defaults to the scene camera (pass
         ``RenderEngine.camera_override`` here).
+    camera : core.scene.Camera or None
+        A camera to use as it is instead of a camera object (the rendered viewport's free
+        view, which needs no camera object in the scene); ``camera_object`` is then ignored.
 
     Returns
     -------
@@ -80,11 +83,12 @@ def export_scene(depsgraph, camera_object=None):
     Raises
     ------
     ExportError
-        The scene has no camera.
+        The scene has no camera (and ``camera`` is None).
     """
     scene = depsgraph.scene
     messages = Messages()
-    camera = export_camera(scene, render_camera(depsgraph, camera_object), messages)
+    if camera is None:
+        camera = export_camera(scene, render_camera(depsgraph, camera_object), messages)
     _report_render_settings(scene.render, messages)
     materials = MaterialTable(messages)
     geometry = Geometry(materials, messages)

@@ -270,7 +270,7 @@ def test_settings_defaults_and_mapping_to_core(empty_scene, engine_module):
     s = engine_module.render_settings(props)
     assert (s.integrator, s.sampler, s.spp, s.seed) == ("path", "independent", 32, 5)
     assert (s.max_bounces, s.rr_min_bounces, s.use_russian_roulette) == (4, 2, True)
-    assert (s.time_limit, s.filter_type, s.filter_width) == (2.5, "BOX", 1.0)
+    assert (s.time_limit, s.filter_type, s.filter_width) == (2.5, "box", 1.0)
     for prop in props.bl_rna.properties:
         if prop.identifier not in {"rna_type", "name"}:
             assert prop.description, f"{prop.identifier} has no description"

@@ -246,11 +246,26 @@ def test_session_restarts_on_a_new_view_and_renders_viewport_samples(empty_scene
         session.free(timeout=60)
 
 
-def test_session_without_a_camera_reports_instead_of_raising(empty_scene, viewport):
+def test_free_view_renders_a_scene_without_a_camera_and_camera_view_reports_it(empty_scene,
+                                                                               viewport):
+    # The final render needs a camera object; the viewport's free view brings its own.
     scenes.add_light(empty_scene, 'POINT', "Lamp", (0.0, 0.0, 2.0))
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    empty_scene.sampling_lab.viewport_samples = 1
     session = viewport.ViewportSession()
-    assert session.sync(bpy.context.evaluated_depsgraph_get()) is False
-    assert session.scene is None and "camera" in session.status()
+    try:
+        assert session.sync(bpy.context.evaluated_depsgraph_get()) is True
+        rv3d = region_3d()
+        rv3d.view_perspective = 'PERSP'
+        assert session.ensure_view(viewport.View.from_region(rv3d, 16, 12)) is True
+        assert session.renderer.wait(timeout=60)
+        frame = session.renderer.frame()
+        assert session.renderer.error == "" and frame.final and frame.pixels.shape == (12, 16, 4)
+        rv3d.view_perspective = 'CAMERA'
+        assert session.ensure_view(viewport.View.from_region(rv3d, 16, 12)) is False
+        assert "camera" in session.status()
+    finally:
+        session.free(timeout=60)
 
 
 # --------------------------------------------------------------------------- view to camera
