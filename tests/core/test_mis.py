@@ -137,8 +137,8 @@ def test_two_strategy_weights_are_the_stack_weights_with_k_two(heuristic, kw):
 @pytest.mark.parametrize("heuristic, kw", VARIANTS, ids=IDS)
 @pytest.mark.parametrize("k", [1, 2, 3, 5, 9])
 def test_weights_of_a_stack_of_strategies_sum_to_one(heuristic, kw, k):
-    """Over the strategies that can make a sample (positive, finite density), the weights sum
-    to one; a strategy that cannot make it (zero density) gets weight zero."""
+    """Where no density is a delta (infinite), the weights of the strategies that can make a
+    sample (positive density) sum to one; a strategy that cannot (zero density) gets zero."""
     rng = np.random.default_rng(k)
     m = 4000
     densities = np.exp(rng.normal(0, 3, (k, m)))
