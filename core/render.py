@@ -31,13 +31,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .film import Film, PixelFilter
-from .integrators import INTEGRATORS, integrator_class
+from .integrators import integrator_class
 from .integrators.base import UNIT_PATHS, Counters
-from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
 from .options import DEFAULTS, validate
 from .prepare import PreparedScene, prepare
-from .sampling.distributions import DISTRIBUTION_METHODS
-from .sampling.mis import HEURISTICS, MIS_SETTINGS
+from .sampling.mis import HEURISTICS
 from .sampling.samplers import make_sampler
 from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
@@ -250,10 +248,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     x0, y0, x1, y1 = region_bounds(cam, settings.region)
     film = Film(x1 - x0, y1 - y0, x0, y0)
     sampler = make_sampler(settings.sampler, seed=settings.seed,
-                           spp=settings.spp if settings.spp > 0 else None)
-    if hasattr(sampler, "width"):
-        # Screen-space samplers (blue-noise masks) need the image width to find vertical neighbours.
-        sampler.width = cam.width
+                           spp=settings.spp if settings.spp > 0 else None, width=cam.width)
     integrator = integrator_class(settings.integrator)(prep, settings)
     result = RenderResult(film, messages=list(scene.messages) + _messages(scene, settings,
                                                                           integrator),

@@ -56,6 +56,13 @@ def available():
     return out
 
 
-def make_sampler(name, seed=0, spp=None):
-    """Sampler called ``name`` (see ``SAMPLERS``), for renders of ``spp`` samples if known."""
-    return sampler_class(name)(seed=seed, spp=spp)
+def make_sampler(name, seed=0, spp=None, width=None):
+    """Sampler called ``name`` (see ``SAMPLERS``), for renders of ``spp`` samples if known.
+
+    ``width`` (image width in pixels) reaches the samplers that declare ``screen_space``
+    (blue-noise masks laid over the image); the others take samples by pixel index alone.
+    """
+    cls = sampler_class(name)
+    if cls.screen_space:
+        return cls(seed=seed, spp=spp, width=width)
+    return cls(seed=seed, spp=spp)

@@ -578,6 +578,8 @@ class BlueNoiseSampler:
     kind = "bluenoise"
     version = 1
     needs_spp = True
+    # The blue-noise masks are laid over the image: the sampler needs its width.
+    screen_space = True
     default_points = 256
     max_points = 1024
 

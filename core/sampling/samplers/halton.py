@@ -82,6 +82,8 @@ class HaltonSampler:
                    "Owen-style, not fully random permutations). Progressive; error near 1/N "
                    "on smooth integrands, less gain in deep bounces (large bases)")
     needs_spp = False
+    # Samples depend on the pixel index alone, not on where the pixel is on the screen.
+    screen_space = False
 
     def __init__(self, seed=0, spp=None):
         self.seed = int(seed)

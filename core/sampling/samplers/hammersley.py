@@ -80,6 +80,8 @@ class HammersleySampler:
                    "a (0,2)-net for N a power of two. Needs the sample count; not for "
                    "time-limited renders")
     needs_spp = True
+    # Samples depend on the pixel index alone, not on where the pixel is on the screen.
+    screen_space = False
 
     def __init__(self, seed=0, spp=None):
         if spp is None or int(spp) < 1:

@@ -52,6 +52,8 @@ class IndependentSampler:
     label = "Independent"
     description = "Uniform random numbers, independent across samples, dimensions and pixels"
     needs_spp = False
+    # Samples depend on the pixel index alone, not on where the pixel is on the screen.
+    screen_space = False
 
     def __init__(self, seed=0, spp=None):
         self.seed = int(seed)

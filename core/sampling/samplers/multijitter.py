@@ -119,6 +119,8 @@ class MultiJitterSampler:
                    "also a Latin hypercube, for any sample count. Needs the sample count "
                    "(otherwise sets of 64)")
     needs_spp = False
+    # Samples depend on the pixel index alone, not on where the pixel is on the screen.
+    screen_space = False
 
     def __init__(self, seed=0, spp=None):
         self.seed = int(seed)

@@ -315,6 +315,8 @@ class PMJ02Sampler:
                    "(Laine-Karras permutation): every power-of-two prefix stratified in all "
                    "elementary intervals. Progressive; best up to 4096 samples")
     needs_spp = False
+    # Samples depend on the pixel index alone, not on where the pixel is on the screen.
+    screen_space = False
 
     def __init__(self, seed=0, spp=None):
         self.seed = int(seed)

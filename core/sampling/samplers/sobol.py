@@ -90,6 +90,8 @@ class SobolSampler:
                    "Progressive; error near N^-1.5 on smooth integrands at powers of two: "
                    "use 16, 64, 256, ... samples")
     needs_spp = False
+    # Samples depend on the pixel index alone, not on where the pixel is on the screen.
+    screen_space = False
 
     def __init__(self, seed=0, spp=None):
         self.seed = int(seed)

@@ -111,6 +111,8 @@ class StratifiedSampler:
                    "randomly placed in it. Variance falls as N^-2 per 2-D slot on smooth "
                    "integrands; needs the sample count (otherwise sets of 64)")
     needs_spp = False
+    # Samples depend on the pixel index alone, not on where the pixel is on the screen.
+    screen_space = False
 
     def __init__(self, seed=0, spp=None):
         self.seed = int(seed)
