@@ -2,8 +2,9 @@
 
 Registered by the extension entry point (the repository's ``__init__.py``). The renderer itself
 lives in ``core/`` and never imports ``bpy``; this package only adapts Blender to it. The command
-line (:mod:`.cli`) lives here too and must run built-in scenes without ``bpy``, so the modules
-that import ``bpy`` are imported only when Blender registers the add-on.
+line is ``cli.py`` at the top of the package and runs built-in scenes without ``bpy``; it
+imports :mod:`.blendfile` (and through it ``bpy`` and :mod:`.export`) only to read a ``.blend``
+file. The modules that import ``bpy`` are imported here only when Blender registers the add-on.
 """
 
 

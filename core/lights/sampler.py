@@ -170,7 +170,7 @@ class LightSampler:
             Receiving points.
         u_select : (n,) float
         u : (n, 2) float
-        counters : core.integrators.common.Counters or None
+        counters : core.integrators.base.Counters or None
             Receives the time spent choosing emitters (see :meth:`choose`).
 
         Returns

@@ -87,7 +87,7 @@ class LightSelection:
         ----------
         u_select : (n,) float
             Uniform in [0, 1): picks the light, and its remapped value the triangle.
-        counters : core.integrators.common.Counters or None
+        counters : core.integrators.base.Counters or None
             Receives the time spent and the number of discrete draws.
 
         Returns

@@ -11,7 +11,7 @@
 - Cancel: the worker polls the cancel flag between work units of bounded size and stops after
   the units in flight; a restart returns at once (the UI thread never joins a worker) and the
   new render waits for the old one's unit. The wall-clock latency is measured by
-  ``bench/viewport_cancel.py``, not asserted here (a loaded CI machine would make it flaky).
+  ``tools/viewport_cancel.py``, not asserted here (a loaded CI machine would make it flaky).
 """
 
 import dataclasses
