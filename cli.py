@@ -142,13 +142,17 @@ def _add_render_parser(sub):
 
 
 def build_parser():
-    """The whole command line: ``render`` and the tools' commands (:mod:`.tools.commands`)."""
+    """The whole command line: ``render`` and, in a source checkout, the tools' commands
+    (:mod:`.tools.commands`)."""
     parser = _Parser(prog=PROG, description=DESCRIPTION, formatter_class=_Help)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser,
                                 metavar="COMMAND")
     _add_render_parser(sub)
-    from .tools import commands
-
+    try:
+        from .tools import commands
+    except ImportError:
+        # An installed extension archive has no tools/: `render` still works.
+        return parser
     commands.add_parsers(sub, formatter_class=_Help)
     return parser
 

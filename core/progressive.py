@@ -196,19 +196,9 @@ class ProgressiveRender:
             job.cancel.set()
 
     def stop(self, timeout=None):
-        """Cancel the render under way and wait for its worker thread.
-
-        Returns
-        -------
-        bool
-            True once no worker thread runs (False if ``timeout`` seconds passed first).
-        """
-        job = self._job
-        if job is None:
-            return True
-        job.cancel.set()
-        job.thread.join(timeout)
-        return not job.thread.is_alive()
+        """Cancel the render under way and wait for its worker thread (see :meth:`wait`)."""
+        self.cancel()
+        return self.wait(timeout)
 
     def wait(self, timeout=None):
         """Wait for the render under way to finish (it is not cancelled).

@@ -1,7 +1,7 @@
 """A :class:`core.scene.Scene` rebuilt in ``bpy`` for Cycles, and Cycles renders of it.
 
 The benchmark renders the *same* scene with our path tracer and with Cycles in the same process,
-so this module is the inverse of ``addon/export.py``: flat triangle and light tables in, Blender
+so this module is the inverse of ``addon/export/``: flat triangle and light tables in, Blender
 objects out, in the units of ``docs/CONVENTIONS.md`` (emission strength is radiance, lamp energy in
 Watts, camera matrix and sensor fit as Blender's).
 

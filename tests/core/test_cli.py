@@ -191,3 +191,20 @@ def test_built_in_scenes_render_without_bpy(cli_runs):
     r = runs["no bpy"]
     assert r.returncode == 0, r.stderr[-800:]
     assert read_multilayer(tmp / "nobpy.exr")["Combined"].shape == (H, W, 4)
+
+
+def test_render_command_works_without_the_tools_folder(tmp_path):
+    # The extension archive leaves tools/ out: `render` must not need it (the tools' commands
+    # are then simply absent). A None entry in sys.modules makes the import fail as a missing
+    # package would.
+    code = (
+        "import sys; sys.modules['sampling_lab.tools'] = None\n"
+        "from sampling_lab import cli\n"
+        "parser = cli.build_parser()\n"
+        "assert 'bench' not in parser.format_help(), parser.format_help()\n"
+        f"sys.exit(cli.main(['render', 'cornell', '-o', r'{tmp_path / 'x.exr'}', '--spp', '1',"
+        " '--resolution', '8x8', '--quiet']))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "x.exr").exists()
