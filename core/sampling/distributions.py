@@ -103,6 +103,53 @@ def _local_running_sum(x, offsets, seg, dtype=np.longdouble):
     return run - start[seg]
 
 
+def _heavy_bins(scaled, offsets, seg):
+    """Bins at or above one column (``scaled >= 1``), at least one per segment: rounding can
+    leave a segment with every bin at ``1 - eps``, whose largest bin is then promoted."""
+    n = scaled.size
+    heavy = scaled >= 1.0
+    has_heavy = np.logical_or.reduceat(heavy, offsets[:-1])
+    if not has_heavy.all():
+        seg_max = np.maximum.reduceat(scaled, offsets[:-1])
+        first_max = np.minimum.reduceat(np.where(scaled == seg_max[seg], np.arange(n), n),
+                                        offsets[:-1])
+        heavy[first_max[~has_heavy]] = True
+    return heavy
+
+
+def _alias_light_bins(prob, alias, scaled, deficit, deficit_end, surplus_key, seg, hv, lt,
+                      h_first, h_last):
+    """Fill ``prob`` and ``alias`` of the light bins ``lt`` (see :func:`build_alias_segments`)."""
+    # Light bins keep their own mass and alias the heavy bin whose surplus holds their start.
+    if lt.size:
+        s = seg[lt]
+        start = deficit_end[lt] - deficit[lt]
+        j = np.searchsorted(surplus_key[hv], start, side="right")
+        prob[lt] = scaled[lt]
+        alias[lt] = hv[np.clip(j, h_first[s], h_last[s])]
+
+
+def _top_up_heavy_bins(prob, alias, deficit, deficit_end, surplus_key, seg, hv, lt, h_last,
+                       l_stop):
+    """Fill ``prob`` and ``alias`` of the heavy bins ``hv`` (see :func:`build_alias_segments`)."""
+    # Heavy bins (but each segment's last) lack the overshoot of the light bin straddling the
+    # end of their surplus; the next heavy bin supplies it.
+    pos = np.arange(hv.size)
+    inner = pos != h_last[seg[hv]]
+    hi_, pos = hv[inner], pos[inner]
+    if hi_.size and lt.size:
+        s = seg[hi_]
+        end = surplus_key[hi_]
+        i = np.searchsorted(deficit_end[lt], end, side="right")
+        found = i < l_stop[s]
+        li = lt[np.minimum(i, lt.size - 1)]
+        straddles = found & (deficit_end[li] - deficit[li] < end)
+        overshoot = np.where(straddles, (deficit_end[li] - end).astype(np.float64), 0.0)
+        prob[hi_] = 1.0 - overshoot
+    if hi_.size:
+        alias[hi_] = hv[pos + 1]
+
+
 def build_alias_segments(func, offsets):
     """Alias tables of many distributions at once (Vose's pairing, vectorized by prefix sums).
 
@@ -141,14 +188,7 @@ def build_alias_segments(func, offsets):
     lengths = np.diff(offsets)
     pmf, _ = _segment_pmf(func, offsets)
     scaled = pmf * lengths[seg]
-    heavy = scaled >= 1.0
-    # Rounding can leave a segment with no bin at or above 1 (all ~1 - eps): promote its largest.
-    has_heavy = np.logical_or.reduceat(heavy, offsets[:-1])
-    if not has_heavy.all():
-        seg_max = np.maximum.reduceat(scaled, offsets[:-1])
-        first_max = np.minimum.reduceat(np.where(scaled == seg_max[seg], np.arange(n), n),
-                                        offsets[:-1])
-        heavy[first_max[~has_heavy]] = True
+    heavy = _heavy_bins(scaled, offsets, seg)
     light = ~heavy
     deficit = np.where(light, 1.0 - scaled, 0.0)
     surplus = np.where(heavy, np.maximum(scaled - 1.0, 0.0), 0.0)
@@ -170,30 +210,10 @@ def build_alias_segments(func, offsets):
     h_last = np.searchsorted(hv, offsets[1:]) - 1
     l_stop = np.searchsorted(lt, offsets[1:])
 
-    # Light bins keep their own mass and alias the heavy bin whose surplus holds their start.
-    if lt.size:
-        s = seg[lt]
-        start = deficit_end[lt] - deficit[lt]
-        j = np.searchsorted(surplus_key[hv], start, side="right")
-        prob[lt] = scaled[lt]
-        alias[lt] = hv[np.clip(j, h_first[s], h_last[s])]
-
-    # Heavy bins (but each segment's last) lack the overshoot of the light bin straddling the
-    # end of their surplus; the next heavy bin supplies it.
-    pos = np.arange(hv.size)
-    inner = pos != h_last[seg[hv]]
-    hi_, pos = hv[inner], pos[inner]
-    if hi_.size and lt.size:
-        s = seg[hi_]
-        end = surplus_key[hi_]
-        i = np.searchsorted(deficit_end[lt], end, side="right")
-        found = i < l_stop[s]
-        li = lt[np.minimum(i, lt.size - 1)]
-        straddles = found & (deficit_end[li] - deficit[li] < end)
-        overshoot = np.where(straddles, (deficit_end[li] - end).astype(np.float64), 0.0)
-        prob[hi_] = 1.0 - overshoot
-    if hi_.size:
-        alias[hi_] = hv[pos + 1]
+    _alias_light_bins(prob, alias, scaled, deficit, deficit_end, surplus_key, seg, hv, lt,
+                      h_first, h_last)
+    _top_up_heavy_bins(prob, alias, deficit, deficit_end, surplus_key, seg, hv, lt, h_last,
+                       l_stop)
     return np.clip(prob, 0.0, 1.0), alias, pmf
 
 
