@@ -1,0 +1,127 @@
+"""Stage profile of the path tracer on the bench Cornell box (a measurement, not a test).
+
+Wraps the named stages of :class:`core.integrators.path.PathTracer` with exclusive timers
+(a stage's time excludes the stages it calls), renders the 36-triangle Cornell box of
+``python -m sampling_lab bench`` at a fixed sample count, and prints each stage's share of the
+summed worker-thread time, then camera samples/s and rays/s of a second, untimed render.
+"Other" is what the named stages leave: the bookkeeping of ``render_samples`` itself (gathers,
+compaction, throughput updates) and the render loop around it.
+
+Run it from a checkout's parent so that ``sampling_lab`` resolves to the tree to measure::
+
+    PYTHONPATH=/path/to/parent python tools/profile_path.py --threads 2 --spp 16
+
+It imports the package by its absolute name (not relatively, as the CLI's tools do), so the
+same file profiles an older worktree of the renderer when ``PYTHONPATH`` names that one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import threading
+import time
+from collections import defaultdict
+
+_LOCAL = threading.local()
+_TOTALS = defaultdict(float)
+_LOCK = threading.Lock()
+
+
+def _timed(name, fn):
+    """``fn`` with its exclusive time added to ``_TOTALS[name]`` (nested stages subtracted)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        stack = getattr(_LOCAL, "stack", None)
+        if stack is None:
+            stack = _LOCAL.stack = []
+        stack.append(0.0)
+        t0 = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            dt = time.perf_counter() - t0
+            children = stack.pop()
+            if stack:
+                stack[-1] += dt
+            with _LOCK:
+                _TOTALS[name] += dt - children
+
+    return wrapper
+
+
+def _patch(owner, attr, name):
+    setattr(owner, attr, _timed(name, getattr(owner, attr)))
+
+
+def install_timers():
+    """Wrap the stages; the names are the rows of the profile table."""
+    from sampling_lab.core import accel, film, render
+    from sampling_lab.core.integrators import path
+    from sampling_lab.core.lights import sampler
+    from sampling_lab.core.sampling import mis, stream
+
+    _patch(render._Passes, "run_unit", "other (render_samples bookkeeping, render loop)")
+    _patch(path, "camera_rays", "generate camera rays")
+    _patch(accel.Accel, "intersect", "intersect (Embree closest hit + hit arrays)")
+    _patch(path, "intersect_by_class", "intersect (Embree closest hit + hit arrays)")
+    _patch(path, "_add_emitters", "emission (escaped + emitters hit, MIS)")
+    _patch(path, "surface_hits", "compaction (surface hits)")
+    _patch(path, "surface_interaction", "gather shading data (surface interaction)")
+    _patch(path.PathTracer, "_shading", "gather shading data (surface interaction)")
+    for cls in (path._LambertShading, path._BSDFShading):
+        _patch(cls, "eval_pdf", "BSDF eval + pdf (NEE)")
+        _patch(cls, "sample", "BSDF sample")
+    _patch(sampler.LightSampler, "sample", "light sampling (select + sample_li)")
+    _patch(path, "_next_event", "NEE bookkeeping + MIS + accumulation")
+    _patch(accel.Accel, "shadow_rays", "shadow rays (offsets + Embree occluded)")
+    _patch(accel.Accel, "occluded", "shadow rays (offsets + Embree occluded)")
+    _patch(mis.MIS, "light_weight", "NEE bookkeeping + MIS + accumulation")
+    _patch(path, "russian_roulette", "Russian roulette")
+    _patch(accel.Accel, "offset_origin", "next rays (offset origins)")
+    for attr in ("next_1d", "next_2d", "skip_to", "compact"):
+        _patch(stream.SampleStream, attr, "sample stream (draws, compaction)")
+    _patch(render._Passes, "accumulate", "film accumulation")
+    _patch(film.Film, "add_samples", "film accumulation")
+
+
+def _scene_and_settings(args):
+    from sampling_lab.core.render import RenderSettings
+    from sampling_lab.core.scenes import cornell_box
+
+    scene = cornell_box(args.width, args.height, light="mesh")
+    settings = RenderSettings(spp=args.spp, threads=args.threads, max_bounces=8, seed=0)
+    return scene, settings
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--spp", type=int, default=16)
+    parser.add_argument("--width", type=int, default=256)
+    parser.add_argument("--height", type=int, default=256)
+    parser.add_argument("--no-profile", action="store_true", help="speed figures only")
+    args = parser.parse_args(argv)
+
+    from sampling_lab.core.render import render
+
+    scene, settings = _scene_and_settings(args)
+    render(scene, settings)  # warm-up: imports, Embree build, table caches
+    res = render(scene, settings)
+    s = res.stats
+    print(f"threads={args.threads} spp={args.spp}: {s['samples_per_s'] / 1e6:.3f} M samples/s, "
+          f"{s['rays_per_s'] / 1e6:.3f} M rays/s, {s['time_s']:.2f} s")
+    if args.no_profile:
+        return
+    install_timers()
+    _TOTALS.clear()
+    res = render(scene, settings)
+    total = sum(_TOTALS.values())
+    print(f"stage profile (exclusive thread-seconds, total {total:.2f} s):")
+    for name, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
+        print(f"  {100 * sec / total:5.1f} %  {name}")
+
+
+if __name__ == "__main__":
+    main()
