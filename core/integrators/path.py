@@ -81,10 +81,13 @@ class _LambertShading:
         self.albedo[rows] = color
 
     def eval_pdf(self, rows, wi):
-        f = eval_lambert(self.albedo[rows], self.ns[rows], wi)
+        """``f cos`` and the pdf of ``wi (k, 3)`` at the rows ``rows`` (None: every row)."""
+        ns = _rows(self.ns, rows)
+        f = eval_lambert(_rows(self.albedo, rows), ns, wi)
         if self.ng is not None:
-            f *= geometric_side_valid(self.ng[rows], self.wo[rows], wi, False)[:, None]
-        return f, pdf_lambert(self.ns[rows], wi)
+            f *= geometric_side_valid(_rows(self.ng, rows), _rows(self.wo, rows), wi,
+                                      False)[:, None]
+        return f, pdf_lambert(ns, wi)
 
     def sample(self, u):
         wi, weight, pdf = sample_lambert(self.albedo, self.ns, u)
@@ -116,13 +119,15 @@ class _BSDFShading:
         self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None
 
     def eval_pdf(self, rows, wi):
-        p = self.params.take(rows)
-        wo = self.wo[rows]
-        wi_local = to_local(wi, self.s[rows], self.t[rows], self.n[rows])
+        """``f cos`` and the pdf of ``wi (k, 3)`` at the rows ``rows`` (None: every row)."""
+        p = self.params if rows is None else self.params.take(rows)
+        wo = _rows(self.wo, rows)
+        wi_local = to_local(wi, _rows(self.s, rows), _rows(self.t, rows), _rows(self.n, rows))
         f = eval_bsdf(p, wo, wi_local, RADIANCE)
         if self.ng is not None:
             transmit = wo[:, 2] * wi_local[:, 2] < 0
-            f *= geometric_side_valid(self.ng[rows], self.wo_world[rows], wi, transmit)[:, None]
+            f *= geometric_side_valid(_rows(self.ng, rows), _rows(self.wo_world, rows), wi,
+                                      transmit)[:, None]
         return f, pdf_bsdf(p, wo, wi_local)
 
     def sample(self, u):
@@ -182,9 +187,10 @@ class PathTracer(Integrator):
             if live.size == 0:
                 break
             si = surface_interaction(prep, hits, d, live)
-            stream.compact(live)
-            rows_of, beta = rows_of[live], beta[live]
-            vis, camera_ray = vis[live], camera_ray[live]
+            if live.size < rows_of.size:
+                stream.compact(live)
+                rows_of, beta = rows_of[live], beta[live]
+                vis, camera_ray = vis[live], camera_ray[live]
             # This bounce's numbers, all drawn up front in the order of their dimensions: the
             # BSDF lobe number also chooses the component of mixed materials before NEE needs it.
             stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
@@ -197,10 +203,10 @@ class PathTracer(Integrator):
 
             # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.
             if self.use_nee:
-                nee = (np.arange(live.size) if shading.nee_rows is None else shading.nee_rows)
-                if nee.size:
-                    _next_event(prep, shading, si, nee, u_sel[nee], u_light[nee], beta, L,
-                                rows_of, mis, counters)
+                nee = shading.nee_rows
+                if nee is None or nee.size:
+                    _next_event(prep, shading, si, nee, _rows(u_sel, nee), _rows(u_light, nee),
+                                beta, L, rows_of, mis, counters)
 
             # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
             wi, weight, pdf_b, delta, vis_next, through = shading.sample(u_bsdf)
@@ -211,16 +217,22 @@ class PathTracer(Integrator):
             keep = np.nonzero(alive)[0]
             if keep.size == 0:
                 break
-            stream.compact(keep)
-            rows_of, beta = rows_of[keep], beta[keep]
-            o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
-            d = wi[keep]
-            tmax = np.full(keep.size, np.inf)
-            pdf_prev = pdf_b[keep]
-            use_mis = ~delta[keep]
-            through = through[keep]
-            camera_ray = camera_ray[keep] & through
-            vis = np.where(through, vis[keep], vis_next[keep])
+            # Compact only when a path ended (after a bounce inside a closed room none does).
+            if keep.size < alive.size:
+                stream.compact(keep)
+                rows_of, beta = rows_of[keep], beta[keep]
+                p, ng, prim, wi = si.p[keep], si.ng[keep], si.prim[keep], wi[keep]
+                pdf_b, delta, through = pdf_b[keep], delta[keep], through[keep]
+                vis, vis_next, camera_ray = vis[keep], vis_next[keep], camera_ray[keep]
+            else:
+                p, ng, prim = si.p, si.ng, si.prim
+            o = prep.accel.offset_origin(p, ng, prim, wi)
+            d = wi
+            tmax = None  # bounce rays are unbounded
+            pdf_prev = pdf_b
+            use_mis = ~delta
+            camera_ray = camera_ray & through
+            vis = np.where(through, vis, vis_next)
 
         # No NaN or Inf reaches the film: a non-finite estimate is dropped (counted as zero).
         bad = ~np.isfinite(L).all(axis=1)
@@ -260,20 +272,29 @@ def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_
 
 
 def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, mis, counters):
-    """Stage *sample lights* on the shading rows ``rows``: adds ``beta f Li w / pdf`` to ``L``."""
-    p = si.p[rows]
+    """Stage *sample lights* on the shading rows ``rows`` (None: every row): adds
+    ``beta f Li w / pdf`` to ``L``."""
+    p = _rows(si.p, rows)
     wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(p, u_sel, u_light, counters)
     f, pdf_b = shading.eval_pdf(rows, wi)
     ok = (pdf_l > 0) & (max_component(f) > 0) & (max_component(li) > 0)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return
+    # Rows of the shading batch: gathered once, and not at all when every row takes part.
+    cand_rows = cand if rows is None else rows[cand]
     blocked = prep.accel.occluded(*prep.accel.shadow_rays(
-        p[cand], si.ng[rows[cand]], si.prim[rows[cand]], wi[cand], dist[cand],
+        p[cand], si.ng[cand_rows], si.prim[cand_rows], wi[cand], dist[cand],
         light_normal[cand]), VIS_SHADOW)
     counters.rays += cand.size
-    vis = cand[~blocked]
+    unblocked = ~blocked
+    vis, vis_rows = cand[unblocked], cand_rows[unblocked]
     # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
     w = np.where(delta[vis], 1.0, mis.light_weight(pdf_l[vis], pdf_b[vis]))
-    contrib = beta[rows[vis]] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
-    L[rows_of[rows[vis]]] += contrib
+    contrib = beta[vis_rows] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
+    L[rows_of[vis_rows]] += contrib
+
+
+def _rows(a, rows):
+    """``a[rows]``, or ``a`` itself when ``rows`` is None (every row: no copy)."""
+    return a if rows is None else a[rows]
