@@ -249,6 +249,13 @@ _LIGHT_SELECTION_TEXT = {
         "triangles sharing it count as one light, and a triangle inside it is chosen in "
         "proportion to area times radiance) and the world. Unbiased; lights that emit nothing "
         "are skipped"),
+    "tree": (
+        "Light Tree",
+        "Choose the light from each shading point through a tree of light bounds (position, "
+        "orientation, power), preferring lights that are near, face the point and are bright; "
+        "the sun and the world are chosen by power beside it. Unbiased; best with many lights. "
+        "Path tracing only: light tracing and bidirectional paths start on lights chosen by "
+        "power"),
 }
 
 _LIGHT_SAMPLING_TEXT = {

@@ -181,10 +181,11 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
             distribution="cdf") -> PreparedScene:
     """Build the acceleration structure and light tables for ``scene`` (in a recentred frame).
 
-    ``light_selection`` (``'power' | 'uniform'``), ``light_sampling`` (``'area' |
+    ``light_selection`` (``'power' | 'uniform' | 'tree'``), ``light_sampling`` (``'area' |
     'solid_angle'``) and ``distribution`` (``'cdf' | 'alias'``) configure the
     :class:`core.lights.LightSampler` (and the :class:`core.lights.Emission` of light paths over
-    it); ``distribution`` also draws mixed materials' components.
+    it; with ``'tree'`` the light tree is built here, once per render); ``distribution`` also
+    draws mixed materials' components.
     Unknown values raise ``ValueError``.
     """
     scene, shift = recentred(scene)

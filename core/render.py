@@ -156,10 +156,11 @@ def used_settings(settings):
 
     Light tracing has one strategy per path (no MIS weights); light and BDPT paths start on
     emitters sampled by area (a light vertex needs no receiving point, and BDPT's MIS weights
-    use area densities), so ``light_sampling`` is ``'area'`` for them; the path tracer's
-    ``bsdf`` setting never samples lights (``distribution`` still draws mixed materials'
-    components). The render stats report these values, and the add-on greys out the same
-    options.
+    use area densities), so ``light_sampling`` is ``'area'`` for them, and they choose those
+    emitters by power when ``light_selection`` is ``'tree'`` (which needs a receiving point);
+    the path tracer's ``bsdf`` setting never samples lights (``distribution`` still draws mixed
+    materials' components). The render stats report these values, and the add-on greys out
+    the same options.
 
     Parameters
     ----------
@@ -179,7 +180,9 @@ def used_settings(settings):
         "mis_heuristic": settings.mis_heuristic if settings.integrator != "light" else na,
         "mis_beta": settings.mis_beta if weighs and settings.mis_heuristic == "power" else na,
         "mis_alpha": settings.mis_alpha if weighs and settings.mis_heuristic == "cutoff" else na,
-        "light_selection": settings.light_selection if samples_lights else na,
+        "light_selection": ((settings.light_selection
+                             if path or settings.light_selection != "tree" else "power")
+                            if samples_lights else na),
         "light_sampling": ((settings.light_sampling if path else "area")
                            if samples_lights else na),
         "distribution": settings.distribution,

@@ -7,6 +7,8 @@
 - :func:`point_in_sphere`: a point light at the centre of a closed diffuse sphere.
 - :func:`cornell_sphere`: the Cornell box's walls around a glass or mirror ball under a small
   light: the caustic and the "light seen in a mirror" cases of light transport.
+- :func:`many_lights`: the box lit by 1,024 small emissive quads of varied power, where light
+  selection decides the noise (the light tree's benchmark).
 """
 
 from __future__ import annotations
@@ -14,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import lights as L
-from .scene import MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_LAYERED, Camera, Lights, Materials, Scene
+from .scene import (MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_LAYERED, VIS_ALL, VIS_CAMERA, Camera,
+                    Lights, Materials, Scene)
 
 WHITE = (0.725, 0.71, 0.68)
 RED = (0.63, 0.065, 0.05)
@@ -237,3 +240,60 @@ BUILTIN = {
     "glass_caustic": lambda w, h: cornell_sphere(w, h, "glass", "sphere"),
     "mirror_ball": lambda w, h: cornell_sphere(w, h, "mirror", "area", light_radius=0.05),
 }
+
+
+def many_lights(width=64, height=64, n=1024, size=0.04, seed=7):
+    """The Cornell box's white room lit by ``n`` small emissive quads of varied power.
+
+    The quads (``size`` x ``size``, random orientation, two-sided) hover 10 to 30 cm in front of
+    the floor, the ceiling and the three walls; each uses one of 8 emission materials whose
+    radiances are log-uniform over 0.5 to 50, so power selection keeps sending samples to
+    bright quads across the room while a receiving point is lit mostly by the quads near it:
+    the case a light tree is for.
+
+    Parameters
+    ----------
+    width, height : int
+        Resolution.
+    n : int
+        Number of emissive quads (each two triangles).
+    size : float
+        Edge length of a quad.
+    seed : int
+        Seed of the quads' placement, orientation and material.
+    """
+    b = _cornell_walls()
+    rng = np.random.default_rng(seed)
+    # Each quad hovers 10 to 30 cm in front of the floor, the ceiling or one of the three walls.
+    wall = rng.integers(0, 5, n)
+    inward = np.array([[0, 0, 1], [0, 0, -1], [0, -1, 0], [1, 0, 0], [-1, 0, 0]], np.float64)
+    plane = np.array([[0, 0, 0], [0, 0, 2], [0, 1, 0], [-1, 0, 1], [1, 0, 1]], np.float64)
+    spread = rng.uniform(-0.95, 0.95, (n, 3))
+    centre = (np.where(inward[wall] != 0, plane[wall], spread * (1, 1, 0) + (0, 0, 1)
+                       + spread * (0, 0, 0.95))
+              + inward[wall] * rng.uniform(0.1, 0.3, (n, 1)))
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    helper = np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+    t1 = np.cross(normal, helper)
+    t1 *= 0.5 * size / np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(normal, t1)
+    corners = np.stack([centre - t1 - t2, centre + t1 - t2, centre + t1 + t2,
+                        centre - t1 + t2], axis=1).reshape(-1, 3)
+    faces = (4 * np.arange(n)[:, None, None] + np.array([[0, 1, 2], [0, 2, 3]])).reshape(-1, 3)
+    n_mat = 8
+    strength = np.geomspace(0.5, 50.0, n_mat)
+    mat = np.repeat(3 + rng.integers(0, n_mat, n), 2)
+    v, f, m = b.arrays()
+    v = np.concatenate([v, corners])
+    f = np.concatenate([f, faces + b.count])
+    m = np.concatenate([m, mat.astype(np.int32)])
+    names = ["White", "Red", "Green"] + [f"Light {i}" for i in range(n_mat)]
+    colors = [WHITE, RED, GREEN] + [(0, 0, 0)] * n_mat
+    emissions = [(0, 0, 0)] * 3 + [(s, s, s) for s in strength]
+    # The quads do not show to the camera: the image is the light they cast, not a sky of
+    # sub-pixel emitters whose pixel coverage alone would dominate every pixel's variance.
+    visibility = np.full(f.shape[0], VIS_ALL, np.int32)
+    visibility[-faces.shape[0]:] = VIS_ALL & ~VIS_CAMERA
+    return Scene(v, f, m, Materials.from_lists(names, colors, emissions), Lights.empty(),
+                 _cornell_camera(width, height), visibility=visibility)

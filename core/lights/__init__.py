@@ -18,7 +18,8 @@ Modules:
   :mod:`.environment` (constant world and environment map), :mod:`.triangles` (emissive
   triangles): the families;
 - :mod:`.shapes`: the ray tests against lamp shapes (sphere, facing disk, parallelogram);
-- :mod:`.selection`: how an emitter is chosen (power, uniform; a light tree would go there);
+- :mod:`.selection`: how an emitter is chosen (power, uniform, light tree) and :mod:`.tree`,
+  the light tree (bounds, importance, traversal, exact pmf);
 - :mod:`.sampler`: :class:`LightSampler`, every emitter of a scene in one table, for
   next-event estimation and for rays that find emitters;
 - :mod:`.emission`: :class:`Emission`, how light paths leave the emitters.

@@ -185,7 +185,7 @@ class World(LightFamily):
         n = d.shape[0]
         if not self.emits:
             return np.zeros(n)
-        sel = self.sampler.select_prob[self.sampler.world_index]
+        sel = self.sampler.world_select_prob
         if self.dist is None:
             return sel * warps.uniform_sphere_pdf(n)
         d = np.asarray(d, np.float64)

@@ -11,12 +11,14 @@ from .area import AreaLights
 from .base import LiSamples
 from .environment import World
 from .point import PointLights
-from .selection import SELECTIONS
+from .selection import SELECTIONS, PowerSelection, TreeSelection
 from .sun import SunLights
 from .triangles import EmissiveTriangles
 
 # How next-event estimation chooses a light, and how it samples a point on an area emitter.
 LIGHT_SELECTIONS = tuple(SELECTIONS)
+# Every selection class LightSampler can build (the tree before the registry offers it).
+_SELECTION_CLASSES = {**SELECTIONS, TreeSelection.name: TreeSelection}
 LIGHT_SAMPLINGS = ("area", "solid_angle")
 
 # Family of each lamp kind (rows of LightSampler.families).
@@ -28,11 +30,14 @@ class LightSampler:
     """Every emitter of a scene in one selection table, and each family's light.
 
     Emitter rows are the scene's lights (rows ``0..k-1``), then the emissive triangles (grouped
-    by material), then the world (if its radiance is not black). ``select_prob[i]`` is the
-    probability that next-event estimation chooses emitter ``i``; ``selection`` says how (see
-    :mod:`.selection`). A batch is handed to each family (:mod:`.point`, :mod:`.sun`,
-    :mod:`.area`, :mod:`.triangles`, :mod:`.environment`) for the rows that chose one of its
-    emitters, so that no kind switch lives outside this class.
+    by material), then the world (if its radiance is not black). ``selection`` says how
+    next-event estimation chooses emitter ``i`` (see :mod:`.selection`), and :meth:`nee_pmf`
+    gives that probability, for the pdfs of emitters found by rays. Light paths (light
+    tracing, BDPT), which start without a receiving point, choose with :meth:`choose` and the
+    table ``select_prob``: the same strategy for ``power`` and ``uniform``, power selection when
+    next-event estimation uses the tree. A batch is handed to each family (:mod:`.point`,
+    :mod:`.sun`, :mod:`.area`, :mod:`.triangles`, :mod:`.environment`) for the rows that chose
+    one of its emitters, so that no kind switch lives outside this class.
 
     ``sampling`` picks how a point on an area emitter is chosen: ``'area'`` (uniform on the
     surface) or ``'solid_angle'`` (uniform over the solid angle it subtends: spherical
@@ -51,7 +56,7 @@ class LightSampler:
     tri_v0, tri_e1, tri_e2 : (t, 3) float64
         First vertex and edges of every triangle.
     selection : str
-        ``'power'`` or ``'uniform'``.
+        ``'power'``, ``'uniform'`` or ``'tree'``.
     sampling : str
         ``'area'`` or ``'solid_angle'``.
     method : str
@@ -67,7 +72,7 @@ class LightSampler:
 
     def __init__(self, scene, tri_area, tri_normal, tri_v0, tri_e1, tri_e2, selection="power",
                  sampling="area", method="cdf"):
-        for value, allowed, what in ((selection, LIGHT_SELECTIONS, "light selection"),
+        for value, allowed, what in ((selection, tuple(_SELECTION_CLASSES), "light selection"),
                                      (sampling, LIGHT_SAMPLINGS, "light sampling"),
                                      (method, DISTRIBUTION_METHODS, "distribution")):
             if value not in allowed:
@@ -101,12 +106,25 @@ class LightSampler:
         self.family_first = np.array([0, 0, 0, k, 0])
         self.present_families = np.unique(self.emitter_family)
 
-        self.selector = SELECTIONS[selection](self._power(scene), k, tris, world.emits, method)
-        self.light_dist = self.selector.light_dist
-        self.triangle_dist = self.selector.triangle_dist
-        self.select_prob = self.selector.select_prob
-        self.world_index = self.selector.world_index
-        self.build_s = self.selector.build_s + world.build_s
+        power = self._power(scene)
+        if selection == TreeSelection.name:
+            self.selector = TreeSelection(power, lights, self.emitter_family[:k] == SUN, tris,
+                                          world.emits, method)
+            self.path_selector = PowerSelection(power, k, tris, world.emits, method)
+        else:
+            self.selector = self.path_selector = SELECTIONS[selection](power, k, tris,
+                                                                       world.emits, method)
+        # Light paths' choice (see the class docstring).
+        self.light_dist = self.path_selector.light_dist
+        self.triangle_dist = self.path_selector.triangle_dist
+        self.select_prob = self.path_selector.select_prob
+        self.world_index = self.path_selector.world_index
+        # Next-event estimation's probability of the world, which is independent of the point.
+        self.world_select_prob = (self.selector.pmf(np.array([self.world_index]))[0]
+                                  if self.has_world else 0.0)
+        self.build_s = (self.selector.build_s + world.build_s
+                        + (self.path_selector.build_s if self.path_selector is not self.selector
+                           else 0.0))
 
     def _power(self, scene):
         """Estimated power per light (lamps, emission materials, world), for selection."""
@@ -157,11 +175,21 @@ class LightSampler:
 
     # ------------------------------------------------------------------ next-event estimation
     def choose(self, u_select, counters=None):
-        """Choose emitters for next-event estimation: ``(index, pmf)``, see
+        """Choose emitters for light paths (no receiving point): ``(index, pmf)``, see
         :meth:`.selection.LightSelection.choose`."""
-        return self.selector.choose(u_select, counters)
+        return self.path_selector.choose(u_select, counters)
 
-    def sample(self, p, u_select, u, counters=None):
+    def nee_pmf(self, index, p, n=None):
+        """Probability ``(m,)`` that next-event estimation from ``p (m, 3)`` (shading normals
+        ``n (m, 3)`` or None) chooses emitter rows ``index (m,)``; 0 where ``index`` is -1."""
+        if not self.selector.point_dependent:
+            return np.where(index >= 0, self.select_prob[np.maximum(index, 0)]
+                            if self.n_emitters else 0.0, 0.0)
+        if not self.n_emitters:
+            return np.zeros(index.shape[0])
+        return np.where(index >= 0, self.selector.pmf(np.maximum(index, 0), p, n), 0.0)
+
+    def sample(self, p, u_select, u, counters=None, n=None):
         """Sample an emitter and a point or direction on it, as seen from ``p``.
 
         Parameters
@@ -171,18 +199,23 @@ class LightSampler:
         u_select : (n,) float
         u : (n, 2) float
         counters : core.integrators.base.Counters or None
-            Receives the time spent choosing emitters (see :meth:`choose`).
+            Receives the time spent choosing emitters.
+        n : (n, 3) float64 or None
+            Shading normals at ``p``, for the light tree's importance; rays that find
+            emitters must then give :meth:`hit_shapes` and :meth:`triangle_pdf` the normal at
+            their origin too, so that MIS sees the same probabilities.
 
         Returns
         -------
         wi, dist, radiance, pdf, delta, light_normal
             As :class:`.base.LiSamples`, with ``delta (n,) bool``: delta lights.
         """
-        n = p.shape[0]
-        out = LiSamples.empty(n)
-        if self.light_dist is None or n == 0:
-            return out.wi, out.dist, out.radiance, out.pdf, np.zeros(n, bool), out.light_normal
-        index, pmf = self.choose(u_select, counters)
+        n_rows = p.shape[0]
+        out = LiSamples.empty(n_rows)
+        if self.selector.light_dist is None or n_rows == 0:
+            return (out.wi, out.dist, out.radiance, out.pdf, np.zeros(n_rows, bool),
+                    out.light_normal)
+        index, pmf = self.selector.choose(u_select, counters, p, n)
         delta = self.delta[index]
         for family, m, local in self.families_of(index):
             family.sample_li(m, local, p, u, pmf, out, counters)
@@ -203,9 +236,9 @@ class LightSampler:
         for the same direction (selection included)."""
         return self.world_light.radiance(d), self.world_light.pdf_li(d)
 
-    def triangle_pdf(self, prim, p_prev, dist, cos_light):
+    def triangle_pdf(self, prim, p_prev, dist, cos_light, n_prev=None):
         """See :meth:`.triangles.EmissiveTriangles.pdf_li`."""
-        return self.triangles.pdf_li(prim, p_prev, dist, cos_light)
+        return self.triangles.pdf_li(prim, p_prev, dist, cos_light, n_prev)
 
     def _lamps(self, camera):
         """Lamps a ray can hit; camera rays see only lamps with ``visible_camera``."""
@@ -213,7 +246,7 @@ class LightSampler:
             if not (camera and not self.lights.visible_camera[li]):
                 yield li, self.families[self.emitter_family[li]]
 
-    def hit_shapes(self, o, d, tmax, camera):
+    def hit_shapes(self, o, d, tmax, camera, n=None):
         """Emission from the light shapes (spheres, area lights, sun disks) rays pass, lamp by
         lamp in row order.
 
@@ -225,6 +258,8 @@ class LightSampler:
             Distance to the first surface (inf when the ray escapes).
         camera : bool
             Camera rays see only lights with ``visible_camera``.
+        n : (n, 3) float64 or None
+            Shading normals at the origins (as given to :meth:`sample` there).
 
         Yields
         ------
@@ -234,8 +269,14 @@ class LightSampler:
         pdf : (m,) float64
             Solid-angle density of NEE picking the same direction (selection included).
         """
+        tree = self.selector.point_dependent
         for li, family in self._lamps(camera):
-            hit = family.intersect(li, o, d, tmax, self.select_prob[li])
+            hit = family.intersect(li, o, d, tmax, 1.0 if tree else self.select_prob[li])
+            if hit is not None and tree:
+                rows, radiance, pdf = hit
+                sel = self.selector.pmf(np.full(rows.size, li), o[rows],
+                                        None if n is None else n[rows])
+                hit = rows, radiance, pdf * sel
             if hit is not None:
                 yield hit
 

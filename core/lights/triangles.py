@@ -119,7 +119,7 @@ class EmissiveTriangles(LightFamily):
                        pmf, False, out)
         solid_angle_pdf(m, sph, omega, pmf, out.pdf)
 
-    def pdf_li(self, prim, p_prev, dist, cos_light):
+    def pdf_li(self, prim, p_prev, dist, cos_light, n_prev=None):
         """Solid-angle pdf with which NEE from ``p_prev`` picks the hit point on triangle ``prim``.
 
         Parameters
@@ -131,10 +131,12 @@ class EmissiveTriangles(LightFamily):
             Distance from ``p_prev`` to the hit.
         cos_light : (n,) float64
             |cos| between the ray and the triangle normal.
+        n_prev : (n, 3) float64 or None
+            Shading normal at ``p_prev`` (for the light tree).
         """
         ls = self.sampler
         e = self.tri_emitter[prim]
-        sel = np.where(e >= 0, ls.select_prob[np.maximum(e, 0)] if ls.n_emitters else 0.0, 0.0)
+        sel = ls.nee_pmf(e, p_prev, n_prev)
         with np.errstate(divide="ignore", invalid="ignore"):
             pdf = sel * dist * dist / (np.abs(cos_light) * self.tri_area[prim])
         if ls.solid_angle and prim.size:

@@ -114,6 +114,6 @@ def test_prepare_builds_the_emission_over_its_light_sampler():
 
 
 def test_selection_strategies_are_the_light_selection_setting():
-    assert tuple(SELECTIONS) == L.LIGHT_SELECTIONS == ("power", "uniform")
+    assert tuple(SELECTIONS) == L.LIGHT_SELECTIONS == ("power", "uniform", "tree")
     for name, cls in SELECTIONS.items():
         assert cls.name == name
