@@ -12,6 +12,20 @@ from ..materials.bsdf import LOBE_DIFFUSE, LOBE_TRANSMIT
 from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 
+def take_rows(a, rows):
+    """``a[rows]`` for an index array ``rows (k,)``: ``np.take`` gathers the rows of an
+    ``(n, 3)`` array about three times faster than fancy indexing (same values)."""
+    return np.take(a, rows, axis=0)
+
+
+def add_rows(L, rows, value):
+    """``L[rows] += value`` for ``L (N, 3)``, ``rows (k,)``, ``value (k, 3)`` (same sums, faster
+    gather)."""
+    acc = np.take(L, rows, axis=0)
+    acc += value
+    L[rows] = acc
+
+
 def max_component(v):
     """Largest of the three channels of ``v (n, 3)`` (much faster than ``v.max(axis=1)``)."""
     return np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
@@ -147,12 +161,14 @@ class Interaction:
 def surface_interaction(prep, hits, d, rows):
     """Build the :class:`Interaction` of the hit rays ``rows`` for directions ``d (n, 3)``."""
     prim = hits.prim[rows]
-    p = (prep.tri_v0[prim] + hits.u[rows][:, None] * prep.tri_e1[prim]
-         + hits.v[rows][:, None] * prep.tri_e2[prim])
-    ng = prep.tri_normal[prim]
-    wo = -d[rows]
+    u, v = hits.u[rows], hits.v[rows]
+    p = (take_rows(prep.tri_v0, prim) + u[:, None] * take_rows(prep.tri_e1, prim)
+         + v[:, None] * take_rows(prep.tri_e2, prim))
+    ng = take_rows(prep.tri_normal, prim)
+    wo = take_rows(d, rows)
+    np.negative(wo, out=wo)
     side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
-    ns = shading_normals(prep, prim, hits.u[rows], hits.v[rows], ng, wo)
+    ns = shading_normals(prep, prim, u, v, ng, wo)
     return Interaction(p, ng, ns * side[:, None], wo, prim)
 
 
@@ -228,9 +244,10 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
     escaped = np.nonzero(~hits.hit)[0]
     if escaped.size and lights.has_world:
         le, pdf_l = lights.world_radiance(d[escaped])
-        L[rows_of[escaped]] += beta[escaped] * le * weight(escaped, pdf_l)[:, None]
+        add_rows(L, rows_of[escaped],
+                 take_rows(beta, escaped) * le * weight(escaped, pdf_l)[:, None])
     for rows, le, pdf_l in lights.hit_shapes(o, d, hits.t, camera):
-        L[rows_of[rows]] += beta[rows] * le * weight(rows, pdf_l)[:, None]
+        add_rows(L, rows_of[rows], take_rows(beta, rows) * le * weight(rows, pdf_l)[:, None])
     hit_rows = np.nonzero(hits.hit)[0]
     if hit_rows.size and lights.emissive_tris.size:
         prim = hits.prim[hit_rows]
@@ -238,7 +255,7 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
         rows = hit_rows[emissive]
         if rows.size:
             prim = prim[emissive]
-            cos_l = np.einsum("ij,ij->i", d[rows], prep.tri_normal[prim])
-            pdf_l = lights.triangle_pdf(prim, o[rows], hits.t[rows], cos_l)
-            le = prep.tri_emission[prim]
-            L[rows_of[rows]] += beta[rows] * le * weight(rows, pdf_l)[:, None]
+            cos_l = np.einsum("ij,ij->i", take_rows(d, rows), take_rows(prep.tri_normal, prim))
+            pdf_l = lights.triangle_pdf(prim, take_rows(o, rows), hits.t[rows], cos_l)
+            le = take_rows(prep.tri_emission, prim)
+            add_rows(L, rows_of[rows], take_rows(beta, rows) * le * weight(rows, pdf_l)[:, None])

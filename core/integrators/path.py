@@ -52,9 +52,9 @@ from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
 from .base import BatchOutput, Integrator
-from .common import (add_emitters_along_rays, camera_rays, geometric_side_valid,
+from .common import (add_emitters_along_rays, add_rows, camera_rays, geometric_side_valid,
                      intersect_by_class, max_component, ray_class, russian_roulette,
-                     surface_hits, surface_interaction)
+                     surface_hits, surface_interaction, take_rows)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -69,7 +69,7 @@ class _LambertShading:
     """
 
     def __init__(self, prep, si):
-        self.albedo = prep.tri_albedo[si.prim]
+        self.albedo = take_rows(prep.tri_albedo, si.prim)
         self.ns = si.ns
         self.nee_rows = None  # every row takes part in next-event estimation
         # Smooth shading: reflections must stay on wo's side of the geometric surface.
@@ -189,7 +189,7 @@ class PathTracer(Integrator):
             si = surface_interaction(prep, hits, d, live)
             if live.size < rows_of.size:
                 stream.compact(live)
-                rows_of, beta = rows_of[live], beta[live]
+                rows_of, beta = rows_of[live], take_rows(beta, live)
                 vis, camera_ray = vis[live], camera_ray[live]
             # This bounce's numbers, all drawn up front in the order of their dimensions: the
             # BSDF lobe number also chooses the component of mixed materials before NEE needs it.
@@ -220,8 +220,9 @@ class PathTracer(Integrator):
             # Compact only when a path ended (after a bounce inside a closed room none does).
             if keep.size < alive.size:
                 stream.compact(keep)
-                rows_of, beta = rows_of[keep], beta[keep]
-                p, ng, prim, wi = si.p[keep], si.ng[keep], si.prim[keep], wi[keep]
+                rows_of, beta = rows_of[keep], take_rows(beta, keep)
+                p, ng, prim = take_rows(si.p, keep), take_rows(si.ng, keep), si.prim[keep]
+                wi = take_rows(wi, keep)
                 pdf_b, delta, through = pdf_b[keep], delta[keep], through[keep]
                 vis, vis_next, camera_ray = vis[keep], vis_next[keep], camera_ray[keep]
             else:
@@ -284,17 +285,18 @@ def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, mis, 
     # Rows of the shading batch: gathered once, and not at all when every row takes part.
     cand_rows = cand if rows is None else rows[cand]
     blocked = prep.accel.occluded(*prep.accel.shadow_rays(
-        p[cand], si.ng[cand_rows], si.prim[cand_rows], wi[cand], dist[cand],
-        light_normal[cand]), VIS_SHADOW)
+        take_rows(p, cand), take_rows(si.ng, cand_rows), si.prim[cand_rows], take_rows(wi, cand),
+        dist[cand], take_rows(light_normal, cand)), VIS_SHADOW)
     counters.rays += cand.size
     unblocked = ~blocked
     vis, vis_rows = cand[unblocked], cand_rows[unblocked]
     # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
     w = np.where(delta[vis], 1.0, mis.light_weight(pdf_l[vis], pdf_b[vis]))
-    contrib = beta[vis_rows] * f[vis] * li[vis] * (w / pdf_l[vis])[:, None]
-    L[rows_of[vis_rows]] += contrib
+    contrib = (take_rows(beta, vis_rows) * take_rows(f, vis) * take_rows(li, vis)
+               * (w / pdf_l[vis])[:, None])
+    add_rows(L, rows_of[vis_rows], contrib)
 
 
 def _rows(a, rows):
     """``a[rows]``, or ``a`` itself when ``rows`` is None (every row: no copy)."""
-    return a if rows is None else a[rows]
+    return a if rows is None else take_rows(a, rows)
