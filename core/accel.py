@@ -78,6 +78,8 @@ class Accel:
         v = self.vertices.astype(np.float64)
         tri = v[self.triangles] if t else np.zeros((0, 3, 3))
         self.tri_scale = np.abs(tri).max(axis=(1, 2)) if t else np.zeros(0)
+        # The push off each triangle (offset_origin), computed once per scene.
+        self.tri_offset = OFFSET_ULPS * FLOAT32_EPS * np.maximum(self.tri_scale, 1e-30)
         self._scenes = {}
         self.rays_traced = 0
 
@@ -167,6 +169,5 @@ class Accel:
         unit geometric normal ``ng (n, 3)``.
         """
         side = np.sign(np.einsum("ij,ij->i", ng, w))
-        side = np.where(side == 0, 1.0, side)
-        eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(self.tri_scale[prim], 1e-30)
-        return p + ng * (side * eps)[:, None]
+        side[side == 0] = 1.0
+        return p + ng * (side * self.tri_offset[prim])[:, None]
