@@ -239,6 +239,7 @@ BUILTIN = {
     "point_in_sphere": lambda w, h: point_in_sphere(width=w, height=h),
     "glass_caustic": lambda w, h: cornell_sphere(w, h, "glass", "sphere"),
     "mirror_ball": lambda w, h: cornell_sphere(w, h, "mirror", "area", light_radius=0.05),
+    "many_lights": lambda w, h: many_lights(w, h),
 }
 
 

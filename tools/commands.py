@@ -66,6 +66,14 @@ def _bench_caustic(args):
     return 0
 
 
+def _bench_lights(args):
+    from .light_tree import run
+
+    run(size=args.size, seconds=args.seconds, reference_seconds=args.reference_seconds,
+        output=args.output)
+    return 0
+
+
 def _samplers(args):
     from .sampler_lab import main
 
@@ -126,6 +134,15 @@ def add_parsers(sub, **kw):
     c.add_argument("--reference-seconds", type=_positive_float, default=120.0,
                    help="time of the BDPT reference render")
     add_output_arguments(c, "bench-caustic", "CAUSTIC.md")
+    g = _add(sub, "bench-lights", "equal-time error of power, uniform and light-tree "
+             "selection on the many-lights scene (a table; docs/LIGHT_TREE.md quotes a run)",
+             _bench_lights, **kw)
+    _size(g, (64, 64))
+    g.add_argument("--seconds", type=_positive_float, default=10.0,
+                   help="equal wall-clock budget of every render")
+    g.add_argument("--reference-seconds", type=_positive_float, default=60.0,
+                   help="time of the light-tree reference render")
+    add_output_arguments(g, "bench-lights")
 
 
 def _add_bench_scenes(sub, **kw):

@@ -229,8 +229,18 @@ class LightTree:
         self.theta_o = np.where(ok, np.maximum.reduceat(spread, np.cumsum(count) - count), PI)
         self.cos_o, self.sin_o = np.cos(self.theta_o), np.sin(self.theta_o)
         self.cos_e = np.cos(self.theta_e)
-        self.packed = np.column_stack([self.center, self.axis, self.radius2, self.power,
-                                       self.cos_o, self.sin_o, self.cos_e])
+        self.packed_t = np.ascontiguousarray(np.column_stack([
+            self.center, self.axis, self.radius2, self.power, self.cos_o, self.sin_o,
+            self.cos_e]).T.astype(np.float32))
+        # Two-sided triangles and point lights only: no orientation term to evaluate.
+        self.omni = bool(np.all(self.theta_o >= PI))
+        self.children = np.stack([self.left, self.right])
+        self.child_pairs = self.children.T.ravel()
+        # Where both children are dark, go by power (at inner nodes; 0.5 elsewhere, unused).
+        inner = self.left >= 0
+        pw_l = np.where(inner, self.power[np.maximum(self.left, 0)], 1.0)
+        pw_r = np.where(inner, self.power[np.maximum(self.right, 0)], 1.0)
+        self.fallback_left = pw_l / (pw_l + pw_r)
 
         # Root paths, leaves in emitter order: walk up from every leaf one level per step.
         leaves = np.nonzero(leaf)[0]
@@ -262,57 +272,72 @@ class LightTree:
 
     # ------------------------------------------------------------------ importance
     def importance(self, node, p, n=None):
-        """Importance ``(m,)`` of nodes ``node (m,)`` for receiving points ``p (m, 3)`` with
-        shading normals ``n (m, 3)`` (or None: no receiver term). See the module docstring.
+        """Importance of nodes ``node`` for receiving points ``p`` with shading normals ``n``
+        (or None: no receiver term); see the module docstring.
+
+        Parameters
+        ----------
+        node : (..., m) int64
+        p : (3, m) float32
+            Receiving points by component (see :meth:`_components`).
+        n : (3, m) float32 or None
+
+        Returns
+        -------
+        (..., m) float32
 
         Angle differences are taken on cosines and sines (``cos(a - b)``), as pbrt-v4 does,
-        which spares the inverse trigonometric functions.
+        and in float32 on component arrays: the importance only steers the choice, and the pmf
+        is whatever this function gives, the same in :meth:`choose` and :meth:`pmf`.
         """
-        # One gather of every node field: columns centre (3), axis (3), r^2, power, cos_o,
-        # sin_o, cos_e.
-        q = self.packed[node]
-        v = p - q[:, 0:3]
-        d2 = _dot(v, v)
-        r2 = q[:, 6]
+        # One gather of every node field: centre (3), axis (3), r^2, power, cos_o, sin_o,
+        # cos_e, each a contiguous (..., m) array.
+        cx, cy, cz, ax, ay, az, r2, power, cos_o, sin_o, cos_e = self.packed_t[:, node]
+        vx, vy, vz = p[0] - cx, p[1] - cy, p[2] - cz
+        d2 = np.maximum(vx * vx + vy * vy + vz * vz, MIN_DIST2)
+        if self.omni and n is None:
+            # Every emitter lights every direction and there is no receiver term: the
+            # orientation factor is one.
+            return (power / np.maximum(d2, r2)).astype(np.float32, copy=False)
+        inv_d = 1.0 / np.sqrt(d2)
         inside = d2 <= r2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv_d = np.where(d2 > 0, 1.0 / np.sqrt(d2), 0.0)
-            # The bounding sphere subtends theta_b: sin^2 = r^2 / d^2; pi from inside it.
-            sin2_b = np.where(inside, 0.0, r2 / d2)
-        cos_b = np.where(inside, -1.0, np.sqrt(np.maximum(1.0 - sin2_b, 0.0)))
-        sin_b = np.sqrt(sin2_b)
-        cos_w = np.where(d2 > 0, _dot(q[:, 3:6], v) * inv_d, 1.0)
-        sin_w = np.sqrt(np.maximum(1.0 - cos_w * cos_w, 0.0))
-        # theta_x = max(theta_w - theta_o, 0), then theta_p = max(theta_x - theta_b, 0).
-        cos_o, sin_o = q[:, 8], q[:, 9]
-        past_o = cos_w < cos_o
-        cos_x = np.where(past_o, cos_w * cos_o + sin_w * sin_o, 1.0)
-        sin_x = np.where(past_o, sin_w * cos_o - cos_w * sin_o, 0.0)
-        past_b = cos_x < cos_b
-        cos_p = np.where(past_b, cos_x * cos_b + sin_x * sin_b, 1.0)
-        emits = ~past_b | (cos_p > q[:, 10])
-        imp = np.where(emits, q[:, 7] * np.maximum(cos_p, 0.0)
-                       / np.maximum(np.maximum(d2, r2), MIN_DIST2), 0.0)
+        # The bounding sphere subtends theta_b (sin^2 = r^2 / d^2), pi from inside it.
+        sin2_b = np.minimum(r2 / d2, 1.0)
+        cos_b = np.where(inside, -1.0, np.sqrt(1.0 - sin2_b)).astype(np.float32)
+        sin_b = np.where(inside, 0.0, np.sqrt(sin2_b)).astype(np.float32)
+        if self.omni:
+            imp = power / np.maximum(d2, r2)
+        else:
+            cos_w = np.clip((ax * vx + ay * vy + az * vz) * inv_d, -1.0, 1.0)
+            sin_w = np.sqrt(1.0 - cos_w * cos_w)
+            # theta_x = max(theta_w - theta_o, 0), then theta_p = max(theta_x - theta_b, 0).
+            past_o = cos_w < cos_o
+            cos_x = np.where(past_o, cos_w * cos_o + sin_w * sin_o, 1.0)
+            sin_x = np.where(past_o, sin_w * cos_o - cos_w * sin_o, 0.0)
+            past_b = cos_x < cos_b
+            cos_p = np.where(past_b, cos_x * cos_b + sin_x * sin_b, 1.0)
+            emits = ~past_b | (cos_p > cos_e)
+            imp = np.where(emits, power * np.maximum(cos_p, 0.0) / np.maximum(d2, r2), 0.0)
         if n is not None:
-            cos_i = np.where(d2 > 0, np.abs(_dot(n, v)) * inv_d, 1.0)
-            sin_i = np.sqrt(np.maximum(1.0 - cos_i * cos_i, 0.0))
+            cos_i = np.minimum(np.abs(n[0] * vx + n[1] * vy + n[2] * vz) * inv_d, 1.0)
+            sin_i = np.sqrt(1.0 - cos_i * cos_i)
             cos_ip = np.where(cos_i < cos_b, cos_i * cos_b + sin_i * sin_b, 1.0)
             imp = imp * np.maximum(cos_ip, 0.0)
-        return imp
+        return imp.astype(np.float32, copy=False)
+
+    @staticmethod
+    def _components(a):
+        """``(3, m)`` float32 components of points or normals ``a (m, 3)`` (None stays None)."""
+        return None if a is None else np.ascontiguousarray(np.asarray(a, np.float32).T)
 
     def _p_left(self, node, p, n):
-        """Probability ``(m,)`` of going left at inner nodes ``node (m,)``: the children's
-        importance share, their power share where both are zero."""
-        m = node.size
-        nn = None if n is None else np.concatenate([n, n])
-        both = self.importance(np.concatenate([self.left[node], self.right[node]]),
-                               np.concatenate([p, p]), nn)
-        il, ir = both[:m], both[m:]
-        tot = il + ir
-        pw_l = self.power[self.left[node]]
-        fallback = pw_l / (pw_l + self.power[self.right[node]])
+        """Probability ``(m,)`` float64 of going left at inner nodes ``node (m,)``: the
+        children's importance share, their power share where both are zero. ``p, n`` as in
+        :meth:`importance`."""
+        il, ir = self.importance(self.children[:, node], p, n)
+        tot = il.astype(np.float64) + ir
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(tot > 0, il / tot, fallback)
+            return np.where(tot > 0, il / tot, self.fallback_left[node])
 
     # ------------------------------------------------------------------ sampling
     def choose(self, u, p, n=None):
@@ -336,20 +361,27 @@ class LightTree:
         node = np.zeros(m, np.int64)
         pmf = np.ones(m)
         u = np.array(u, np.float64)
+        pc, nc = self._components(p), self._components(n)
         for _ in range(self.depth):
             act = np.nonzero(self.left[node] >= 0)[0]
             if not act.size:
                 break
-            nd = node[act]
-            pl = self._p_left(nd, p[act], None if n is None else n[act])
-            ua = u[act]
-            go_left = ua < pl
-            prob = np.where(go_left, pl, 1.0 - pl)
+            full = act.size == m
+            # While every point is still inside the tree, work on whole arrays (no gathers).
+            nd = node if full else node[act]
+            ua = u if full else u[act]
+            pl = (self._p_left(nd, pc, nc) if full else
+                  self._p_left(nd, pc[:, act], None if nc is None else nc[:, act]))
+            go_right = ua >= pl
+            prob = np.where(go_right, 1.0 - pl, pl)
+            # Remap u to [0, 1) within the chosen side for the next level.
             with np.errstate(divide="ignore", invalid="ignore"):
-                u[act] = np.minimum(np.where(go_left, ua / pl, (ua - pl) / (1.0 - pl)),
-                                    1.0 - 2.0**-53)
-            pmf[act] = pmf[act] * prob
-            node[act] = np.where(go_left, self.left[nd], self.right[nd])
+                ua = np.minimum((ua - go_right * pl) / prob, 1.0 - 2.0**-53)
+            nd = self.child_pairs[2 * nd + go_right]
+            if full:
+                u, pmf, node = ua, pmf * prob, nd
+            else:
+                u[act], pmf[act], node[act] = ua, pmf[act] * prob, nd
         return self.leaf_emitter[node], pmf
 
     def pmf(self, index, p, n=None):
@@ -359,12 +391,13 @@ class LightTree:
         leaf = np.minimum(leaf, self.leaf_rows.size - 1)
         inside = self.leaf_rows[leaf] == index
         out = inside.astype(np.float64)
+        pc, nc = self._components(p), self._components(n)
         for d in range(self.depth):
             act = np.nonzero(inside & (self.path_node[leaf, d] >= 0))[0]
             if not act.size:
                 break
             nd = self.path_node[leaf[act], d]
-            pl = self._p_left(nd, p[act], None if n is None else n[act])
+            pl = self._p_left(nd, pc[:, act], None if nc is None else nc[:, act])
             prob = np.where(self.path_left[leaf[act], d], pl, 1.0 - pl)
             out[act] = out[act] * prob
         return out

@@ -135,7 +135,7 @@ def test_tree_power_fallback_where_both_children_are_dark():
     bounds = lamp_bounds(lights, np.arange(2), np.array([10.0, 30.0]))
     tree = LightTree(bounds)
     above = np.array([[0.5, 0.0, 1.0]])                   # lamps emit toward -Z
-    imp = tree.importance(np.array([1, 2]), np.repeat(above, 2, axis=0))
+    imp = tree.importance(np.array([1, 2]), LightTree._components(np.repeat(above, 2, axis=0)))
     assert np.all(imp == 0)
     np.testing.assert_allclose(tree.pmf(np.arange(2), np.repeat(above, 2, axis=0)),
                                [0.25, 0.75])
@@ -192,6 +192,23 @@ def test_tree_image_check_rejects_a_wrong_image(many_renders):
     (ma, va), (mb, vb) = many_renders["tree"], many_renders["power"]
     with pytest.raises(AssertionError):
         assert_two_images_agree(1.06 * ma, va, mb, vb, detect=(0.02, 0.06))
+
+
+def test_tree_image_check_rejects_mis_with_the_wrong_pmf(many_renders, monkeypatch):
+    """The same check catches a tree render whose MIS reads power selection's table for the
+    emitters BSDF rays find instead of the tree's pmf (measured +17 % on the image mean)."""
+    from sampling_lab.core.lights.sampler import LightSampler
+
+    def table_pmf(self, index, p, n=None):
+        return np.where(index >= 0, self.select_prob[np.maximum(index, 0)], 0.0)
+
+    monkeypatch.setattr(LightSampler, "nee_pmf", table_pmf)
+    res = render(scenes.many_lights(24, 24), RenderSettings(spp=SPP, seed=2, max_bounces=3,
+                                                            light_selection="tree"))
+    mb, vb = many_renders["power"]
+    with pytest.raises(AssertionError):
+        assert_two_images_agree(res.combined()[..., :3], res.variance(), mb, vb,
+                                detect=(0.02, 0.06))
 
 
 def test_tree_lowers_relative_variance_on_many_lights(many_renders):
