@@ -239,3 +239,22 @@ def test_light_paths_choose_by_power_under_tree(integrator):
                                            light_selection=sel)).combined()
               for sel in ("power", "tree")]
     np.testing.assert_array_equal(images[0], images[1])
+
+
+@pytest.mark.parametrize("lights", ["none", "world", "one_point", "sun_and_world", "one_quad"])
+def test_tree_renders_scenes_with_few_lights(lights):
+    """No emitter, only infinite ones, or a one-leaf tree: finite images, and the same image as
+    power selection where the choice cannot differ (no emitter, or one)."""
+    scene = scenes.cornell_box(8, 8, light="mesh" if lights == "one_quad" else "point")
+    if lights != "one_point" and lights != "one_quad":
+        scene.lights = Lights.empty()
+    if lights == "sun_and_world":
+        scene.lights = L.sun_light((0.2, 0.1, -1.0), (1, 1, 1), 2.0)
+    if lights in ("world", "sun_and_world"):
+        scene.world_color = np.array([0.2, 0.2, 0.3])
+    images = [render(scene, RenderSettings(spp=4, seed=3, max_bounces=2, light_selection=sel))
+              .combined() for sel in ("power", "tree")]
+    assert np.isfinite(images[1]).all() and images[1][..., :3].min() >= 0
+    if lights in ("none", "one_point", "world"):
+        np.testing.assert_array_equal(images[0], images[1])
+    np.testing.assert_allclose(images[1][..., :3].mean(), images[0][..., :3].mean(), rtol=0.5)
