@@ -166,9 +166,3 @@ class Integrator:
             Incremented with the work done.
         """
         raise NotImplementedError
-
-    @classmethod
-    def one_batch(cls, prep, settings, pixel_filter, stream, counters):
-        """``cls(prep, settings).render_samples(stream, pixel_filter, counters)``: one work
-        unit without a render loop (tests, one-off use); a render builds its integrator once."""
-        return cls(prep, settings).render_samples(stream, pixel_filter, counters)

@@ -91,4 +91,3 @@ class BDPT(Bidirectional):
 
 
 # One work unit without a render loop (tests, one-off use); a render builds BDPT once.
-render_samples = BDPT.one_batch

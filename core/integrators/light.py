@@ -48,4 +48,3 @@ class LightTracer(Bidirectional):
 
 
 # One work unit without a render loop (tests, one-off use); a render builds LightTracer once.
-render_samples = LightTracer.one_batch

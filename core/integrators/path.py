@@ -258,7 +258,6 @@ class PathTracer(Integrator):
 
 
 # One work unit without a render loop (tests, one-off use); a render builds PathTracer once.
-render_samples = PathTracer.one_batch
 
 
 def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis):

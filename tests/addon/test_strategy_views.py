@@ -67,7 +67,11 @@ def test_integrator_menu_item_maps_to_a_core_integrator_module(empty_scene, mods
     assert name == item.lower()
     module = mods["integrators"].INTEGRATORS[name]
     assert module.__name__ == f"{ADDON_MODULE}.core.integrators.{name}"
-    assert callable(module.render_samples)  # what core.render calls for every work unit
+    # What core.render builds once per render and calls for every work unit.
+    cls = mods["integrators"].integrator_class(name)
+    assert issubclass(cls, importlib.import_module(
+        f"{ADDON_MODULE}.core.integrators.base").Integrator)
+    assert cls.__module__ == module.__name__
 
 
 def test_strategy_view_properties_default_to_the_core_and_map_to_render_settings(empty_scene,
