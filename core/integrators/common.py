@@ -214,7 +214,8 @@ def shading_normals(prep, prim, u, v, ng, wo):
     return np.where(good[:, None], n, ng)
 
 
-def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera, mis):
+def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera, mis,
+                            n_prev=None):
     """Stage *handle escaped + handle emission*: light reaching the ray's origin along it.
 
     Adds ``beta * Le * w`` to ``L[rows_of]`` for the world (escaped rays), light shapes before the
@@ -234,6 +235,9 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
         Whether these are camera rays (lamps show only if visible to the camera).
     mis : core.sampling.mis.MIS
         The render's MIS (any setting); see :meth:`core.sampling.mis.MIS.bsdf_weight`.
+    n_prev : (n, 3) float64 or None
+        Shading normals at the origins, as next-event estimation gave them to the light
+        selection there (a light tree); None when the selection does not use them.
     """
     lights = prep.lights
 
@@ -246,7 +250,7 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
         le, pdf_l = lights.world_radiance(d[escaped])
         add_rows(L, rows_of[escaped],
                  take_rows(beta, escaped) * le * weight(escaped, pdf_l)[:, None])
-    for rows, le, pdf_l in lights.hit_shapes(o, d, hits.t, camera):
+    for rows, le, pdf_l in lights.hit_shapes(o, d, hits.t, camera, n_prev):
         add_rows(L, rows_of[rows], take_rows(beta, rows) * le * weight(rows, pdf_l)[:, None])
     hit_rows = np.nonzero(hits.hit)[0]
     if hit_rows.size and lights.emissive_tris.size:
@@ -256,6 +260,7 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
         if rows.size:
             prim = prim[emissive]
             cos_l = np.einsum("ij,ij->i", take_rows(d, rows), take_rows(prep.tri_normal, prim))
-            pdf_l = lights.triangle_pdf(prim, take_rows(o, rows), hits.t[rows], cos_l)
+            pdf_l = lights.triangle_pdf(prim, take_rows(o, rows), hits.t[rows], cos_l,
+                                        None if n_prev is None else take_rows(n_prev, rows))
             le = take_rows(prep.tri_emission, prim)
             add_rows(L, rows_of[rows], take_rows(beta, rows) * le * weight(rows, pdf_l)[:, None])

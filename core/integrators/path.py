@@ -162,6 +162,9 @@ class PathTracer(Integrator):
         self.mis = MIS.from_settings(settings)
         # BSDF sampling alone never samples lights: skip NEE and its shadow rays altogether.
         self.use_nee = self.mis.samples_lights
+        # A light tree chooses lights from the shading normal too: NEE and the MIS weights of
+        # emitters found by rays must then see the same normal.
+        self.normals = prep.lights.selector.point_dependent
 
     def render_samples(self, stream, pixel_filter, counters):
         """Radiance of one camera path per entry of ``stream`` (finite, non-negative)."""
@@ -177,12 +180,14 @@ class PathTracer(Integrator):
         vis = np.full(n, VIS_CAMERA, np.int32)
         # Camera rays, also after passing straight through transparent surfaces.
         camera_ray = np.ones(n, bool)
+        n_prev = None  # shading normals at the rays' origins (light tree only)
 
         for bounce in range(settings.max_bounces + 2):
             # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
             hits = intersect_by_class(prep.accel, o, d, tmax, vis)
             counters.rays += o.shape[0]
-            _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis)
+            _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis,
+                          n_prev)
             if bounce == settings.max_bounces + 1:
                 break  # this segment only gathered emission (Cycles' "terminate on next surface")
 
@@ -210,7 +215,7 @@ class PathTracer(Integrator):
                 nee = shading.nee_rows
                 if nee is None or nee.size:
                     _next_event(prep, shading, si, nee, _rows(u_sel, nee), _rows(u_light, nee),
-                                beta, L, rows_of, mis, counters)
+                                beta, L, rows_of, mis, counters, self.normals)
 
             # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
             wi, weight, pdf_b, delta, vis_next, through = shading.sample(u_bsdf)
@@ -226,15 +231,18 @@ class PathTracer(Integrator):
                 stream.compact(keep)
                 rows_of, beta = rows_of[keep], take_rows(beta, keep)
                 p, ng, prim = take_rows(si.p, keep), take_rows(si.ng, keep), si.prim[keep]
+                ns = take_rows(si.ns, keep) if self.normals else None
                 wi = take_rows(wi, keep)
                 pdf_b, delta, through = pdf_b[keep], delta[keep], through[keep]
                 vis, vis_next, camera_ray = vis[keep], vis_next[keep], camera_ray[keep]
             else:
                 p, ng, prim = si.p, si.ng, si.prim
+                ns = si.ns if self.normals else None
             o = prep.accel.offset_origin(p, ng, prim, wi)
             d = wi
             tmax = None  # bounce rays are unbounded
             pdf_prev = pdf_b
+            n_prev = ns
             use_mis = ~delta
             camera_ray = camera_ray & through
             vis = np.where(through, vis, vis_next)
@@ -260,26 +268,32 @@ class PathTracer(Integrator):
 # One work unit without a render loop (tests, one-off use); a render builds PathTracer once.
 
 
-def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis):
+def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis,
+                  n_prev=None):
     """Stage *handle escaped + handle emission*, with camera rays (``camera_ray (n,)``: lamps
-    show only if visible to the camera) and other rays handled apart."""
+    show only if visible to the camera) and other rays handled apart; ``n_prev (n, 3)``: shading
+    normals at the origins, for a light tree (None otherwise)."""
     groups = ([(None, bool(camera_ray[0]))] if np.all(camera_ray == camera_ray[:1])
               else [(np.nonzero(camera_ray)[0], True), (np.nonzero(~camera_ray)[0], False)])
     for rows, camera in groups:
         if rows is None:
             add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis,
-                                    camera, mis)
+                                    camera, mis, n_prev)
             continue
         sub = Hits(hits.prim[rows], hits.t[rows], hits.u[rows], hits.v[rows])
         add_emitters_along_rays(prep, L, beta[rows], o[rows], d[rows], sub, rows_of[rows],
-                                pdf_prev[rows], use_mis[rows], camera, mis)
+                                pdf_prev[rows], use_mis[rows], camera, mis,
+                                None if n_prev is None else n_prev[rows])
 
 
-def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, mis, counters):
+def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, mis, counters,
+                normals=False):
     """Stage *sample lights* on the shading rows ``rows`` (None: every row): adds
-    ``beta f Li w / pdf`` to ``L``."""
+    ``beta f Li w / pdf`` to ``L``; ``normals``: the light selection also takes the shading
+    normals (a light tree)."""
     p = _rows(si.p, rows)
-    wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(p, u_sel, u_light, counters)
+    wi, dist, li, pdf_l, delta, light_normal = prep.lights.sample(
+        p, u_sel, u_light, counters, n=_rows(si.ns, rows) if normals else None)
     f, pdf_b = shading.eval_pdf(rows, wi)
     ok = (pdf_l > 0) & (max_component(f) > 0) & (max_component(li) > 0)
     cand = np.nonzero(ok)[0]
