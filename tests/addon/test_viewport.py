@@ -28,7 +28,7 @@ import scenes
 from scenes import ADDON_MODULE
 
 from sampling_lab.core.camera import generate_rays
-from sampling_lab.core.integrators import INTEGRATORS
+from sampling_lab.core.integrators import integrator_class
 from sampling_lab.core.view_camera import camera_frame, film_camera, zoom_factor
 
 
@@ -363,7 +363,7 @@ class Recorder:
 
 def one_spp_pass_size(core_render):
     """A film size whose passes take one sample per pixel (see core.render.render)."""
-    unit = getattr(INTEGRATORS["path"], "UNIT_PATHS", core_render.UNIT_PATHS)
+    unit = integrator_class("path").unit_paths
     n = unit * core_render.PASS_UNITS // 2 + 1
     width = 4 * int(math.ceil(math.sqrt(n / 12)))
     return width, int(math.ceil(n / width))
@@ -459,8 +459,9 @@ def test_worker_polls_cancel_between_bounded_units_and_stops_after_those_in_flig
     stats = renderer.stats
     assert stats["cancelled"] and stats["stage"] == 0
     # core.render polls after every unit and finishes at most threads - 1 units in flight; a
-    # unit holds at most UNIT_PATHS paths (rounded up to whole pixels of one pass).
-    unit = getattr(INTEGRATORS["path"], "UNIT_PATHS", core_render.UNIT_PATHS)
+    # unit holds at most the path tracer's unit_paths paths (rounded up to whole pixels of one
+    # pass).
+    unit = integrator_class("path").unit_paths
     spp_per_pass = max(1, min(unit * core_render.PASS_UNITS // (128 * 128), 64))
     # (core.render reads the flag once more to tell a cancel from a time limit.)
     assert cancel_at <= CancelAtThirdPoll.polls <= cancel_at + 1
