@@ -16,18 +16,14 @@ from __future__ import annotations
 import os
 import time
 
-import numpy as np
-
 from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN
+from .common import equal_time_row
 from .outputs import publish
 
 # What docs/ shows, relative to the output folder (and to docs/).
 DOCS_FILES = ("CAUSTIC.md",)
 
-
-def rel_mse(img, ref):
-    return float(np.mean((img - ref) ** 2 / (ref ** 2 + 1e-2)))
 
 
 def run(size=(64, 64), seconds=8.0, reference_seconds=120.0, integrators=("path", "light", "bdpt"),
@@ -43,12 +39,9 @@ def run(size=(64, 64), seconds=8.0, reference_seconds=120.0, integrators=("path"
     progress(f"reference: bdpt, {ref.stats['spp']} spp in {time.perf_counter() - t0:.1f} s")
     rows = []
     for name in integrators:
-        res = render(scene, RenderSettings(integrator=name, spp=0, time_limit=seconds,
-                                           max_bounces=max_bounces, seed=1))
-        img = res.film.mean()
-        row = dict(integrator=name, spp=res.stats["spp"], time_s=res.stats["time_s"],
-                   samples_per_s=res.stats["samples_per_s"], rel_mse=rel_mse(img, ref_img),
-                   mean_ratio=float(img.mean() / ref_img.mean()))
+        settings = RenderSettings(integrator=name, spp=0, time_limit=seconds,
+                                   max_bounces=max_bounces, seed=1)
+        row = dict(integrator=name, **equal_time_row(scene, settings, ref_img))
         rows.append(row)
         progress(f"{name}: {row}")
     load1 = os.getloadavg()

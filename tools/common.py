@@ -29,6 +29,19 @@ def write_csv(path, rows):
                         if not k.startswith("_")})
 
 
+def equal_time_row(scene, settings, ref_img):
+    """Render ``scene`` with ``settings`` (a time limit) against the reference image ``ref_img``:
+    a row of ``spp``, ``time_s``, ``samples_per_s``, ``rel_mse`` and ``mean_ratio``."""
+    from ..core.metrics import rel_mse
+    from ..core.render import render
+
+    res = render(scene, settings)
+    img = res.film.mean()
+    return dict(spp=res.stats["spp"], time_s=res.stats["time_s"],
+                samples_per_s=res.stats["samples_per_s"], rel_mse=rel_mse(img, ref_img),
+                mean_ratio=float(img.mean() / ref_img.mean()))
+
+
 def mean_ratio(a, b):
     return float(np.mean(np.asarray(a)[..., :3], dtype=np.float64)
                  / np.mean(np.asarray(b)[..., :3], dtype=np.float64))

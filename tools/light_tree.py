@@ -15,17 +15,13 @@ from __future__ import annotations
 import os
 import time
 
-import numpy as np
-
 from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN
+from .common import equal_time_row
 
 REPORT = "LIGHT_TREE_BENCH.md"
 SELECTIONS = ("power", "uniform", "tree")
 
-
-def rel_mse(img, ref):
-    return float(np.mean((img - ref) ** 2 / (ref ** 2 + 1e-2)))
 
 
 def run(size=(64, 64), seconds=10.0, reference_seconds=60.0, selections=SELECTIONS,
@@ -42,12 +38,9 @@ def run(size=(64, 64), seconds=10.0, reference_seconds=60.0, selections=SELECTIO
     progress(f"reference: tree, {ref.stats['spp']} spp in {time.perf_counter() - t0:.1f} s")
     rows = []
     for name in selections:
-        res = render(scene, RenderSettings(spp=0, time_limit=seconds, light_selection=name,
-                                           max_bounces=max_bounces, seed=1, threads=threads))
-        img = res.film.mean()
-        row = dict(selection=name, spp=res.stats["spp"], time_s=res.stats["time_s"],
-                   samples_per_s=res.stats["samples_per_s"], rel_mse=rel_mse(img, ref_img),
-                   mean_ratio=float(img.mean() / ref_img.mean()))
+        settings = RenderSettings(spp=0, time_limit=seconds, light_selection=name,
+                                   max_bounces=max_bounces, seed=1, threads=threads)
+        row = dict(selection=name, **equal_time_row(scene, settings, ref_img))
         rows.append(row)
         progress(f"{name}: {row}")
     load1 = os.getloadavg()
