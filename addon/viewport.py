@@ -13,8 +13,8 @@ keeps the exported scene and a :class:`ProgressiveRender`, whose worker thread r
    restarts the render with the same exported scene and the new camera.
 3. A restart sets the running render's cancel flag and returns at once: the new worker waits for
    the old one, which stops after the work units in flight (``core.render`` polls the flag
-   between units of at most the integrator's ``unit_paths`` paths), so the UI never waits for a
-   render.
+   between units of a quarter of the integrator's ``unit_paths``: ``core.progressive.unit_paths``),
+   so the UI never waits for a render.
 4. Every render starts with coarse previews of one sample per pixel, a film pixel covering
    ``2^k`` region pixels (as Cycles' viewport does), then renders the full film progressively up
    to the Viewport Samples limit (0: until the view changes). A main-thread timer redraws the

@@ -19,11 +19,20 @@ import traceback
 
 import numpy as np
 
+from .integrators import integrator_class
 from .render import render
 from .view_camera import film_camera
 
 # Longest side, in film pixels, of the first (coarsest) preview.
 START_RESOLUTION = 64
+# Viewport work units hold this share of an integrator's paths per unit: a restart waits for
+# the units in flight, so smaller units keep it under about 0.1 s (tools/viewport_cancel.py).
+UNIT_SHARE = 4
+
+
+def unit_paths(settings):
+    """Paths per work unit of a viewport render with ``settings``."""
+    return max(1, integrator_class(settings.integrator).unit_paths // UNIT_SHARE)
 
 
 def progressive_stages(width, height, pixel_size=1, samples=0, start_resolution=START_RESOLUTION):
@@ -233,7 +242,8 @@ class ProgressiveRender:
                     self._publish(job, result, divisor, final)
 
                 out = render(scene, settings, cancel=lambda: self._poll(job),
-                             on_update=on_update, prepared=prepared)
+                             on_update=on_update, prepared=prepared,
+                             unit_paths=unit_paths(settings))
                 # The next stage differs only in its film size: no second Embree build.
                 prepared = out.prepared
                 job.stats = dict(out.stats, cancelled=out.cancelled, stage=index)

@@ -213,7 +213,7 @@ def check_settings(scene, settings):
 
 
 def render(scene, settings: RenderSettings, progress=None, cancel=None, on_update=None,
-           prepared=None):
+           prepared=None, unit_paths=None):
     """Render ``scene`` with ``settings``.
 
     Parameters
@@ -231,6 +231,11 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         this one's (the same scene but for the camera, e.g. the previous frame of an
         animation): reused instead of building the acceleration structure and light tables
         again (Blender's Persistent Data). The stats say ``prepared_reused``.
+
+    unit_paths : int or None
+        Paths per work unit; None: the integrator's own (``unit_paths``). Smaller units answer
+        ``cancel`` sooner at some cost in speed (the rendered viewport); the pass size follows
+        it, so the same seed gives the same image only with the same unit size.
 
     Returns
     -------
@@ -257,7 +262,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                                                                           integrator),
                           layer_names=list(integrator.layers), prepared=prep)
     keep_freed_memory()
-    passes = _Passes(settings, integrator, sampler, film, cam, progress, cancel)
+    passes = _Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths)
     result.cancelled = passes.run(lambda: on_update is not None and on_update(result))
     t = passes.elapsed()
     counters = passes.counters
@@ -304,7 +309,8 @@ class _Passes:
     """The passes of one render: work units run on worker threads, accumulated into the film
     in unit order, with progress, cancel and the time limit checked between units."""
 
-    def __init__(self, settings, integrator, sampler, film, cam, progress, cancel):
+    def __init__(self, settings, integrator, sampler, film, cam, progress, cancel,
+                 unit_paths=None):
         self.settings, self.integrator = settings, integrator
         self.sampler, self.film = sampler, film
         self.frame_width = cam.width
@@ -312,7 +318,7 @@ class _Passes:
         self.pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
         self.total_spp = settings.spp if settings.spp > 0 else None
         # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
-        self.unit_paths = integrator.unit_paths
+        self.unit_paths = unit_paths or integrator.unit_paths
         # Sized by the whole frame, so a region's pixels sum their samples in the same passes as
         # a full-frame render (bit-identical pixels).
         self.spp_per_pass = max(1, min(self.unit_paths * PASS_UNITS // (cam.width * cam.height),

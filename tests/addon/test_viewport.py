@@ -27,6 +27,7 @@ import pytest
 import scenes
 from scenes import ADDON_MODULE
 
+from sampling_lab.core import progressive
 from sampling_lab.core.camera import generate_rays
 from sampling_lab.core.integrators import integrator_class
 from sampling_lab.core.view_camera import camera_frame, film_camera, zoom_factor
@@ -361,9 +362,9 @@ class Recorder:
             self.frames.append(frame)
 
 
-def one_spp_pass_size(core_render):
+def one_spp_pass_size(core_render, settings):
     """A film size whose passes take one sample per pixel (see core.render.render)."""
-    unit = integrator_class("path").unit_paths
+    unit = progressive.unit_paths(settings)
     n = unit * core_render.PASS_UNITS // 2 + 1
     width = 4 * int(math.ceil(math.sqrt(n / 12)))
     return width, int(math.ceil(n / width))
@@ -371,9 +372,9 @@ def one_spp_pass_size(core_render):
 
 def test_each_pass_draws_the_film_mean_of_that_many_samples(empty_scene, export, viewport,
                                                            core_render):
-    width, height = one_spp_pass_size(core_render)
-    sl_scene = film_scene(export, empty_scene, width, height)
     settings = viewport.viewport_settings(empty_scene)
+    width, height = one_spp_pass_size(core_render, settings)
+    sl_scene = film_scene(export, empty_scene, width, height)
     recorder = Recorder()
     renderer = viewport.ProgressiveRender(notify=recorder)
     recorder.renderer = renderer
@@ -390,7 +391,8 @@ def test_each_pass_draws_the_film_mean_of_that_many_samples(empty_scene, export,
         camera = film_camera(sl_scene.camera, frame.pixel_size)
         reference = core_render.render(
             dataclasses.replace(sl_scene, camera=camera),
-            dataclasses.replace(settings, spp=frame.spp, time_limit=0.0))
+            dataclasses.replace(settings, spp=frame.spp, time_limit=0.0),
+            unit_paths=progressive.unit_paths(settings))
         data = viewport.texture_pixels(frame)
         assert data.dtype == np.float32 and data.flags.c_contiguous
         assert data.shape == (camera.width * camera.height * 4,)
@@ -459,9 +461,10 @@ def test_worker_polls_cancel_between_bounded_units_and_stops_after_those_in_flig
     stats = renderer.stats
     assert stats["cancelled"] and stats["stage"] == 0
     # core.render polls after every unit and finishes at most threads - 1 units in flight; a
-    # unit holds at most the path tracer's unit_paths paths (rounded up to whole pixels of one
-    # pass).
-    unit = integrator_class("path").unit_paths
+    # unit holds at most the viewport's share of the path tracer's unit_paths paths (rounded up
+    # to whole pixels of one pass).
+    unit = progressive.unit_paths(settings)
+    assert unit == integrator_class("path").unit_paths // 4
     spp_per_pass = max(1, min(unit * core_render.PASS_UNITS // (128 * 128), 64))
     # (core.render reads the flag once more to tell a cancel from a time limit.)
     assert cancel_at <= CancelAtThirdPoll.polls <= cancel_at + 1
