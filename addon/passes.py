@@ -65,7 +65,7 @@ def pass_images(result):
     return images
 
 
-def write_passes(layer, images, window=None):
+def write_passes(layer, images):
     """Copy ``images`` into the passes of a ``RenderLayer`` that exist there.
 
     Parameters
@@ -73,15 +73,12 @@ def write_passes(layer, images, window=None):
     layer : bpy.types.RenderLayer
         ``result.layers[0]`` of ``RenderEngine.begin_result``.
     images : dict of str -> (h, w, c) array
-    window : tuple of slice or None
-        ``(rows, columns)`` of the images that the layer covers (render region); all if None.
+        Of the layer's size (a render region renders only the region: ``core.film.Film``).
     """
     for render_pass in layer.passes:
         image = images.get(render_pass.name)
         if image is None:
             continue
-        if window is not None:
-            image = image[window]
         if image.shape[-1] != render_pass.channels:
             continue
         # foreach_set with a contiguous float32 buffer is a memcpy; assigning rect is not.

@@ -847,3 +847,17 @@ def assert_replicates_agree(a, b, block=8, mask=None, p_false=1e-4, detect=DETEC
                               mb[:-c].reshape(-1, c), q, q_power)
     require_detectable(found, detect, what, block)
     return Agreement(ma[-c:] / mb[-c:], found)
+
+
+def random_rigid(seed, scale=(1.0, 1.0, 1.0), spread=5.0):
+    """A random rotation (scaled per axis by ``scale``) with a translation of normal components
+    times ``spread``, as a (4, 4) object matrix (the same matrix for the same arguments)."""
+    rng = np.random.default_rng(seed)
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] = -q[:, 0]
+    m = np.eye(4)
+    m[:3, :3] = q * np.asarray(scale)
+    m[:3, 3] = rng.normal(size=3) * spread
+    return m

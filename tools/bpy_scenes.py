@@ -144,6 +144,11 @@ def add_mesh(scene, name, vertices, faces, material=None, location=(0.0, 0.0, 0.
     """Link a new mesh object built from ``vertices (v, 3)`` and ``faces`` (index lists)."""
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata([tuple(map(float, v)) for v in vertices], [], [tuple(f) for f in faces])
+    return _link_mesh(scene, name, mesh, material, location)
+
+
+def _link_mesh(scene, name, mesh, material, location):
+    """Give ``mesh`` its material and link it to ``scene`` as object ``name`` at ``location``."""
     mesh.update()
     if material is not None:
         mesh.materials.append(material)
@@ -163,13 +168,7 @@ def add_uv_sphere(scene, name, center, radius, material=None, segments=32, rings
     bm.to_mesh(mesh)
     bm.free()
     mesh.polygons.foreach_set("use_smooth", [False] * len(mesh.polygons))
-    mesh.update()
-    if material is not None:
-        mesh.materials.append(material)
-    ob = bpy.data.objects.new(name, mesh)
-    ob.location = center
-    scene.collection.objects.link(ob)
-    return ob
+    return _link_mesh(scene, name, mesh, material, center)
 
 
 def add_quad(scene, name, corners, material=None):

@@ -142,9 +142,9 @@ def test_progressive_updates_show_the_image_so_far(empty_scene, tmp_path, engine
     write_passes = passes_module.write_passes
     counts = []
 
-    def recording_write_passes(layer, images, window=None):
+    def recording_write_passes(layer, images):
         counts.append(float(images["Sample Count"].mean()))
-        write_passes(layer, images, window)
+        write_passes(layer, images)
 
     monkeypatch.setattr(passes_module, "write_passes", recording_write_passes)
     passes = scenes.render_to_exr(empty_scene, tmp_path / "progressive.exr")

@@ -25,6 +25,7 @@ import pytest
 
 from sampling_lab.core.camera import generate_rays
 from sampling_lab.core.scene import Camera
+from tests.helpers import random_rigid
 
 RESOLUTIONS = {"landscape": (64, 36), "portrait": (30, 48), "square": (40, 40)}
 FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
@@ -34,15 +35,7 @@ ASPECTS = ((1.0, 1.0), (2.0, 1.0), (1.0, 1.6))
 
 def camera_matrix(seed=0, scale=(1.0, 1.0, 1.0)):
     """A rotated, translated camera object matrix (optionally with object scale)."""
-    rng = np.random.default_rng(seed)
-    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
-    q = q * np.sign(np.diag(r))
-    if np.linalg.det(q) < 0:
-        q[:, 0] = -q[:, 0]
-    m = np.eye(4)
-    m[:3, :3] = q * np.asarray(scale)
-    m[:3, 3] = rng.normal(size=3) * 5
-    return m
+    return random_rigid(seed, scale=scale, spread=5.0)
 
 
 def make_camera(res="landscape", fit="AUTO", shift=(0.0, 0.0), aspect=(1.0, 1.0),

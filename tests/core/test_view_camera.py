@@ -21,20 +21,13 @@ from sampling_lab.core.camera import generate_rays
 from sampling_lab.core.scene import Camera
 from sampling_lab.core.view_camera import (camera_frame, camera_from_matrices,
                                            camera_view_camera, film_camera, zoom_factor)
+from tests.helpers import random_rigid
 
 FIT_ZOOM = 50.0 * (2.0 - math.sqrt(2.0))  # zoom factor 1: the frame fills the region
 
 
 def rigid(seed):
-    rng = np.random.default_rng(seed)
-    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
-    q = q * np.sign(np.diag(r))
-    if np.linalg.det(q) < 0:
-        q[:, 0] = -q[:, 0]
-    m = np.eye(4)
-    m[:3, :3] = q
-    m[:3, 3] = rng.normal(size=3) * 4
-    return m
+    return random_rigid(seed, spread=4.0)
 
 
 def frustum(l, r, b, t, n, f):
