@@ -305,7 +305,7 @@ OPTIONS = {o.name: o for o in (
     _menu("sampler", "Sampler",
           "How the random numbers of each pixel sample are generated: independent, stratified, "
           "low-discrepancy or blue-noise sequences trade the same work for a different error",
-          "independent", sampler_choices()),
+          "sobol", sampler_choices()),
     Option("spp", int, "Samples",
            "Number of samples per pixel. The render stops after this many, or earlier when the "
            "time limit runs out", 16, minimum=0, maximum=1 << 24,
@@ -342,7 +342,7 @@ OPTIONS = {o.name: o for o in (
            "largest one gets weight zero (0 is the balance heuristic, 1 the maximum heuristic)",
            0.1, minimum=0.0, maximum=1.0),
     _menu("light_selection", "Light Selection",
-          "How next-event estimation chooses which light to sample", "power",
+          "How next-event estimation chooses which light to sample", "tree",
           _choices(LIGHT_SELECTIONS, _LIGHT_SELECTION_TEXT)),
     _menu("light_sampling", "Area Lights",
           "Path Tracing only: how next-event estimation samples a point on an area light or "

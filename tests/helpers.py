@@ -40,6 +40,18 @@ import numpy as np
 import pytest
 
 from sampling_lab.core.metrics import block_means, chi2_sf, normal_quantile, student_t_quantile
+from sampling_lab.core.render import RenderSettings
+
+# Render settings whose pixel samples are independent: the independent sampler (a pixel's
+# variance then estimates the error of its mean, which the confidence intervals below rely on;
+# a low-discrepancy sampler's samples are correlated) and power light selection (the tests
+# written before the light tree became the default keep the estimator they were written for).
+PLAIN = dict(sampler="independent", light_selection="power")
+
+
+def plain_settings(**kw):
+    """``RenderSettings`` with :data:`PLAIN` unless ``kw`` says otherwise."""
+    return RenderSettings(**{**PLAIN, **kw})
 
 TWO_PI = 2.0 * np.pi
 

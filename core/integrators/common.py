@@ -31,15 +31,19 @@ def max_component(v):
     return np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
 
 
-def russian_roulette(beta, alive, u_rr, settings, bounce):
+def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     """Stage *Russian roulette*: unbiased termination of low-throughput paths.
 
     After ``settings.rr_min_bounces`` bounces (if ``use_russian_roulette``) a path survives
-    with probability ``q = min(1, max(beta))`` and its throughput is divided by ``q``; paths of
-    zero throughput end. Returns the new ``alive (k,)`` mask and ``beta (k, 3)``.
+    with probability ``q = min(1, max(beta) * eta_scale)`` and its throughput is divided by
+    ``q``; paths of zero throughput end. ``eta_scale (k,)`` (None: 1) undoes the ``1 / etap^2``
+    of refractions in radiance mode. Any ``q`` in (0, 1] keeps the estimate unbiased; this one
+    follows the throughput a path will have once it has left the glass. Returns the new
+    ``alive (k,)`` mask and ``beta (k, 3)``.
     """
     if settings.use_russian_roulette and bounce >= settings.rr_min_bounces:
-        q = np.minimum(1.0, max_component(beta))
+        q = max_component(beta)
+        q = np.minimum(1.0, q if eta_scale is None else q * eta_scale)
         alive = alive & (u_rr < q)
         beta = beta / np.maximum(q, 1e-12)[:, None]
     return alive & (max_component(beta) > 0), beta

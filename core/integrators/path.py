@@ -95,7 +95,7 @@ class _LambertShading:
             weight *= geometric_side_valid(self.ng, self.wo, wi, False)[:, None]
         k = pdf.shape[0]
         return (wi, weight, pdf, np.zeros(k, bool), np.full(k, VIS_DIFFUSE, np.int32),
-                np.zeros(k, bool))
+                np.zeros(k, bool), None)
 
 
 class _BSDFShading:
@@ -137,7 +137,20 @@ class _BSDFShading:
         if self.ng is not None:
             transmit = (smp.lobe & LOBE_TRANSMIT) != 0
             weight = weight * geometric_side_valid(self.ng, self.wo_world, wi, transmit)[:, None]
-        return wi, weight, smp.pdf, smp.delta, ray_class(smp.lobe), self.pass_through(smp)
+        return (wi, weight, smp.pdf, smp.delta, ray_class(smp.lobe), self.pass_through(smp),
+                self.eta_squared(smp))
+
+    def eta_squared(self, smp):
+        """``etap^2 (k,)`` of rows whose sample refracted (1 elsewhere): the factor by which
+        radiance transport scaled their weight down (see :mod:`core.materials.dielectric`),
+        None when no row refracted."""
+        p = self.params
+        refracted = (((smp.lobe & LOBE_TRANSMIT) != 0) & (p.eta > 0)
+                     & (np.sign(smp.wi[:, 2]) != np.sign(self.wo[:, 2])))
+        if not refracted.any():
+            return None
+        eta = np.where(refracted, p.eta, 1.0)
+        return np.where(self.wo[:, 2] > 0, eta * eta, 1.0 / (eta * eta))
 
     def pass_through(self, smp):
         """Rows whose sample went straight through a smooth dielectric of IOR 1 (Transparent
@@ -181,6 +194,10 @@ class PathTracer(Integrator):
         # Camera rays, also after passing straight through transparent surfaces.
         camera_ray = np.ones(n, bool)
         n_prev = None  # shading normals at the rays' origins (light tree only)
+        # Product of etap^2 over the refractions so far (None: none yet): Russian roulette
+        # looks at beta * eta_scale, the throughput without radiance's 1 / etap^2 (pbrt-v4's
+        # etaScale), so a path inside glass is not killed for a factor that leaving undoes.
+        eta_scale = None
 
         for bounce in range(settings.max_bounces + 2):
             # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
@@ -218,11 +235,15 @@ class PathTracer(Integrator):
                                 beta, L, rows_of, mis, counters, self.normals)
 
             # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
-            wi, weight, pdf_b, delta, vis_next, through = shading.sample(u_bsdf)
+            wi, weight, pdf_b, delta, vis_next, through, eta_sq = shading.sample(u_bsdf)
             beta = beta * weight
             alive = (pdf_b > 0) & np.isfinite(beta).all(axis=1)
+            if eta_scale is not None and live.size < eta_scale.size:
+                eta_scale = eta_scale[live]
+            if eta_sq is not None:
+                eta_scale = eta_sq if eta_scale is None else eta_scale * eta_sq
 
-            alive, beta = russian_roulette(beta, alive, u_rr, settings, bounce)
+            alive, beta = russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale)
             keep = np.nonzero(alive)[0]
             if keep.size == 0:
                 break
@@ -234,6 +255,7 @@ class PathTracer(Integrator):
                 ns = take_rows(si.ns, keep) if self.normals else None
                 wi = take_rows(wi, keep)
                 pdf_b, delta, through = pdf_b[keep], delta[keep], through[keep]
+                eta_scale = None if eta_scale is None else eta_scale[keep]
                 vis, vis_next, camera_ray = vis[keep], vis_next[keep], camera_ray[keep]
             else:
                 p, ng, prim = si.p, si.ng, si.prim

@@ -20,7 +20,7 @@ from sampling_lab.core.sampling.mis import MIS
 from sampling_lab.core.integrators.common import strategies, strategy_pass_names
 from sampling_lab.core.render import RenderSettings, check_settings, render
 from sampling_lab.core.scenes import cornell_box, cornell_sphere
-from tests.helpers import assert_replicates_agree
+from tests.helpers import assert_replicates_agree, plain_settings
 
 HEURISTICS = ("balance", "power", "maximum", "cutoff", "none")
 
@@ -29,7 +29,7 @@ def _replicates(scene, integrator, runs, spp, seed0=0, **kw):
     """``(runs, h, w, 3)`` images of independent renders."""
     out = []
     for i in range(runs):
-        st = RenderSettings(integrator=integrator, spp=spp, seed=seed0 + 1000 * i, **kw)
+        st = plain_settings(integrator=integrator, spp=spp, seed=seed0 + 1000 * i, **kw)
         res = render(scene, st)
         img = res.film.mean()
         assert np.isfinite(img).all() and (img >= 0).all()
@@ -79,11 +79,11 @@ def test_mis_weights_of_all_strategies_sum_to_one_for_every_heuristic(heuristic)
 def test_bdpt_rejects_single_strategy_mis_settings_and_orthographic_cameras():
     scene = cornell_box(8, 8, "area")
     with pytest.raises(ValueError, match="BDPT"):
-        check_settings(scene, RenderSettings(integrator="bdpt", mis_heuristic="bsdf"))
+        check_settings(scene, plain_settings(integrator="bdpt", mis_heuristic="bsdf"))
     scene.camera.type = "ORTHO"
     for integrator in ("light", "bdpt"):
         with pytest.raises(ValueError, match="perspective"):
-            check_settings(scene, RenderSettings(integrator=integrator))
+            check_settings(scene, plain_settings(integrator=integrator))
 
 
 # ------------------------------------------------------------------------------------ agreement
@@ -122,7 +122,7 @@ def test_bdpt_strategy_images_of_one_path_length_estimate_the_same_light():
     scene = cornell_box(16, 16, "area")
     runs = []
     for i in range(32):
-        st = RenderSettings(integrator="bdpt", spp=4, seed=77 + 1000 * i, max_bounces=1,
+        st = plain_settings(integrator="bdpt", spp=4, seed=77 + 1000 * i, max_bounces=1,
                             strategy_views=True, strategy_max_length=3)
         res = render(scene, st)
         layers = res.layers()
@@ -148,7 +148,7 @@ def test_bdpt_strategy_images_of_one_path_length_estimate_the_same_light():
 
 def test_weighted_strategy_images_add_up_to_the_combined_image():
     scene = cornell_box(12, 12, "point")
-    st = RenderSettings(integrator="bdpt", spp=4, seed=3, max_bounces=1, strategy_views=True,
+    st = plain_settings(integrator="bdpt", spp=4, seed=3, max_bounces=1, strategy_views=True,
                         strategy_max_length=3)
     res = render(scene, st)
     total = sum(img for name, img in res.layers().items() if name.endswith("weighted"))
@@ -158,7 +158,7 @@ def test_weighted_strategy_images_add_up_to_the_combined_image():
 @pytest.mark.parametrize("integrator", ["light", "bdpt"])
 def test_same_seed_gives_the_same_image_for_one_or_two_threads(integrator):
     scene = cornell_box(16, 16, "area")
-    imgs = [render(scene, RenderSettings(integrator=integrator, spp=4, seed=9, threads=t,
+    imgs = [render(scene, plain_settings(integrator=integrator, spp=4, seed=9, threads=t,
                                          max_bounces=2)).film.mean() for t in (1, 2)]
     np.testing.assert_array_equal(imgs[0], imgs[1])
 
@@ -235,7 +235,7 @@ def test_bdpt_beats_path_tracing_given_four_times_the_samples_on_a_small_light_c
                                         ("mirror", "area"), ("glass", "sphere")])
 def test_point_lights_with_mirrors_and_glass_leave_no_nan(integrator, ball, light):
     scene = cornell_sphere(16, 16, ball, light, light_radius=0.02)
-    res = render(scene, RenderSettings(integrator=integrator, spp=4, max_bounces=6, seed=1))
+    res = render(scene, plain_settings(integrator=integrator, spp=4, max_bounces=6, seed=1))
     img = res.film.mean()
     assert np.isfinite(img).all() and (img >= 0).all() and img.max() > 0
 
@@ -248,7 +248,7 @@ def test_grazing_camera_and_coincident_light_leave_no_nan(integrator):
     scene = cornell_box(16, 16, "point")
     scene.lights = L.point_light((0.0, 1.0, 1.0), (1, 1, 1), 50.0)
     scene.camera.to_world = look_at((0, -0.99, 1e-4), (0, 1, 1e-4))
-    res = render(scene, RenderSettings(integrator=integrator, spp=4, max_bounces=4, seed=2))
+    res = render(scene, plain_settings(integrator=integrator, spp=4, max_bounces=4, seed=2))
     img = res.film.mean()
     assert np.isfinite(img).all() and (img >= 0).all()
 
@@ -354,7 +354,7 @@ def test_every_sampler_drives_light_tracing_and_bdpt(sampler):
     kw = dict(max_bounces=2)
     pt = _replicates(scene, "path", 24, 4, **kw)
     for integrator in ("light", "bdpt"):
-        imgs = np.stack([render(scene, RenderSettings(
+        imgs = np.stack([render(scene, plain_settings(
             integrator=integrator, sampler=sampler, spp=4, seed=31 + 1000 * i, **kw)).film.mean()
             for i in range(24)])
         assert np.isfinite(imgs).all()
@@ -371,6 +371,7 @@ def test_bdpt_views_figure_shows_every_strategy_and_the_weighted_shares_make_the
     assert (tmp_path / "bdpt_views_cornell_area.png").stat().st_size > 0
     assert set(means) == set(strategy_pass_names(3))
     scene = cornell_box(16, 16, "area")
+    # The figure renders with the default settings.
     image = render(scene, RenderSettings(integrator="bdpt", spp=4, seed=0,
                                          max_bounces=1)).film.mean().mean()
     weighted = sum(v for k, v in means.items() if k.endswith("weighted"))

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scenes import cornell_box
 from tests.helpers import (
     DETECT,
@@ -28,6 +28,7 @@ from tests.helpers import (
     assert_images_agree,
     assert_replicates_agree,
     assert_two_images_agree,
+    plain_settings,
 )
 
 RES = 16
@@ -47,7 +48,7 @@ def _scene():
 
 
 def _render(spp, seed, bounces=BOUNCES):
-    res = render(_scene(), RenderSettings(spp=spp, seed=seed, max_bounces=bounces))
+    res = render(_scene(), plain_settings(spp=spp, seed=seed, max_bounces=bounces))
     return res.combined()[..., :3].astype(np.float64), res.variance().astype(np.float64)
 
 

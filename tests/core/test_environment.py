@@ -16,13 +16,14 @@ import pytest
 from sampling_lab.core import lights as L
 from sampling_lab.core import scenes
 from sampling_lab.core.prepare import prepare
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scene import Camera, Lights, Materials, Scene
 from tests.helpers import (
     assert_estimates_agree,
     assert_mean_within_ci,
     chi_square_directions,
     integrate_solid_angle,
+    plain_settings,
 )
 
 METHODS = ("cdf", "alias")
@@ -158,7 +159,7 @@ def test_white_sphere_under_uniform_world_is_a_furnace(use_map):
     c = (0.7, 0.5, 0.3)
     world_map = np.broadcast_to(np.asarray(c, np.float32), (8, 16, 3)) if use_map else None
     scene = world_scene(world_map=world_map, world_color=c, geometry=scenes.icosphere(2))
-    res = render(scene, RenderSettings(spp=16, max_bounces=4, seed=2))
+    res = render(scene, plain_settings(spp=16, max_bounces=4, seed=2))
     img = res.combined()[..., :3].reshape(-1, 3).astype(np.float64)
     assert np.all(np.isfinite(img))
     # A convex white object under a uniform sky reflects exactly the sky: every pixel is c.
@@ -173,7 +174,7 @@ def _plane_and_sphere(world_map, spp, mis, seed):
     geometry = (np.concatenate([v_s, v_p]), np.concatenate([f_s, f_p]))
     cam = Camera(scenes.look_at((0, -4, 2.0), (0, 0, 0.4)), 16, 16, lens=35.0)
     scene = world_scene(world_map=world_map, geometry=geometry, albedo=0.6, camera=cam)
-    return render(scene, RenderSettings(spp=spp, max_bounces=3, seed=seed, mis_heuristic=mis,
+    return render(scene, plain_settings(spp=spp, max_bounces=3, seed=seed, mis_heuristic=mis,
                                         use_russian_roulette=False))
 
 

@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 
 from sampling_lab.core.film import Film, PixelFilter
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scene import Camera, Lights, Materials, Scene
 from sampling_lab.core.scenes import look_at
-from tests.helpers import assert_mean_within_ci, chi_square_2d, chi_square_test, ks_uniform_test
+from tests.helpers import (assert_mean_within_ci, chi_square_2d, chi_square_test,
+                           ks_uniform_test, plain_settings)
 
 N = 200_000
 EPS = np.finfo(np.float64).eps
@@ -265,7 +266,7 @@ def test_rendered_image_has_the_ground_in_row_zero():
     mats = Materials.from_lists(["Ground"], [(0.0, 0.0, 0.0)], [le])
     cam = Camera(look_at((0, 0, 0), (0, 1, 0)), 8, 6, lens=50.0, sensor_width=36.0)
     scene = Scene(v, f, np.zeros(2, np.int32), mats, Lights.empty(), cam)
-    img = render(scene, RenderSettings(spp=4, threads=1)).combined()
+    img = render(scene, plain_settings(spp=4, threads=1)).combined()
     # The emitter's top edge (tan 0.02, half height tan 0.27) is at film y = 3.22 of 6: row 0's
     # filter footprint (film y in [-1.5, 2.5]) sees only the emitter, the top row's
     # ([4, 7]) only the black world.

@@ -16,8 +16,9 @@ from sampling_lab.core.integrators import INTEGRATORS, integrator_class
 from sampling_lab.core.integrators.base import BatchOutput, Counters, Integrator
 from sampling_lab.core.integrators.common import strategy_pass_names
 from sampling_lab.core.prepare import prepare
-from sampling_lab.core.render import RenderSettings
+
 from sampling_lab.core.sampling.samplers import make_sampler
+from tests.helpers import plain_settings
 
 PACKAGE = Path(integrators.__file__).parent
 
@@ -33,15 +34,15 @@ def test_every_registered_integrator_declares_units_layers_and_splats(name, prep
     assert issubclass(cls, Integrator) and cls.__module__ == INTEGRATORS[name].__name__
     assert isinstance(cls.unit_paths, int) and cls.unit_paths > 0
     assert isinstance(cls.splats, bool) and isinstance(cls.strategy_views, bool)
-    plain = cls(prep, RenderSettings(integrator=name))
+    plain = cls(prep, plain_settings(integrator=name))
     assert plain.layers == ()
-    views = cls(prep, RenderSettings(integrator=name, strategy_views=True, strategy_max_length=2))
+    views = cls(prep, plain_settings(integrator=name, strategy_views=True, strategy_max_length=2))
     assert list(views.layers) == (strategy_pass_names(2) if cls.strategy_views else [])
 
 
 @pytest.mark.parametrize("name", sorted(INTEGRATORS))
 def test_a_work_unit_gives_a_batch_output_with_splats_only_where_declared(name, prep):
-    settings = RenderSettings(integrator=name, max_bounces=2, strategy_views=True,
+    settings = plain_settings(integrator=name, max_bounces=2, strategy_views=True,
                               strategy_max_length=2)
     integrator = integrator_class(name)(prep, settings)
     pixels = np.repeat(np.arange(24), 2)

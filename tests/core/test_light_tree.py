@@ -19,9 +19,10 @@ from sampling_lab.core import lights as L
 from sampling_lab.core import scenes
 from sampling_lab.core.lights.tree import LightTree, lamp_bounds
 from sampling_lab.core.prepare import prepare
-from sampling_lab.core.render import RenderSettings, render, used_settings
+from sampling_lab.core.render import render, used_settings
 from sampling_lab.core.scene import Lights
-from tests.helpers import assert_two_images_agree, chi_square_test, z_for_false_failure
+from tests.helpers import (assert_two_images_agree, chi_square_test, plain_settings,
+                           z_for_false_failure)
 
 
 def _mixed_scene():
@@ -161,7 +162,7 @@ def test_tree_importance_prefers_near_and_facing_lights():
 
 def test_used_settings_report_power_for_light_paths():
     for integrator, expected in (("path", "tree"), ("light", "power"), ("bdpt", "power")):
-        used = used_settings(RenderSettings(integrator=integrator, light_selection="tree"))
+        used = used_settings(plain_settings(integrator=integrator, light_selection="tree"))
         assert used["light_selection"] == expected
 
 
@@ -176,7 +177,7 @@ def many_renders():
     scene = scenes.many_lights(24, 24)
     out = {}
     for sel, seed in (("power", 1), ("tree", 2)):
-        res = render(scene, RenderSettings(spp=SPP, seed=seed, max_bounces=3,
+        res = render(scene, plain_settings(spp=SPP, seed=seed, max_bounces=3,
                                            light_selection=sel))
         out[sel] = res.combined()[..., :3].astype(np.float64), res.variance().astype(np.float64)
     return out
@@ -205,7 +206,7 @@ def test_tree_image_check_rejects_mis_with_the_wrong_pmf(many_renders, monkeypat
         return np.where(index >= 0, self.select_prob[np.maximum(index, 0)], 0.0)
 
     monkeypatch.setattr(LightSampler, "nee_pmf", table_pmf)
-    res = render(scenes.many_lights(24, 24), RenderSettings(spp=SPP, seed=2, max_bounces=3,
+    res = render(scenes.many_lights(24, 24), plain_settings(spp=SPP, seed=2, max_bounces=3,
                                                             light_selection="tree"))
     mb, vb = many_renders["power"]
     with pytest.raises(AssertionError):
@@ -237,7 +238,7 @@ def test_light_paths_choose_by_power_under_tree(integrator):
     """Light tracing and BDPT start paths without a receiving point: with ``tree`` they render
     exactly the power-selection image (as ``used_settings`` reports)."""
     scene = scenes.many_lights(8, 8, n=32)
-    images = [render(scene, RenderSettings(integrator=integrator, spp=2, seed=4, max_bounces=2,
+    images = [render(scene, plain_settings(integrator=integrator, spp=2, seed=4, max_bounces=2,
                                            light_selection=sel)).combined()
               for sel in ("power", "tree")]
     np.testing.assert_array_equal(images[0], images[1])
@@ -254,7 +255,7 @@ def test_tree_renders_scenes_with_few_lights(lights):
         scene.lights = L.sun_light((0.2, 0.1, -1.0), (1, 1, 1), 2.0)
     if lights in ("world", "sun_and_world"):
         scene.world_color = np.array([0.2, 0.2, 0.3])
-    images = [render(scene, RenderSettings(spp=4, seed=3, max_bounces=2, light_selection=sel))
+    images = [render(scene, plain_settings(spp=4, seed=3, max_bounces=2, light_selection=sel))
               .combined() for sel in ("power", "tree")]
     assert np.isfinite(images[1]).all() and images[1][..., :3].min() >= 0
     if lights in ("none", "one_point", "world"):
@@ -280,7 +281,7 @@ def test_path_tracer_gives_the_tree_its_shading_normals_in_nee_and_mis(selection
             return _original(self, *args, **kw)
 
         monkeypatch.setattr(LightSampler, name, spy)
-    render(scenes.many_lights(8, 8), RenderSettings(spp=2, seed=1, max_bounces=3,
+    render(scenes.many_lights(8, 8), plain_settings(spp=2, seed=1, max_bounces=3,
                                                     light_selection=selection))
     assert seen["sample"] == {normals}
     # Camera rays have no origin vertex; every later bounce has one.

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from sampling_lab.core.sampling.mis import HEURISTICS, MIS, mis_weight
+from tests.helpers import plain_settings
 
 EPS = np.finfo(np.float64).eps
 
@@ -153,9 +154,7 @@ def test_weights_of_a_stack_of_strategies_sum_to_one(heuristic, kw, k):
 
 
 def test_mis_is_built_once_from_the_settings_and_rejects_unknown_settings():
-    from sampling_lab.core.render import RenderSettings
-
-    mis = MIS.from_settings(RenderSettings(mis_heuristic="cutoff", mis_beta=3.0, mis_alpha=0.25))
+    mis = MIS.from_settings(plain_settings(mis_heuristic="cutoff", mis_beta=3.0, mis_alpha=0.25))
     assert (mis.setting, mis.beta, mis.alpha) == ("cutoff", 3.0, 0.25)
     assert mis.samples_lights and not MIS("bsdf").samples_lights
     with pytest.raises(ValueError, match="heuristic"):

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
+from tests.helpers import plain_settings
 
 INTEGRATORS = ("path", "bdpt")
 
@@ -27,7 +28,7 @@ def _image(integrator, heuristic, **kw):
     # small ceiling light the density ratios are mostly below 0.1, where cutoff and maximum
     # agree.)
     scene = scenes.furnace(width=24, height=24)
-    settings = RenderSettings(integrator=integrator, spp=4, seed=11, max_bounces=3,
+    settings = plain_settings(integrator=integrator, spp=4, seed=11, max_bounces=3,
                               mis_heuristic=heuristic, **kw)
     return render(scene, settings).combined()[..., :3]
 

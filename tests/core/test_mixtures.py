@@ -13,11 +13,11 @@ import pytest
 
 from sampling_lab.core import scenes
 from sampling_lab.core.prepare import prepare
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scene import (MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_DIFFUSE, MAT_LAYERED,
                                      Camera, Lights, Materials, Scene)
 from tests.helpers import (assert_mean_within_ci, assert_two_images_agree, chi_square_test,
-                           ks_uniform_test)
+                           ks_uniform_test, plain_settings)
 
 WEIGHTS = np.array([0.2, 0.5, 0.3])
 
@@ -127,7 +127,7 @@ def test_mixture_plane_under_uniform_sky_is_the_weighted_sum_of_its_components()
     # of albedo rho reflects rho L, a white mirror L and a pass-through shows the sky: L.
     world = np.array([0.8, 1.0, 1.2])
     scene = _plane(_mixed_table(), world=world, n=24)
-    res = render(scene, RenderSettings(spp=64, max_bounces=2, seed=5))
+    res = render(scene, plain_settings(spp=64, max_bounces=2, seed=5))
     img = res.combined()[..., :3].astype(np.float64).reshape(-1, 3)
     assert np.isfinite(img).all()
     expected = (WEIGHTS[0] * 0.5 + WEIGHTS[1] + WEIGHTS[2]) * world
@@ -147,7 +147,7 @@ def test_mixture_furnace_has_the_mean_albedo_of_its_components(bounces):
         mix_rows=[[1, 2], [1, 1], [2, 2]], mix_weights=[mix, [1, 0], [1, 0]])
     scene = Scene(base.vertices, base.triangles, base.material, mats, base.lights,
                   base.camera)
-    res = render(scene, RenderSettings(spp=64, max_bounces=bounces, seed=9))
+    res = render(scene, plain_settings(spp=64, max_bounces=bounces, seed=9))
     img = res.combined()[..., 0].ravel().astype(np.float64)
     a = mix[0] * 0.5 + mix[1] * 1.0
     assert_mean_within_ci(img, (1 - a ** (bounces + 2)) / (1 - a), what="mixture furnace")
@@ -174,9 +174,9 @@ def test_nee_and_bsdf_sampling_agree_on_a_mixed_material():
     material = base.material.copy()
     material[10:34] = k  # both blocks
     scene = Scene(base.vertices, base.triangles, material, mats, base.lights, base.camera)
-    ref = render(scene, RenderSettings(spp=128, max_bounces=3, seed=1))
+    ref = render(scene, plain_settings(spp=128, max_bounces=3, seed=1))
     for heuristic in ("bsdf", "light"):
-        other = render(scene, RenderSettings(spp=128, max_bounces=3, seed=2,
+        other = render(scene, plain_settings(spp=128, max_bounces=3, seed=2,
                                              mis_heuristic=heuristic))
         assert_two_images_agree(ref.combined()[..., :3], ref.variance()[..., :3],
                                 other.combined()[..., :3], other.variance()[..., :3],
@@ -198,7 +198,7 @@ def test_lamp_seen_through_a_transparent_plane_keeps_its_camera_visibility(visib
                       visible_camera=visible_camera)
     scene = _plane(mats)
     scene = Scene(scene.vertices, scene.triangles, scene.material, mats, lamp, scene.camera)
-    res = render(scene, RenderSettings(spp=4, max_bounces=2, seed=3))
+    res = render(scene, plain_settings(spp=4, max_bounces=2, seed=3))
     img = res.combined()[..., :3]
     assert np.isfinite(img).all()
     if visible_camera:

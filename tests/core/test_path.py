@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scene import Lights, Materials, Scene
 from sampling_lab.core import lights as L
-from tests.helpers import assert_mean_within_ci
+from tests.helpers import assert_mean_within_ci, plain_settings
 
 
 def pixel_means(result):
@@ -18,7 +18,7 @@ def pixel_means(result):
 @pytest.mark.parametrize("rho,bounces", [(0.5, 8), (0.8, 3)])
 def test_furnace_converges_to_emission_over_one_minus_albedo(rho, bounces):
     scene = scenes.furnace(emission=1.0, albedo=rho, width=32, height=32)
-    res = render(scene, RenderSettings(spp=64, max_bounces=bounces, seed=7))
+    res = render(scene, plain_settings(spp=64, max_bounces=bounces, seed=7))
     # Paths of up to bounces + 1 scattering vertices: a truncated geometric series.
     expected = (1 - rho ** (bounces + 2)) / (1 - rho)
     assert_mean_within_ci(pixel_means(res), expected)
@@ -26,14 +26,14 @@ def test_furnace_converges_to_emission_over_one_minus_albedo(rho, bounces):
 
 def test_furnace_without_roulette_agrees_with_roulette():
     scene = scenes.furnace(emission=1.0, albedo=0.7, width=32, height=32)
-    res = render(scene, RenderSettings(spp=32, max_bounces=6, use_russian_roulette=False))
+    res = render(scene, plain_settings(spp=32, max_bounces=6, use_russian_roulette=False))
     assert_mean_within_ci(pixel_means(res), (1 - 0.7**8) / 0.3)
 
 
 def test_point_light_in_sphere_matches_radiosity_solution():
     rho, power, bounces = 0.5, 100.0, 6
     scene = scenes.point_in_sphere(power=power, albedo=rho, width=32, height=32)
-    res = render(scene, RenderSettings(spp=64, max_bounces=bounces, seed=3))
+    res = render(scene, plain_settings(spp=64, max_bounces=bounces, seed=3))
     # Uniform radiosity of a sphere: L = rho I / (pi R^2) * sum_k rho^k. The icosphere's facets
     # lie between its inradius and radius 1, which brackets the closed form.
     tri = scene.vertices.astype(np.float64)[scene.triangles]
@@ -50,15 +50,15 @@ def test_point_light_in_sphere_matches_radiosity_solution():
 
 def test_same_seed_gives_bit_identical_images_for_any_thread_count():
     scene = scenes.cornell_box(24, 20)
-    a = render(scene, RenderSettings(spp=6, seed=5, threads=1)).combined()
-    b = render(scene, RenderSettings(spp=6, seed=5, threads=2)).combined()
-    c = render(scene, RenderSettings(spp=6, seed=6, threads=2)).combined()
+    a = render(scene, plain_settings(spp=6, seed=5, threads=1)).combined()
+    b = render(scene, plain_settings(spp=6, seed=5, threads=2)).combined()
+    c = render(scene, plain_settings(spp=6, seed=6, threads=2)).combined()
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
 
 
 def test_sample_count_and_variance_passes_are_consistent():
-    res = render(scenes.cornell_box(16, 16), RenderSettings(spp=5))
+    res = render(scenes.cornell_box(16, 16), plain_settings(spp=5))
     assert (res.sample_count() == 5).all()
     var = res.variance()
     assert var.shape == (16, 16, 3) and np.isfinite(var).all() and (var >= 0).all()
@@ -72,7 +72,7 @@ def test_cancel_keeps_the_samples_already_taken():
         calls.append(1)
         return len(calls) > 2
 
-    res = render(scenes.cornell_box(64, 64), RenderSettings(spp=1000), cancel=cancel)
+    res = render(scenes.cornell_box(64, 64), plain_settings(spp=1000), cancel=cancel)
     assert res.cancelled
     counts = res.sample_count()
     assert counts.max() > 0 and counts.max() < 1000
@@ -112,7 +112,7 @@ def test_time_limit_halts_the_render(monkeypatch, spp):
         cancel_polls.append(1)
         return len(cancel_polls) > backstop
 
-    res = render(scenes.cornell_box(16, 16), RenderSettings(spp=spp, time_limit=limit),
+    res = render(scenes.cornell_box(16, 16), plain_settings(spp=spp, time_limit=limit),
                  progress=progress, cancel=cancel)
     assert not res.cancelled, "the time limit did not stop the render"
     counts = res.sample_count()
@@ -130,7 +130,7 @@ def test_scene_without_camera_is_a_clear_error():
     scene = scenes.cornell_box(8, 8)
     scene.camera = None
     with pytest.raises(ValueError, match="no camera"):
-        render(scene, RenderSettings(spp=1))
+        render(scene, plain_settings(spp=1))
 
 
 def _finite_nonneg(res):
@@ -149,7 +149,7 @@ def test_no_self_intersection_at_any_scale_or_distance_from_origin(scale, offset
     scene.camera.to_world[:3, 3] = offset
     scene.camera.clip_start = 1e-3 * scale
     scene.camera.clip_end = 100 * scale
-    res = render(scene, RenderSettings(spp=32, max_bounces=4))
+    res = render(scene, plain_settings(spp=32, max_bounces=4))
     _finite_nonneg(res)
     assert_mean_within_ci(pixel_means(res), (1 - 0.5**6) / 0.5)
 
@@ -166,19 +166,19 @@ def test_degenerate_triangles_and_tiny_bright_sun_leave_no_nan():
     scene.visibility = np.concatenate([scene.visibility, [31, 31]]).astype(np.int32)
     scene.lights = Lights.concat([L.sun_light((0.1, 0.2, -1), (1, 1, 1), 1e6, 1e-5),
                                   L.point_light((0, 0, 1), (1, 1, 1), 1e3)])
-    _finite_nonneg(render(scene, RenderSettings(spp=4)))
+    _finite_nonneg(render(scene, plain_settings(spp=4)))
 
 
 def test_point_light_on_a_surface_and_grazing_camera_leave_no_nan():
     scene = scenes.cornell_box(16, 16, light="point")
     scene.lights = L.point_light((0.0, 0.0, 0.0), (1, 1, 1), 100.0)  # exactly on the floor
     scene.camera.to_world = scenes.look_at((0, -0.999, 1e-4), (0, 1, 1e-4))
-    _finite_nonneg(render(scene, RenderSettings(spp=4)))
+    _finite_nonneg(render(scene, plain_settings(spp=4)))
 
 
 def test_scene_with_no_geometry_and_no_lights_renders_black():
     scene = scenes.cornell_box(8, 8)
     empty = Scene(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), Materials.from_lists(
         [], np.zeros((0, 3)), np.zeros((0, 3))), Lights.empty(), scene.camera)
-    res = render(empty, RenderSettings(spp=2))
+    res = render(empty, plain_settings(spp=2))
     assert (res.combined()[..., :3] == 0).all()

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scene import (MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_DIFFUSE, MAT_LAYERED,
                                      Materials, Scene)
-from tests.helpers import assert_mean_within_ci, assert_two_images_agree
+from tests.helpers import assert_mean_within_ci, assert_two_images_agree, plain_settings
 
 
 def pixel_means(result):
@@ -50,7 +50,7 @@ def test_lossless_smooth_object_in_furnace_keeps_le_over_one_minus_albedo(kind, 
     # Uniform radiance Le / (1 - rho) everywhere is the equilibrium; a smooth white conductor
     # (F0 = 1) or clear glass only redirects it. Deep bounce limit: truncation < 1e-4.
     scene = _furnace_with(kind, color=1.0, roughness=0.0, ior=ior)
-    res = render(scene, RenderSettings(spp=64, max_bounces=24, seed=11))
+    res = render(scene, plain_settings(spp=64, max_bounces=24, seed=11))
     _finite_nonneg(res)
     assert_mean_within_ci(pixel_means(res), 2.0, atol=2e-3)
 
@@ -59,7 +59,7 @@ def test_ior_one_glass_sphere_leaves_a_darker_furnace_unchanged():
     # A pass-through sphere costs two bounces per crossing; with rho = 0.3 and 16 bounces the
     # truncated tail is still far below the tolerance.
     scene = _furnace_with(MAT_DIELECTRIC, color=1.0, roughness=0.0, ior=1.0, rho=0.3)
-    res = render(scene, RenderSettings(spp=64, max_bounces=16, seed=3))
+    res = render(scene, plain_settings(spp=64, max_bounces=16, seed=3))
     assert_mean_within_ci(pixel_means(res), 1.0 / 0.7, atol=1e-3)
 
 
@@ -85,9 +85,9 @@ def test_nee_and_bsdf_sampling_agree_on_rough_surfaces(kind):
     # MIS only reweights: light-only, BSDF-only and power-heuristic estimates of the same image
     # agree when eval_bsdf, pdf_bsdf and sample_bsdf are consistent in the integrator.
     scene = _glossy_cornell(kind, roughness=0.5, size=16)
-    ref = render(scene, RenderSettings(spp=128, max_bounces=3, seed=1))
+    ref = render(scene, plain_settings(spp=128, max_bounces=3, seed=1))
     for heuristic in ("bsdf", "light"):
-        other = render(scene, RenderSettings(spp=128, max_bounces=3, seed=2,
+        other = render(scene, plain_settings(spp=128, max_bounces=3, seed=2,
                                              mis_heuristic=heuristic))
         assert_two_images_agree(ref.combined()[..., :3], ref.variance()[..., :3],
                                 other.combined()[..., :3], other.variance()[..., :3],
@@ -100,7 +100,7 @@ def test_nee_and_bsdf_sampling_agree_on_rough_surfaces(kind):
 @pytest.mark.parametrize("ior", [1.0, 2.5])
 def test_every_family_at_extreme_parameters_leaves_no_nan(kind, roughness, ior):
     scene = _glossy_cornell(kind, roughness, ior, size=12)
-    res = render(scene, RenderSettings(spp=4, max_bounces=6))
+    res = render(scene, plain_settings(spp=4, max_bounces=6))
     _finite_nonneg(res)
     assert res.combined()[..., :3].max() > 0
 
@@ -110,7 +110,7 @@ def test_camera_inside_glass_sphere_with_total_internal_reflection_leaves_no_nan
     # Inside the sphere, looking along its wall: most rays hit beyond the critical angle.
     scene.camera.to_world = scenes.look_at((0.0, -0.4, 1.1), (0.0, -0.4 + 1.0, 1.1 + 0.05))
     scene.camera.clip_start = 1e-3
-    res = render(scene, RenderSettings(spp=8, max_bounces=12))
+    res = render(scene, plain_settings(spp=8, max_bounces=12))
     _finite_nonneg(res)
     assert res.combined()[..., :3].max() > 0
 
@@ -119,7 +119,7 @@ def test_camera_inside_glass_sphere_with_total_internal_reflection_leaves_no_nan
 def test_grazing_camera_and_far_from_origin_leave_no_nan(kind):
     scene = _glossy_cornell(kind, 0.1, 1.5, size=12)
     scene.camera.to_world = scenes.look_at((0, -0.999, 1e-4), (0, 1, 1e-4))
-    _finite_nonneg(render(scene, RenderSettings(spp=4, max_bounces=6)))
+    _finite_nonneg(render(scene, plain_settings(spp=4, max_bounces=6)))
 
     far = _glossy_cornell(kind, 0.1, 1.5, size=12)
     offset = np.array([1e4, -1e4, 1e4])
@@ -127,7 +127,7 @@ def test_grazing_camera_and_far_from_origin_leave_no_nan(kind):
     far.lights.position = far.lights.position + offset
     far.camera.to_world = far.camera.to_world.copy()
     far.camera.to_world[:3, 3] += offset
-    res = render(far, RenderSettings(spp=4, max_bounces=6))
+    res = render(far, plain_settings(spp=4, max_bounces=6))
     _finite_nonneg(res)
     assert res.combined()[..., :3].max() > 0
 
@@ -138,7 +138,7 @@ def test_far_from_origin_furnace_with_glass_sphere_still_converges():
     scene.vertices = (scene.vertices.astype(np.float64) + offset).astype(np.float32)
     scene.camera.to_world = scene.camera.to_world.copy()
     scene.camera.to_world[:3, 3] = offset
-    res = render(scene, RenderSettings(spp=32, max_bounces=24, seed=5))
+    res = render(scene, plain_settings(spp=32, max_bounces=24, seed=5))
     _finite_nonneg(res)
     assert_mean_within_ci(pixel_means(res), 2.0, atol=2e-3)
 
@@ -159,6 +159,6 @@ def test_small_light_seen_in_a_mirror_has_full_weight_after_the_delta_bounce(max
                         width=8, height=8, lens=1000.0, sensor_width=36.0, clip_start=1e-3,
                         clip_end=100.0)
     scene = Scene(v, f, np.array([0, 0, 1, 1], np.int32), mats, scenes.Lights.empty(), cam)
-    res = render(scene, RenderSettings(spp=16, max_bounces=max_bounces, seed=2))
+    res = render(scene, plain_settings(spp=16, max_bounces=max_bounces, seed=2))
     np.testing.assert_allclose(res.combined()[..., :3], np.broadcast_to(f0 * le, (8, 8, 3)),
                                rtol=1e-5)

@@ -4,8 +4,9 @@ scene; only the camera may differ (Blender keeps it between the frames of an ani
 import numpy as np
 import pytest
 
-from sampling_lab.core.render import RenderSettings, preparation_key, render
+from sampling_lab.core.render import preparation_key, render
 from sampling_lab.core.scenes import cornell_box, look_at
+from tests.helpers import plain_settings
 
 
 @pytest.mark.parametrize("integrator", ["path", "bdpt"])
@@ -15,7 +16,7 @@ def test_reused_preparation_renders_the_same_image(integrator):
     first = cornell_box(16, 16, "area")
     moved = cornell_box(16, 16, "area")
     moved.camera.to_world = look_at((0.3, -3.5, 1.2), (0.0, 0.0, 1.0))
-    settings = RenderSettings(integrator=integrator, spp=2, seed=4)
+    settings = plain_settings(integrator=integrator, spp=2, seed=4)
     assert preparation_key(first, settings) == preparation_key(moved, settings)
     earlier = render(first, settings)
     reused = render(moved, settings, prepared=earlier.prepared)
@@ -28,5 +29,5 @@ def test_reused_preparation_renders_the_same_image(integrator):
     changed.vertices = changed.vertices.copy()
     changed.vertices[0, 2] += 0.01
     assert preparation_key(changed, settings) != preparation_key(first, settings)
-    assert (preparation_key(first, RenderSettings(light_selection="uniform"))
+    assert (preparation_key(first, plain_settings(light_selection="uniform"))
             != preparation_key(first, settings))

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from sampling_lab.core.film import Film, PixelFilter
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scenes import cornell_box
-from tests.helpers import assert_replicates_agree
+from tests.helpers import assert_replicates_agree, plain_settings
 
 # (x0, y0, x1, y1) in frame pixels, y from the bottom: an odd window of a 24 x 20 frame.
 REGION = (5, 3, 17, 15)
@@ -28,8 +28,8 @@ def _window(image, region=REGION):
 @pytest.mark.parametrize("sampler", ["independent", "sobol", "poisson_disk"])
 def test_region_pixels_are_bit_identical_to_the_full_frame(sampler):
     scene = cornell_box(24, 20, "area")
-    full = render(scene, RenderSettings(sampler=sampler, spp=6, seed=5))
-    part = render(scene, RenderSettings(sampler=sampler, spp=6, seed=5, region=REGION))
+    full = render(scene, plain_settings(sampler=sampler, spp=6, seed=5))
+    part = render(scene, plain_settings(sampler=sampler, spp=6, seed=5, region=REGION))
     assert part.combined().shape == (12, 12, 4)
     np.testing.assert_array_equal(part.combined(), _window(full.combined()))
     np.testing.assert_array_equal(part.variance(), _window(full.variance()))
@@ -43,8 +43,8 @@ def test_region_traces_only_its_pixels_samples(integrator):
     paths) are the region's pixels times the samples per pixel."""
     scene = cornell_box(24, 20, "area")
     spp = 2
-    full = render(scene, RenderSettings(integrator=integrator, spp=spp, seed=1))
-    part = render(scene, RenderSettings(integrator=integrator, spp=spp, seed=1, region=REGION))
+    full = render(scene, plain_settings(integrator=integrator, spp=spp, seed=1))
+    part = render(scene, plain_settings(integrator=integrator, spp=spp, seed=1, region=REGION))
     assert full.stats["samples"] == 24 * 20 * spp
     assert part.stats["samples"] == 12 * 12 * spp
     assert part.film.splat_paths == (12 * 12 * spp if integrator != "path" else 0)
@@ -65,10 +65,10 @@ def test_light_path_regions_agree_with_the_full_frame(integrator, spp, detect):
     scene = cornell_box(24, 24, "area")
     region = (4, 8, 20, 16)
     runs = 24
-    full = np.array([_window(render(scene, RenderSettings(
+    full = np.array([_window(render(scene, plain_settings(
         integrator=integrator, spp=spp, seed=100 + i, threads=1)).film.mean(), region)
         for i in range(runs)])
-    part = np.array([render(scene, RenderSettings(
+    part = np.array([render(scene, plain_settings(
         integrator=integrator, spp=spp, seed=500 + i, threads=1, region=region)).film.mean()
         for i in range(runs)])
     assert part.shape == full.shape == (runs, 8, 16, 3)
@@ -100,4 +100,4 @@ def test_film_window_keeps_the_splats_that_reach_its_pixels():
 @pytest.mark.parametrize("region", [(0, 0, 25, 20), (5, 5, 5, 9), (-1, 0, 4, 4)])
 def test_region_outside_the_frame_is_a_clear_error(region):
     with pytest.raises(ValueError, match="render region"):
-        render(cornell_box(24, 20), RenderSettings(spp=1, region=region))
+        render(cornell_box(24, 20), plain_settings(spp=1, region=region))

@@ -8,10 +8,10 @@ import pytest
 from sampling_lab.core import lights as L
 from sampling_lab.core import scenes
 from sampling_lab.core.integrators.common import shading_normals
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scene import (MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_DIFFUSE, MAT_LAYERED,
                                      Camera, Lights, Materials, Scene)
-from tests.helpers import assert_mean_within_ci
+from tests.helpers import assert_mean_within_ci, plain_settings
 
 
 def pixel_means(result):
@@ -78,7 +78,7 @@ def test_smooth_sphere_under_lights_leaves_no_nan(kind):
                   np.concatenate([box.material, np.full(len(sf), m)]), mats,
                   Lights.concat([box.lights, L.point_light((0.3, -0.5, 0.6), (1, 1, 1), 50.0)]),
                   box.camera, corner_normals=corner)
-    res = render(scene, RenderSettings(spp=8, max_bounces=6, seed=2))
+    res = render(scene, plain_settings(spp=8, max_bounces=6, seed=2))
     img = res.combined()
     assert np.isfinite(img).all() and (img >= 0).all()
     assert img.mean() > 0
@@ -102,7 +102,7 @@ def test_smooth_furnace_is_bounded_by_the_flat_solution():
     ng /= np.linalg.norm(ng, axis=1, keepdims=True)
     cos_min = np.einsum("tj,tkj->tk", ng, scene.corner_normals.astype(np.float64)).min()
     s_min = (1 + cos_min) / 2
-    res = render(scene, RenderSettings(spp=64, max_bounces=bounces, seed=7,
+    res = render(scene, plain_settings(spp=64, max_bounces=bounces, seed=7,
                                        use_russian_roulette=False))
     x = pixel_means(res)
     n = bounces + 2
@@ -119,7 +119,7 @@ def test_smooth_furnace_with_face_normals_as_corner_normals_is_exact():
     ng = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     scene.corner_normals = np.repeat(ng[:, None, :], 3, axis=1)
     scene.__post_init__()
-    res = render(scene, RenderSettings(spp=32, max_bounces=bounces, seed=3))
+    res = render(scene, plain_settings(spp=32, max_bounces=bounces, seed=3))
     assert_mean_within_ci(pixel_means(res), (1 - rho ** (bounces + 2)) / (1 - rho))
 
 
@@ -142,9 +142,9 @@ def _tilted_plane(kind, light_z, tilt_deg=70.0):
 
 @pytest.mark.parametrize("kind", [MAT_DIFFUSE, MAT_CONDUCTOR, MAT_LAYERED])
 def test_perturbed_shading_normals_do_not_leak_light_through_a_plane(kind):
-    below = render(_tilted_plane(kind, -0.5), RenderSettings(spp=16, max_bounces=4, seed=1))
+    below = render(_tilted_plane(kind, -0.5), plain_settings(spp=16, max_bounces=4, seed=1))
     img = below.combined()[..., :3]
     assert np.isfinite(img).all()
     assert img.max() == 0.0
-    above = render(_tilted_plane(kind, 0.5), RenderSettings(spp=16, max_bounces=4, seed=1))
+    above = render(_tilted_plane(kind, 0.5), plain_settings(spp=16, max_bounces=4, seed=1))
     assert above.combined()[..., :3].mean() > 0

@@ -30,7 +30,7 @@ import pytest
 from sampling_lab.core import lights as L
 from sampling_lab.core import scenes
 from sampling_lab.core.prepare import prepare
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.sampling.mis import MIS_SETTINGS, bsdf_weight, light_weight
 from tests.core.test_light_sampling import P_WORLD, _classify, _mixed_scene
 from tests.helpers import (
@@ -38,6 +38,7 @@ from tests.helpers import (
     assert_samples_agree,
     assert_two_images_agree,
     chi_square_test,
+    plain_settings,
 )
 
 EPS = np.finfo(np.float64).eps
@@ -103,7 +104,7 @@ def test_none_is_the_unweighted_average_and_single_strategies_are_all_or_nothing
 def test_every_setting_is_unbiased_in_the_furnace(setting, kw, config):
     rho, bounces = 0.5, 4
     scene = scenes.furnace(emission=1.0, albedo=rho, width=24, height=24)
-    res = render(scene, RenderSettings(spp=32, max_bounces=bounces, seed=11,
+    res = render(scene, plain_settings(spp=32, max_bounces=bounces, seed=11,
                                        mis_heuristic=setting, **kw, **LIGHT_CONFIGS[config]))
     assert_mean_within_ci(pixel_means(res), (1 - rho ** (bounces + 2)) / (1 - rho),
                           what=f"furnace {setting} {config}")
@@ -131,7 +132,7 @@ def test_every_setting_is_unbiased_for_a_sphere_light_in_a_sphere(setting, kw, c
     scene = scenes.point_in_sphere(power=power, albedo=rho, subdivisions=4, width=16, height=16)
     # The camera sits inside the sphere light, which would fill the view: hide it from the camera.
     scene.lights = L.point_light((0, 0, 0), (1, 1, 1), power, radius=0.15, visible_camera=False)
-    res = render(scene, RenderSettings(spp=48, max_bounces=bounces, seed=5,
+    res = render(scene, plain_settings(spp=48, max_bounces=bounces, seed=5,
                                        mis_heuristic=setting, **kw, **LIGHT_CONFIGS[config]))
     lo, hi = _sphere_bracket(scene, power, rho, bounces)
     assert_mean_within_ci(pixel_means(res), 0.5 * (hi + lo), atol=0.5 * (hi - lo),
@@ -143,7 +144,7 @@ def test_every_setting_is_unbiased_for_a_sphere_light_in_a_sphere(setting, kw, c
 def test_every_setting_but_bsdf_only_is_unbiased_for_a_point_light_in_a_sphere(setting, config):
     rho, power, bounces = 0.5, 100.0, 4
     scene = scenes.point_in_sphere(power=power, albedo=rho, subdivisions=4, width=16, height=16)
-    res = render(scene, RenderSettings(spp=32, max_bounces=bounces, seed=3,
+    res = render(scene, plain_settings(spp=32, max_bounces=bounces, seed=3,
                                        mis_heuristic=setting, **LIGHT_CONFIGS[config]))
     lo, hi = _sphere_bracket(scene, power, rho, bounces)
     assert_mean_within_ci(pixel_means(res), 0.5 * (hi + lo), atol=0.5 * (hi - lo),
@@ -152,20 +153,20 @@ def test_every_setting_but_bsdf_only_is_unbiased_for_a_point_light_in_a_sphere(s
 
 def test_bsdf_only_renders_a_delta_point_light_black_but_converges_for_an_area_light():
     point = render(scenes.cornell_box(16, 16, light="point"),
-                   RenderSettings(spp=8, mis_heuristic="bsdf"))
+                   plain_settings(spp=8, mis_heuristic="bsdf"))
     # The point light of the scene has radius 0.05 in cornell_box: make it a true delta light.
     scene = scenes.cornell_box(16, 16, light="point")
     scene.lights = L.point_light((0, 0, 1.7), (1, 1, 1), 60.0, radius=0.0)
-    delta = render(scene, RenderSettings(spp=8, mis_heuristic="bsdf"))
+    delta = render(scene, plain_settings(spp=8, mis_heuristic="bsdf"))
     assert np.all(delta.combined()[..., :3] == 0.0), "BSDF sampling found a delta light"
     assert point.combined()[..., :3].mean() > 0, "a sphere light can be hit by BSDF rays"
     # The same point light with light sampling is lit: black is the strategy, not the scene.
-    lit = render(scene, RenderSettings(spp=2, mis_heuristic="power")).combined()[..., :3]
+    lit = render(scene, plain_settings(spp=2, mis_heuristic="power")).combined()[..., :3]
     assert lit.mean() > 0
 
     area = scenes.cornell_box(24, 24, light="area")
-    a = render(area, RenderSettings(spp=256, seed=1, max_bounces=3, mis_heuristic="bsdf"))
-    b = render(area, RenderSettings(spp=64, seed=2, max_bounces=3, mis_heuristic="power"))
+    a = render(area, plain_settings(spp=256, seed=1, max_bounces=3, mis_heuristic="bsdf"))
+    b = render(area, plain_settings(spp=64, seed=2, max_bounces=3, mis_heuristic="power"))
     # Detects 21 % image-mean and 62 % block errors (99 % power): BSDF sampling alone is noisy.
     assert_two_images_agree(a.combined()[..., :3], a.variance(), b.combined()[..., :3],
                             b.variance(), detect=(0.24, 0.72),
@@ -195,7 +196,7 @@ def cornell_reference():
     out = {}
     for light in ("area", "mesh"):
         res = render(_cornell(light),
-                     RenderSettings(spp=3 * SPP, seed=1000, max_bounces=3))
+                     plain_settings(spp=3 * SPP, seed=1000, max_bounces=3))
         out[light] = (res.combined()[..., :3], res.variance())
     return out
 
@@ -213,7 +214,7 @@ def test_settings_agree_with_the_power_heuristic_on_the_cornell_box(cornell_refe
                                                                     overrides):
     spp = 4 * SPP if overrides.get("mis_heuristic") == "bsdf" else SPP
     res = render(_cornell(light),
-                 RenderSettings(spp=spp, seed=7, max_bounces=3, **overrides))
+                 plain_settings(spp=spp, seed=7, max_bounces=3, **overrides))
     ref, ref_var = cornell_reference[light]
     # Measured (99 % power, image mean / worst 8x8 block): area light 1.7 % / 5.2 %; mesh light
     # (seen by the camera) 7.1 % / 9.7 %; 7.2 % / 22 % without MIS or with BSDF sampling only.
@@ -230,7 +231,7 @@ def test_agreement_check_rejects_a_five_percent_brighter_light(cornell_reference
     99 % power: a lamp 5 % too bright (a wrong MIS weight or pdf misweights all direct light
     alike) is far outside its intervals."""
     scene = _cornell("area", light_power=42.0)
-    res = render(scene, RenderSettings(spp=SPP, seed=7, max_bounces=3))
+    res = render(scene, plain_settings(spp=SPP, seed=7, max_bounces=3))
     ref, ref_var = cornell_reference["area"]
     with pytest.raises(AssertionError, match="outside the interval"):
         assert_two_images_agree(res.combined()[..., :3], res.variance(), ref, ref_var,
@@ -318,7 +319,7 @@ def test_nee_irradiance_does_not_depend_on_the_selection_rule_or_table(selection
 def test_render_stats_report_the_tables_build_and_sampling_time():
     scene = scenes.cornell_box(16, 16)
     for method in ("cdf", "alias"):
-        res = render(scene, RenderSettings(spp=4, distribution=method))
+        res = render(scene, plain_settings(spp=4, distribution=method))
         s = res.stats
         assert s["distribution"] == method
         assert s["distribution_build_s"] > 0 and s["distribution_sample_s"] > 0
@@ -327,13 +328,13 @@ def test_render_stats_report_the_tables_build_and_sampling_time():
         assert s["distribution_ns_per_sample"] > 0
         assert (s["mis_heuristic"], s["light_selection"], s["light_sampling"]) == (
             "power", "power", "area")
-    res = render(scene, RenderSettings(spp=2, mis_heuristic="bsdf"))
+    res = render(scene, plain_settings(spp=2, mis_heuristic="bsdf"))
     assert res.stats["distribution_samples"] == 0  # no light sampling, no draws
 
 
 def test_progress_text_names_the_table_and_its_times():
     texts = []
-    render(scenes.cornell_box(16, 16), RenderSettings(spp=2, distribution="alias"),
+    render(scenes.cornell_box(16, 16), plain_settings(spp=2, distribution="alias"),
            progress=lambda f, t: texts.append(t))
     assert "lights by alias table: build" in texts[-1] and "sampling" in texts[-1]
 
@@ -344,7 +345,7 @@ def test_progress_text_names_the_table_and_its_times():
     ("light_sampling", "volume"), ("distribution", "inversion")])
 def test_render_rejects_unknown_strategies_with_a_clear_message(field, value):
     with pytest.raises(ValueError, match=field.split("_")[-1]):
-        render(scenes.cornell_box(8, 8), RenderSettings(spp=1, **{field: value}))
+        render(scenes.cornell_box(8, 8), plain_settings(spp=1, **{field: value}))
 
 
 @pytest.mark.parametrize("config", list(LIGHT_CONFIGS))
@@ -365,7 +366,7 @@ def test_zero_size_lights_and_a_light_on_a_surface_leave_no_nan(config):
         L.area_light(on_floor, "SQUARE", 0.3, 0.3, (1, 1, 1), 10.0),
     ])
     for setting in ("power", "light", "bsdf"):
-        res = render(scene, RenderSettings(spp=4, mis_heuristic=setting, **LIGHT_CONFIGS[config]))
+        res = render(scene, plain_settings(spp=4, mis_heuristic=setting, **LIGHT_CONFIGS[config]))
         for img in (res.combined(), res.variance()):
             assert np.isfinite(img).all()
         assert res.combined()[..., :3].min() >= 0 and res.combined()[..., :3].mean() > 0
@@ -461,7 +462,7 @@ def test_cli_bad_strategy_values_exit_2_with_one_line(cli_results, case):
 ])
 def test_render_stats_report_the_strategy_settings_each_integrator_used(integrator, heuristic,
                                                                         expected):
-    settings = RenderSettings(integrator=integrator, spp=1, mis_heuristic=heuristic,
+    settings = plain_settings(integrator=integrator, spp=1, mis_heuristic=heuristic,
                               mis_beta=3.0, mis_alpha=0.25, light_selection="uniform",
                               light_sampling="solid_angle", distribution="alias")
     stats = render(scenes.cornell_box(8, 8), settings).stats
@@ -471,7 +472,7 @@ def test_render_stats_report_the_strategy_settings_each_integrator_used(integrat
 @pytest.mark.parametrize("integrator", ["light", "bdpt"])
 def test_solid_angle_setting_leaves_light_tracing_and_bdpt_images_unchanged(integrator):
     # They start light paths on emitters sampled by area: the setting is greyed out for them.
-    images = [render(scenes.cornell_box(12, 12), RenderSettings(
+    images = [render(scenes.cornell_box(12, 12), plain_settings(
         integrator=integrator, spp=2, seed=4, light_sampling=s)).combined()
         for s in ("area", "solid_angle")]
     np.testing.assert_array_equal(images[0], images[1])

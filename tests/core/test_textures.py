@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
-from sampling_lab.core.render import RenderSettings, render
+from sampling_lab.core.render import render
 from sampling_lab.core.scene import Camera, Lights, Materials, Scene
 from sampling_lab.core.textures import texture_lookup
-from tests.helpers import assert_mean_within_ci
+from tests.helpers import assert_mean_within_ci, plain_settings
 
 
 def _image(h=3, w=4, seed=1):
@@ -123,7 +123,7 @@ def test_constant_texture_furnace_equals_untextured(rho, bounces):
     plain = scenes.furnace(emission=1.0, albedo=0.1, width=32, height=32)
     uvs = np.random.default_rng(5).uniform(-2, 3, (plain.n_triangles, 3, 2))
     scene = _textured(plain, np.full((4, 5, 3), rho, np.float32), uvs)
-    res = render(scene, RenderSettings(spp=64, max_bounces=bounces, seed=7))
+    res = render(scene, plain_settings(spp=64, max_bounces=bounces, seed=7))
     img = res.combined()[..., 0].ravel().astype(np.float64)
     assert_mean_within_ci(img, (1 - rho ** (bounces + 2)) / (1 - rho), what="textured furnace")
 
@@ -145,7 +145,7 @@ def test_checker_plane_under_uniform_world_is_albedo_times_radiance():
                  type="ORTHO", ortho_scale=1.0)
     scene = Scene(v, f, np.zeros(2, np.int32), mats, Lights.empty(), cam, world_color=world,
                   textures=[image], corner_uvs=uvs)
-    res = render(scene, RenderSettings(spp=16, max_bounces=2, seed=4))
+    res = render(scene, plain_settings(spp=16, max_bounces=2, seed=4))
     img = res.combined()[..., :3].astype(np.float64)  # row 0 at the bottom (v = 0)
     assert np.all(np.isfinite(img))
     # Pixels whose filter support (3 px) stays where the bilinear lookup is one cell's colour.

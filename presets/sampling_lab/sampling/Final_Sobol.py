@@ -11,6 +11,6 @@ settings.rr_min_bounces = 3
 settings.mis_heuristic = 'POWER'
 settings.mis_beta = 2.0
 settings.mis_alpha = 0.1
-settings.light_selection = 'POWER'
+settings.light_selection = 'TREE'
 settings.light_sampling = 'AREA'
 settings.distribution = 'CDF'
