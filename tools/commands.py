@@ -74,6 +74,21 @@ def _bench_lights(args):
     return 0
 
 
+def _bench_gap(args):
+    from .gap import run
+
+    run(scenes=args.scenes, size=args.size, spp=args.spp, seeds=args.seeds,
+        reference_spp=args.reference_spp, output=args.output)
+    return 0
+
+
+def _bench_export(args):
+    from .export_speed import run
+
+    run(triangles=args.triangles, repeats=args.repeats)
+    return 0
+
+
 def _samplers(args):
     from .sampler_lab import main
 
@@ -143,6 +158,30 @@ def add_parsers(sub, **kw):
     g.add_argument("--reference-seconds", type=_positive_float, default=60.0,
                    help="time of the light-tree reference render")
     add_output_arguments(g, "bench-lights")
+    _add_bench_gap(sub, **kw)
+    e = _add(sub, "bench-export", "triangles per second of the exporter on a large grid mesh "
+             "(figures; docs/BENCHMARKS.md quotes a run)", _bench_export, **kw)
+    e.add_argument("--triangles", type=_positive_int, default=1_000_000,
+                   help="about this many triangles")
+    e.add_argument("--repeats", type=_positive_int, default=5, help="exports timed")
+
+
+def _add_bench_gap(sub, **kw):
+    from .hard_scenes import SCENES
+
+    p = _add(sub, "bench-gap", "error per sample of our path tracer and Cycles on the hard "
+             "scenes, one sampling factor changed at a time (a table; docs/GAP.md quotes a run)",
+             _bench_gap, **kw)
+    p.add_argument("--scenes", nargs="+", default=list(SCENES), metavar="SCENE",
+                   help=f"from: {', '.join(SCENES)} (default: all)")
+    _size(p, (96, 96))
+    p.add_argument("--spp", type=_positive_int, default=64,
+                   help="samples per pixel of every compared render")
+    p.add_argument("--seeds", type=_positive_int, default=4,
+                   help="renders (seeds) per configuration")
+    p.add_argument("--reference-spp", type=_positive_int, default=4096,
+                   help="samples per pixel of each of the two Cycles references")
+    add_output_arguments(p, "bench-gap")
 
 
 def _add_bench_scenes(sub, **kw):
@@ -162,7 +201,8 @@ def _add_bench_scenes(sub, **kw):
                    help="samples per pixel of the references (capped by time)")
     h.add_argument("--reference-seconds", type=float, default=None,
                    help="time cap of each reference (default: max(30, 8 x --seconds); 0: none)")
-    h.add_argument("--sampler", type=_option_type(OPTIONS["sampler"]), default="independent",
+    h.add_argument("--sampler", type=_option_type(OPTIONS["sampler"]),
+                   default=OPTIONS["sampler"].default,
                    metavar="NAME", help=f"sampler of our equal-time renders: one of "
                                         f"{OPTIONS['sampler'].allowed()}")
     h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")

@@ -221,8 +221,10 @@ class _Bench:
             spp_eq, t_eq, img_cy_eq = self.cy.equal_time(self.seconds, self.seed)
             self.rows.append(_cycles_row("equal time", spp_eq, t_eq, self.pixels, img_cy_eq))
         stage(f"our reference: {self.reference_spp} spp or {self.reference_seconds:g} s")
+        # Independent samples: the reference's variance is its noise floor.
         self.ours_ref = render(self.scene, self.settings(
-            spp=self.reference_spp, time_limit=self.reference_seconds, seed=self.seed + 1))
+            spp=self.reference_spp, time_limit=self.reference_seconds, seed=self.seed + 1,
+            sampler="independent"))
         self.rows.append(_ours_row("reference", self.ours_ref, self.pixels))
         self.ref = self.ours_ref.combined()[..., :3].astype(np.float64)
         ref_var = self.ours_ref.variance().astype(np.float64)

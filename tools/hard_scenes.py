@@ -44,6 +44,7 @@ import numpy as np
 
 from ..core.integrators import INTEGRATORS
 from ..core.metrics import rel_mse
+from ..core.options import DEFAULTS
 from ..core.render import RenderSettings, render
 from ..core.sampling.samplers import available as available_samplers
 from .common import EPS, loadavg, machine_summary, mean_ratio, stage, write_csv
@@ -106,7 +107,7 @@ DOCS_FILES = ("HARD_SCENES.md", "images/hard_scenes.png")
 
 def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), reference_spp=1024,
         cycles=True, output="out/bench-scenes", report=True, update_docs=False, *,
-        reference_seconds=None, sampler="independent", threads=2, max_bounces=8, seed=0,
+        reference_seconds=None, sampler=DEFAULTS["sampler"], threads=2, max_bounces=8, seed=0,
         command=None):
     """Render every scene with each integrator and Cycles for ``seconds``; write the figures.
 
@@ -189,6 +190,20 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
     return bench.status
 
 
+def build_scene(name, size):
+    """Scene ``name`` of :data:`SCENES` built in a new empty file and exported as the add-on
+    exports it: ``(bpy scene, core.scene.Scene)``."""
+    from . import blender_scene, bpy_scenes
+    from ..addon.export import export_scene
+
+    bpy = blender_scene.import_bpy()
+    stage(f"{name}: build and export")
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bl_scene = bpy.context.scene
+    SCENES[name][0](bpy_scenes, bl_scene, size)
+    return bl_scene, export_scene(bpy.context.evaluated_depsgraph_get())
+
+
 def _write_tables(output, rows, summary, scene_rows):
     write_csv(os.path.join(output, "hard_scenes.csv"), rows)
     write_csv(os.path.join(output, "hard_scenes_summary.csv"),
@@ -242,15 +257,7 @@ class _Bench:
 
     def scene(self, name):
         """Build, render and measure scene ``name``: its rows, its info and its montage row."""
-        from . import blender_scene, bpy_scenes
-        from ..addon.export import export_scene
-
-        bpy = blender_scene.import_bpy()
-        stage(f"{name}: build and export")
-        bpy.ops.wm.read_homefile(use_empty=True)
-        bl_scene = bpy.context.scene
-        SCENES[name][0](bpy_scenes, bl_scene, (self.width, self.height))
-        core_scene = export_scene(bpy.context.evaluated_depsgraph_get())
+        bl_scene, core_scene = build_scene(name, (self.width, self.height))
         info = {"scene": name, "triangles": core_scene.n_triangles,
                 "load_start": loadavg(), "notes": "; ".join(core_scene.messages)}
         cy = self.calibrate_cycles(name, core_scene, bl_scene, info) if self.cycles else None
@@ -320,7 +327,7 @@ class _Bench:
         t0 = time.perf_counter()
         ref_res = render(core_scene, self.settings(
             integrator=REFERENCE_INTEGRATOR, spp=self.reference_spp,
-            time_limit=self.reference_seconds, seed=self.seed + 1))
+            time_limit=self.reference_seconds, seed=self.seed + 1, sampler="independent"))
         ref_wall = time.perf_counter() - t0
         ref = ref_res.combined()[..., :3].astype(np.float64)
         ref_floor = float(np.mean(ref_res.variance().astype(np.float64) / (ref * ref + EPS)))

@@ -40,3 +40,27 @@ def test_bench_scenes_rejects_unknown_scenes_and_integrators(tmp_path):
     assert hard_scenes.run(scenes=["no_such_scene"], output=str(tmp_path), report=False) == 2
     assert hard_scenes.run(scenes=["mirror_ball"], integrators=["no_such_integrator"],
                            output=str(tmp_path), report=False) == 2
+
+
+def test_bench_gap_writes_one_finite_row_per_configuration(tmp_path):
+    """``bench-gap`` smoke run: every configuration of ours and of Cycles gets a row with a
+    finite error and ratio, Cycles' default a ratio of exactly one."""
+    from sampling_lab.tools import gap
+
+    rows = gap.run(scenes=["cornell"], size=(8, 8), spp=2, seeds=2, reference_spp=8,
+                   output=str(tmp_path / "gap"), progress=lambda *_: None)
+    assert [(r["renderer"], r["config"]) for r in rows] == (
+        [("ours", c) for c in gap.OURS] + [("Cycles", c) for c in gap.CYCLES])
+    for r in rows:
+        assert math.isfinite(r["relmse"]) and math.isfinite(r["vs_cycles"]), r
+    assert next(r["vs_cycles"] for r in rows if r["config"] == "default") == 1.0
+    assert (tmp_path / "gap" / "gap.csv").is_file()
+    assert "## cornell" in (tmp_path / "gap" / gap.REPORT).read_text()
+
+
+def test_bench_export_exports_every_triangle_of_the_grid():
+    from sampling_lab.tools import export_speed
+
+    out = export_speed.run(triangles=2000, repeats=2, progress=lambda *_: None)
+    assert 1800 <= out["triangles"] <= 2200  # run() checks the export has exactly as many
+    assert out["best_s"] > 0 and out["best_mtri_per_s"] > 0

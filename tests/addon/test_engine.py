@@ -262,13 +262,13 @@ def test_unexpected_exception_becomes_an_error_report(empty_scene, export, monke
 
 def test_settings_defaults_and_mapping_to_core(empty_scene, engine_module):
     props = empty_scene.sampling_lab
-    assert (props.integrator, props.sampler) == ('PATH', 'INDEPENDENT')
+    assert (props.integrator, props.sampler, props.light_selection) == ('PATH', 'SOBOL', 'TREE')
     assert (props.filter_type, props.filter_width) == ('BLACKMAN_HARRIS', pytest.approx(1.5))
     assert props.use_russian_roulette and props.time_limit == 0.0
     props.samples, props.seed, props.max_bounces, props.rr_min_bounces = 32, 5, 4, 2
     props.time_limit, props.filter_type, props.filter_width = 2.5, 'BOX', 1.0
     s = engine_module.render_settings(props)
-    assert (s.integrator, s.sampler, s.spp, s.seed) == ("path", "independent", 32, 5)
+    assert (s.integrator, s.sampler, s.spp, s.seed) == ("path", "sobol", 32, 5)
     assert (s.max_bounces, s.rr_min_bounces, s.use_russian_roulette) == (4, 2, True)
     assert (s.time_limit, s.filter_type, s.filter_width) == (2.5, "box", 1.0)
     for prop in props.bl_rna.properties:

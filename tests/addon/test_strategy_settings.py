@@ -38,7 +38,7 @@ def _enum_items(props, name):
 def test_strategy_defaults_are_the_renderers_and_map_to_core(empty_scene, engine_module, core):
     props = empty_scene.sampling_lab
     assert (props.mis_heuristic, props.light_selection, props.light_sampling,
-            props.distribution) == ('POWER', 'POWER', 'AREA', 'CDF')
+            props.distribution) == ('POWER', 'TREE', 'AREA', 'CDF')
     defaults = core["render"].RenderSettings()
     s = engine_module.render_settings(props)
     for field in ("mis_heuristic", "mis_beta", "mis_alpha", "light_selection", "light_sampling",
