@@ -12,7 +12,7 @@ import numpy as np
 from ..camera import importance, project
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
-from .common import max_component
+from .common import max_component, take_rows
 from .mis_densities import connection_weight, direct_weight, splat_weight
 from .subpaths import Gathered, dot
 
@@ -29,14 +29,14 @@ def connect(ctx, L, C, s, t, out, fresh=None):
         rows = np.nonzero(C.valid[zj] & C.connectible[zj] & L.valid[yj] & L.connectible[yj])[0]
     if rows.size == 0:
         return
-    z = C.p[zj, rows]
+    z = take_rows(C.p[zj], rows)
     if s == 1:
         infinite = fresh.infinite[rows]
         index = fresh.index[rows]
         y = fresh.p[rows]
         to_y = np.where(infinite[:, None], -fresh.w_inf[rows], y - z)
     else:
-        y = L.p[s - 1, rows]
+        y = take_rows(L.p[s - 1], rows)
         infinite = np.zeros(rows.size, bool)
         to_y = y - z
     dist = np.where(infinite, np.inf, np.linalg.norm(to_y, axis=1))
@@ -53,12 +53,12 @@ def connect(ctx, L, C, s, t, out, fresh=None):
         cos_y = np.where(infinite | point, 1.0, np.abs(dot(normal, w)))
         f_y = le * cos_y[:, None]
         beta_y = 1.0 / np.where(fresh.pdf_origin[rows] > 0, fresh.pdf_origin[rows], np.inf)
-        value = f_y * f_z * C.beta[zj, rows] * beta_y[:, None]
+        value = f_y * f_z * take_rows(C.beta[zj], rows) * beta_y[:, None]
     else:
         yv = Gathered(ctx, L, s - 1, rows, IMPORTANCE)
         w_y = yv.local(-w)
         f_y = yv.f(-w, w_y)
-        value = L.beta[s - 1, rows] * f_y * f_z * C.beta[zj, rows]
+        value = take_rows(L.beta[s - 1], rows) * f_y * f_z * take_rows(C.beta[zj], rows)
     g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
     value = value * g[:, None]
     ok &= (max_component(value) > 0) & np.isfinite(value).all(axis=1)
@@ -68,9 +68,10 @@ def connect(ctx, L, C, s, t, out, fresh=None):
     if s == 1:
         y_normal = np.where(infinite[cand, None], 0.0, fresh.normal[rows[cand]])
     else:
-        y_normal = L.ng[s - 1, rows[cand]]
+        y_normal = take_rows(L.ng[s - 1], rows[cand])
     blocked = prep.accel.occluded(*prep.accel.shadow_rays(
-        z[cand], C.ng[zj, rows[cand]], C.prim[zj, rows[cand]], w[cand], dist[cand], y_normal),
+        z[cand], take_rows(C.ng[zj], rows[cand]), C.prim[zj, rows[cand]], w[cand], dist[cand],
+        y_normal),
         VIS_SHADOW)
     ctx.counters.rays += cand.size
     keep = cand[~blocked]
@@ -93,17 +94,18 @@ def connect_camera(ctx, L, s, out):
     rows = np.nonzero(L.valid[yj] & L.connectible[yj])[0]
     if rows.size == 0:
         return
-    film_xy, visible, cos_theta, dist = project(cam, L.p[yj, rows], ctx.film_margin, ctx.window)
+    y = take_rows(L.p[yj], rows)
+    film_xy, visible, cos_theta, dist = project(cam, y, ctx.film_margin, ctx.window)
     seen = np.nonzero(visible)[0]
     if seen.size == 0:
         return
-    rows, film_xy, cos_theta, dist = rows[seen], film_xy[seen], cos_theta[seen], dist[seen]
-    y = L.p[yj, rows]
+    rows, film_xy, cos_theta, dist, y = (rows[seen], film_xy[seen], cos_theta[seen], dist[seen],
+                                         y[seen])
     w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
     yv = Gathered(ctx, L, yj, rows, IMPORTANCE)
     w_y = yv.local(w)
     we = importance(cam, cos_theta)
-    value = L.beta[yj, rows] * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
+    value = take_rows(L.beta[yj], rows) * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
     ok = (max_component(value) > 0) & np.isfinite(value).all(axis=1)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:

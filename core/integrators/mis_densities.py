@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..camera import camera_pdf
+from .common import take_rows
 from .subpaths import dot, to_area
 
 
@@ -87,7 +88,7 @@ def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, p
     cos_l = np.where(infinite, 1.0, np.abs(dot(normal, w_travel)))
     p_camera[0] = np.where(prev_delta, 1.0, to_area(pdf_prev, cos_l, t))
     # The emitter makes z_{j-1} by its direction density.
-    cos_z = np.abs(dot(cam.ng[j - 1, r], w_travel))
+    cos_z = np.abs(dot(take_rows(cam.ng[j - 1], r), w_travel))
     pdf_dir = em.pdf_direction(index, normal, w_travel)
     p_light[1] = np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, t))
     for i in range(1, k + 1):

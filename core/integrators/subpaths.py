@@ -16,7 +16,7 @@ import numpy as np
 from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from .common import (geometric_side_valid, intersect_by_class, ray_class, russian_roulette,
-                     surface_hits, surface_interaction)
+                     surface_hits, surface_interaction, take_rows)
 
 
 def dot(a, b):
@@ -26,6 +26,14 @@ def dot(a, b):
 def _empty_params(n):
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
                       np.zeros((n, 3)))
+
+
+def take_params(params, rows):
+    """The rows ``rows (k,)`` of ``params`` (as :meth:`BSDFParams.take`, gathered by
+    ``np.take``: several times faster for the ``(n, 3)`` columns)."""
+    return BSDFParams(np.take(params.kind, rows), take_rows(params.color, rows),
+                      np.take(params.alpha, rows), np.take(params.eta, rows),
+                      take_rows(params.tint, rows))
 
 
 def _scatter_params(dst, rows, src):
@@ -84,17 +92,19 @@ class Gathered:
 
     def __init__(self, ctx, sub, j, rows, mode):
         self.smooth, self.mode = ctx.smooth, mode
-        self.params = sub.params[j].take(rows)
-        self.fs, self.ft, self.fn = sub.fs[j, rows], sub.ft[j, rows], sub.fn[j, rows]
-        self.wo, self.wo_l, self.ng = sub.wo[j, rows], sub.wo_local[j, rows], sub.ng[j, rows]
+        self.params = take_params(sub.params[j], rows)
+        self.fs, self.ft, self.fn = (take_rows(sub.fs[j], rows), take_rows(sub.ft[j], rows),
+                                     take_rows(sub.fn[j], rows))
+        self.wo, self.wo_l, self.ng = (take_rows(sub.wo[j], rows),
+                                       take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows))
 
     def take(self, idx):
         """The rows ``idx`` of this gather (after shadow rays removed some)."""
         out = object.__new__(Gathered)
         out.smooth, out.mode = self.smooth, self.mode
-        out.params = self.params.take(idx)
+        out.params = take_params(self.params, idx)
         for name in ("fs", "ft", "fn", "wo", "wo_l", "ng"):
-            setattr(out, name, getattr(self, name)[idx])
+            setattr(out, name, take_rows(getattr(self, name), idx))
         return out
 
     def local(self, w):
@@ -212,12 +222,12 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     # The edge from vertex j - 1, then the forward density in area measure (times the cosine
     # alone after an infinite endpoint, whose rays are parallel).
     if j == 1:
-        dist = np.linalg.norm(si.p - sub.p[0, r], axis=1)
+        dist = np.linalg.norm(si.p - take_rows(sub.p[0], r), axis=1)
         dist = np.where(np.isfinite(sub.d_prev[0, r]), dist, np.inf)
         sub.cos_prev[j, r] = sub.cos_prev[0, r]
     else:
         dist = hits.t[live]
-        sub.cos_prev[j, r] = np.abs(dot(sub.ng[j - 1, r], si.wo))
+        sub.cos_prev[j, r] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
     cos_here = np.abs(dot(si.ng, si.wo))
     fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
                    to_area(pdf_prev[live], cos_here, dist))
