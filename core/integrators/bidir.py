@@ -22,7 +22,7 @@ from ..scene import VIS_CAMERA, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .camera_hits import camera_emission
 from .common import camera_rays, max_component, strategy_pass_names
-from .connections import connect_camera
+from .connections import camera_splatter, connect_camera
 from .strategy_views import Tally
 from .subpaths import Subpath, walk
 
@@ -59,10 +59,13 @@ class _Context:
         self.light_points = None  # the light subpaths' endpoints, once sampled
 
 
-def _light_subpath(ctx, stream, n, base, depth):
-    """Stage *generate light subpath*: emitter point and direction, then the random walk."""
+def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
+    """Stage *generate light subpath*: emitter point and direction, then the random walk.
+
+    With ``on_vertex`` (see :func:`.subpaths.walk`) the vertices past the emitter are handed
+    to it and not stored: the subpath returned holds vertex 0 only."""
     em, prep = ctx.emission, ctx.prep
-    L = Subpath.empty(depth, n)
+    L = Subpath.empty(depth if on_vertex is None else 1, n)
     stream.skip_to(base)
     u_sel = stream.next_1d()
     u_pos = stream.next_2d()
@@ -90,9 +93,11 @@ def _light_subpath(ctx, stream, n, base, depth):
     if tri.size:
         prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
         o[tri] = prep.accel.offset_origin(o[tri], pts.normal[rows][tri], prim, w[rows][tri])
-    walk(ctx, L, o, w[rows], np.full(rows.size, np.inf), beta[rows], pdf_dir[rows],
-         np.zeros(rows.size, bool), np.full(rows.size, VIS_SHADOW, np.int32), rows, stream,
-         IMPORTANCE, lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX, depth)
+    walk(ctx, L if on_vertex is None else None, o, w[rows], np.full(rows.size, np.inf),
+         beta[rows], pdf_dir[rows], np.zeros(rows.size, bool),
+         np.full(rows.size, VIS_SHADOW, np.int32), rows, stream, IMPORTANCE,
+         lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX, depth,
+         on_vertex=on_vertex)
     return L
 
 
@@ -127,6 +132,10 @@ class Bidirectional(Integrator):
 
     splats = True
     weighs: ClassVar[bool] = True
+    # Whether the light subpaths are kept for connections (BDPT); without them (light tracing)
+    # every light vertex is connected to the pinhole as the walk makes it (same splats, same
+    # order, no stored vertices).
+    stores_light_subpaths: ClassVar[bool] = True
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
@@ -173,6 +182,9 @@ class Bidirectional(Integrator):
         out = Tally(n, ctx.view_length)
         C = _camera_subpath(ctx, pixel_filter, stream, n, self.camera_depth(depth), out)
         base = DIMS_CAMERA + (depth + 1) * DIMS_PER_CAMERA_VERTEX
+        if not self.stores_light_subpaths:
+            _light_subpath(ctx, stream, n, base, depth, camera_splatter(ctx, out))
+            return out.output(n)
         L = _light_subpath(ctx, stream, n, base, depth)
         self.connect(ctx, stream, C, L, out)
         for s in range(2, depth + 1):

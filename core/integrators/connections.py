@@ -14,7 +14,7 @@ from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import max_component, take_rows
 from .mis_densities import connection_weight, direct_weight, splat_weight
-from .subpaths import Gathered, dot
+from .subpaths import Gathered, dot, take_params
 
 
 def connect(ctx, L, C, s, t, out, fresh=None):
@@ -89,30 +89,63 @@ def connect(ctx, L, C, s, t, out, fresh=None):
 
 def connect_camera(ctx, L, s, out):
     """Strategy ``t = 1``: light vertex ``s - 1`` seen by the pinhole, splatted."""
-    prep, cam = ctx.prep, ctx.cam
     yj = s - 1
     rows = np.nonzero(L.valid[yj] & L.connectible[yj])[0]
     if rows.size == 0:
         return
-    y = take_rows(L.p[yj], rows)
+    splat_vertices(ctx, s, rows, take_rows(L.p[yj], rows), L.prim[yj, rows],
+                   lambda seen: Gathered(ctx, L, yj, rows[seen], IMPORTANCE),
+                   lambda seen: take_rows(L.beta[yj], rows[seen]), out, L)
+
+
+def camera_splatter(ctx, out):
+    """``on_vertex`` of a light walk that stores nothing (light tracing): strategy ``t = 1`` for
+    each light vertex as it is made, unweighted (the vertex is ``s - 1 = j``)."""
+
+    def handle(j, rows, si, frame, wo_l, params, delta_only, beta):
+        ok = np.nonzero(~delta_only)[0]
+        if ok.size == 0:
+            return
+
+        def gather(seen):
+            idx = ok[seen]
+            return Gathered.of(ctx.smooth, IMPORTANCE, take_params(params, idx),
+                               [take_rows(a, idx) for a in frame], take_rows(si.wo, idx),
+                               take_rows(wo_l, idx), take_rows(si.ng, idx))
+
+        splat_vertices(ctx, j + 1, rows[ok], take_rows(si.p, ok), si.prim[ok], gather,
+                       lambda seen: take_rows(beta, ok[seen]), out)
+
+    return handle
+
+
+def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
+    """Strategy ``t = 1`` for the light vertices ``y (m, 3)`` (vertex ``s - 1`` of the light
+    subpaths ``rows (m,)``, on triangles ``prim (m,)``): those the pinhole sees are splatted.
+
+    ``gather(seen)`` gives the :class:`.subpaths.Gathered` vertices of the rows ``seen`` of
+    ``rows``, ``beta_of(seen)`` their throughputs: only vertices in the film's view are
+    gathered. ``L`` (the stored light subpaths) is needed for MIS weights (BDPT) only.
+    """
+    cam = ctx.cam
     film_xy, visible, cos_theta, dist = project(cam, y, ctx.film_margin, ctx.window)
     seen = np.nonzero(visible)[0]
     if seen.size == 0:
         return
-    rows, film_xy, cos_theta, dist, y = (rows[seen], film_xy[seen], cos_theta[seen], dist[seen],
-                                         y[seen])
+    rows, film_xy, cos_theta, dist, y, prim = (rows[seen], film_xy[seen], cos_theta[seen],
+                                               dist[seen], y[seen], prim[seen])
     w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
-    yv = Gathered(ctx, L, yj, rows, IMPORTANCE)
+    yv = gather(seen)
     w_y = yv.local(w)
     we = importance(cam, cos_theta)
-    value = take_rows(L.beta[yj], rows) * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
+    value = beta_of(seen) * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
     ok = (max_component(value) > 0) & np.isfinite(value).all(axis=1)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return
-    o, dirs, tmax = prep.accel.shadow_rays(y[cand], yv.ng[cand], L.prim[yj, rows[cand]],
-                                           w[cand], dist[cand], np.zeros((cand.size, 3)))
-    blocked = prep.accel.occluded(o, dirs, tmax, VIS_CAMERA)
+    o, dirs, tmax = ctx.prep.accel.shadow_rays(y[cand], yv.ng[cand], prim[cand], w[cand],
+                                               dist[cand], np.zeros((cand.size, 3)))
+    blocked = ctx.prep.accel.occluded(o, dirs, tmax, VIS_CAMERA)
     ctx.counters.rays += cand.size
     keep = cand[~blocked]
     if keep.size == 0:

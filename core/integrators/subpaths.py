@@ -98,14 +98,22 @@ class Gathered:
         self.wo, self.wo_l, self.ng = (take_rows(sub.wo[j], rows),
                                        take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows))
 
+    @staticmethod
+    def of(smooth, mode, params, frame, wo, wo_l, ng):
+        """Vertices from arrays already gathered: BSDF ``params``, shading ``frame`` (three
+        (m, 3) axes), ``wo``, ``wo_l`` (in the frame) and ``ng``."""
+        out = object.__new__(Gathered)
+        out.smooth, out.mode, out.params = smooth, mode, params
+        out.fs, out.ft, out.fn = frame
+        out.wo, out.wo_l, out.ng = wo, wo_l, ng
+        return out
+
     def take(self, idx):
         """The rows ``idx`` of this gather (after shadow rays removed some)."""
-        out = object.__new__(Gathered)
-        out.smooth, out.mode = self.smooth, self.mode
-        out.params = take_params(self.params, idx)
-        for name in ("fs", "ft", "fn", "wo", "wo_l", "ng"):
-            setattr(out, name, take_rows(getattr(self, name), idx))
-        return out
+        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
+                           [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
+                           take_rows(self.wo, idx), take_rows(self.wo_l, idx),
+                           take_rows(self.ng, idx))
 
     def local(self, w):
         """World directions ``w (m, 3)`` in the vertices' shading frames."""
@@ -147,10 +155,13 @@ def to_area(pdf_sa, cos_at, dist):
 
 
 def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mode, dims_of,
-         depth, on_segment=None):
+         depth, on_segment=None, on_vertex=None):
     """Stage *random walk*: extend ``sub`` from vertex 0 with the rays ``o, d`` of ``rows``.
 
-    Vertices ``1..depth-1`` are made. ``pdf_prev (m,)`` is the solid-angle density of the first
+    Vertices ``1..depth-1`` are made. With ``on_vertex(j, rows, si, frame, wo_l, params,
+    delta_only, beta)`` each vertex is handed over as it is made (the subpaths ``rows (k,)``,
+    their :class:`.common.Interaction`, shading frame, BSDF and throughput); with ``sub`` None
+    nothing is stored (light tracing connects every vertex as it is made, so it keeps none). ``pdf_prev (m,)`` is the solid-angle density of the first
     ray (the disk's area density for infinite light endpoints, whose ``d_prev`` is inf),
     ``prev_delta`` whether it came from a delta lobe, ``beta (m, 3)`` its throughput. With
     ``on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)`` (the camera side, for ``s = 0``)
@@ -182,9 +193,11 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         else:
             fs, ft, fn = shading_frame(si.ng)
         wo_l = to_local(si.wo, fs, ft, fn)
-
-        dist = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l, params, delta_only,
-                             beta, pdf_prev, prev_delta)
+        if on_vertex is not None:
+            on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta[live])
+        if sub is not None:
+            dist = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l, params,
+                                 delta_only, beta, pdf_prev, prev_delta)
         if j == depth - 1 and on_segment is None:
             break
 
@@ -194,9 +207,10 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         weight = smp.weight
         if ctx.smooth:
             weight = weight * smooth_factor(si.ng, fn, si.wo, wi, wo_l, smp.wi, mode)[:, None]
-        back = to_area(pdf_bsdf(params, smp.wi, wo_l), sub.cos_prev[j, r], dist)
-        sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
-        sub.delta[j, r] = smp.delta
+        if sub is not None:
+            back = to_area(pdf_bsdf(params, smp.wi, wo_l), sub.cos_prev[j, r], dist)
+            sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
+            sub.delta[j, r] = smp.delta
         beta = beta[live] * weight
         alive = (smp.pdf > 0) & np.isfinite(beta).all(axis=1)
         alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1)
