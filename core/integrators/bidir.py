@@ -11,6 +11,7 @@ a subclass adds its own (:meth:`Bidirectional.connect`). Batches are cut into ch
 from __future__ import annotations
 
 import copy
+import threading
 from typing import ClassVar
 
 import numpy as np
@@ -57,6 +58,17 @@ class _Context:
         self.window = integrator.window
         self.film_pixels = integrator.film_pixels
         self.light_points = None  # the light subpaths' endpoints, once sampled
+        self.buffers = integrator.buffers
+
+    def subpath(self, side, depth, n):
+        """An empty :class:`Subpath` of ``depth`` vertices for ``n`` samples: this thread's
+        buffer for ``side`` (``"camera"`` or ``"light"``) if it has that shape."""
+        sub = getattr(self.buffers, side, None)
+        if sub is None or sub.valid.shape != (depth, n):
+            sub = Subpath.empty(depth, n)
+            setattr(self.buffers, side, sub)
+            return sub
+        return sub.reset()
 
 
 def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
@@ -65,7 +77,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     With ``on_vertex`` (see :func:`.subpaths.walk`) the vertices past the emitter are handed
     to it and not stored: the subpath returned holds vertex 0 only."""
     em, prep = ctx.emission, ctx.prep
-    L = Subpath.empty(depth if on_vertex is None else 1, n)
+    L = ctx.subpath("light", depth if on_vertex is None else 1, n)
     stream.skip_to(base)
     u_sel = stream.next_1d()
     u_pos = stream.next_2d()
@@ -104,7 +116,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
 def _camera_subpath(ctx, pixel_filter, stream, n, depth, out):
     """Stage *generate camera subpath*, adding the emitters it finds (``s = 0``) to ``out``."""
     prep, cam = ctx.prep, ctx.cam
-    C = Subpath.empty(depth, n)
+    C = ctx.subpath("camera", depth, n)
     o, d, tmax = camera_rays(prep, pixel_filter, stream)
     C.valid[0] = True
     C.p[0] = ctx.cam_pos
@@ -156,6 +168,8 @@ class Bidirectional(Integrator):
         self.window = settings.region
         self.film_pixels = (None if self.window is None else
                             (self.window[2] - self.window[0]) * (self.window[3] - self.window[1]))
+        # Each worker thread's subpath arrays, reused from one chunk to the next.
+        self.buffers = threading.local()
 
     def camera_depth(self, depth):
         """Vertices of the camera subpaths when light subpaths have ``depth``."""

@@ -9,6 +9,7 @@ for the rows of a connection.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +35,12 @@ def take_params(params, rows):
     return BSDFParams(np.take(params.kind, rows), take_rows(params.color, rows),
                       np.take(params.alpha, rows), np.take(params.eta, rows),
                       take_rows(params.tint, rows))
+
+
+def _slice_params(params, part):
+    """Rows ``part`` (a slice) of ``params``, as views."""
+    return BSDFParams(params.kind[part], params.color[part], params.alpha[part],
+                      params.eta[part], params.tint[part])
 
 
 def _scatter_params(dst, rows, src):
@@ -75,15 +82,42 @@ class Subpath:
     pdf_rev: np.ndarray
     d_prev: np.ndarray
     cos_prev: np.ndarray
+    all_params: BSDFParams = None
 
     @staticmethod
     def empty(depth, n):
+        """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
+        views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
+        is row ``j * n + i``, as in :meth:`flat`)."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
+        table = _empty_params(depth * n)
+        params = [_slice_params(table, slice(j * n, (j + 1) * n)) for j in range(depth)]
         return Subpath(np.zeros((depth, n), bool), z3(), z3(), np.zeros((depth, n), np.int64),
-                       z3(), z3(), z3(), z3(), z3(), [None] * depth,
+                       z3(), z3(), z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
-                       np.ones((depth, n)))
+                       np.ones((depth, n)), table)
+
+    def reset(self):
+        """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
+        allocation would page its memory in again for every batch."""
+        for name, value in (("valid", False), ("prim", 0), ("connectible", False),
+                            ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
+                            ("d_prev", np.inf), ("cos_prev", 1.0)):
+            getattr(self, name).fill(value)
+        for name in ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta"):
+            getattr(self, name).fill(0.0)
+        table = self.all_params
+        for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
+                              (table.eta, 1.0), (table.tint, 0.0)):
+            column.fill(value)
+        return self
+
+    def flat(self, name):
+        """Column ``name`` with vertices and subpaths in one axis: ``(depth * n, ...)``, row
+        ``j * n + i`` for vertex ``j`` of subpath ``i`` (a view)."""
+        a = getattr(self, name)
+        return a.reshape((-1,) + a.shape[2:])
 
 
 class Gathered:
@@ -97,6 +131,16 @@ class Gathered:
                                      take_rows(sub.fn[j], rows))
         self.wo, self.wo_l, self.ng = (take_rows(sub.wo[j], rows),
                                        take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows))
+
+    @staticmethod
+    def at(ctx, sub, index, mode):
+        """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`Subpath.flat` (each any vertex
+        of any subpath), gathered once."""
+        return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index),
+                           [take_rows(sub.flat(a), index) for a in ("fs", "ft", "fn")],
+                           take_rows(sub.flat("wo"), index),
+                           take_rows(sub.flat("wo_local"), index),
+                           take_rows(sub.flat("ng"), index))
 
     @staticmethod
     def of(smooth, mode, params, frame, wo, wo_l, ng):
@@ -158,16 +202,19 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
          depth, on_segment=None, on_vertex=None):
     """Stage *random walk*: extend ``sub`` from vertex 0 with the rays ``o, d`` of ``rows``.
 
-    Vertices ``1..depth-1`` are made. With ``on_vertex(j, rows, si, frame, wo_l, params,
-    delta_only, beta)`` each vertex is handed over as it is made (the subpaths ``rows (k,)``,
-    their :class:`.common.Interaction`, shading frame, BSDF and throughput); with ``sub`` None
-    nothing is stored (light tracing connects every vertex as it is made, so it keeps none). ``pdf_prev (m,)`` is the solid-angle density of the first
+    Vertices ``1..depth-1`` are made. ``pdf_prev (m,)`` is the solid-angle density of the first
     ray (the disk's area density for infinite light endpoints, whose ``d_prev`` is inf),
     ``prev_delta`` whether it came from a delta lobe, ``beta (m, 3)`` its throughput. With
-    ``on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)`` (the camera side, for ``s = 0``)
-    one more segment is traced after the last vertex, for the emitters it finds.
+    ``on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)`` (the camera side, for
+    ``s = 0``) one more segment is traced after the last vertex, for the emitters it finds.
+    With ``on_vertex(j, rows, si, frame, wo_l, params, delta_only, beta)`` each vertex is
+    handed over as it is made (the subpaths ``rows (k,)``, their
+    :class:`.common.Interaction`, shading frame, BSDF and throughput); with ``sub`` None
+    nothing is stored (light tracing connects every vertex as it is made, so it keeps none).
+    ``stream`` itself is not advanced: the walk draws from a copy.
     """
     prep, settings = ctx.prep, ctx.settings
+    path_stream = None
     last = depth + int(on_segment is not None)
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
@@ -181,10 +228,16 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             break
         si = surface_interaction(prep, hits, d, live)
         r = rows[live]
-        stream.skip_to(dims_of(j))
-        u_lobe = stream.next_1d()[r]
-        u_bsdf = stream.next_2d()[r]
-        u_rr = stream.next_1d()[r]
+        # Draw for the live paths only (a copy of the stream compacted along with them).
+        if path_stream is None:
+            path_stream = copy.copy(stream)
+            path_stream.compact(r)
+        else:
+            path_stream.compact(live)
+        path_stream.skip_to(dims_of(j))
+        u_lobe = path_stream.next_1d()
+        u_bsdf = path_stream.next_2d()
+        u_rr = path_stream.next_1d()
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
         if ctx.smooth:
@@ -218,6 +271,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         if keep.size == 0:
             break
         rows = r[keep]
+        path_stream.compact(keep)
         beta = beta[keep]
         o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
         d = wi[keep]
