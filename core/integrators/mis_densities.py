@@ -70,9 +70,10 @@ def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
             ok = ~delta[sp - 1] & ~delta[sp]
         if sp == s:
             ok = np.ones(m, bool)
-        r = np.nan_to_num(ratio[sp], nan=0.0, posinf=np.inf)
-        valid.append(ok & (r > 0))
-        terms.append(np.where(ok, r, 0.0))
+        # Ratios are >= 0, inf or NaN (0 x inf): NaN counts as zero.
+        ok_r = ok & (ratio[sp] > 0)
+        valid.append(ok_r)
+        terms.append(np.where(ok_r, ratio[sp], 0.0))
     w = mis.weight(terms, s, valid)
     return np.where(np.isfinite(w), w, 0.0)
 
