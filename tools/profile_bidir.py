@@ -73,8 +73,6 @@ STAGES = [
     ("lights.emission", "Emission.pdf_direction", "emitter radiance / pdfs"),
     ("integrators.mis_densities", "camera_hit_weight", MIS),
     ("integrators.mis_densities", "connection_weight", MIS),
-    ("integrators.mis_densities", "_path_densities", MIS),
-    ("integrators.mis_densities", "_weights", MIS),
     ("integrators.mis_densities", "splat_weight", MIS),
     ("integrators.mis_densities", "direct_weight", MIS),
     ("integrators.mis_densities", "strategy_weight", MIS),
