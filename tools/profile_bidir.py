@@ -19,10 +19,44 @@ It imports the package by its absolute name, so the same file profiles an older 
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import os
+import threading
+import time
+from collections import defaultdict
 
-from profile_path import _TOTALS, _patch
+_LOCAL = threading.local()
+_TOTALS = defaultdict(float)
+_LOCK = threading.Lock()
+
+
+def _timed(name, fn):
+    """``fn`` with its exclusive CPU time (of the calling thread: other processes' load on a
+    shared machine does not count) added to ``_TOTALS[name]``; nested stages subtracted."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        stack = getattr(_LOCAL, "stack", None)
+        if stack is None:
+            stack = _LOCAL.stack = []
+        stack.append(0.0)
+        t0 = time.thread_time()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            dt = time.thread_time() - t0
+            children = stack.pop()
+            if stack:
+                stack[-1] += dt
+            with _LOCK:
+                _TOTALS[name] += dt - children
+
+    return wrapper
+
+
+def _patch(owner, attr, name):
+    setattr(owner, attr, _timed(name, getattr(owner, attr)))
 
 INTERSECT = "subpaths: intersect (Embree closest hit)"
 SHADOW = "shadow rays (offsets + Embree occluded)"
@@ -120,7 +154,6 @@ def install_timers():
 
 def _patch_handler(module, name):
     """``camera_emission`` returns the ``on_segment`` closure: time the closure."""
-    from profile_path import _timed
     from sampling_lab.core.integrators import bidir
 
     make = module.camera_emission
@@ -138,10 +171,13 @@ def _scene(args):
 
 
 def speeds(scene, args, integrators=("path", "light", "bdpt")):
-    """Camera samples/s of each integrator, best of ``args.repeats`` interleaved renders."""
+    """Per integrator, best of ``args.repeats`` interleaved renders: wall-clock camera
+    samples/s at ``args.threads`` threads, and CPU microseconds per camera sample of a
+    1-thread render (all of the process's threads: the render loop's film work included).
+    The CPU figure hardly moves with other processes' load; the wall figure does."""
     from sampling_lab.core.render import RenderSettings, render
 
-    best = {}
+    best, cpu = {}, {}
     for _ in range(args.repeats):
         for name in integrators:
             spp = args.path_spp if name == "path" else args.spp
@@ -150,7 +186,12 @@ def speeds(scene, args, integrators=("path", "light", "bdpt")):
             stats = render(scene, settings).stats
             if stats["samples_per_s"] > best.get(name, {}).get("samples_per_s", 0.0):
                 best[name] = stats
-    return best
+            t0 = time.process_time()
+            stats = render(scene, RenderSettings(integrator=name, spp=spp, threads=1,
+                                                 max_bounces=8, seed=0)).stats
+            cpu[name] = min(cpu.get(name, float("inf")),
+                            1e6 * (time.process_time() - t0) / stats["samples"])
+    return best, cpu
 
 
 def main(argv=None):
@@ -169,12 +210,15 @@ def main(argv=None):
 
     scene = _scene(args)
     print(f"load average at start: {os.getloadavg()}")
-    best = speeds(scene, args)
+    best, cpu = speeds(scene, args)
     path_sps = best["path"]["samples_per_s"]
+    print(f"camera samples/s at {args.threads} threads (wall clock, best of {args.repeats}) | "
+          f"CPU us per sample at 1 thread (min of {args.repeats})")
     for name, stats in best.items():
         print(f"{name:>5}: {stats['samples_per_s'] / 1e6:.4f} M samples/s "
               f"({stats['samples_per_s'] / path_sps:.3f} x path), "
-              f"{stats['rays_per_s'] / 1e6:.3f} M rays/s, {stats['time_s']:.2f} s")
+              f"{stats['rays_per_s'] / 1e6:.3f} M rays/s, {stats['time_s']:.2f} s | "
+              f"{cpu[name]:.2f} us ({cpu['path'] / cpu[name]:.3f} x path)")
     if args.no_profile:
         return
     install_timers()
@@ -183,7 +227,7 @@ def main(argv=None):
         render(scene, RenderSettings(integrator=name, spp=args.spp, threads=args.threads,
                                      max_bounces=8, seed=0))
         total = sum(_TOTALS.values())
-        print(f"\n{name}: stage profile (exclusive thread-seconds, total {total:.2f} s):")
+        print(f"\n{name}: stage profile (exclusive thread CPU seconds, total {total:.2f} s):")
         for stage, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
             print(f"  {100 * sec / total:5.1f} %  {stage}")
     print(f"load average at end: {os.getloadavg()}")

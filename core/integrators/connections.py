@@ -101,25 +101,32 @@ def _in_pieces(join, m):
 def _join_vertices(ctx, L, C, zj, yj, row):
     """Light vertices ``yj (m,)`` joined to camera vertices ``zj (m,)`` of samples ``row``."""
     n = C.valid.shape[1]
-    at_z, at_y = zj * n + row, yj * n + row
-    z, y = take_rows(C.flat("p"), at_z), take_rows(L.flat("p"), at_y)
-    to_y = y - z
+    at_z = zj * n + row
+    z = take_rows(C.flat("p"), at_z)
+    to_y = take_rows(L.flat("p"), yj * n + row) - z
     dist = np.linalg.norm(to_y, axis=1)
     w = to_y / np.maximum(dist, 1e-300)[:, None]  # z -> y
-    zv, yv = Gathered.at(ctx, C, at_z, RADIANCE), Gathered.at(ctx, L, at_y, IMPORTANCE)
-    w_z, w_y = zv.local(w), yv.local(-w)
-    value = (take_rows(L.flat("beta"), at_y) * yv.f(-w, w_y) * zv.f(w, w_z)
-             * take_rows(C.flat("beta"), at_z))
-    value = value * (1.0 / np.maximum(dist ** 2, 1e-300))[:, None]
-    y_normal = yv.ng
-    keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0)
-    if keep.size == 0:
+    zv = Gathered.at(ctx, C, at_z, RADIANCE)
+    w_z = zv.local(w)
+    f_z = zv.f(w, w_z)
+    # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
+    # which is dropped as well): its light side is not gathered.
+    e = np.nonzero(max_component(f_z) > 0)[0]
+    at_y, w_e, dist_e = (yj * n + row)[e], take_rows(w, e), dist[e]
+    yv = Gathered.at(ctx, L, at_y, IMPORTANCE)
+    w_y = yv.local(-w_e)
+    value = (take_rows(L.flat("beta"), at_y) * yv.f(-w_e, w_y) * take_rows(f_z, e)
+             * take_rows(C.flat("beta"), at_z[e]))
+    value = value * (1.0 / np.maximum(dist_e ** 2, 1e-300))[:, None]
+    kept = _unblocked(ctx, C, at_z[e], take_rows(z, e), w_e, dist_e, yv.ng, value, dist_e > 0)
+    if kept.size == 0:
         return None
-    zv, yv, w, dist, w_z, w_y = (zv.take(keep), yv.take(keep), w[keep], dist[keep], w_z[keep],
-                                 w_y[keep])
+    keep = e[kept]
+    zv, yv, w, dist, w_z, w_y = (zv.take(keep), yv.take(kept), take_rows(w, keep), dist[keep],
+                                 take_rows(w_z, keep), take_rows(w_y, kept))
     cos_z, cos_y = np.abs(dot(zv.ng, w)), np.abs(dot(yv.ng, w))
     yj, zj, row = yj[keep], zj[keep], row[keep]
-    return _Joined(yj + 1, zj + 1, row, value[keep], L.pdf_fwd[0, row],
+    return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), L.pdf_fwd[0, row],
                    to_area(yv.pdf_toward(w_y), cos_z, dist), _reverse_at_z(C, zv, w_z, zj, row),
                    to_area(zv.pdf_toward(w_z), cos_y, dist),
                    to_area(yv.pdf_back(w_y), L.cos_prev[yj, row], L.d_prev[yj, row]),
@@ -158,12 +165,14 @@ def _join_emitters(ctx, L, C, zj, row, pts):
     keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0)
     if keep.size == 0:
         return None
-    zv, w, dist, w_z, zj, row = zv.take(keep), w[keep], dist[keep], w_z[keep], zj[keep], row[keep]
+    zv, w, dist, w_z = zv.take(keep), take_rows(w, keep), dist[keep], take_rows(w_z, keep)
+    zj, row = zj[keep], row[keep]
     infinite, cos_y, index = infinite[keep], cos_y[keep], pts.index[keep]
     cos_z = np.abs(dot(zv.ng, w))
-    pdf_dir = em.pdf_direction(index, y_normal[keep], -w)
+    pdf_dir = em.pdf_direction(index, take_rows(y_normal, keep), -w)
     pdf_zy = zv.pdf_toward(w_z)
-    return _Joined(np.ones(keep.size, np.int64), zj + 1, row, value[keep], pts.pdf_origin[keep],
+    return _Joined(np.ones(keep.size, np.int64), zj + 1, row, take_rows(value, keep),
+                   pts.pdf_origin[keep],
                    np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, dist)),
                    _reverse_at_z(C, zv, w_z, zj, row),
                    np.where(infinite, pdf_zy, to_area(pdf_zy, cos_y, dist)),
@@ -185,8 +194,8 @@ def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok):
         return cand
     at = at_z[cand]
     blocked = ctx.prep.accel.occluded(*ctx.prep.accel.shadow_rays(
-        z[cand], take_rows(C.flat("ng"), at), C.flat("prim")[at], w[cand], dist[cand],
-        y_normal[cand]), VIS_SHADOW)
+        take_rows(z, cand), take_rows(C.flat("ng"), at), C.flat("prim")[at], take_rows(w, cand),
+        dist[cand], take_rows(y_normal, cand)), VIS_SHADOW)
     ctx.counters.rays += cand.size
     return cand[~blocked]
 
@@ -236,8 +245,9 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
     seen = np.nonzero(visible)[0]
     if seen.size == 0:
         return
-    rows, film_xy, cos_theta, dist, y, prim = (rows[seen], film_xy[seen], cos_theta[seen],
-                                               dist[seen], y[seen], prim[seen])
+    rows, film_xy, cos_theta, dist, y, prim = (rows[seen], take_rows(film_xy, seen),
+                                               cos_theta[seen], dist[seen], take_rows(y, seen),
+                                               prim[seen])
     w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
     yv = gather(seen)
     w_y = yv.local(w)
@@ -247,19 +257,20 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return
-    o, dirs, tmax = ctx.prep.accel.shadow_rays(y[cand], yv.ng[cand], prim[cand], w[cand],
-                                               dist[cand], np.zeros((cand.size, 3)))
+    o, dirs, tmax = ctx.prep.accel.shadow_rays(
+        take_rows(y, cand), take_rows(yv.ng, cand), prim[cand], take_rows(w, cand), dist[cand],
+        np.zeros((cand.size, 3)))
     blocked = ctx.prep.accel.occluded(o, dirs, tmax, VIS_CAMERA)
     ctx.counters.rays += cand.size
     keep = cand[~blocked]
     if keep.size == 0:
         return
-    rows, w, w_y, dist, value, film_xy, cos_theta = (rows[keep], w[keep], w_y[keep], dist[keep],
-                                                     value[keep], film_xy[keep], cos_theta[keep])
+    value, film_xy = take_rows(value, keep), take_rows(film_xy, keep)
     if not ctx.weighs:
-        weight = np.ones(rows.size)
+        weight = np.ones(keep.size)
     else:
-        weight = splat_weight(ctx, L, s, rows, yv.take(keep), w, w_y, dist, cos_theta)
+        weight = splat_weight(ctx, L, s, rows[keep], yv.take(keep), take_rows(w, keep),
+                              take_rows(w_y, keep), dist[keep], cos_theta[keep])
     out.splat(s, film_xy, value, weight)
 
 

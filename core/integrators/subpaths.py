@@ -246,8 +246,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         else:
             fs, ft, fn = shading_frame(si.ng)
         wo_l = to_local(si.wo, fs, ft, fn)
+        beta = take_rows(beta, live)
         if on_vertex is not None:
-            on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta[live])
+            on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta)
         if sub is not None:
             dist = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l, params,
                                  delta_only, beta, pdf_prev, prev_delta)
@@ -264,7 +265,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             back = to_area(pdf_bsdf(params, smp.wi, wo_l), sub.cos_prev[j, r], dist)
             sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
             sub.delta[j, r] = smp.delta
-        beta = beta[live] * weight
+        beta = beta * weight
         alive = (smp.pdf > 0) & np.isfinite(beta).all(axis=1)
         alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1)
         keep = np.nonzero(alive)[0]
@@ -272,9 +273,10 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             break
         rows = r[keep]
         path_stream.compact(keep)
-        beta = beta[keep]
-        o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
-        d = wi[keep]
+        beta = take_rows(beta, keep)
+        d = take_rows(wi, keep)
+        o = prep.accel.offset_origin(take_rows(si.p, keep), take_rows(si.ng, keep),
+                                     si.prim[keep], d)
         tmax = np.full(keep.size, np.inf)
         pdf_prev = smp.pdf[keep]
         prev_delta = smp.delta[keep]
@@ -285,7 +287,8 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
                   prev_delta):
     """Store the surface hits ``live`` as vertex ``j`` of the subpaths ``r`` of ``sub``, with the
     shading ``frame`` (three (k, 3) axes), ``wo_l`` in it and the chosen BSDF ``params``;
-    ``beta``, ``pdf_prev`` and ``prev_delta`` are those of the rays that found them. Returns
+    ``beta`` is the hits' throughput, ``pdf_prev`` and ``prev_delta`` those of the rays that
+    found them (all the rays, ``live`` picks the hits). Returns
     the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint)."""
     # The edge from vertex j - 1, then the forward density in area measure (times the cosine
     # alone after an infinite endpoint, whose rays are parallel).
@@ -307,7 +310,7 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         sub.params[j] = _empty_params(sub.valid.shape[1])
     _scatter_params(sub.params[j], r, params)
     sub.connectible[j, r] = ~delta_only
-    sub.beta[j, r] = beta[live]
+    sub.beta[j, r] = beta
     sub.d_prev[j, r] = dist
     sub.pdf_fwd[j, r] = np.where(prev_delta[live], 1.0, fwd)
     return dist
