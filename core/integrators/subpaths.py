@@ -302,15 +302,14 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     cos_here = np.abs(dot(si.ng, si.wo))
     fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
                    to_area(pdf_prev[live], cos_here, dist))
-    sub.valid[j, r] = True
-    sub.p[j, r], sub.ng[j, r], sub.prim[j, r] = si.p, si.ng, si.prim
-    sub.fs[j, r], sub.ft[j, r], sub.fn[j, r] = frame
-    sub.wo[j, r], sub.wo_local[j, r] = si.wo, wo_l
+    # Stores go through the vertex's own rows (sub.x[j][r]): faster than sub.x[j, r].
+    sub.valid[j][r] = True
+    for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("fs", frame[0]),
+                        ("ft", frame[1]), ("fn", frame[2]), ("wo", si.wo), ("wo_local", wo_l),
+                        ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
+                        ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
+        getattr(sub, name)[j][r] = value
     if sub.params[j] is None:
         sub.params[j] = _empty_params(sub.valid.shape[1])
     _scatter_params(sub.params[j], r, params)
-    sub.connectible[j, r] = ~delta_only
-    sub.beta[j, r] = beta
-    sub.d_prev[j, r] = dist
-    sub.pdf_fwd[j, r] = np.where(prev_delta[live], 1.0, fwd)
     return dist
