@@ -138,7 +138,7 @@ class Gathered:
         of any subpath), gathered once."""
         return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index),
                            [take_rows(sub.flat(a), index) for a in ("fs", "ft", "fn")],
-                           take_rows(sub.flat("wo"), index),
+                           take_rows(sub.flat("wo"), index) if ctx.smooth else None,
                            take_rows(sub.flat("wo_local"), index),
                            take_rows(sub.flat("ng"), index))
 
@@ -153,11 +153,11 @@ class Gathered:
         return out
 
     def take(self, idx):
-        """The rows ``idx`` of this gather (after shadow rays removed some)."""
+        """The rows ``idx`` of this gather (after shadow rays removed some), for densities
+        only: :meth:`pdf_toward`, :meth:`pdf_back` and ``ng`` (no frame: no :meth:`local`,
+        :meth:`f`)."""
         return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
-                           [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
-                           take_rows(self.wo, idx), take_rows(self.wo_l, idx),
-                           take_rows(self.ng, idx))
+                           [None] * 3, None, take_rows(self.wo_l, idx), take_rows(self.ng, idx))
 
     def local(self, w):
         """World directions ``w (m, 3)`` in the vertices' shading frames."""
