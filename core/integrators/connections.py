@@ -122,8 +122,9 @@ def _join_vertices(ctx, L, C, zj, yj, row):
     if kept.size == 0:
         return None
     keep = e[kept]
-    zv, yv, w, dist, w_z, w_y = (zv.take(keep), yv.take(kept), take_rows(w, keep), dist[keep],
-                                 take_rows(w_z, keep), take_rows(w_y, kept))
+    zv, yv = zv.for_densities(keep), yv.for_densities(kept)
+    w, dist, w_z, w_y = (take_rows(w, keep), dist[keep], take_rows(w_z, keep),
+                         take_rows(w_y, kept))
     cos_z, cos_y = np.abs(dot(zv.ng, w)), np.abs(dot(yv.ng, w))
     yj, zj, row = yj[keep], zj[keep], row[keep]
     return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), L.pdf_fwd[0, row],
@@ -165,7 +166,8 @@ def _join_emitters(ctx, L, C, zj, row, pts):
     keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0)
     if keep.size == 0:
         return None
-    zv, w, dist, w_z = zv.take(keep), take_rows(w, keep), dist[keep], take_rows(w_z, keep)
+    zv, w, dist = zv.for_densities(keep), take_rows(w, keep), dist[keep]
+    w_z = take_rows(w_z, keep)
     zj, row = zj[keep], row[keep]
     infinite, cos_y, index = infinite[keep], cos_y[keep], pts.index[keep]
     cos_z = np.abs(dot(zv.ng, w))
@@ -269,8 +271,9 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
     if not ctx.weighs:
         weight = np.ones(keep.size)
     else:
-        weight = splat_weight(ctx, L, s, rows[keep], yv.take(keep), take_rows(w, keep),
-                              take_rows(w_y, keep), dist[keep], cos_theta[keep])
+        weight = splat_weight(ctx, L, s, rows[keep], yv.for_densities(keep),
+                              take_rows(w, keep), take_rows(w_y, keep), dist[keep],
+                              cos_theta[keep])
     out.splat(s, film_xy, value, weight)
 
 

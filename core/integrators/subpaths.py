@@ -130,7 +130,8 @@ class Gathered:
         self.fs, self.ft, self.fn = (take_rows(sub.fs[j], rows), take_rows(sub.ft[j], rows),
                                      take_rows(sub.fn[j], rows))
         self.wo, self.wo_l, self.ng = (take_rows(sub.wo[j], rows),
-                                       take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows))
+                                       take_rows(sub.wo_local[j], rows),
+                                       take_rows(sub.ng[j], rows))
 
     @staticmethod
     def at(ctx, sub, index, mode):
@@ -153,9 +154,15 @@ class Gathered:
         return out
 
     def take(self, idx):
-        """The rows ``idx`` of this gather (after shadow rays removed some), for densities
-        only: :meth:`pdf_toward`, :meth:`pdf_back` and ``ng`` (no frame: no :meth:`local`,
-        :meth:`f`)."""
+        """The rows ``idx`` of this gather (after shadow rays removed some)."""
+        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
+                           [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
+                           None if self.wo is None else take_rows(self.wo, idx),
+                           take_rows(self.wo_l, idx), take_rows(self.ng, idx))
+
+    def for_densities(self, idx):
+        """The rows ``idx`` for densities only: :meth:`pdf_toward`, :meth:`pdf_back` and
+        ``ng`` (no frame: no :meth:`local` or :meth:`f`); fewer gathers than :meth:`take`."""
         return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
                            [None] * 3, None, take_rows(self.wo_l, idx), take_rows(self.ng, idx))
 
