@@ -85,6 +85,7 @@ STAGES = [
     ("integrators.subpaths", "Gathered.__init__", "connections: gather vertices"),
     ("integrators.subpaths", "Gathered.at", "connections: gather vertices"),
     ("integrators.subpaths", "Gathered.take", "connections: gather vertices"),
+    ("integrators.subpaths", "Gathered.for_densities", "connections: gather vertices"),
     ("integrators.subpaths", "Gathered.f", BSDF_EVAL),
     ("integrators.subpaths", "Gathered.pdf_toward", BSDF_EVAL),
     ("integrators.subpaths", "Gathered.pdf_back", BSDF_EVAL),
