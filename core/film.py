@@ -190,16 +190,23 @@ class Film:
         taps = pixel_filter.taps()
         x0 = np.floor(film_xy[:, 0]).astype(np.int64)
         y0 = np.floor(film_xy[:, 1]).astype(np.int64)
+        # Each axis's filter weights and bounds once per tap, not once per pair of taps; taps
+        # the filter never reaches (the outer ones, for most positions) are skipped.
+        rows = [(y0 + dy, pixel_filter.pdf_1d(film_xy[:, 1] - (y0 + dy + 0.5))) for dy in taps]
+        rows = [(py, wy, (py >= 0) & (py < self.height)) for py, wy in rows if (wy > 0).any()]
         pixels, values = [], []
         for dx in taps:
             px = x0 + dx
             wx = pixel_filter.pdf_1d(film_xy[:, 0] - (px + 0.5))
-            for dy in taps:
-                py = y0 + dy
-                w = wx * pixel_filter.pdf_1d(film_xy[:, 1] - (py + 0.5))
-                keep = (w > 0) & (px >= 0) & (px < self.width) & (py >= 0) & (py < self.height)
-                pixels.append((py * self.width + px)[keep])
-                values.append(value[keep] * w[keep, None])
+            if not (wx > 0).any():
+                continue
+            inside_x = (px >= 0) & (px < self.width)
+            for py, wy, inside_y in rows:
+                w = wx * wy
+                keep = np.nonzero((w > 0) & inside_x & inside_y)[0]
+                # np.take gathers rows several times faster than fancy indexing (same values).
+                pixels.append(np.take(py * self.width + px, keep))
+                values.append(np.take(value, keep, axis=0) * np.take(w, keep)[:, None])
         return np.concatenate(pixels), np.concatenate(values)
 
     def add_splat_paths(self, k):

@@ -25,8 +25,12 @@ measures, in this order and in one process:
    is scaled by ``time / seconds`` to the exact budget (error ~ 1 / time for unbiased
    estimators). The two references are compared with each other against what their noise
    alone would give: a consistency check of the renderers, not only of the bench.
+   Then *light tracing and BDPT* at fixed sample counts (``BIDIR_SPP``), each round
+   interleaved with a path-tracer render, best of two rounds: their camera samples/s and
+   their ratio to our path tracer's in the same rounds.
 5. The targets: our rays/s >= 0.5 x raw embreex (2 threads), our samples/s >= 0.5 x Cycles'
-   net samples/s. Reported as figures, never asserted.
+   net samples/s, light tracing >= 0.5 x and BDPT >= 0.3 x our path tracer's samples/s.
+   Reported as figures, never asserted.
 
 Everything printed is also written to ``output/`` as CSV, with a PNG of the four images.
 """
@@ -58,6 +62,10 @@ FIXED_SPP = 16
 REFERENCE_MIN_SECONDS = 60.0
 REFERENCE_TIME_FACTOR = 6.0
 TARGET_FRACTION = 0.5
+# Light tracing and BDPT: samples per pixel of their fixed-count runs, and their targets as
+# fractions of our path tracer's camera samples/s on the same scene.
+BIDIR_SPP = {"light": 8, "bdpt": 4}
+BIDIR_TARGETS = {"light": 0.5, "bdpt": 0.3}
 
 
 def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
@@ -108,6 +116,7 @@ def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
           f"load average at start {bench.summary['load_start']}; {bench.summary['date']}")
     ceiling = bench.ceiling()
     bench.fixed_spp(cycles)
+    bench.bidirectional()
     bench.equal_time_and_references()
     bench.errors()
     print()
@@ -191,6 +200,35 @@ class _Bench:
         print(f"   = {self.ours_rps / self.ceiling_rps:.3f} x raw embreex ({self.threads} threads)")
         if self.cy is not None:
             self._print_cycles_fixed(ours)
+
+    def bidirectional(self):
+        """2b. Light tracing and BDPT against our path tracer, interleaved, best of two."""
+        best = {}
+        for round_ in range(2):
+            for name in ("path", *BIDIR_SPP):
+                stage(f"{name}, {BIDIR_SPP.get(name, FIXED_SPP)} spp, round {round_ + 1} of 2")
+                res = render(self.scene, self.settings(integrator=name,
+                                                       spp=BIDIR_SPP.get(name, FIXED_SPP)))
+                if name not in best or res.stats["time_s"] < best[name].stats["time_s"]:
+                    best[name] = res
+        path_sps = best["path"].stats["samples_per_s"]
+        print(f"\n2b. Light tracing and BDPT, {self.threads} threads (best of 2, each round "
+              f"interleaved with a {FIXED_SPP}-spp path-tracer render: "
+              f"{path_sps / 1e6:.3f} M samples/s)")
+        self.bidir_ratios = {}
+        for name in BIDIR_SPP:
+            stats = best[name].stats
+            ratio = stats["samples_per_s"] / max(path_sps, 1e-300)
+            self.bidir_ratios[name] = ratio
+            print(f"   {name:<6} {stats['samples_per_s'] / 1e6:.4f} M samples/s, "
+                  f"{stats['rays_per_s'] / 1e6:.2f} M rays/s, {stats['time_s']:.2f} s "
+                  f"= {ratio:.3f} x our path tracer")
+            row = _ours_row("fixed spp", best[name], self.pixels)
+            row["renderer"] = f"ours {name}"
+            self.rows.append(row)
+            self.summary[f"{name}_samples_per_s"] = stats["samples_per_s"]
+            self.summary[f"{name}_over_path_samples"] = ratio
+        self.summary["path_samples_per_s_interleaved"] = path_sps
 
     def _print_cycles_fixed(self, ours):
         cy = self.cy
@@ -297,6 +335,12 @@ class _Bench:
               f"{ours_rps / 1e6:.2f} M vs {TARGET_FRACTION * ceiling_rps / 1e6:.2f} M needed "
               f"-> {'holds' if hold else 'MISSED'} (ratio {ours_rps / ceiling_rps:.3f})")
         self.summary.update(target_rays_ratio=ours_rps / ceiling_rps, target_rays_holds=hold)
+        for name, fraction in BIDIR_TARGETS.items():
+            ratio = self.bidir_ratios[name]
+            met = ratio >= fraction
+            print(f"   {name} samples/s >= {fraction} x our path tracer's: {ratio:.3f} -> "
+                  f"{'met' if met else 'MISSED'}")
+            self.summary[f"target_{name}_met"] = met
         if self.cy is None:
             return
         cy = self.cy
@@ -387,7 +431,7 @@ def _cycles_row(run_name, spp, seconds, pixels, image):
 
 
 def _print_table(rows, seconds):
-    head = (f"   {'renderer':<8} {'run':<11} {'spp':>6} {'time s':>7} {'M samp/s':>9} "
+    head = (f"   {'renderer':<10} {'run':<11} {'spp':>6} {'time s':>7} {'M samp/s':>9} "
             f"{'M rays/s':>9} {'relMSE':>9} {'corrected':>9} {f'@{seconds:g} s':>9} "
             f"{'vs Cycles':>9}")
     print(head)
@@ -399,7 +443,7 @@ def _print_table(rows, seconds):
 
     for r in rows:
         rays = "-" if np.isnan(r["rays_per_s"]) else f"{r['rays_per_s'] / 1e6:.2f}"
-        print(f"   {r['renderer']:<8} {r['run']:<11} {r['spp']:>6.1f} {r['time_s']:>7.2f} "
+        print(f"   {r['renderer']:<10} {r['run']:<11} {r['spp']:>6.1f} {r['time_s']:>7.2f} "
               f"{r['samples_per_s'] / 1e6:>9.3f} {rays:>9} {fmt(r, 'relmse_vs_pt_ref'):>9} "
               f"{fmt(r, 'relmse_vs_pt_ref_corrected'):>9} {fmt(r, 'relmse_at_budget'):>9} "
               f"{fmt(r, 'relmse_vs_cycles_ref'):>9}")

@@ -56,38 +56,54 @@ MIS densities of every strategy are in :mod:`.mis_densities`, the per-strategy i
 
 from __future__ import annotations
 
+import numpy as np
+
+from ..lights.emission import EmitterPoints
 from .bidir import DIMS_CAMERA, DIMS_PER_CAMERA_VERTEX, Bidirectional
-from .connections import connect, connect_emitter_to_camera
+from .connections import Fresh, connect_all, connect_emitter_to_camera
 
 
 class BDPT(Bidirectional):
     """Bidirectional path tracing (see the module docstring)."""
 
-    # A BDPT sample costs 5-16 path-tracing samples, so units are smaller than the path
-    # tracer's to keep cancel and progress within a second (a call has ~0.1 s of fixed Python
-    # cost, so much smaller units would be slower).
+    # A BDPT sample costs several path-tracing samples (about 8 x the CPU time on the bench's
+    # Cornell box), so units are smaller than the path tracer's to keep cancel and progress
+    # within a second. A call has a few milliseconds of fixed cost (7 ms for 256 paths, one
+    # core, 2026-11-25), and NumPy's per-call cost falls with larger batches: much smaller
+    # units would be slower.
     unit_paths = 1 << 13
     strategy_views = True
 
     def connect(self, ctx, stream, C, L, out):
         """Strategies ``s >= 1, t >= 2`` (a fresh emitter point for ``s = 1``), then
         ``s = 1, t = 1``."""
-        depth = C.valid.shape[0]
-        for t in range(2, depth + 1):
-            zj = t - 1
-            if not C.valid[zj].any():
-                break
-            # s = 1: a fresh point on an emitter for every camera vertex.
-            stream.skip_to(DIMS_CAMERA + (zj - 1) * DIMS_PER_CAMERA_VERTEX + 4)
-            u_sel = stream.next_1d()
-            u_pos = stream.next_2d()
-            fresh = ctx.emission.sample_points(u_sel, u_pos, ctx.counters)
-            connect(ctx, L, C, 1, t, out, fresh)
-            for s in range(2, depth + 2 - t):
-                if not L.valid[s - 1].any():
-                    break
-                connect(ctx, L, C, s, t, out)
+        connect_all(ctx, L, C, _fresh_points(ctx, stream, C), out)
         connect_emitter_to_camera(ctx, L, out)
+
+
+def _fresh_points(ctx, stream, C):
+    """Strategy ``s = 1``: a fresh point on an emitter for every connectible camera vertex
+    (drawn from that vertex's dimensions of the stream, so each is the same whichever other
+    vertices exist)."""
+    depth = C.valid.shape[0]
+    reach = C.valid & C.connectible
+    zj, rows, points = [], [], []
+    for j in range(1, depth):
+        r = np.nonzero(reach[j])[0]
+        if r.size == 0:
+            continue
+        stream.skip_to(DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX + 4)
+        u_sel = stream.next_1d()[r]
+        u_pos = stream.next_2d()[r]
+        pts = ctx.emission.sample_points(u_sel, u_pos, ctx.counters)
+        got = np.nonzero(pts.index >= 0)[0]
+        zj.append(np.full(got.size, j, np.int64))
+        rows.append(r[got])
+        points.append(EmitterPoints(*(a[got] for a in pts)))
+    if not points:
+        return None
+    return Fresh(np.concatenate(zj), np.concatenate(rows),
+                 EmitterPoints(*(np.concatenate(col) for col in zip(*points))))
 
 
 # One work unit without a render loop (tests, one-off use); a render builds BDPT once.

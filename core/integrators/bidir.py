@@ -11,6 +11,7 @@ a subclass adds its own (:meth:`Bidirectional.connect`). Batches are cut into ch
 from __future__ import annotations
 
 import copy
+import threading
 from typing import ClassVar
 
 import numpy as np
@@ -22,7 +23,7 @@ from ..scene import VIS_CAMERA, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .camera_hits import camera_emission
 from .common import camera_rays, max_component, strategy_pass_names
-from .connections import connect_camera
+from .connections import camera_splatter, connect_camera
 from .strategy_views import Tally
 from .subpaths import Subpath, walk
 
@@ -57,12 +58,26 @@ class _Context:
         self.window = integrator.window
         self.film_pixels = integrator.film_pixels
         self.light_points = None  # the light subpaths' endpoints, once sampled
+        self.buffers = integrator.buffers
+
+    def subpath(self, side, depth, n):
+        """An empty :class:`Subpath` of ``depth`` vertices for ``n`` samples: this thread's
+        buffer for ``side`` (``"camera"`` or ``"light"``) if it has that shape."""
+        sub = getattr(self.buffers, side, None)
+        if sub is None or sub.valid.shape != (depth, n):
+            sub = Subpath.empty(depth, n)
+            setattr(self.buffers, side, sub)
+            return sub
+        return sub.reset()
 
 
-def _light_subpath(ctx, stream, n, base, depth):
-    """Stage *generate light subpath*: emitter point and direction, then the random walk."""
+def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
+    """Stage *generate light subpath*: emitter point and direction, then the random walk.
+
+    With ``on_vertex`` (see :func:`.subpaths.walk`) the vertices past the emitter are handed
+    to it and not stored: the subpath returned holds vertex 0 only."""
     em, prep = ctx.emission, ctx.prep
-    L = Subpath.empty(depth, n)
+    L = ctx.subpath("light", depth if on_vertex is None else 1, n)
     stream.skip_to(base)
     u_sel = stream.next_1d()
     u_pos = stream.next_2d()
@@ -90,16 +105,18 @@ def _light_subpath(ctx, stream, n, base, depth):
     if tri.size:
         prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
         o[tri] = prep.accel.offset_origin(o[tri], pts.normal[rows][tri], prim, w[rows][tri])
-    walk(ctx, L, o, w[rows], np.full(rows.size, np.inf), beta[rows], pdf_dir[rows],
-         np.zeros(rows.size, bool), np.full(rows.size, VIS_SHADOW, np.int32), rows, stream,
-         IMPORTANCE, lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX, depth)
+    walk(ctx, L if on_vertex is None else None, o, w[rows], np.full(rows.size, np.inf),
+         beta[rows], pdf_dir[rows], np.zeros(rows.size, bool),
+         np.full(rows.size, VIS_SHADOW, np.int32), rows, stream, IMPORTANCE,
+         lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX, depth,
+         on_vertex=on_vertex)
     return L
 
 
 def _camera_subpath(ctx, pixel_filter, stream, n, depth, out):
     """Stage *generate camera subpath*, adding the emitters it finds (``s = 0``) to ``out``."""
     prep, cam = ctx.prep, ctx.cam
-    C = Subpath.empty(depth, n)
+    C = ctx.subpath("camera", depth, n)
     o, d, tmax = camera_rays(prep, pixel_filter, stream)
     C.valid[0] = True
     C.p[0] = ctx.cam_pos
@@ -127,6 +144,10 @@ class Bidirectional(Integrator):
 
     splats = True
     weighs: ClassVar[bool] = True
+    # Whether the light subpaths are kept for connections (BDPT); without them (light tracing)
+    # every light vertex is connected to the pinhole as the walk makes it (same splats, same
+    # order, no stored vertices).
+    stores_light_subpaths: ClassVar[bool] = True
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
@@ -147,6 +168,8 @@ class Bidirectional(Integrator):
         self.window = settings.region
         self.film_pixels = (None if self.window is None else
                             (self.window[2] - self.window[0]) * (self.window[3] - self.window[1]))
+        # Each worker thread's subpath arrays, reused from one chunk to the next.
+        self.buffers = threading.local()
 
     def camera_depth(self, depth):
         """Vertices of the camera subpaths when light subpaths have ``depth``."""
@@ -173,6 +196,9 @@ class Bidirectional(Integrator):
         out = Tally(n, ctx.view_length)
         C = _camera_subpath(ctx, pixel_filter, stream, n, self.camera_depth(depth), out)
         base = DIMS_CAMERA + (depth + 1) * DIMS_PER_CAMERA_VERTEX
+        if not self.stores_light_subpaths:
+            _light_subpath(ctx, stream, n, base, depth, camera_splatter(ctx, out))
+            return out.output(n)
         L = _light_subpath(ctx, stream, n, base, depth)
         self.connect(ctx, stream, C, L, out)
         for s in range(2, depth + 1):

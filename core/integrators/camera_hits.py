@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import max_component
+from .common import max_component, take_rows
 from .mis_densities import camera_hit_weight
 
 
@@ -48,7 +48,7 @@ def camera_emission(ctx, cam_sub, out):
                 continue
             r = rows[lr]
             w_travel = -d[lr]
-            receiver = cam_sub.p[j - 1, r]
+            receiver = take_rows(cam_sub.p[j - 1], r)
             value = beta[lr] * em.radiance(index, q, normal, w_travel, receiver)
             ok = max_component(value) > 0
             if not ok.any():

@@ -7,120 +7,273 @@ its MIS-weighted contributions to the batch's :class:`.strategy_views.Tally`.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..camera import importance, project
+from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
-from .common import max_component
-from .mis_densities import connection_weight, direct_weight, splat_weight
-from .subpaths import Gathered, dot
+from .common import max_component, take_rows
+from .mis_densities import Near, connection_weight, direct_weight, splat_weight
+from .subpaths import Gathered, dot, take_params, to_area
+
+# Connections joined per batch of array operations (see _in_pieces).
+PIECE = 8192
 
 
-def connect(ctx, L, C, s, t, out, fresh=None):
-    """Strategies ``s >= 1, t >= 2``: light vertex ``s - 1`` (or the fresh emitter point for
-    ``s = 1``) joined to camera vertex ``t - 1`` by a shadow ray."""
-    prep, em = ctx.prep, ctx.emission
-    zj = t - 1
-    if s == 1:
-        rows = np.nonzero(C.valid[zj] & C.connectible[zj] & (fresh.index >= 0))[0]
-    else:
-        yj = s - 1
-        rows = np.nonzero(C.valid[zj] & C.connectible[zj] & L.valid[yj] & L.connectible[yj])[0]
-    if rows.size == 0:
+class Fresh(NamedTuple):
+    """Points sampled on emitters for strategy ``s = 1``, one per connection: the camera
+    vertex ``zj (m,)`` of subpath ``row (m,)`` each is joined to, and the points
+    (:class:`core.lights.emission.EmitterPoints` of ``m`` rows)."""
+
+    zj: np.ndarray
+    row: np.ndarray
+    points: object
+
+
+class _Joined(NamedTuple):
+    """Connections that passed their shadow rays: strategies, rows, values and the densities
+    their MIS weights need besides the stored ones (the columns of a :class:`Near`)."""
+
+    s: np.ndarray
+    t: np.ndarray
+    row: np.ndarray
+    value: np.ndarray
+    light_0: np.ndarray
+    light_s: np.ndarray
+    light_s1: np.ndarray
+    camera_s1: np.ndarray
+    camera_s2: np.ndarray
+    delta_light: np.ndarray
+
+
+def connect_all(ctx, L, C, fresh, out):
+    """Strategies ``s >= 1, t >= 2`` of every path length, in one batch each for ``s = 1``
+    (the points ``fresh``, a :class:`Fresh`) and ``s >= 2`` (light vertex ``s - 1`` joined to
+    camera vertex ``t - 1`` by a shadow ray): one gather per vertex, one BSDF evaluation,
+    one batch of shadow rays for all of them. MIS weights and contributions follow strategy by
+    strategy, by ``t`` then ``s`` (the order of a loop over strategies)."""
+    parts = [p for p in (_connect_emitters(ctx, L, C, fresh), _connect_vertices(ctx, L, C))
+             if p is not None]
+    if not parts:
         return
-    z = C.p[zj, rows]
-    if s == 1:
-        infinite = fresh.infinite[rows]
-        index = fresh.index[rows]
-        y = fresh.p[rows]
-        to_y = np.where(infinite[:, None], -fresh.w_inf[rows], y - z)
-    else:
-        y = L.p[s - 1, rows]
-        infinite = np.zeros(rows.size, bool)
-        to_y = y - z
-    dist = np.where(infinite, np.inf, np.linalg.norm(to_y, axis=1))
-    ok = (dist > 0)
-    w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y
-    zv = Gathered(ctx, C, zj, rows, RADIANCE)
+    key = np.concatenate([p.t * (C.valid.shape[0] + 2) + p.s for p in parts])
+    order = np.argsort(key, kind="stable")
+    j = _Joined(*(np.concatenate(col)[order] for col in zip(*parts)))
+    starts = np.flatnonzero(np.diff(key[order], prepend=-1))
+    for a, b in zip(starts, [*starts[1:], order.size]):
+        s, t, e = int(j.s[a]), int(j.t[a]), slice(a, b)
+        weight = connection_weight(ctx.mis, L, C, s, t, j.row[e], Near(*(c[e] for c in j[4:])))
+        out.add(s, t, j.row[e], j.value[e], weight)
+
+
+def _vertex_pairs(depth):
+    """``(zj, yj)`` of every strategy ``s = yj + 1 >= 2, t = zj + 1 >= 2`` of paths up to
+    ``depth`` segments, by ``t`` then ``s``."""
+    return np.array([(zj, yj) for zj in range(1, depth) for yj in range(1, depth - zj)],
+                    np.int64).reshape(-1, 2)
+
+
+def _connect_vertices(ctx, L, C):
+    """Strategies ``s >= 2, t >= 2``: every connectible light vertex joined to every
+    connectible camera vertex of its sample (paths of at most ``depth`` segments)."""
+    depth, n = C.valid.shape
+    pairs = _vertex_pairs(depth)
+    both = (C.valid & C.connectible)[pairs[:, 0]] & (L.valid & L.connectible)[pairs[:, 1]]
+    pair, row = np.nonzero(both)
+    return _in_pieces(lambda e: _join_vertices(ctx, L, C, pairs[pair[e], 0], pairs[pair[e], 1],
+                                               row[e]), row.size)
+
+
+def _in_pieces(join, m):
+    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time, joined in order:
+    arrays of a few thousand rows stay in the processor's cache through a stage's many
+    operations (and need no fresh pages of memory)."""
+    parts = [join(slice(a, min(a + PIECE, m))) for a in range(0, m, PIECE)]
+    parts = [p for p in parts if p is not None]
+    if not parts:
+        return None
+    return _Joined(*(np.concatenate(col) for col in zip(*parts)))
+
+
+def _join_vertices(ctx, L, C, zj, yj, row):
+    """Light vertices ``yj (m,)`` joined to camera vertices ``zj (m,)`` of samples ``row``."""
+    n = C.valid.shape[1]
+    at_z = zj * n + row
+    z = take_rows(C.flat("p"), at_z)
+    to_y = take_rows(L.flat("p"), yj * n + row) - z
+    dist = np.linalg.norm(to_y, axis=1)
+    w = to_y / np.maximum(dist, 1e-300)[:, None]  # z -> y
+    zv = Gathered.at(ctx, C, at_z, RADIANCE)
     w_z = zv.local(w)
     f_z = zv.f(w, w_z)
-    yv = w_y = None
-    if s == 1:
-        normal = fresh.normal[rows]
-        le = em.radiance(index, y, normal, -w, z)
-        point = fresh.delta_light[rows] & ~infinite
-        cos_y = np.where(infinite | point, 1.0, np.abs(dot(normal, w)))
-        f_y = le * cos_y[:, None]
-        beta_y = 1.0 / np.where(fresh.pdf_origin[rows] > 0, fresh.pdf_origin[rows], np.inf)
-        value = f_y * f_z * C.beta[zj, rows] * beta_y[:, None]
-    else:
-        yv = Gathered(ctx, L, s - 1, rows, IMPORTANCE)
-        w_y = yv.local(-w)
-        f_y = yv.f(-w, w_y)
-        value = L.beta[s - 1, rows] * f_y * f_z * C.beta[zj, rows]
+    # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
+    # which is dropped as well): its light side is not gathered.
+    e = np.nonzero(max_component(f_z) > 0)[0]
+    at_y, w_e, dist_e = (yj * n + row)[e], take_rows(w, e), dist[e]
+    yv = Gathered.at(ctx, L, at_y, IMPORTANCE)
+    w_y = yv.local(-w_e)
+    value = (take_rows(L.flat("beta"), at_y) * yv.f(-w_e, w_y) * take_rows(f_z, e)
+             * take_rows(C.flat("beta"), at_z[e]))
+    value = value * (1.0 / np.maximum(dist_e ** 2, 1e-300))[:, None]
+    kept = _unblocked(ctx, C, at_z[e], take_rows(z, e), w_e, dist_e, yv.ng, value, dist_e > 0)
+    if kept.size == 0:
+        return None
+    keep = e[kept]
+    zv, yv = zv.for_densities(keep), yv.for_densities(kept)
+    w, dist, w_z, w_y = (take_rows(w, keep), dist[keep], take_rows(w_z, keep),
+                         take_rows(w_y, kept))
+    cos_z, cos_y = np.abs(dot(zv.ng, w)), np.abs(dot(yv.ng, w))
+    yj, zj, row = yj[keep], zj[keep], row[keep]
+    return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), L.pdf_fwd[0, row],
+                   to_area(yv.pdf_toward(w_y), cos_z, dist), _reverse_at_z(C, zv, w_z, zj, row),
+                   to_area(zv.pdf_toward(w_z), cos_y, dist),
+                   to_area(yv.pdf_back(w_y), L.cos_prev[yj, row], L.d_prev[yj, row]),
+                   ctx.light_points.delta_light[row])
+
+
+def _connect_emitters(ctx, L, C, fresh):
+    """Strategy ``s = 1``: the fresh points on emitters joined to their camera vertices."""
+    if fresh is None:
+        return None
+    return _in_pieces(lambda e: _join_emitters(
+        ctx, L, C, fresh.zj[e], fresh.row[e], EmitterPoints(*(a[e] for a in fresh.points))),
+        fresh.row.size)
+
+
+def _join_emitters(ctx, L, C, zj, row, pts):
+    """Points ``pts`` on emitters joined to camera vertices ``zj (m,)`` of samples ``row``."""
+    em = ctx.emission
+    n = C.valid.shape[1]
+    at_z = zj * n + row
+    z = take_rows(C.flat("p"), at_z)
+    infinite = pts.infinite
+    to_y = np.where(infinite[:, None], -pts.w_inf, pts.p - z)
+    dist = np.where(infinite, np.inf, np.linalg.norm(to_y, axis=1))
+    w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y
+    zv = Gathered.at(ctx, C, at_z, RADIANCE)
+    w_z = zv.local(w)
+    le = em.radiance(pts.index, pts.p, pts.normal, -w, z)
+    point = pts.delta_light & ~infinite
+    cos_y = np.where(infinite | point, 1.0, np.abs(dot(pts.normal, w)))
+    beta_y = 1.0 / np.where(pts.pdf_origin > 0, pts.pdf_origin, np.inf)
+    value = le * cos_y[:, None] * zv.f(w, w_z) * take_rows(C.flat("beta"), at_z) * beta_y[:, None]
     g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
     value = value * g[:, None]
-    ok &= (max_component(value) > 0) & np.isfinite(value).all(axis=1)
+    y_normal = np.where(infinite[:, None], 0.0, pts.normal)
+    keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0)
+    if keep.size == 0:
+        return None
+    zv, w, dist = zv.for_densities(keep), take_rows(w, keep), dist[keep]
+    w_z = take_rows(w_z, keep)
+    zj, row = zj[keep], row[keep]
+    infinite, cos_y, index = infinite[keep], cos_y[keep], pts.index[keep]
+    cos_z = np.abs(dot(zv.ng, w))
+    pdf_dir = em.pdf_direction(index, take_rows(y_normal, keep), -w)
+    pdf_zy = zv.pdf_toward(w_z)
+    return _Joined(np.ones(keep.size, np.int64), zj + 1, row, take_rows(value, keep),
+                   pts.pdf_origin[keep],
+                   np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, dist)),
+                   _reverse_at_z(C, zv, w_z, zj, row),
+                   np.where(infinite, pdf_zy, to_area(pdf_zy, cos_y, dist)),
+                   np.ones(keep.size), pts.delta_light[keep])
+
+
+def _reverse_at_z(C, zv, w_z, zj, row):
+    """The light side's area density of ``z_{t-2}``, sampled at ``z = z_{t-1}`` (``t >= 3``;
+    unused, and one, for ``t = 2``)."""
+    far = zj >= 2
+    return np.where(far, to_area(zv.pdf_back(w_z), C.cos_prev[zj, row], C.d_prev[zj, row]), 1.0)
+
+
+def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok):
+    """Connections ``(k,)`` (indices) with a contribution whose shadow ray gets through."""
+    ok = ok & (max_component(value) > 0) & np.isfinite(value).all(axis=1)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
-        return
-    if s == 1:
-        y_normal = np.where(infinite[cand, None], 0.0, fresh.normal[rows[cand]])
-    else:
-        y_normal = L.ng[s - 1, rows[cand]]
-    blocked = prep.accel.occluded(*prep.accel.shadow_rays(
-        z[cand], C.ng[zj, rows[cand]], C.prim[zj, rows[cand]], w[cand], dist[cand], y_normal),
-        VIS_SHADOW)
+        return cand
+    at = at_z[cand]
+    blocked = ctx.prep.accel.occluded(*ctx.prep.accel.shadow_rays(
+        take_rows(z, cand), take_rows(C.flat("ng"), at), C.flat("prim")[at], take_rows(w, cand),
+        dist[cand], take_rows(y_normal, cand)), VIS_SHADOW)
     ctx.counters.rays += cand.size
-    keep = cand[~blocked]
-    if keep.size == 0:
-        return
-    conn = {"w": w[keep], "dist": dist[keep], "infinite": infinite[keep],
-            "y_normal": y_normal[~blocked], "z": zv.take(keep), "w_z": w_z[keep]}
-    if s == 1:
-        conn["index"] = index[keep]
-    else:
-        conn["y"], conn["w_y"] = yv.take(keep), w_y[keep]
-    weight = connection_weight(ctx, L, C, s, t, rows[keep], conn, fresh)
-    out.add(s, t, rows[keep], value[keep], weight)
+    return cand[~blocked]
 
 
 def connect_camera(ctx, L, s, out):
     """Strategy ``t = 1``: light vertex ``s - 1`` seen by the pinhole, splatted."""
-    prep, cam = ctx.prep, ctx.cam
     yj = s - 1
     rows = np.nonzero(L.valid[yj] & L.connectible[yj])[0]
     if rows.size == 0:
         return
-    film_xy, visible, cos_theta, dist = project(cam, L.p[yj, rows], ctx.film_margin, ctx.window)
+    splat_vertices(ctx, s, rows, take_rows(L.p[yj], rows), L.prim[yj, rows],
+                   lambda seen: Gathered(ctx, L, yj, rows[seen], IMPORTANCE),
+                   lambda seen: take_rows(L.beta[yj], rows[seen]), out, L)
+
+
+def camera_splatter(ctx, out):
+    """``on_vertex`` of a light walk that stores nothing (light tracing): strategy ``t = 1`` for
+    each light vertex as it is made, unweighted (the vertex is ``s - 1 = j``)."""
+
+    def handle(j, rows, si, frame, wo_l, params, delta_only, beta):
+        ok = np.nonzero(~delta_only)[0]
+        if ok.size == 0:
+            return
+
+        def gather(seen):
+            idx = ok[seen]
+            return Gathered.of(ctx.smooth, IMPORTANCE, take_params(params, idx),
+                               [take_rows(a, idx) for a in frame], take_rows(si.wo, idx),
+                               take_rows(wo_l, idx), take_rows(si.ng, idx))
+
+        splat_vertices(ctx, j + 1, rows[ok], take_rows(si.p, ok), si.prim[ok], gather,
+                       lambda seen: take_rows(beta, ok[seen]), out)
+
+    return handle
+
+
+def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
+    """Strategy ``t = 1`` for the light vertices ``y (m, 3)`` (vertex ``s - 1`` of the light
+    subpaths ``rows (m,)``, on triangles ``prim (m,)``): those the pinhole sees are splatted.
+
+    ``gather(seen)`` gives the :class:`.subpaths.Gathered` vertices of the rows ``seen`` of
+    ``rows``, ``beta_of(seen)`` their throughputs: only vertices in the film's view are
+    gathered. ``L`` (the stored light subpaths) is needed for MIS weights (BDPT) only.
+    """
+    cam = ctx.cam
+    film_xy, visible, cos_theta, dist = project(cam, y, ctx.film_margin, ctx.window)
     seen = np.nonzero(visible)[0]
     if seen.size == 0:
         return
-    rows, film_xy, cos_theta, dist = rows[seen], film_xy[seen], cos_theta[seen], dist[seen]
-    y = L.p[yj, rows]
+    rows, film_xy, cos_theta, dist, y, prim = (rows[seen], take_rows(film_xy, seen),
+                                               cos_theta[seen], dist[seen], take_rows(y, seen),
+                                               prim[seen])
     w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
-    yv = Gathered(ctx, L, yj, rows, IMPORTANCE)
+    yv = gather(seen)
     w_y = yv.local(w)
     we = importance(cam, cos_theta)
-    value = L.beta[yj, rows] * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
+    value = beta_of(seen) * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
     ok = (max_component(value) > 0) & np.isfinite(value).all(axis=1)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return
-    o, dirs, tmax = prep.accel.shadow_rays(y[cand], yv.ng[cand], L.prim[yj, rows[cand]],
-                                           w[cand], dist[cand], np.zeros((cand.size, 3)))
-    blocked = prep.accel.occluded(o, dirs, tmax, VIS_CAMERA)
+    o, dirs, tmax = ctx.prep.accel.shadow_rays(
+        take_rows(y, cand), take_rows(yv.ng, cand), prim[cand], take_rows(w, cand), dist[cand],
+        np.zeros((cand.size, 3)))
+    blocked = ctx.prep.accel.occluded(o, dirs, tmax, VIS_CAMERA)
     ctx.counters.rays += cand.size
     keep = cand[~blocked]
     if keep.size == 0:
         return
-    rows, w, w_y, dist, value, film_xy, cos_theta = (rows[keep], w[keep], w_y[keep], dist[keep],
-                                                     value[keep], film_xy[keep], cos_theta[keep])
+    value, film_xy = take_rows(value, keep), take_rows(film_xy, keep)
     if not ctx.weighs:
-        weight = np.ones(rows.size)
+        weight = np.ones(keep.size)
     else:
-        weight = splat_weight(ctx, L, s, rows, yv.take(keep), w, w_y, dist, cos_theta)
+        weight = splat_weight(ctx, L, s, rows[keep], yv.for_densities(keep),
+                              take_rows(w, keep), take_rows(w_y, keep), dist[keep],
+                              cos_theta[keep])
     out.splat(s, film_xy, value, weight)
 
 

@@ -41,6 +41,7 @@ class LightTracer(Bidirectional):
     # A light-tracing sample costs 2-5 path-tracing samples.
     unit_paths = 1 << 14
     weighs = False
+    stores_light_subpaths = False
 
     def camera_depth(self, depth):
         """The camera ray only: emitters seen directly."""

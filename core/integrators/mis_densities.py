@@ -10,9 +10,12 @@ is the ``k``-strategy case of the same weight the path tracer uses for two.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..camera import camera_pdf
+from .common import take_rows
 from .subpaths import dot, to_area
 
 
@@ -67,9 +70,10 @@ def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
             ok = ~delta[sp - 1] & ~delta[sp]
         if sp == s:
             ok = np.ones(m, bool)
-        r = np.nan_to_num(ratio[sp], nan=0.0, posinf=np.inf)
-        valid.append(ok & (r > 0))
-        terms.append(np.where(ok, r, 0.0))
+        # Ratios are >= 0, inf or NaN (0 x inf): NaN counts as zero.
+        ok_r = ok & (ratio[sp] > 0)
+        valid.append(ok_r)
+        terms.append(np.where(ok_r, ratio[sp], 0.0))
     w = mis.weight(terms, s, valid)
     return np.where(np.isfinite(w), w, 0.0)
 
@@ -87,7 +91,7 @@ def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, p
     cos_l = np.where(infinite, 1.0, np.abs(dot(normal, w_travel)))
     p_camera[0] = np.where(prev_delta, 1.0, to_area(pdf_prev, cos_l, t))
     # The emitter makes z_{j-1} by its direction density.
-    cos_z = np.abs(dot(cam.ng[j - 1, r], w_travel))
+    cos_z = np.abs(dot(take_rows(cam.ng[j - 1], r), w_travel))
     pdf_dir = em.pdf_direction(index, normal, w_travel)
     p_light[1] = np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, t))
     for i in range(1, k + 1):
@@ -101,42 +105,48 @@ def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, p
     return strategy_weight(ctx.mis, p_light, p_camera, delta, 0, delta_light, direct=~infinite)
 
 
-def connection_weight(ctx, L, C, s, t, rows, conn, fresh):
-    """MIS weight of a connection ``y = x_{s-1}`` (light side) -> ``z = x_s`` (camera side).
+class Near(NamedTuple):
+    """Densities at the two ends of connections ``y = x_{s-1}`` -> ``z = x_s`` of one
+    strategy (arrays ``(m,)``, one per connection) that the subpaths did not store.
 
-    ``conn`` holds the connection's ``w`` (from z to y, world), ``dist``, ``infinite``,
-    ``y_normal``, the gathered camera vertex ``z`` and ``w`` in its frame ``w_z``; and either
-    the emitter ``index`` (``s = 1``) or the gathered light vertex ``y`` and ``-w`` in its frame
-    ``w_y``.
+    Attributes
+    ----------
+    light_0 : density of ``x_0`` on its emitter (the fresh point's for ``s = 1``).
+    light_s : the light side's density of ``z``, sampled from ``y``.
+    light_s1 : the light side's density of ``z_{t-2}``, sampled from ``z`` (used for
+        ``t >= 3``).
+    camera_s1 : the camera side's density of ``y``, sampled from ``z``.
+    camera_s2 : the camera side's density of ``y_{s-2}``, sampled from ``y`` (``s >= 2``).
+    delta_light : (m,) bool, ``x_0`` is a delta light.
     """
-    em = ctx.emission
+
+    light_0: np.ndarray
+    light_s: np.ndarray
+    light_s1: np.ndarray
+    camera_s1: np.ndarray
+    camera_s2: np.ndarray
+    delta_light: np.ndarray
+
+
+def connection_weight(mis, L, C, s, t, rows, near):
+    """MIS weight ``(m,)`` of strategy ``(s, t)``, ``s >= 1, t >= 2``: light vertex
+    ``y = x_{s-1}`` (a fresh emitter point for ``s = 1``) joined to camera vertex
+    ``z = x_s = z_{t-1}`` of the subpaths ``rows (m,)``; ``near`` (a :class:`Near`) holds the
+    densities the subpaths did not store."""
     k = s + t - 1
     m = rows.size
-    zj = t - 1
-    w, dist, infinite, y_normal = conn["w"], conn["dist"], conn["infinite"], conn["y_normal"]
-    zv, w_z = conn["z"], conn["w_z"]
     p_light = [None] * (k + 1)
     p_camera = [None] * (k + 1)
     delta = [np.zeros(m, bool) for _ in range(k + 1)]
-    cos_z = np.abs(dot(zv.ng, w))
     # Light side: stored densities up to y, then y -> z, then z -> z_{t-2}.
-    if s == 1:
-        p_light[0] = fresh.pdf_origin[rows]
-        cos_y = np.where(infinite | fresh.delta_light[rows], 1.0, np.abs(dot(y_normal, w)))
-        pdf_dir = em.pdf_direction(conn["index"], y_normal, -w)
-        p_light[1] = np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, dist))
-        delta_light = fresh.delta_light[rows]
-    else:
-        yv, w_y = conn["y"], conn["w_y"]
-        for i in range(s):
-            p_light[i] = L.pdf_fwd[i, rows]
-            if 0 < i < s - 1:
-                delta[i] = L.delta[i, rows]
-        cos_y = np.abs(dot(y_normal, w))
-        p_light[s] = to_area(yv.pdf_toward(w_y), cos_z, dist)
-        delta_light = ctx.light_points.delta_light[rows]
-    if zj >= 2:
-        p_light[s + 1] = to_area(zv.pdf_back(w_z), C.cos_prev[zj, rows], C.d_prev[zj, rows])
+    p_light[0] = near.light_0
+    for i in range(1, s):
+        p_light[i] = L.pdf_fwd[i, rows]
+        if i < s - 1:
+            delta[i] = L.delta[i, rows]
+    p_light[s] = near.light_s
+    if t >= 3:
+        p_light[s + 1] = near.light_s1
     for i in range(s + 2, k + 1):
         zi = k - i
         p_light[i] = C.pdf_rev[zi, rows] if zi > 0 else np.ones(m)
@@ -146,14 +156,12 @@ def connection_weight(ctx, L, C, s, t, rows, conn, fresh):
         p_camera[i] = C.pdf_fwd[zi, rows] if zi > 0 else np.ones(m)
         if s < i < k:
             delta[i] = C.delta[zi, rows]
-    pdf_zy = zv.pdf_toward(w_z)
-    p_camera[s - 1] = np.where(infinite, pdf_zy, to_area(pdf_zy, cos_y, dist))
+    p_camera[s - 1] = near.camera_s1
     if s >= 2:
-        p_camera[s - 2] = to_area(yv.pdf_back(w_y), L.cos_prev[s - 1, rows],
-                                  L.d_prev[s - 1, rows])
+        p_camera[s - 2] = near.camera_s2
         for i in range(s - 2):
             p_camera[i] = L.pdf_rev[i, rows]
-    return strategy_weight(ctx.mis, p_light, p_camera, delta, s, delta_light)
+    return strategy_weight(mis, p_light, p_camera, delta, s, near.delta_light)
 
 
 def splat_weight(ctx, L, s, rows, yv, w, w_y, dist, cos_theta):

@@ -9,6 +9,7 @@ for the rows of a connection.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +17,7 @@ import numpy as np
 from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from .common import (geometric_side_valid, intersect_by_class, ray_class, russian_roulette,
-                     surface_hits, surface_interaction)
+                     surface_hits, surface_interaction, take_rows)
 
 
 def dot(a, b):
@@ -26,6 +27,20 @@ def dot(a, b):
 def _empty_params(n):
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
                       np.zeros((n, 3)))
+
+
+def take_params(params, rows):
+    """The rows ``rows (k,)`` of ``params`` (as :meth:`BSDFParams.take`, gathered by
+    ``np.take``: several times faster for the ``(n, 3)`` columns)."""
+    return BSDFParams(np.take(params.kind, rows), take_rows(params.color, rows),
+                      np.take(params.alpha, rows), np.take(params.eta, rows),
+                      take_rows(params.tint, rows))
+
+
+def _slice_params(params, part):
+    """Rows ``part`` (a slice) of ``params``, as views."""
+    return BSDFParams(params.kind[part], params.color[part], params.alpha[part],
+                      params.eta[part], params.tint[part])
 
 
 def _scatter_params(dst, rows, src):
@@ -67,15 +82,42 @@ class Subpath:
     pdf_rev: np.ndarray
     d_prev: np.ndarray
     cos_prev: np.ndarray
+    all_params: BSDFParams = None
 
     @staticmethod
     def empty(depth, n):
+        """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
+        views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
+        is row ``j * n + i``, as in :meth:`flat`)."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
+        table = _empty_params(depth * n)
+        params = [_slice_params(table, slice(j * n, (j + 1) * n)) for j in range(depth)]
         return Subpath(np.zeros((depth, n), bool), z3(), z3(), np.zeros((depth, n), np.int64),
-                       z3(), z3(), z3(), z3(), z3(), [None] * depth,
+                       z3(), z3(), z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
-                       np.ones((depth, n)))
+                       np.ones((depth, n)), table)
+
+    def reset(self):
+        """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
+        allocation would page its memory in again for every batch."""
+        for name, value in (("valid", False), ("prim", 0), ("connectible", False),
+                            ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
+                            ("d_prev", np.inf), ("cos_prev", 1.0)):
+            getattr(self, name).fill(value)
+        for name in ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta"):
+            getattr(self, name).fill(0.0)
+        table = self.all_params
+        for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
+                              (table.eta, 1.0), (table.tint, 0.0)):
+            column.fill(value)
+        return self
+
+    def flat(self, name):
+        """Column ``name`` with vertices and subpaths in one axis: ``(depth * n, ...)``, row
+        ``j * n + i`` for vertex ``j`` of subpath ``i`` (a view)."""
+        a = getattr(self, name)
+        return a.reshape((-1,) + a.shape[2:])
 
 
 class Gathered:
@@ -84,18 +126,45 @@ class Gathered:
 
     def __init__(self, ctx, sub, j, rows, mode):
         self.smooth, self.mode = ctx.smooth, mode
-        self.params = sub.params[j].take(rows)
-        self.fs, self.ft, self.fn = sub.fs[j, rows], sub.ft[j, rows], sub.fn[j, rows]
-        self.wo, self.wo_l, self.ng = sub.wo[j, rows], sub.wo_local[j, rows], sub.ng[j, rows]
+        self.params = take_params(sub.params[j], rows)
+        self.fs, self.ft, self.fn = (take_rows(sub.fs[j], rows), take_rows(sub.ft[j], rows),
+                                     take_rows(sub.fn[j], rows))
+        self.wo, self.wo_l, self.ng = (take_rows(sub.wo[j], rows),
+                                       take_rows(sub.wo_local[j], rows),
+                                       take_rows(sub.ng[j], rows))
+
+    @staticmethod
+    def at(ctx, sub, index, mode):
+        """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`Subpath.flat` (each any vertex
+        of any subpath), gathered once."""
+        return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index),
+                           [take_rows(sub.flat(a), index) for a in ("fs", "ft", "fn")],
+                           take_rows(sub.flat("wo"), index) if ctx.smooth else None,
+                           take_rows(sub.flat("wo_local"), index),
+                           take_rows(sub.flat("ng"), index))
+
+    @staticmethod
+    def of(smooth, mode, params, frame, wo, wo_l, ng):
+        """Vertices from arrays already gathered: BSDF ``params``, shading ``frame`` (three
+        (m, 3) axes), ``wo``, ``wo_l`` (in the frame) and ``ng``."""
+        out = object.__new__(Gathered)
+        out.smooth, out.mode, out.params = smooth, mode, params
+        out.fs, out.ft, out.fn = frame
+        out.wo, out.wo_l, out.ng = wo, wo_l, ng
+        return out
 
     def take(self, idx):
         """The rows ``idx`` of this gather (after shadow rays removed some)."""
-        out = object.__new__(Gathered)
-        out.smooth, out.mode = self.smooth, self.mode
-        out.params = self.params.take(idx)
-        for name in ("fs", "ft", "fn", "wo", "wo_l", "ng"):
-            setattr(out, name, getattr(self, name)[idx])
-        return out
+        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
+                           [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
+                           None if self.wo is None else take_rows(self.wo, idx),
+                           take_rows(self.wo_l, idx), take_rows(self.ng, idx))
+
+    def for_densities(self, idx):
+        """The rows ``idx`` for densities only: :meth:`pdf_toward`, :meth:`pdf_back` and
+        ``ng`` (no frame: no :meth:`local` or :meth:`f`); fewer gathers than :meth:`take`."""
+        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
+                           [None] * 3, None, take_rows(self.wo_l, idx), take_rows(self.ng, idx))
 
     def local(self, w):
         """World directions ``w (m, 3)`` in the vertices' shading frames."""
@@ -137,16 +206,22 @@ def to_area(pdf_sa, cos_at, dist):
 
 
 def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mode, dims_of,
-         depth, on_segment=None):
+         depth, on_segment=None, on_vertex=None):
     """Stage *random walk*: extend ``sub`` from vertex 0 with the rays ``o, d`` of ``rows``.
 
     Vertices ``1..depth-1`` are made. ``pdf_prev (m,)`` is the solid-angle density of the first
     ray (the disk's area density for infinite light endpoints, whose ``d_prev`` is inf),
     ``prev_delta`` whether it came from a delta lobe, ``beta (m, 3)`` its throughput. With
-    ``on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)`` (the camera side, for ``s = 0``)
-    one more segment is traced after the last vertex, for the emitters it finds.
+    ``on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)`` (the camera side, for
+    ``s = 0``) one more segment is traced after the last vertex, for the emitters it finds.
+    With ``on_vertex(j, rows, si, frame, wo_l, params, delta_only, beta)`` each vertex is
+    handed over as it is made (the subpaths ``rows (k,)``, their
+    :class:`.common.Interaction`, shading frame, BSDF and throughput); with ``sub`` None
+    nothing is stored (light tracing connects every vertex as it is made, so it keeps none).
+    ``stream`` itself is not advanced: the walk draws from a copy.
     """
     prep, settings = ctx.prep, ctx.settings
+    path_stream = None
     last = depth + int(on_segment is not None)
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
@@ -160,10 +235,16 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             break
         si = surface_interaction(prep, hits, d, live)
         r = rows[live]
-        stream.skip_to(dims_of(j))
-        u_lobe = stream.next_1d()[r]
-        u_bsdf = stream.next_2d()[r]
-        u_rr = stream.next_1d()[r]
+        # Draw for the live paths only (a copy of the stream compacted along with them).
+        if path_stream is None:
+            path_stream = copy.copy(stream)
+            path_stream.compact(r)
+        else:
+            path_stream.compact(live)
+        path_stream.skip_to(dims_of(j))
+        u_lobe = path_stream.next_1d()
+        u_bsdf = path_stream.next_2d()
+        u_rr = path_stream.next_1d()
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
         if ctx.smooth:
@@ -172,9 +253,12 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         else:
             fs, ft, fn = shading_frame(si.ng)
         wo_l = to_local(si.wo, fs, ft, fn)
-
-        dist = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l, params, delta_only,
-                             beta, pdf_prev, prev_delta)
+        beta = take_rows(beta, live)
+        if on_vertex is not None:
+            on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta)
+        if sub is not None:
+            dist = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l, params,
+                                 delta_only, beta, pdf_prev, prev_delta)
         if j == depth - 1 and on_segment is None:
             break
 
@@ -184,19 +268,22 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         weight = smp.weight
         if ctx.smooth:
             weight = weight * smooth_factor(si.ng, fn, si.wo, wi, wo_l, smp.wi, mode)[:, None]
-        back = to_area(pdf_bsdf(params, smp.wi, wo_l), sub.cos_prev[j, r], dist)
-        sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
-        sub.delta[j, r] = smp.delta
-        beta = beta[live] * weight
+        if sub is not None:
+            back = to_area(pdf_bsdf(params, smp.wi, wo_l), sub.cos_prev[j, r], dist)
+            sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
+            sub.delta[j, r] = smp.delta
+        beta = beta * weight
         alive = (smp.pdf > 0) & np.isfinite(beta).all(axis=1)
         alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1)
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
             break
         rows = r[keep]
-        beta = beta[keep]
-        o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
-        d = wi[keep]
+        path_stream.compact(keep)
+        beta = take_rows(beta, keep)
+        d = take_rows(wi, keep)
+        o = prep.accel.offset_origin(take_rows(si.p, keep), take_rows(si.ng, keep),
+                                     si.prim[keep], d)
         tmax = np.full(keep.size, np.inf)
         pdf_prev = smp.pdf[keep]
         prev_delta = smp.delta[keep]
@@ -207,29 +294,29 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
                   prev_delta):
     """Store the surface hits ``live`` as vertex ``j`` of the subpaths ``r`` of ``sub``, with the
     shading ``frame`` (three (k, 3) axes), ``wo_l`` in it and the chosen BSDF ``params``;
-    ``beta``, ``pdf_prev`` and ``prev_delta`` are those of the rays that found them. Returns
+    ``beta`` is the hits' throughput, ``pdf_prev`` and ``prev_delta`` those of the rays that
+    found them (all the rays, ``live`` picks the hits). Returns
     the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint)."""
     # The edge from vertex j - 1, then the forward density in area measure (times the cosine
     # alone after an infinite endpoint, whose rays are parallel).
     if j == 1:
-        dist = np.linalg.norm(si.p - sub.p[0, r], axis=1)
+        dist = np.linalg.norm(si.p - take_rows(sub.p[0], r), axis=1)
         dist = np.where(np.isfinite(sub.d_prev[0, r]), dist, np.inf)
         sub.cos_prev[j, r] = sub.cos_prev[0, r]
     else:
         dist = hits.t[live]
-        sub.cos_prev[j, r] = np.abs(dot(sub.ng[j - 1, r], si.wo))
+        sub.cos_prev[j, r] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
     cos_here = np.abs(dot(si.ng, si.wo))
     fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
                    to_area(pdf_prev[live], cos_here, dist))
-    sub.valid[j, r] = True
-    sub.p[j, r], sub.ng[j, r], sub.prim[j, r] = si.p, si.ng, si.prim
-    sub.fs[j, r], sub.ft[j, r], sub.fn[j, r] = frame
-    sub.wo[j, r], sub.wo_local[j, r] = si.wo, wo_l
+    # Stores go through the vertex's own rows (sub.x[j][r]): faster than sub.x[j, r].
+    sub.valid[j][r] = True
+    for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("fs", frame[0]),
+                        ("ft", frame[1]), ("fn", frame[2]), ("wo", si.wo), ("wo_local", wo_l),
+                        ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
+                        ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
+        getattr(sub, name)[j][r] = value
     if sub.params[j] is None:
         sub.params[j] = _empty_params(sub.valid.shape[1])
     _scatter_params(sub.params[j], r, params)
-    sub.connectible[j, r] = ~delta_only
-    sub.beta[j, r] = beta[live]
-    sub.d_prev[j, r] = dist
-    sub.pdf_fwd[j, r] = np.where(prev_delta[live], 1.0, fwd)
     return dist

@@ -376,3 +376,59 @@ def test_bdpt_views_figure_shows_every_strategy_and_the_weighted_shares_make_the
                                          max_bounces=1)).film.mean().mean()
     weighted = sum(v for k, v in means.items() if k.endswith("weighted"))
     np.testing.assert_allclose(weighted, image, rtol=1e-5)
+
+
+# ------------------------------------------------------------------------- reused buffers
+def test_subpath_reset_restores_an_empty_subpath():
+    from sampling_lab.core.integrators.subpaths import Subpath
+    rng = np.random.default_rng(3)
+    fresh, used = Subpath.empty(4, 7), Subpath.empty(4, 7)
+    for name in ("valid", "prim", "connectible", "delta", "p", "ng", "fs", "ft", "fn", "wo",
+                 "wo_local", "beta", "pdf_fwd", "pdf_rev", "d_prev", "cos_prev"):
+        a = getattr(used, name)
+        a[...] = rng.random(a.shape) > 0.5 if a.dtype == bool else rng.random(a.shape) + 2
+    for column in vars(used.all_params).values():
+        column[...] = 3
+    used.reset()
+    for name, a in vars(fresh).items():
+        if name == "params":
+            continue
+        if name == "all_params":
+            for column, value in vars(a).items():
+                np.testing.assert_array_equal(getattr(used.all_params, column), value)
+        else:
+            np.testing.assert_array_equal(getattr(used, name), a, err_msg=name)
+    # The per-vertex parameter views still show the (reset) table.
+    used.params[2].color[1] = 5.0
+    assert used.all_params.color[2 * 7 + 1, 0] == 5.0
+
+
+@pytest.mark.parametrize("integrator", ["light", "bdpt"])
+def test_work_units_give_the_same_output_whatever_ran_before_them(integrator):
+    """The per-thread subpath buffers are reused from one unit to the next: a unit's output
+    must not depend on what the same integrator rendered before it (other pixels, another
+    batch size, deeper paths)."""
+    from sampling_lab.core.film import PixelFilter
+    from sampling_lab.core.integrators import integrator_class
+    from sampling_lab.core.integrators.base import Counters
+    from sampling_lab.core.prepare import prepare
+    from sampling_lab.core.sampling.samplers import make_sampler
+    scene = cornell_sphere(16, 16, ball="glass", light="sphere")
+    settings = RenderSettings(integrator=integrator, spp=4, seed=5, max_bounces=5,
+                              strategy_views=integrator == "bdpt", strategy_max_length=3)
+    integ = integrator_class(integrator)(prepare(scene), settings)
+    sampler = make_sampler("independent", seed=5, spp=4, width=16)
+    pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
+
+    def unit(first, n, sample):
+        pixels = np.arange(first, first + n) % 256
+        out = integ.render_samples(sampler.stream(pixels, np.full(n, sample)), pixel_filter,
+                                   Counters())
+        return [out.radiance, out.splats.xy, out.splats.value,
+                *[out.camera_layers[k] for k in sorted(out.camera_layers)]]
+
+    first = unit(0, 200, 0)
+    unit(100, 256, 1)  # another size: new buffers
+    unit(50, 200, 2)  # the first size again (new buffers), other pixels, other samples
+    for a, b in zip(first, unit(0, 200, 0)):  # reuses the buffers of the unit before
+        np.testing.assert_array_equal(a, b)

@@ -303,3 +303,24 @@ def test_filtered_splat_spreads_a_value_over_the_pixels_whose_filter_covers_it()
     expected = f.pdf_1d(4.3 - (np.arange(8) + 0.5))[None, :] * f.pdf_1d(
         3.6 - (np.arange(8) + 0.5))[:, None]
     np.testing.assert_allclose(w, expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind, width", [("BLACKMAN_HARRIS", 1.5), ("BOX", 1.0),
+                                         ("BLACKMAN_HARRIS", 3.0)])
+def test_splats_reach_every_pixel_the_filter_covers_and_no_other(kind, width):
+    """Film.splat against a plain sum over every pixel of the frame (filter density at the
+    splat times its value): splats near the edges, on a window film, outside the window. The
+    film skips taps the filter cannot reach; a skipped tap that the filter does reach would
+    show here. The tolerance is float rounding (sums in another order)."""
+    f = PixelFilter(kind, width)
+    rng = np.random.default_rng(11)
+    xy = np.concatenate([rng.uniform(-2.0, 14.0, (300, 2)), [[0.01, 0.99], [11.99, 0.5]]])
+    value = rng.uniform(0.0, 1.0, (xy.shape[0], 3))
+    film = Film(9, 7, x0=2, y0=1)  # a window of a 12 x 10 frame
+    film.splat(xy, value, f)
+    px, py = np.arange(2, 11) + 0.5, np.arange(1, 8) + 0.5
+    w = (f.pdf_1d(xy[:, 0, None] - px[None, :])[:, None, :]
+         * f.pdf_1d(xy[:, 1, None] - py[None, :])[:, :, None])  # (k, rows, columns)
+    expected = np.einsum("kyx,kc->yxc", w, value).reshape(-1, 3)
+    np.testing.assert_allclose(film.splat_sum, expected, rtol=1e-12, atol=1e-15)
+    assert film.splat_sum.any()

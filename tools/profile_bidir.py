@@ -1,0 +1,238 @@
+"""Stage profile of light tracing and BDPT on the bench Cornell box (a measurement, not a test).
+
+Wraps the stages of the bidirectional integrators (:mod:`core.integrators.bidir` and the
+modules it calls) with exclusive timers, as :mod:`tools.profile_path` does for the path tracer
+(a stage's time excludes the stages it calls), renders the 36-triangle Cornell box of
+``python -m sampling_lab bench`` at a fixed sample count, and prints each stage's share of the
+summed worker-thread time. Before that it prints camera samples/s of the path tracer, light
+tracing and BDPT, untimed, in one run (their ratios are the issue's targets), best of
+``--repeats`` interleaved renders each, so that a load spike hits all three alike.
+
+Run it from a checkout's parent so that ``sampling_lab`` resolves to the tree to measure::
+
+    PYTHONPATH=/path/to/parent python tools/profile_bidir.py --threads 2 --spp 4
+
+It imports the package by its absolute name, so the same file profiles an older worktree when
+``PYTHONPATH`` names that one; stages that a tree lacks are skipped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import importlib
+import os
+import threading
+import time
+from collections import defaultdict
+
+_LOCAL = threading.local()
+_TOTALS = defaultdict(float)
+_LOCK = threading.Lock()
+
+
+def _timed(name, fn):
+    """``fn`` with its exclusive CPU time (of the calling thread: other processes' load on a
+    shared machine does not count) added to ``_TOTALS[name]``; nested stages subtracted."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        stack = getattr(_LOCAL, "stack", None)
+        if stack is None:
+            stack = _LOCAL.stack = []
+        stack.append(0.0)
+        t0 = time.thread_time()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            dt = time.thread_time() - t0
+            children = stack.pop()
+            if stack:
+                stack[-1] += dt
+            with _LOCK:
+                _TOTALS[name] += dt - children
+
+    return wrapper
+
+
+def _patch(owner, attr, name):
+    setattr(owner, attr, _timed(name, getattr(owner, attr)))
+
+INTERSECT = "subpaths: intersect (Embree closest hit)"
+SHADOW = "shadow rays (offsets + Embree occluded)"
+BSDF_EVAL = "connections: BSDF eval + pdf (gathered vertices)"
+MIS = "MIS densities + weights"
+# (module under sampling_lab.core, attribute path, row name): the rows of the profile table.
+STAGES = [
+    ("render", "_Passes.run_unit", "other (render_samples bookkeeping, render loop)"),
+    ("integrators.bidir", "_camera_subpath", "subpaths: camera setup (rays, pdfs)"),
+    ("integrators.bidir", "_light_subpath", "subpaths: light setup (emitter points, directions)"),
+    ("integrators.subpaths", "walk", "subpaths: walk bookkeeping"),
+    ("accel", "Accel.intersect", INTERSECT),
+    ("integrators.subpaths", "intersect_by_class", INTERSECT),
+    ("integrators.subpaths", "surface_hits", "subpaths: surface interaction"),
+    ("integrators.subpaths", "surface_interaction", "subpaths: surface interaction"),
+    ("integrators.subpaths", "shading_frame", "subpaths: surface interaction"),
+    ("prepare", "PreparedScene.choose_bsdf", "subpaths: choose BSDF (material tables)"),
+    ("integrators.subpaths", "sample_bsdf", "subpaths: BSDF sampling"),
+    ("integrators.subpaths", "pdf_bsdf", "subpaths: BSDF sampling"),
+    ("integrators.subpaths", "smooth_factor", "subpaths: BSDF sampling"),
+    ("integrators.subpaths", "_store_vertex", "subpaths: store vertices"),
+    ("integrators.subpaths", "Subpath.empty", "subpaths: store vertices"),
+    ("integrators.subpaths", "Subpath.reset", "subpaths: store vertices"),
+    ("integrators.subpaths", "russian_roulette", "subpaths: walk bookkeeping"),
+    ("accel", "Accel.offset_origin", "subpaths: walk bookkeeping"),
+    ("integrators.subpaths", "Gathered.__init__", "connections: gather vertices"),
+    ("integrators.subpaths", "Gathered.at", "connections: gather vertices"),
+    ("integrators.subpaths", "Gathered.take", "connections: gather vertices"),
+    ("integrators.subpaths", "Gathered.for_densities", "connections: gather vertices"),
+    ("integrators.subpaths", "Gathered.f", BSDF_EVAL),
+    ("integrators.subpaths", "Gathered.pdf_toward", BSDF_EVAL),
+    ("integrators.subpaths", "Gathered.pdf_back", BSDF_EVAL),
+    ("integrators.camera_hits", "camera_emission", "s = 0: camera hits (emitters found)"),
+    ("integrators.connections", "connect", "s >= 1, t >= 2: connect bookkeeping"),
+    ("integrators.connections", "connect_all", "s >= 1, t >= 2: connect bookkeeping"),
+    ("integrators.connections", "_join_vertices", "s >= 1, t >= 2: connect bookkeeping"),
+    ("integrators.connections", "_join_emitters", "s >= 1, t >= 2: connect bookkeeping"),
+    ("integrators.bdpt", "_fresh_points", "emitter sampling (points, s = 1 and y_0)"),
+    ("integrators.connections", "connect_camera", "t = 1: light tracing splats (bookkeeping)"),
+    ("integrators.connections", "splat_vertices", "t = 1: light tracing splats (bookkeeping)"),
+    ("integrators.connections", "project", "t = 1: light tracing splats (bookkeeping)"),
+    ("integrators.connections", "connect_emitter_to_camera",
+     "s = 1, t = 1: emitter seen by the pinhole"),
+    ("accel", "Accel.shadow_rays", SHADOW),
+    ("accel", "Accel.occluded", SHADOW),
+    ("lights.emission", "Emission.sample_points", "emitter sampling (points, s = 1 and y_0)"),
+    ("lights.emission", "Emission.radiance", "emitter radiance / pdfs"),
+    ("lights.emission", "Emission.pdf_origin", "emitter radiance / pdfs"),
+    ("lights.emission", "Emission.pdf_direction", "emitter radiance / pdfs"),
+    ("integrators.mis_densities", "camera_hit_weight", MIS),
+    ("integrators.mis_densities", "connection_weight", MIS),
+    ("integrators.mis_densities", "splat_weight", MIS),
+    ("integrators.mis_densities", "direct_weight", MIS),
+    ("integrators.mis_densities", "strategy_weight", MIS),
+    ("integrators.strategy_views", "Tally.add", "tally (image sums, splat lists, output)"),
+    ("integrators.strategy_views", "Tally.splat", "tally (image sums, splat lists, output)"),
+    ("integrators.strategy_views", "Tally.output", "tally (image sums, splat lists, output)"),
+    ("sampling.stream", "SampleStream.next_1d", "sample stream (draws, compaction)"),
+    ("sampling.stream", "SampleStream.next_2d", "sample stream (draws, compaction)"),
+    ("sampling.stream", "SampleStream.skip_to", "sample stream (draws, compaction)"),
+    ("sampling.stream", "SampleStream.compact", "sample stream (draws, compaction)"),
+    ("render", "_Passes.accumulate", "film accumulation + splats"),
+    ("film", "Film.splat", "film accumulation + splats"),
+    ("film", "Film.add_samples", "film accumulation + splats"),
+]
+
+
+def install_timers():
+    """Wrap every stage of :data:`STAGES` that this tree has.
+
+    A function imported by name into other integrator modules is wrapped there too (the
+    caller looks it up in its own module)."""
+    integrators = [importlib.import_module(f"sampling_lab.core.integrators.{m}")
+                   for m in ("bidir", "bdpt", "light", "connections", "camera_hits",
+                             "mis_densities", "subpaths")]
+    for module, attr, name in STAGES:
+        try:
+            owner = importlib.import_module(f"sampling_lab.core.{module}")
+        except ImportError:
+            continue
+        *path, last = attr.split(".")
+        for part in path:
+            owner = getattr(owner, part, None)
+        if owner is None or not hasattr(owner, last):
+            continue
+        if last == "camera_emission":
+            _patch_handler(owner, name)
+            continue
+        original = getattr(owner, last)
+        _patch(owner, last, name)
+        if not path:
+            for mod in integrators:
+                if mod is not owner and getattr(mod, last, None) is original:
+                    _patch(mod, last, name)
+
+
+def _patch_handler(module, name):
+    """``camera_emission`` returns the ``on_segment`` closure: time the closure."""
+    from sampling_lab.core.integrators import bidir
+
+    make = module.camera_emission
+
+    def timed_make(*args, **kwargs):
+        return _timed(name, make(*args, **kwargs))
+
+    bidir.camera_emission = timed_make
+
+
+def _scene(args):
+    from sampling_lab.core.scenes import cornell_box
+
+    return cornell_box(args.width, args.height, light="mesh")
+
+
+def speeds(scene, args, integrators=("path", "light", "bdpt")):
+    """Per integrator, best of ``args.repeats`` interleaved renders: wall-clock camera
+    samples/s at ``args.threads`` threads, and CPU microseconds per camera sample of a
+    1-thread render (all of the process's threads: the render loop's film work included).
+    The CPU figure hardly moves with other processes' load; the wall figure does."""
+    from sampling_lab.core.render import RenderSettings, render
+
+    best, cpu = {}, {}
+    for _ in range(args.repeats):
+        for name in integrators:
+            spp = args.path_spp if name == "path" else args.spp
+            settings = RenderSettings(integrator=name, spp=spp, threads=args.threads,
+                                      max_bounces=8, seed=0)
+            stats = render(scene, settings).stats
+            if stats["samples_per_s"] > best.get(name, {}).get("samples_per_s", 0.0):
+                best[name] = stats
+            t0 = time.process_time()
+            stats = render(scene, RenderSettings(integrator=name, spp=spp, threads=1,
+                                                 max_bounces=8, seed=0)).stats
+            cpu[name] = min(cpu.get(name, float("inf")),
+                            1e6 * (time.process_time() - t0) / stats["samples"])
+    return best, cpu
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--spp", type=int, default=4, help="light tracing and BDPT")
+    parser.add_argument("--path-spp", type=int, default=16)
+    parser.add_argument("--width", type=int, default=256)
+    parser.add_argument("--height", type=int, default=256)
+    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--integrators", default="light,bdpt", help="profiled, comma-separated")
+    parser.add_argument("--no-profile", action="store_true", help="speed figures only")
+    args = parser.parse_args(argv)
+
+    from sampling_lab.core.render import RenderSettings, render
+
+    scene = _scene(args)
+    print(f"load average at start: {os.getloadavg()}")
+    best, cpu = speeds(scene, args)
+    path_sps = best["path"]["samples_per_s"]
+    print(f"camera samples/s at {args.threads} threads (wall clock, best of {args.repeats}) | "
+          f"CPU us per sample at 1 thread (min of {args.repeats})")
+    for name, stats in best.items():
+        print(f"{name:>5}: {stats['samples_per_s'] / 1e6:.4f} M samples/s "
+              f"({stats['samples_per_s'] / path_sps:.3f} x path), "
+              f"{stats['rays_per_s'] / 1e6:.3f} M rays/s, {stats['time_s']:.2f} s | "
+              f"{cpu[name]:.2f} us ({cpu['path'] / cpu[name]:.3f} x path)")
+    if args.no_profile:
+        return
+    install_timers()
+    for name in args.integrators.split(","):
+        _TOTALS.clear()
+        render(scene, RenderSettings(integrator=name, spp=args.spp, threads=args.threads,
+                                     max_bounces=8, seed=0))
+        total = sum(_TOTALS.values())
+        print(f"\n{name}: stage profile (exclusive thread CPU seconds, total {total:.2f} s):")
+        for stage, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
+            print(f"  {100 * sec / total:5.1f} %  {stage}")
+    print(f"load average at end: {os.getloadavg()}")
+
+
+if __name__ == "__main__":
+    main()
