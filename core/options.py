@@ -201,6 +201,14 @@ _INTEGRATOR_TEXT = {
         "importance sampling with the Light Sampling panel's MIS heuristic. Unbiased; robust "
         "for caustics and indirectly lit scenes, where one strategy's noise is another's "
         "strength"),
+    "sppm": (
+        "Stochastic Progressive Photon Mapping",
+        "Passes of one camera path per pixel (through mirrors and glass to the first rough "
+        "surface, direct light by light sampling) and a batch of photons from the lights; "
+        "photons within a per-pixel radius give the indirect light, and the radius shrinks "
+        "after every pass. BIASED but consistent: the blur of the radius vanishes as passes "
+        "grow. Renders light from point lights through mirrors and glass onto diffuse "
+        "surfaces, which path tracing and BDPT cannot find"),
 }
 
 _MIS_TEXT = {
@@ -372,6 +380,24 @@ OPTIONS = {o.name: o for o in (
            "Longest path, in segments, that gets strategy views: 1 is emitters seen directly, "
            "2 direct light, 3 one indirect bounce, and so on. A path of k segments has k + 1 "
            "strategies, so the number of passes grows quadratically", 3, minimum=1, maximum=8),
+    Option("photons", int, "Photons",
+           "Photon mapping: photons traced from the lights per pass (SPPM). More photons per "
+           "pass cost time and memory per pass but give each pass less noise", 100000,
+           minimum=1, maximum=1 << 26),
+    Option("photon_radius", float, "Radius",
+           "Photon mapping: initial lookup radius in scene units (0: 1/100 of the scene's "
+           "bounding-box diagonal). A larger radius gathers more photons (less noise) but "
+           "blurs the light over a larger disk (more bias); SPPM shrinks it every pass", 0.0,
+           minimum=0.0),
+    Option("sppm_alpha", float, "Alpha",
+           "SPPM: fraction of a pass's photons kept when the radius shrinks (Hachisuka and "
+           "Jensen's alpha). Small values shrink the radius fast (bias fades sooner, more "
+           "noise); values near 1 keep more photons (less noise, bias fades slower)", 0.7,
+           minimum=0.01, maximum=0.99),
+    Option("photon_memory", float, "Photon Memory",
+           "Photon mapping: largest photon storage in MB (photons of one pass and their "
+           "kd-tree). A render whose photons could need more stops with a message before it "
+           "starts", 1024.0, minimum=1.0, maximum=1 << 20),
 )}
 
 DEFAULTS = {name: option.default for name, option in OPTIONS.items()}

@@ -1,0 +1,9 @@
+"""Photons: what the photon-mapping estimators (:mod:`core.integrators.photon`,
+:mod:`core.integrators.sppm`) share.
+
+- :mod:`.tracing`: photon tracing from the lights (vectorised over photons, driven by a
+  :class:`~core.sampling.stream.SampleStream`), float32 storage with a memory cap;
+- :mod:`.lookup`: neighbour queries over photon positions through ``scipy.spatial.cKDTree``;
+- :mod:`.kernels`: density-estimation kernels (uniform, cone, Epanechnikov), normalised in 2-D;
+- :mod:`.visible`: camera paths through specular chains to the first non-specular surface.
+"""
