@@ -298,3 +298,65 @@ def many_lights(width=64, height=64, n=1024, size=0.04, seed=7):
     visibility[-faces.shape[0]:] = VIS_ALL & ~VIS_CAMERA
     return Scene(v, f, m, Materials.from_lists(names, colors, emissions), Lights.empty(),
                  _cornell_camera(width, height), visibility=visibility)
+
+
+def mirror_point_light(width=64, height=64, power=100.0, albedo=0.5, light_z=1.0, mirror_z=1.5,
+                       mirror_half=0.5, glass=False):
+    """A point light between a diffuse floor and a perfect mirror facing it, seen by a pinhole
+    that does not see the mirror: the floor receives the light directly and as reflected by
+    the mirror, from the light's mirror image at ``z = 2 mirror_z - light_z``
+    (:func:`mirror_floor_radiance` gives both in closed form).
+
+    Parameters
+    ----------
+    power : float
+        The point light's power in W (intensity ``power / (4 pi)`` W/sr), radius 0.
+    albedo : float
+        The floor's grey diffuse albedo (floor: the square ``[-1, 1]^2`` at ``z = 0``).
+    light_z, mirror_z : float
+        Heights of the light and of the mirror (a square of half side ``mirror_half``,
+        centred above the light, reflecting on both faces).
+    glass : bool
+        Add a smooth glass ball (IOR 1.5, radius 0.3) on the floor beside the light's foot:
+        a refracted caustic besides the reflected light (no closed form then).
+    """
+    b = _Builder()
+    b.add(*_quad((-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)), 0)
+    h = mirror_half
+    b.add(*_quad((-h, -h, mirror_z), (-h, h, mirror_z), (h, h, mirror_z), (h, -h, mirror_z)), 1)
+    names, colors, kinds = ["Floor", "Mirror"], [(albedo,) * 3, (1.0, 1.0, 1.0)], [0, MAT_CONDUCTOR]
+    if glass:
+        v, f = icosphere(4, 0.3)
+        b.add(v + np.array([0.45, 0.2, 0.3]), f, 2)
+        names.append("Glass")
+        colors.append((1.0, 1.0, 1.0))
+        kinds.append(MAT_DIELECTRIC)
+    k = len(names)
+    mats = Materials.from_lists(names, colors, [(0, 0, 0)] * k, kinds=kinds,
+                                roughness=np.array([0.5, 0.0, 0.0][:k], np.float32),
+                                ior=np.full(k, 1.5, np.float32))
+    lights = L.point_light((0.0, 0.0, light_z), (1, 1, 1), power, radius=0.0)
+    camera = Camera(to_world=look_at((0, -3.0, 1.0), (0, 0, 0)), width=width, height=height,
+                    lens=50.0, sensor_width=36.0, clip_start=0.1, clip_end=100.0)
+    v, f, m = b.arrays()
+    return Scene(v, f, m, mats, lights, camera)
+
+
+def mirror_floor_radiance(points, power=100.0, albedo=0.5, light_z=1.0, mirror_z=1.5,
+                          mirror_half=0.5):
+    """Closed-form radiance of floor points ``points (n, 3)`` of :func:`mirror_point_light`:
+    ``(direct, reflected)``, each ``(n,)``: ``albedo / pi * I cos / d^2`` from the light and
+    from its mirror image (where the line from the image crosses the mirror's square)."""
+    p = np.asarray(points, np.float64)
+    intensity = power / (4 * np.pi)
+
+    def from_source(z):
+        d = np.array([0.0, 0.0, z]) - p
+        dist2 = np.einsum("ij,ij->i", d, d)
+        return albedo / np.pi * intensity * (d[:, 2] / np.sqrt(dist2)) / dist2
+
+    image_z = 2 * mirror_z - light_z
+    t = mirror_z / image_z  # where the segment floor -> image crosses the mirror plane
+    cross = p[:, :2] * (1 - t)
+    inside = (np.abs(cross) <= mirror_half).all(axis=1)
+    return from_source(light_z), np.where(inside, from_source(image_z), 0.0)
