@@ -42,14 +42,13 @@ variance pass is zero (not estimated).
 
 from __future__ import annotations
 
-import copy
 import time
 
 import numpy as np
 
 from ..photons.lookup import PhotonTree
 from ..photons.tracing import BYTES_PER_PHOTON, Photons, check_memory, trace_photons
-from ..photons.visible import trace_visible_points
+from ..photons.visible import join_points, trace_visible_points
 from ..sampling.samplers import make_sampler
 from .base import Counters, Integrator
 
@@ -178,7 +177,7 @@ class SPPM(Integrator):
             return None, None
         for *_, local in parts:
             counters.add(local)
-        points = parts[0][1] if len(parts) == 1 else _join_points([p for _, p, _ in parts])
+        points = join_points([p for _, p, _ in parts])
         return np.concatenate([d for d, _, _ in parts]), points
 
     def _gather(self, points, photons):
@@ -228,13 +227,3 @@ class SPPM(Integrator):
                 "photon_radius_mean": (float(np.mean(self.state["r"])) if self.state
                                        else self.radius0)}
 
-
-def _join_points(parts):
-    out = copy.copy(parts[0])
-    cat = np.concatenate
-    for name in ("rows", "p", "ng", "wo_local", "beta", "bounces"):
-        setattr(out, name, cat([getattr(p, name) for p in parts]))
-    out.frame = tuple(cat([p.frame[i] for p in parts]) for i in range(3))
-    out.params = type(parts[0].params)(*(cat([getattr(p.params, f) for p in parts])
-                                         for f in ("kind", "color", "alpha", "eta", "tint")))
-    return out

@@ -54,6 +54,8 @@ class VisiblePoints:
         Camera-path throughput up to the point (the specular chain's).
     bounces : (k,) int64
         Specular bounces before the point (0: seen directly).
+    prim : (k,) int64
+        Triangle of each point.
     """
 
     rows: np.ndarray
@@ -64,6 +66,7 @@ class VisiblePoints:
     params: BSDFParams
     beta: np.ndarray
     bounces: np.ndarray
+    prim: np.ndarray = None
 
     def f(self, idx, wi):
         """BSDF value ``f(wo, wi)`` (no cosine) of the points ``idx (m,)`` for unit world
@@ -105,23 +108,44 @@ def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, dire
     """
     n = len(stream)
     o, d, tmax = camera_rays(prep, pixel_filter, stream)
-    rows = np.arange(n)
-    beta = np.ones((n, 3))
-    vis = np.full(n, VIS_CAMERA, np.int32)
+    return follow_specular(prep, stream, o, d, tmax, np.ones((n, 3)), np.arange(n),
+                           np.full(n, VIS_CAMERA, np.int32), max_bounces, counters, direct)
+
+
+def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, counters,
+                    direct=None, dims=DIMS_CAMERA):
+    """Follow rays through specular bounces to their first non-specular hits.
+
+    Parameters
+    ----------
+    o, d : (m, 3) float64
+        Rays of the stream entries ``rows (m,)``; ``tmax (m,)`` or None.
+    beta : (m, 3) float64
+        Their throughput.
+    vis : (m,) int32
+        Their object-visibility class (``VIS_CAMERA`` for camera rays).
+    direct : (n, 3) float64 or None
+        With an array: camera paths, which add the emitters they see (camera rays with the
+        lamps' camera visibility) and the direct light at their visible points. None: rays
+        whose light from emitters is estimated elsewhere (final gathering), which add neither.
+    dims : int
+        First sample dimension of bounce 0 (:data:`DIMS_PER_BOUNCE` per bounce).
+    """
     no_mis = MIS("power")  # never consulted: every weight here is one (use_mis false)
     parts = []
     for bounce in range(max_bounces + 1):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         counters.rays += rows.size
-        # Emitters seen directly or through specular bounces: weight one.
-        add_emitters_along_rays(prep, direct, beta, o, d, hits, rows, np.zeros(rows.size),
-                                np.zeros(rows.size, bool), bounce == 0, no_mis)
+        if direct is not None:
+            # Emitters seen directly or through specular bounces: weight one.
+            add_emitters_along_rays(prep, direct, beta, o, d, hits, rows, np.zeros(rows.size),
+                                    np.zeros(rows.size, bool), bounce == 0, no_mis)
         live = surface_hits(prep, hits)
         if live.size == 0:
             break
         si = surface_interaction(prep, hits, d, live)
         rows, beta = rows[live], take_rows(beta, live)
-        stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
+        stream.skip_to(dims + bounce * DIMS_PER_BOUNCE)
         u_lobe, u_bsdf = stream.next_1d()[rows], stream.next_2d()[rows]
         u_sel, u_light = stream.next_1d()[rows], stream.next_2d()[rows]
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
@@ -132,8 +156,9 @@ def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, dire
         if vp.size:
             point = VisiblePoints(rows[vp], si.p[vp], si.ng[vp], (fs[vp], ft[vp], fn[vp]),
                                   wo_l[vp], params.take(vp), beta[vp],
-                                  np.full(vp.size, bounce, np.int64))
-            _direct_light(prep, point, si.prim[vp], u_sel[vp], u_light[vp], direct, counters)
+                                  np.full(vp.size, bounce, np.int64), si.prim[vp])
+            if direct is not None:
+                _direct_light(prep, point, u_sel[vp], u_light[vp], direct, counters)
             parts.append(point)
         # Specular rows bounce on (the BSDF sample of a delta lobe is the only direction).
         spec = np.nonzero(delta_only)[0]
@@ -148,10 +173,10 @@ def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, dire
         o = prep.accel.offset_origin(si.p[spec], si.ng[spec], si.prim[spec], wi)
         d, tmax = wi, None
         vis = ray_class(smp.lobe[ok])
-    return _join(parts)
+    return join_points(parts)
 
 
-def _direct_light(prep, point, prim, u_sel, u_light, direct, counters):
+def _direct_light(prep, point, u_sel, u_light, direct, counters):
     """Stage *sample lights* at the visible points: ``beta f Li / pdf`` into ``direct``."""
     wi, dist, li, pdf_l, _, light_normal = prep.lights.sample(point.p, u_sel, u_light, counters)
     s, t, n = point.frame
@@ -160,19 +185,20 @@ def _direct_light(prep, point, prim, u_sel, u_light, direct, counters):
     if ok.size == 0:
         return
     blocked = prep.accel.occluded(*prep.accel.shadow_rays(
-        point.p[ok], point.ng[ok], prim[ok], wi[ok], dist[ok], light_normal[ok]), VIS_SHADOW)
+        point.p[ok], point.ng[ok], point.prim[ok], wi[ok], dist[ok], light_normal[ok]), VIS_SHADOW)
     counters.rays += ok.size
     ok = ok[~blocked]
     add_rows(direct, point.rows[ok],
              point.beta[ok] * fc[ok] * li[ok] / pdf_l[ok][:, None])
 
 
-def _join(parts):
+def join_points(parts):
+    """One :class:`VisiblePoints` of ``parts`` in order (empty if there are none)."""
     if not parts:
         z3 = np.zeros((0, 3))
         return VisiblePoints(np.zeros(0, np.int64), z3, z3, (z3, z3, z3), z3,
                              BSDFParams(np.zeros(0, np.int32), z3, np.ones(0), np.ones(0), z3),
-                             z3, np.zeros(0, np.int64))
+                             z3, np.zeros(0, np.int64), np.zeros(0, np.int64))
     cat = np.concatenate
     return VisiblePoints(
         cat([p.rows for p in parts]), cat([p.p for p in parts]), cat([p.ng for p in parts]),
@@ -180,4 +206,5 @@ def _join(parts):
         cat([p.wo_local for p in parts]),
         BSDFParams(*(cat([getattr(p.params, f) for p in parts])
                      for f in ("kind", "color", "alpha", "eta", "tint"))),
-        cat([p.beta for p in parts]), cat([p.bounces for p in parts]))
+        cat([p.beta for p in parts]), cat([p.bounces for p in parts]),
+        cat([p.prim for p in parts]))
