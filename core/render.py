@@ -40,7 +40,7 @@ from .sampling.samplers import make_sampler
 from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 # Integrators that estimate by photon density (biased, consistent): their own settings apply.
-PHOTON_INTEGRATORS = ("sppm",)
+PHOTON_INTEGRATORS = ("photon", "sppm")
 
 # Work units per pass when the image is small: a pass keeps several threads busy. The pass size
 # must not depend on the thread count, or the film's sums would be added in another order.
@@ -93,6 +93,10 @@ class RenderSettings:
     photon_radius: float = DEFAULTS["photon_radius"]
     sppm_alpha: float = DEFAULTS["sppm_alpha"]
     photon_memory: float = DEFAULTS["photon_memory"]
+    photon_lookup: str = DEFAULTS["photon_lookup"]
+    photon_k: int = DEFAULTS["photon_k"]
+    photon_kernel: str = DEFAULTS["photon_kernel"]
+    gather_rays: int = DEFAULTS["gather_rays"]
     region: tuple = None
 
 
@@ -178,10 +182,12 @@ def used_settings(settings):
     dict
         ``mis_heuristic``, ``mis_beta``, ``mis_alpha``, ``light_selection``,
         ``light_sampling``, ``distribution``, and the photon-mapping settings ``photons``,
-        ``photon_radius``, ``sppm_alpha``, ``photon_memory`` (``'n/a'`` but for photon
-        mapping; the photon estimators use no MIS: one strategy per light contribution).
+        ``sppm_alpha``, ``photon_memory``, ``photon_lookup``, ``photon_k``, ``photon_radius``,
+        ``photon_kernel``, ``gather_rays`` (``'n/a'`` where the integrator does not read
+        them; the photon estimators use no MIS: one strategy per light contribution).
     """
     photon = settings.integrator in PHOTON_INTEGRATORS
+    jensen = settings.integrator == "photon"
     # Photon mapping's next-event estimation at visible points samples lights as the path
     # tracer does (with the tree, from the point); it has one strategy, so no MIS.
     path = settings.integrator == "path" or photon
@@ -201,9 +207,15 @@ def used_settings(settings):
                            if samples_lights else na),
         "distribution": settings.distribution,
         "photons": settings.photons if photon else na,
-        "photon_radius": settings.photon_radius if photon else na,
         "sppm_alpha": settings.sppm_alpha if settings.integrator == "sppm" else na,
         "photon_memory": settings.photon_memory if photon else na,
+        "photon_lookup": settings.photon_lookup if jensen else na,
+        "photon_k": settings.photon_k if jensen and settings.photon_lookup == "knn" else na,
+        # SPPM counts photons (uniform); k nearest ignores the radius setting.
+        "photon_radius": (settings.photon_radius if settings.integrator == "sppm"
+                          or (jensen and settings.photon_lookup == "radius") else na),
+        "photon_kernel": settings.photon_kernel if jensen else na,
+        "gather_rays": settings.gather_rays if jensen else na,
     }
 
 

@@ -47,51 +47,10 @@ import time
 import numpy as np
 
 from ..photons.lookup import PhotonTree
-from ..photons.tracing import BYTES_PER_PHOTON, Photons, check_memory, trace_photons
+from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, auto_radius, check_memory,
+                               photon_sampler, trace_photon_chunks)
 from ..photons.visible import join_points, trace_visible_points
-from ..sampling.samplers import make_sampler
 from .base import Counters, Integrator
-
-# Photons or camera paths per chunk: the unit of work a worker thread runs.
-CHUNK = 1 << 15
-
-
-def auto_radius(prep):
-    """Initial radius when the setting is 0: 1/100 of the scene's bounding-box diagonal."""
-    v = np.asarray(prep.scene.vertices, np.float64).reshape(-1, 3)
-    return 0.01 * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if v.size else 0.01
-
-
-def photon_seed(seed):
-    """Seed of the photons' sample streams: another stream family than the camera's."""
-    return (int(seed) * 2654435761 + 0x9E3779B9) % ((1 << 31) - 1)
-
-
-def photon_sampler(settings, width):
-    """The sampler of the photons (the render's kind, its own seed); photon ``i`` of pass
-    ``k`` is its 'pixel' ``i``, sample ``k``."""
-    return make_sampler(settings.sampler, seed=photon_seed(settings.seed),
-                        spp=settings.spp if settings.spp > 0 else None, width=width)
-
-
-def trace_photon_chunks(integrator, pass_index, map_chunks, counters):
-    """Photons of one pass, traced in chunks of :data:`CHUNK` on the worker threads; None if
-    the render was cancelled meanwhile."""
-    n, prep, settings = integrator.photons, integrator.prep, integrator.settings
-
-    def chunk(start):
-        ids = np.arange(start, min(start + CHUNK, n), dtype=np.int64)
-        local = Counters()
-        stream = integrator.photon_sampler.stream(ids, np.full(ids.size, pass_index, np.int64))
-        return trace_photons(prep, stream, settings.max_bounces, local), local
-
-    parts = map_chunks(chunk, range(0, n, CHUNK))
-    if parts is None:
-        return None
-    for _, local in parts:
-        counters.add(local)
-    return Photons.join(p for p, _ in parts)
-
 
 class SPPM(Integrator):
     """Stochastic progressive photon mapping (see the module docstring)."""
@@ -141,7 +100,8 @@ class SPPM(Integrator):
         if points is None:
             return None
         t0 = time.perf_counter()
-        photons = trace_photon_chunks(self, pass_index, map_chunks, counters)
+        photons = trace_photon_chunks(self.prep, self.settings, self.photon_sampler, self.photons,
+                                      pass_index, map_chunks, counters)
         if photons is None:
             return None
         self.photon_s += time.perf_counter() - t0

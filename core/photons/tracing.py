@@ -22,11 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..integrators.base import Counters
 from ..integrators.common import (intersect_by_class, max_component, ray_class,
                                   surface_hits, surface_interaction)
 from ..integrators.subpaths import smooth_factor
 from ..materials.bsdf import IMPORTANCE, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
+from ..sampling.samplers import make_sampler
 from ..scene import VIS_SHADOW
 
 # Sample dimensions of a photon: emitter choice, point 2-D, direction 2-D; then per hit the
@@ -197,3 +199,44 @@ def _walk(prep, stream, o, d, beta, rows, max_bounces, counters):
         d = wi[keep]
         vis = ray_class(smp.lobe[keep])
     return Photons.join(parts)
+
+
+# Photons or camera paths per chunk: the unit of work a worker thread runs.
+CHUNK = 1 << 15
+
+
+def auto_radius(prep):
+    """Initial radius when the setting is 0: 1/100 of the scene's bounding-box diagonal."""
+    v = np.asarray(prep.scene.vertices, np.float64).reshape(-1, 3)
+    return 0.01 * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if v.size else 0.01
+
+
+def photon_seed(seed):
+    """Seed of the photons' sample streams: another stream family than the camera's."""
+    return (int(seed) * 2654435761 + 0x9E3779B9) % ((1 << 31) - 1)
+
+
+def photon_sampler(settings, width):
+    """The sampler of the photons (the render's kind, its own seed); photon ``i`` of pass
+    ``k`` is its 'pixel' ``i``, sample ``k``."""
+    return make_sampler(settings.sampler, seed=photon_seed(settings.seed),
+                        spp=settings.spp if settings.spp > 0 else None, width=width)
+
+
+def trace_photon_chunks(prep, settings, sampler, n, pass_index, map_chunks, counters):
+    """``n`` photons of pass ``pass_index`` (streams of ``sampler``, see
+    :func:`photon_sampler`), traced in chunks of :data:`CHUNK` by ``map_chunks`` (the render
+    loop's worker threads); None if the render was cancelled meanwhile."""
+
+    def chunk(start):
+        ids = np.arange(start, min(start + CHUNK, n), dtype=np.int64)
+        local = Counters()
+        stream = sampler.stream(ids, np.full(ids.size, pass_index, np.int64))
+        return trace_photons(prep, stream, settings.max_bounces, local), local
+
+    parts = map_chunks(chunk, range(0, n, CHUNK))
+    if parts is None:
+        return None
+    for _, local in parts:
+        counters.add(local)
+    return Photons.join(p for p, _ in parts)
