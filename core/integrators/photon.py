@@ -124,15 +124,17 @@ class PhotonMapping(Integrator):
         if self.maps is None and not self._build_maps(map_chunks, counters):
             return None
         n = frame_pixels.size
+        # Gather rays multiply the lookups of a sample: smaller chunks keep cancel prompt.
+        size = max(256, CHUNK // (4 * max(1, self.settings.gather_rays)))
 
         def chunk(start):
-            rows = np.arange(start, min(start + CHUNK, n))
+            rows = np.arange(start, min(start + size, n))
             stream = sampler.stream(frame_pixels[rows], np.full(rows.size, pass_index,
                                                                  np.int64))
             local = Counters()
             return self._samples(stream, pixel_filter, local), local
 
-        parts = map_chunks(chunk, range(0, n, CHUNK))
+        parts = map_chunks(chunk, range(0, n, size))
         if parts is None:
             return None
         for _, local in parts:

@@ -109,7 +109,14 @@ class SPPM(Integrator):
         photons = photons.take(photons.hit >= 2)
         self.peak_bytes = max(self.peak_bytes, len(photons) * BYTES_PER_PHOTON)
         self.photons_stored += len(photons)
-        phi, m = self._gather(points, photons)
+        tree = PhotonTree(photons.p, origin=np.zeros(3))
+        found = map_chunks(lambda start: self._gather(points.take(slice(start, start + CHUNK)),
+                                                      photons, tree),
+                           range(0, points.rows.size, CHUNK))
+        if found is None:
+            return None
+        phi = np.concatenate([f for f, _ in found]) if found else np.zeros((0, 3))
+        m = np.concatenate([c for _, c in found]) if found else np.zeros(0)
         self._update(points.rows, phi, m)
         self.state["direct"] += direct
         self.state["passes"] += 1
@@ -140,11 +147,11 @@ class SPPM(Integrator):
         points = join_points([p for _, p, _ in parts])
         return np.concatenate([d for d, _, _ in parts]), points
 
-    def _gather(self, points, photons):
+    def _gather(self, points, photons, tree):
         """Flux ``phi (k, 3)`` (times the points' throughput) and photon counts ``m (k,)`` of
-        every visible point from the photons within its pixel's radius."""
+        every visible point from the photons (``tree`` over their positions) within its
+        pixel's radius."""
         k = points.rows.size
-        tree = PhotonTree(photons.p, origin=np.zeros(3))
         i, j, _ = tree.pairs_within(points.p, self.state["r"][points.rows])
         # Paths no longer than the path tracer's: specular bounces + photon hits <= B + 1.
         ok = points.bounces[i] + photons.hit[j] <= self.settings.max_bounces + 1

@@ -68,6 +68,13 @@ class VisiblePoints:
     bounces: np.ndarray
     prim: np.ndarray = None
 
+    def take(self, idx):
+        """The points ``idx`` (index array or slice) as a new :class:`VisiblePoints`."""
+        return VisiblePoints(self.rows[idx], self.p[idx], self.ng[idx],
+                             tuple(a[idx] for a in self.frame), self.wo_local[idx],
+                             self.params.take(idx), self.beta[idx], self.bounces[idx],
+                             None if self.prim is None else self.prim[idx])
+
     def f(self, idx, wi):
         """BSDF value ``f(wo, wi)`` (no cosine) of the points ``idx (m,)`` for unit world
         directions ``wi (m, 3)`` toward where photons came from: ``f |cos_s| / |cos_g|``,

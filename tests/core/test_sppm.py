@@ -1,6 +1,6 @@
 """SPPM (core/integrators/sppm.py): reproduces a point light seen through a mirror that path
-tracing misses, agrees with the path tracer on the diffuse Cornell box at a small radius, its
-bias shrinks as passes grow, and it renders progressively with prompt cancel."""
+tracing misses, its bias shrinks as passes grow, and it renders progressively with prompt
+cancel. Its agreement with the path tracer on the Cornell box: test_photon_consistency.py."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from sampling_lab.core import render, scenes
 from sampling_lab.core.camera import generate_rays
 from sampling_lab.core.options import OPTIONS
-from tests.helpers import assert_images_agree, z_for_false_failure
+from tests.helpers import z_for_false_failure
 
 
 def _settings(**kw):
@@ -19,7 +19,7 @@ def _settings(**kw):
     return render.RenderSettings(**base)
 
 
-def _mirror_reference(scene, supersample=8, **kw):
+def mirror_reference(scene, supersample=8, **kw):
     """Closed-form direct and reflected radiance of every pixel of a
     :func:`scenes.mirror_point_light` image (box filter: the mean over the pixel, here over
     ``supersample^2`` sub-pixel rays); also which pixels see the floor lit by the mirror
@@ -48,7 +48,7 @@ def test_sppm_reproduces_the_mirror_image_of_a_point_light_that_path_tracing_mis
     which this test shows: its image is the closed-form direct light alone, within its
     confidence interval (narrower than 2 % of the reflected energy)."""
     scene = scenes.mirror_point_light(48, 48)
-    direct, reflected, _ = _mirror_reference(scene)
+    direct, reflected, _ = mirror_reference(scene)
     sppm = render.render(scene, _settings(spp=16, photons=100_000, max_bounces=1, seed=1))
     path = render.render(scene, _settings(integrator="path", spp=16, max_bounces=1, seed=1))
     sppm_reflected = sppm.film.mean()[..., 0].sum() - direct.sum()
@@ -64,35 +64,6 @@ def test_sppm_reproduces_the_mirror_image_of_a_point_light_that_path_tracing_mis
     assert "biased" in sppm.stats["estimator_bias"]
 
 
-@pytest.fixture(scope="module")
-def cornell_runs():
-    """Eight independent SPPM renders of the diffuse Cornell box at a small radius (0.02 m at
-    the start, never larger) and a path-traced reference with its variance. 32 x 32 pixels:
-    more visible points use more of each pass's photons (the noise of a seed's image mean
-    is set by the photon-point pairs it finds)."""
-    scene = scenes.cornell_box(32, 32)
-    path = render.render(scene, _settings(integrator="path", spp=512, max_bounces=3))
-    runs = [render.render(scene, _settings(spp=64, photons=5000, max_bounces=3,
-                                           photon_radius=0.02, seed=seed))
-            for seed in range(8)]
-    return path, runs
-
-
-def test_sppm_agrees_with_the_path_tracer_on_the_cornell_box_at_a_small_radius(cornell_runs):
-    """Consistency: image and 4x4-block means within confidence intervals (SPPM's noise from
-    its 8 seeds), with a bias allowance on the image mean of ``2 r`` relative: the share of a
-    2 m wall within ``r`` of its edges, where the disk of a radius-``r`` lookup leaves the
-    wall (r = 0.02 m at most: 4 %). Detects an 8 % image-mean error (4 % of it the bias
-    allowance) and a 17 % error in an 8x8 block with probability 99 % (asserted by the
-    checker); the measured image-mean ratio was 1.000 +- 0.001 per channel."""
-    path, runs = cornell_runs
-    reps = np.array([r.film.mean() for r in runs])
-    agreement = assert_images_agree(path.film.mean(), path.film.variance(), reps, block=8,
-                                    mean_rtol=2 * 0.02, detect=(0.08, 0.17),
-                                    what="SPPM vs path, Cornell box")
-    print(f"image-mean ratio path / SPPM: {agreement.ratio}")
-
-
 def test_sppm_bias_shrinks_toward_zero_as_passes_grow():
     """Bias, measured over 8 seeds per pass count: a small mirror lights a square of the floor
     (closed form); the lookup disk blurs its edge, so the reflected energy inside the square is
@@ -100,7 +71,7 @@ def test_sppm_bias_shrinks_toward_zero_as_passes_grow():
     (alpha 0.5) and so must the bias: significantly below the first pass's (which itself must be
     significantly negative: the estimator is biased), with the fitted rate printed."""
     scene = scenes.mirror_point_light(32, 32, mirror_half=0.15)
-    direct, reflected, lit = _mirror_reference(scene, mirror_half=0.15)
+    direct, reflected, lit = mirror_reference(scene, mirror_half=0.15)
     checkpoints = (1, 2, 4, 8, 16, 32, 64)
     errors = {c: [] for c in checkpoints}
     for seed in range(8):
