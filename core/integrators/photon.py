@@ -47,6 +47,7 @@ import numpy as np
 from ..materials.bsdf import RADIANCE, sample_bsdf
 from ..materials.frame import to_world
 from ..photons.estimate import PhotonMap
+from ..photons.lookup import require_scipy
 from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, auto_radius, check_memory,
                                photon_sampler, trace_photon_chunks)
 from ..photons.visible import (DIMS_CAMERA, DIMS_PER_BOUNCE, follow_specular,
@@ -89,6 +90,7 @@ class PhotonMapping(Integrator):
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
+        require_scipy()
         check_memory(settings.photons, settings.max_bounces, settings.photon_memory)
         self.photons = int(settings.photons)
         self.radius = float(settings.photon_radius) or auto_radius(prep)

@@ -46,7 +46,7 @@ import time
 
 import numpy as np
 
-from ..photons.lookup import PhotonTree
+from ..photons.lookup import PhotonTree, require_scipy
 from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, auto_radius, check_memory,
                                photon_sampler, trace_photon_chunks)
 from ..photons.visible import join_points, trace_visible_points
@@ -60,6 +60,7 @@ class SPPM(Integrator):
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
+        require_scipy()
         check_memory(settings.photons, settings.max_bounces, settings.photon_memory)
         self.photons = int(settings.photons)
         self.alpha = float(settings.sppm_alpha)

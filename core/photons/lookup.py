@@ -13,8 +13,25 @@ before the tree sees them. Two queries, both vectorised (no Python loop per poin
 
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
-from scipy.spatial import cKDTree
+
+
+def require_scipy():
+    """Raise ``ValueError`` naming the missing module unless scipy can be imported (it is
+    imported lazily: the add-on and the other integrators work without it)."""
+    if importlib.util.find_spec("scipy") is None:
+        raise ValueError("Photon Mapping and SPPM need the Python module scipy (its kd-tree, "
+                         "scipy.spatial.cKDTree), which is not installed; install the extension "
+                         "build that bundles it, or pip install scipy==1.14.1 into Blender's "
+                         "Python")
+
+
+def _kdtree(points, **kw):
+    from scipy.spatial import cKDTree
+
+    return cKDTree(points, **kw)
 
 
 class PhotonTree:
@@ -37,7 +54,7 @@ class PhotonTree:
                       if len(positions) else np.zeros(3))
         self.origin = np.asarray(origin, np.float64)
         self.local = (positions.astype(np.float64) - self.origin).astype(np.float32)
-        self.tree = cKDTree(self.local, leafsize=leafsize, balanced_tree=False,
+        self.tree = _kdtree(self.local, leafsize=leafsize, balanced_tree=False,
                             compact_nodes=False)
 
     def __len__(self):
@@ -64,7 +81,7 @@ class PhotonTree:
         if len(self) == 0 or len(radii) == 0:
             empty = np.zeros(0, np.int64)
             return empty, empty, np.zeros(0)
-        queries = cKDTree(self._queries(points))
+        queries = _kdtree(self._queries(points))
         found = queries.sparse_distance_matrix(self.tree, float(radii.max()),
                                                output_type="ndarray")
         i, j, d = (found["i"].astype(np.int64), found["j"].astype(np.int64),

@@ -103,3 +103,15 @@ def test_photon_memory_cap_stops_a_render_with_a_message():
     settings = render.RenderSettings(integrator="sppm", photons=50_000_000, spp=1)
     with pytest.raises(ValueError, match="more than the Photon Memory cap of 1,024 MB"):
         render.render(scenes.cornell_box(8, 8), settings)
+
+
+def test_photon_integrators_without_scipy_stop_with_a_message_naming_it(monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "scipy" else real(name, *a))
+    for integrator in ("sppm", "photon"):
+        with pytest.raises(ValueError, match="need the Python module scipy"):
+            render.render(scenes.cornell_box(4, 4), render.RenderSettings(integrator=integrator,
+                                                                          spp=1))
