@@ -9,6 +9,9 @@
   light: the caustic and the "light seen in a mirror" cases of light transport.
 - :func:`many_lights`: the box lit by 1,024 small emissive quads of varied power, where light
   selection decides the noise (the light tree's benchmark).
+- :func:`mirror_point_light`: a point light between a diffuse floor and a mirror, seen by a
+  pinhole that does not see the mirror; its closed form (:func:`mirror_floor_radiance`,
+  :func:`mirror_point_light_reference`): the light's mirror image.
 """
 
 from __future__ import annotations
@@ -360,3 +363,47 @@ def mirror_floor_radiance(points, power=100.0, albedo=0.5, light_z=1.0, mirror_z
     cross = p[:, :2] * (1 - t)
     inside = (np.abs(cross) <= mirror_half).all(axis=1)
     return from_source(light_z), np.where(inside, from_source(image_z), 0.0)
+
+
+def mirror_point_light_reference(scene, supersample=8, **kw):
+    """Closed-form pixels of a :func:`mirror_point_light` image with a box filter of one pixel
+    and ``max_bounces = 1`` (no light bounces back from the floor): the mean of
+    :func:`mirror_floor_radiance` over ``supersample^2`` camera rays per pixel.
+
+    Parameters
+    ----------
+    scene : Scene
+        Made by :func:`mirror_point_light` with the keywords ``kw`` (``power``, ``albedo``,
+        ``light_z``, ``mirror_z``, ``mirror_half``).
+
+    Returns
+    -------
+    direct, reflected : (h, w) float64
+        Radiance from the light and from its mirror image (grey: every channel alike).
+    lit : (h, w) bool
+        Pixels that see only floor lit by the mirror.
+    """
+    from .camera import generate_rays
+
+    cam, k = scene.camera, int(supersample)
+    ys, xs = np.mgrid[0:cam.height * k, 0:cam.width * k]
+    xy = np.stack([(xs.ravel() + 0.5) / k, (ys.ravel() + 0.5) / k], axis=1)
+    o, d, _ = generate_rays(cam, xy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -o[:, 2] / d[:, 2]
+    p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
+    floor = (t > 0) & (np.abs(p[:, :2]) <= 1).all(axis=1)
+    direct, reflected = mirror_floor_radiance(np.where(floor[:, None], p, 0.0), **kw)
+
+    def pixels(v):
+        return v.reshape(cam.height, k, cam.width, k).mean(axis=(1, 3))
+
+    lit = (reflected * floor > 0).reshape(cam.height, k, cam.width, k).all(axis=(1, 3))
+    return pixels(direct * floor), pixels(reflected * floor), lit
+
+
+# Point lights through a mirror and through glass onto a diffuse floor (photon mapping's cases).
+BUILTIN.update({
+    "point_mirror": lambda w, h: mirror_point_light(w, h),
+    "point_glass": lambda w, h: cornell_sphere(w, h, "glass", "point"),
+})

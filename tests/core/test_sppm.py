@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import render, scenes
-from sampling_lab.core.camera import generate_rays
 from sampling_lab.core.options import OPTIONS
 from tests.helpers import assert_estimates_agree, z_for_false_failure
 
@@ -20,24 +19,9 @@ def _settings(**kw):
 
 
 def mirror_reference(scene, supersample=8, **kw):
-    """Closed-form direct and reflected radiance of every pixel of a
-    :func:`scenes.mirror_point_light` image (box filter: the mean over the pixel, here over
-    ``supersample^2`` sub-pixel rays); also which pixels see the floor lit by the mirror
-    everywhere."""
-    cam, k = scene.camera, supersample
-    ys, xs = np.mgrid[0:cam.height * k, 0:cam.width * k]
-    xy = np.stack([(xs.ravel() + 0.5) / k, (ys.ravel() + 0.5) / k], axis=1)
-    o, d, _ = generate_rays(cam, xy)
-    t = -o[:, 2] / d[:, 2]
-    p = o + t[:, None] * d
-    floor = (t > 0) & (np.abs(p[:, :2]) <= 1).all(axis=1)
-    direct, reflected = scenes.mirror_floor_radiance(np.where(floor[:, None], p, 0.0), **kw)
-
-    def pixels(v):
-        return v.reshape(cam.height, k, cam.width, k).mean(axis=(1, 3))
-
-    lit = (reflected * floor > 0).reshape(cam.height, k, cam.width, k).all(axis=(1, 3))
-    return pixels(direct * floor), pixels(reflected * floor), lit
+    """Closed-form direct and reflected pixels, and the mirror-lit pixels
+    (:func:`scenes.mirror_point_light_reference`)."""
+    return scenes.mirror_point_light_reference(scene, supersample, **kw)
 
 
 def test_sppm_reproduces_the_mirror_image_of_a_point_light_that_path_tracing_misses():
