@@ -215,7 +215,8 @@ _INTEGRATOR_TEXT = {
         "photons within a per-pixel radius give the indirect light, and the radius shrinks "
         "after every pass. BIASED but consistent: the blur of the radius vanishes as passes "
         "grow. Renders light from point lights through mirrors and glass onto diffuse "
-        "surfaces, which path tracing and BDPT cannot find"),
+        "surfaces, which path tracing cannot find, and BDPT only where that surface is seen "
+        "directly (not through a mirror or glass again)"),
 }
 
 _MIS_TEXT = {

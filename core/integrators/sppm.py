@@ -28,8 +28,10 @@ Parameters
     :mod:`core.photons.lookup`) with a uniform kernel (the radius update counts photons).
 When to use it
     Light that reaches diffuse surfaces only through mirrors or smooth glass from small or point
-    lights (caustics, a point light seen in a mirror on the floor): path tracing and BDPT
-    cannot sample those paths when the light is a point and the camera a pinhole.
+    lights (caustics, a point light seen in a mirror on the floor): path tracing cannot find it
+    (a point light is never hit), BDPT only where the lit surface is seen directly (light-path
+    vertices joined to the pinhole), not where it is seen through a mirror or glass again
+    (``L S D S E`` paths), which photon mapping renders like any other.
 When it fails
     Glossy surfaces seen directly blur (the estimate averages the lobe over the disk), and
     scenes where few photons land in view converge slowly.
@@ -106,9 +108,10 @@ class SPPM(Integrator):
         if photons is None:
             return None
         self.photon_s += time.perf_counter() - t0
-        # Direct light comes from next-event estimation: photons straight from a light go.
-        photons = photons.take(photons.hit >= 2)
+        # The pass's photons as traced (the peak), then without those straight from a light:
+        # direct light comes from next-event estimation.
         self.peak_bytes = max(self.peak_bytes, len(photons) * BYTES_PER_PHOTON)
+        photons = photons.take(photons.hit >= 2)
         self.photons_stored += len(photons)
         tree = PhotonTree(photons.p, origin=np.zeros(3))
         found = map_chunks(lambda start: self._gather(points.take(slice(start, start + CHUNK)),
