@@ -7,3 +7,7 @@
 - :mod:`.kernels`: density-estimation kernels (uniform, cone, Epanechnikov), normalised in 2-D;
 - :mod:`.visible`: camera paths through specular chains to the first non-specular surface.
 """
+
+# The stages use the integrators' common stages, and two integrators use these stages: load the
+# integrators first, whichever module of either package is imported first.
+from .. import integrators  # noqa: E402,F401
