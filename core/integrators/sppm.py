@@ -54,6 +54,7 @@ from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, auto_radius, check_memor
 from ..photons.visible import join_points, trace_visible_points
 from .base import Counters, Integrator
 
+
 class SPPM(Integrator):
     """Stochastic progressive photon mapping (see the module docstring)."""
 
@@ -121,6 +122,9 @@ class SPPM(Integrator):
             return None
         phi = np.concatenate([f for f, _ in found]) if found else np.zeros((0, 3))
         m = np.concatenate([c for _, c in found]) if found else np.zeros(0)
+        # No NaN or Inf may stay in the per-pixel sums (they would blank a pixel for good).
+        phi[~np.isfinite(phi).all(axis=1)] = 0.0
+        direct[~np.isfinite(direct).all(axis=1)] = 0.0
         self._update(points.rows, phi, m)
         self.state["direct"] += direct
         self.state["passes"] += 1

@@ -124,7 +124,6 @@ def trace_photons(prep, stream, max_bounces, counters):
     Photons
     """
     em = prep.emission
-    n = len(stream)
     stream.skip_to(0)
     u_sel, u_pos, u_dir = stream.next_1d(), stream.next_2d(), stream.next_2d()
     pts = em.sample_points(u_sel, u_pos, counters)
