@@ -394,10 +394,10 @@ OPTIONS = {o.name: o for o in (
            "with Photon Mapping, whose maps stay fixed, less blur at a given k)", 100000,
            minimum=1, maximum=1 << 26),
     Option("photon_radius", float, "Radius",
-           "Photon mapping: initial lookup radius in scene units (0: 1/100 of the scene's "
-           "bounding-box diagonal). A larger radius gathers more photons (less noise) but "
-           "blurs the light over a larger disk (more bias); SPPM shrinks it every pass", 0.0,
-           minimum=0.0),
+           "Photon mapping: lookup radius in scene units, SPPM's initial one (it shrinks every "
+           "pass) and Photon Mapping's fixed one (0: 1/100 of the scene's bounding-box "
+           "diagonal). A larger radius gathers more photons (less noise) but blurs the light "
+           "over a larger disk (more bias)", 0.0, minimum=0.0, maximum=1e6),
     Option("sppm_alpha", float, "Alpha",
            "SPPM: fraction of a pass's photons kept when the radius shrinks (Hachisuka and "
            "Jensen's alpha). Small values shrink the radius fast (bias fades sooner, more "
