@@ -20,7 +20,9 @@ count its measured rate fits into it (:class:`.cycles.CyclesRunner`; the scene i
 ``bpy`` with a Glossy mirror of roughness 0 and a Glass BSDF, IOR 1.5). relMSE = mean over
 pixels and RGB of ``(x - ref)^2 / (ref^2 + 0.01)`` (``core.metrics.rel_mse``). For the photon
 estimators the table adds photons emitted, M photons/s (photon tracing time only) and the
-photon memory peak. Output: ``PHOTONS_BENCH.md`` and ``photons_bench.csv`` in ``output``
+photon memory peak. :func:`lookup_timing` times SPPM's lookup both ways, the kd-tree
+(``scipy.spatial.cKDTree``, what SPPM uses) and pbrt-v4's uniform grid over the visible points
+(:class:`core.photons.grid.PointGrid`), on one pass of each scene. Output: ``PHOTONS_BENCH.md`` and ``photons_bench.csv`` in ``output``
 (default ``out/bench-photons``); with ``update_docs`` the markdown goes to ``docs/``. Figures,
 never asserted.
 """
@@ -33,7 +35,15 @@ import traceback
 
 import numpy as np
 
+from ..core.integrators.base import Counters
 from ..core.metrics import rel_mse
+from ..core.photons.grid import PointGrid
+from ..core.photons.lookup import PhotonTree
+from ..core.photons.tracing import auto_radius, trace_photons
+from ..core.photons.visible import trace_visible_points
+from ..core.prepare import prepare
+from ..core.sampling.samplers import make_sampler
+from ..core.film import PixelFilter
 from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN, mirror_point_light_reference
 from .common import loadavg, machine_summary, stage, write_csv
@@ -64,6 +74,10 @@ def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.
             if row is not None:
                 rows.append(row)
                 print(_line(row))
+    for name in scenes:
+        timing = lookup_timing(BUILTIN[name](w, h), SCENES[name], photons)
+        summary[f"lookup_{name}"] = timing
+        print(f"{name}: lookup of one pass: {timing}")
     summary.update(load_end=loadavg())
     os.makedirs(output, exist_ok=True)
     write_csv(os.path.join(output, "photons_bench.csv"), rows)
@@ -73,6 +87,30 @@ def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.
     if update_docs:
         publish(output, DOCS_FILES)
     return rows
+
+
+def lookup_timing(scene, bounces, photons, repeats=3):
+    """Seconds of SPPM's gather lookup on one pass (one visible point per pixel, ``photons``
+    photons, the initial radius), best of ``repeats``: kd-tree and grid, and the pair count."""
+    prep = prepare(scene)
+    n = scene.camera.width * scene.camera.height
+    sampler = make_sampler("independent", seed=3)
+    points = trace_visible_points(prep, sampler.stream(np.arange(n), np.zeros(n, np.int64)),
+                                  PixelFilter("box", 1.0), bounces, Counters(), np.zeros((n, 3)))
+    ph = trace_photons(prep, sampler.stream(np.arange(photons), np.ones(photons, np.int64)),
+                       bounces, Counters())
+    radii = np.full(points.rows.size, auto_radius(prep))
+    times = {"kdtree": np.inf, "grid": np.inf}
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        tree = PhotonTree(ph.p, origin=np.zeros(3))
+        pairs = tree.pairs_within(points.p, radii)
+        times["kdtree"] = min(times["kdtree"], time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        PointGrid(points.p, radii).pairs_within(ph.p.astype(np.float64))
+        times["grid"] = min(times["grid"], time.perf_counter() - t0)
+    return (f"kd-tree {times['kdtree']:.3f} s, grid {times['grid']:.3f} s "
+            f"({points.rows.size} points, {len(ph)} photons, {pairs[0].size} pairs)")
 
 
 def _reference(name, scene, bounces, seconds, threads):
@@ -164,5 +202,9 @@ def _write_markdown(path, rows, summary, size, seconds, reference_seconds, photo
             f"| {row['scene']} | {row['renderer']} | {row['spp']} | {row['time_s']:.1f} "
             f"| {row['rel_mse']:.4g} | {row['rel_mse'] / base:.2f} | {row['mean_ratio']:.4f} "
             f"| {'' if mps == '' else f'{mps:.2f}'} | {'' if mb == '' else f'{mb:.1f}'} |")
+    lines += ["", "SPPM's lookup on one pass (best of 3, building included; SPPM uses the "
+              "kd-tree):", ""]
+    lines += [f"- {k.removeprefix('lookup_')}: {v}" for k, v in summary.items()
+              if k.startswith("lookup_")]
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")

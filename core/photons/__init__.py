@@ -4,7 +4,10 @@
 - :mod:`.tracing`: photon tracing from the lights (vectorised over photons, driven by a
   :class:`~core.sampling.stream.SampleStream`), float32 storage with a memory cap;
 - :mod:`.lookup`: neighbour queries over photon positions through ``scipy.spatial.cKDTree``;
+- :mod:`.grid`: pbrt-v4's uniform grid over query points, the same pairs (benchmarked against
+  the kd-tree in ``tools/photons.py``; slower, so unused by the integrators);
 - :mod:`.kernels`: density-estimation kernels (uniform, cone, Epanechnikov), normalised in 2-D;
+- :mod:`.estimate`: radiance estimates from a photon map (k nearest or fixed radius);
 - :mod:`.visible`: camera paths through specular chains to the first non-specular surface.
 """
 

@@ -10,6 +10,7 @@ from scipy.integrate import quad
 
 from sampling_lab.core import render, scenes
 from sampling_lab.core.integrators.base import Counters
+from sampling_lab.core.photons.grid import PointGrid
 from sampling_lab.core.photons.kernels import KERNELS, kernel_weight
 from sampling_lab.core.photons.lookup import PhotonTree
 from sampling_lab.core.photons.tracing import check_memory, trace_photons
@@ -52,6 +53,27 @@ def test_neighbours_far_from_the_origin_equal_those_near_it():
     assert set(zip(*near[:2])) == set(zip(*far[:2]))
     order_near, order_far = np.lexsort(near[:2]), np.lexsort(far[:2])
     assert np.allclose(near[2][order_near], far[2][order_far], atol=1e-7)
+
+
+def test_grid_finds_exactly_the_kd_trees_pairs():
+    """pbrt-v4's grid (the benchmark's alternative lookup) against the kd-tree, on points and
+    photons on the faces of a cube with varied radii: the same pairs, so timing them compares
+    like with like."""
+    rng = np.random.default_rng(6)
+
+    def on_faces(n):
+        p = rng.uniform(-1, 1, (n, 3))
+        axis = rng.integers(0, 3, n)
+        p[np.arange(n), axis] = np.sign(p[np.arange(n), axis])
+        return p
+
+    photons, points = on_faces(5000), on_faces(2000)
+    radii = rng.uniform(0.02, 0.1, 2000)
+    tree = PhotonTree(photons, origin=np.zeros(3))
+    i, j, _ = tree.pairs_within(points, radii)
+    gi, gj, _ = PointGrid(points, radii).pairs_within(tree.local.astype(np.float64))
+    assert set(zip(i.tolist(), j.tolist())) == set(zip(gi.tolist(), gj.tolist()))
+    assert i.size > 1000
 
 
 def test_nearest_are_the_brute_force_k_nearest():
