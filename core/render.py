@@ -323,7 +323,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
 def _messages(scene, settings, integrator):
     """What a render with light paths tells the user once about the scene."""
     messages = []
-    if integrator.splats and len(scene.lights):
+    # Photon mapping's photons leave the lamps as light paths do.
+    if (integrator.splats or integrator.whole_passes) and len(scene.lights):
         soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
         if soft:
             messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "

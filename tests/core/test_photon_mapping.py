@@ -72,3 +72,16 @@ def test_cancel_answers_while_the_photon_maps_are_built():
                            cancel=cancel)
     assert result.cancelled and result.stats["spp"] == 0 and len(polls) == 1
     assert result.stats["photons_emitted"] == 0
+
+
+def test_photon_renders_say_that_soft_falloff_lamps_emit_photons_as_spheres():
+    import dataclasses
+
+    from sampling_lab.core import lights
+
+    scene = dataclasses.replace(scenes.cornell_box(8, 8, "point"), lights=lights.point_light(
+        (0, 0, 1.7), (1, 1, 1), 60.0, radius=0.05, soft_falloff=True))
+    for integrator in ("photon", "sppm"):
+        result = render.render(scene, _settings(integrator=integrator, spp=1, photons=1000))
+        assert result.messages == [f"{integrator}: Soft Falloff of Point is rendered as a "
+                                   f"plain sphere light"]
