@@ -92,11 +92,11 @@ class RenderSettings:
     photons: int = DEFAULTS["photons"]
     photon_radius: float = DEFAULTS["photon_radius"]
     sppm_alpha: float = DEFAULTS["sppm_alpha"]
-    photon_memory: float = DEFAULTS["photon_memory"]
     photon_lookup: str = DEFAULTS["photon_lookup"]
     photon_k: int = DEFAULTS["photon_k"]
     photon_kernel: str = DEFAULTS["photon_kernel"]
     gather_rays: int = DEFAULTS["gather_rays"]
+    photon_memory: float = DEFAULTS["photon_memory"]
     region: tuple = None
 
 
