@@ -89,6 +89,15 @@ class SamplingLabSettings(PropertyGroup):
     distribution: _property("distribution")
     use_strategy_views: _property("strategy_views", update=_update_render_passes)
     strategy_max_length: _property("strategy_max_length", update=_update_render_passes)
+    photons: _property("photons", soft_min=1000, soft_max=10_000_000)
+    photon_radius: _property("photon_radius", soft_max=1.0, precision=4, subtype='DISTANCE',
+                             unit='LENGTH')
+    sppm_alpha: _property("sppm_alpha", precision=2, subtype='FACTOR')
+    photon_memory: _property("photon_memory", soft_max=16384.0, precision=0)
+    photon_lookup: _property("photon_lookup")
+    photon_k: _property("photon_k", soft_max=500)
+    photon_kernel: _property("photon_kernel")
+    gather_rays: _property("gather_rays", soft_max=64)
     filter_type: _property("filter_type")
     filter_width: _property("filter_width", soft_max=5.0, precision=2, subtype='PIXEL')
 

@@ -57,10 +57,12 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         layout, settings = settings_layout(self, context)
 
         light_tracing = settings.integrator == 'LIGHT'
+        photon = settings.integrator in {'PHOTON', 'SPPM'}
         col = layout.column()
         mis = col.column()
-        # Light tracing has one strategy per path: nothing to weight.
-        mis.active = not light_tracing
+        # Light tracing has one strategy per path, and photon mapping one per light
+        # contribution (direct light by light sampling alone): nothing to weight.
+        mis.active = not (light_tracing or photon)
         mis.prop(settings, "mis_heuristic")
         # Each heuristic's parameter is shown only with the heuristic that reads it.
         if settings.mis_heuristic == 'POWER':
@@ -74,9 +76,10 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         sub.active = light_tracing or settings.mis_heuristic != 'BSDF'
         sub.prop(settings, "light_selection")
         area = sub.column()
-        # Only the path tracer samples emitters toward a receiving point: light and BDPT
-        # paths start on emitters sampled by area (core.render.used_settings).
-        area.active = sub.active and settings.integrator == 'PATH'
+        # The path tracer and photon mapping's direct light sample emitters toward a receiving
+        # point: light and BDPT paths start on emitters sampled by area
+        # (core.render.used_settings).
+        area.active = sub.active and (settings.integrator == 'PATH' or photon)
         area.prop(settings, "light_sampling")
         # Also draws mixed materials' components: active whatever the light sampling.
         col.prop(settings, "distribution")
@@ -101,6 +104,41 @@ class SAMPLINGLAB_RENDER_PT_strategy_views(SamplingLabButtonsPanel, Panel):
         col.prop(settings, "strategy_max_length")
 
 
+class SAMPLINGLAB_RENDER_PT_photons(SamplingLabButtonsPanel, Panel):
+    bl_label = "Photon Mapping"
+    bl_parent_id = "SAMPLINGLAB_RENDER_PT_sampling"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout, settings = settings_layout(self, context)
+
+        # Biased but consistent estimators: only they read these settings
+        # (core.render.used_settings says which ones each uses).
+        jensen = settings.integrator == 'PHOTON'
+        sppm = settings.integrator == 'SPPM'
+        col = layout.column()
+        col.active = jensen or sppm
+        col.prop(settings, "photons")
+        col.prop(settings, "photon_memory")
+        sub = col.column()
+        sub.active = sppm
+        sub.prop(settings, "sppm_alpha")
+        sub = col.column()
+        sub.active = jensen
+        sub.prop(settings, "photon_lookup")
+        row = sub.column()
+        row.active = jensen and settings.photon_lookup == 'KNN'
+        row.prop(settings, "photon_k")
+        row = col.column()
+        # SPPM's initial radius; photon mapping's fixed radius.
+        row.active = sppm or (jensen and settings.photon_lookup == 'RADIUS')
+        row.prop(settings, "photon_radius")
+        sub = col.column()
+        sub.active = jensen
+        sub.prop(settings, "photon_kernel")
+        sub.prop(settings, "gather_rays")
+
+
 class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
     bl_label = "Light Paths"
 
@@ -109,10 +147,14 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
 
         col = layout.column()
         col.prop(settings, "max_bounces")
-        col.prop(settings, "use_russian_roulette")
-        sub = col.column()
+        rr = col.column()
+        # Photon mapping's camera paths stop at the first rough surface, and its photons
+        # always use roulette by albedo: the roulette settings do not apply.
+        rr.active = settings.integrator not in {'PHOTON', 'SPPM'}
+        rr.prop(settings, "use_russian_roulette")
+        sub = rr.column()
         # The threshold only matters while roulette is on.
-        sub.active = settings.use_russian_roulette
+        sub.active = rr.active and settings.use_russian_roulette
         sub.prop(settings, "rr_min_bounces")
 
 
@@ -185,6 +227,7 @@ classes = (
     SAMPLINGLAB_RENDER_PT_sampling,
     SAMPLINGLAB_RENDER_PT_light_sampling,
     SAMPLINGLAB_RENDER_PT_strategy_views,
+    SAMPLINGLAB_RENDER_PT_photons,
     SAMPLINGLAB_RENDER_PT_light_paths,
     SAMPLINGLAB_RENDER_PT_film,
     SAMPLINGLAB_RENDER_PT_performance,

@@ -201,6 +201,22 @@ _INTEGRATOR_TEXT = {
         "importance sampling with the Light Sampling panel's MIS heuristic. Unbiased; robust "
         "for caustics and indirectly lit scenes, where one strategy's noise is another's "
         "strength"),
+    "photon": (
+        "Photon Mapping",
+        "Jensen's two-pass photon mapping: photons from the lights fill a caustic map and a "
+        "global map once; camera paths add direct light by light sampling, caustics from the "
+        "caustic map, and indirect light by final gathering into the global map. BIASED but "
+        "consistent: the density estimate blurs light over its radius, and more samples per "
+        "pixel do not remove that blur (more photons and a smaller radius do)"),
+    "sppm": (
+        "Stochastic Progressive Photon Mapping",
+        "Passes of one camera path per pixel (through mirrors and glass to the first rough "
+        "surface, direct light by light sampling) and a batch of photons from the lights; "
+        "photons within a per-pixel radius give the indirect light, and the radius shrinks "
+        "after every pass. BIASED but consistent: the blur of the radius vanishes as passes "
+        "grow. Renders light from point lights through mirrors and glass onto diffuse "
+        "surfaces, which path tracing cannot find, and BDPT only where that surface is seen "
+        "directly (not through a mirror or glass again)"),
 }
 
 _MIS_TEXT = {
@@ -372,6 +388,50 @@ OPTIONS = {o.name: o for o in (
            "Longest path, in segments, that gets strategy views: 1 is emitters seen directly, "
            "2 direct light, 3 one indirect bounce, and so on. A path of k segments has k + 1 "
            "strategies, so the number of passes grows quadratically", 3, minimum=1, maximum=8),
+    Option("photons", int, "Photons",
+           "Photon mapping: photons traced from the lights, per pass for SPPM and once for "
+           "Photon Mapping's maps. More photons cost time and memory but give less noise (and "
+           "with Photon Mapping, whose maps stay fixed, less blur at a given k)", 100000,
+           minimum=1, maximum=1 << 26),
+    Option("photon_radius", float, "Radius",
+           "Photon mapping: lookup radius in scene units, SPPM's initial one (it shrinks every "
+           "pass) and Photon Mapping's fixed one (0: 1/100 of the scene's bounding-box "
+           "diagonal). A larger radius gathers more photons (less noise) but blurs the light "
+           "over a larger disk (more bias)", 0.0, minimum=0.0, maximum=1e6),
+    Option("sppm_alpha", float, "Alpha",
+           "SPPM: fraction of a pass's photons kept when the radius shrinks (Hachisuka and "
+           "Jensen's alpha). Small values shrink the radius fast (bias fades sooner, more "
+           "noise); values near 1 keep more photons (less noise, bias fades slower)", 0.7,
+           minimum=0.01, maximum=0.99),
+    _menu("photon_lookup", "Lookup",
+          "Photon Mapping: which photons a density estimate uses. k nearest adapts the radius "
+          "to the photon density (sharper where photons crowd, blurrier where they are "
+          "sparse); a fixed radius blurs evenly but is noisy where photons are sparse", "knn",
+          (Choice("knn", "K Nearest", "The k nearest photons, within the distance to the "
+                  "k-th one"),
+           Choice("radius", "Fixed Radius", "Every photon within Radius"))),
+    Option("photon_k", int, "Nearest Photons",
+           "Photon Mapping: photons per k-nearest estimate. More photons: less noise, more "
+           "blur (bias)", 50, minimum=1, maximum=10000),
+    _menu("photon_kernel", "Kernel",
+          "Photon Mapping: weight of a photon by its distance in the density estimate; every "
+          "kernel integrates to one, so all are consistent. Uniform counts photons equally; "
+          "cone and Epanechnikov weigh near photons more (sharper caustic edges, a little more "
+          "noise)", "uniform",
+          (Choice("uniform", "Uniform", "Every photon in the disk weighs the same"),
+           Choice("cone", "Cone", "Weight falls linearly to zero at the radius (Jensen's "
+                  "cone filter)"),
+           Choice("epanechnikov", "Epanechnikov", "Weight 1 - (d / r)^2: the kernel of "
+                  "least mean integrated squared error"))),
+    Option("gather_rays", int, "Gather Rays",
+           "Photon Mapping: final-gather rays per camera sample that look up the global map "
+           "where they land. More rays: smoother indirect light at more cost per sample; 0 "
+           "reads the global map at the visible point itself (fast but blotchy)", 8,
+           minimum=0, maximum=256),
+    Option("photon_memory", float, "Photon Memory",
+           "Photon mapping: largest photon storage in MB (photons of one pass and their "
+           "kd-tree). A render whose photons could need more stops with a message before it "
+           "starts", 1024.0, minimum=1.0, maximum=1 << 20),
 )}
 
 DEFAULTS = {name: option.default for name, option in OPTIONS.items()}

@@ -39,6 +39,9 @@ from .sampling.mis import HEURISTICS
 from .sampling.samplers import make_sampler
 from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
+# Integrators that estimate by photon density (biased, consistent): their own settings apply.
+PHOTON_INTEGRATORS = ("photon", "sppm")
+
 # Work units per pass when the image is small: a pass keeps several threads busy. The pass size
 # must not depend on the thread count, or the film's sums would be added in another order.
 PASS_UNITS = 8
@@ -86,6 +89,14 @@ class RenderSettings:
     threads: int = DEFAULTS["threads"]
     strategy_views: bool = DEFAULTS["strategy_views"]
     strategy_max_length: int = DEFAULTS["strategy_max_length"]
+    photons: int = DEFAULTS["photons"]
+    photon_radius: float = DEFAULTS["photon_radius"]
+    sppm_alpha: float = DEFAULTS["sppm_alpha"]
+    photon_lookup: str = DEFAULTS["photon_lookup"]
+    photon_k: int = DEFAULTS["photon_k"]
+    photon_kernel: str = DEFAULTS["photon_kernel"]
+    gather_rays: int = DEFAULTS["gather_rays"]
+    photon_memory: float = DEFAULTS["photon_memory"]
     region: tuple = None
 
 
@@ -170,14 +181,23 @@ def used_settings(settings):
     -------
     dict
         ``mis_heuristic``, ``mis_beta``, ``mis_alpha``, ``light_selection``,
-        ``light_sampling``, ``distribution``.
+        ``light_sampling``, ``distribution``, and the photon-mapping settings ``photons``,
+        ``sppm_alpha``, ``photon_memory``, ``photon_lookup``, ``photon_k``, ``photon_radius``,
+        ``photon_kernel``, ``gather_rays`` (``'n/a'`` where the integrator does not read
+        them; the photon estimators use no MIS: one strategy per light contribution).
     """
-    path = settings.integrator == "path"
-    weighs = settings.integrator != "light" and settings.mis_heuristic in HEURISTICS
-    samples_lights = not (path and settings.mis_heuristic == "bsdf")
+    photon = settings.integrator in PHOTON_INTEGRATORS
+    jensen = settings.integrator == "photon"
+    # Photon mapping's next-event estimation at visible points samples lights as the path
+    # tracer does (with the tree, from the point); it has one strategy, so no MIS.
+    path = settings.integrator == "path" or photon
+    weighs = (settings.integrator != "light" and not photon
+              and settings.mis_heuristic in HEURISTICS)
+    samples_lights = not (settings.integrator == "path" and settings.mis_heuristic == "bsdf")
     na = "n/a"
     return {
-        "mis_heuristic": settings.mis_heuristic if settings.integrator != "light" else na,
+        "mis_heuristic": (settings.mis_heuristic if settings.integrator != "light" and not photon
+                          else na),
         "mis_beta": settings.mis_beta if weighs and settings.mis_heuristic == "power" else na,
         "mis_alpha": settings.mis_alpha if weighs and settings.mis_heuristic == "cutoff" else na,
         "light_selection": ((settings.light_selection
@@ -186,6 +206,16 @@ def used_settings(settings):
         "light_sampling": ((settings.light_sampling if path else "area")
                            if samples_lights else na),
         "distribution": settings.distribution,
+        "photons": settings.photons if photon else na,
+        "sppm_alpha": settings.sppm_alpha if settings.integrator == "sppm" else na,
+        "photon_memory": settings.photon_memory if photon else na,
+        "photon_lookup": settings.photon_lookup if jensen else na,
+        "photon_k": settings.photon_k if jensen and settings.photon_lookup == "knn" else na,
+        # SPPM counts photons (uniform); k nearest ignores the radius setting.
+        "photon_radius": (settings.photon_radius if settings.integrator == "sppm"
+                          or (jensen and settings.photon_lookup == "radius") else na),
+        "photon_kernel": settings.photon_kernel if jensen else na,
+        "gather_rays": settings.gather_rays if jensen else na,
     }
 
 
@@ -285,13 +315,16 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         "distribution_ns_per_sample": (1e9 * counters.distribution_s
                                        / max(counters.distribution_samples, 1)),
     }
+    if integrator.whole_passes:
+        result.stats.update(integrator.render_stats(t))
     return result
 
 
 def _messages(scene, settings, integrator):
     """What a render with light paths tells the user once about the scene."""
     messages = []
-    if integrator.splats and len(scene.lights):
+    # Photon mapping's photons leave the lamps as light paths do.
+    if (integrator.splats or integrator.whole_passes) and len(scene.lights):
         soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
         if soft:
             messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
@@ -376,6 +409,8 @@ class _Passes:
     def run(self, on_pass):
         """Run passes until the sample count, the time limit or ``cancel``; calls ``on_pass()``
         after every pass. Returns whether the render was cancelled."""
+        if self.integrator.whole_passes:
+            return self.run_whole_passes(on_pass)
         cancelled = False
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
             while not cancelled:
@@ -395,6 +430,47 @@ class _Passes:
                 if finished < len(units):
                     break
         return cancelled
+
+    def run_whole_passes(self, on_pass):
+        """Passes of an integrator that renders a whole pass itself (``whole_passes``, SPPM):
+        one pass is one sample per pixel; the film shows the integrator's image after each.
+        The time limit is checked between passes (a pass under way is finished); cancel is
+        polled between the pass's chunks, and a cancelled pass is dropped."""
+        film, integrator = self.film, self.integrator
+        pixels = np.arange(film.n_pixels, dtype=np.int64)
+        frame_pixels = ((film.y0 + pixels // film.width) * self.frame_width + film.x0
+                        + pixels % film.width)
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            while self.total_spp is None or self.done_spp < self.total_spp:
+                if self.out_of_time():
+                    break
+                image = integrator.render_pass(
+                    self.done_spp, frame_pixels, self.sampler, self.pixel_filter,
+                    self.counters, lambda fn, items: self._map_chunks(pool, fn, items))
+                if image is None:
+                    return True
+                self.done_spp += 1
+                show_estimate(film, image, self.done_spp)
+                self.report(self.done_spp / self.total_spp if self.total_spp
+                            else self.elapsed() / self.settings.time_limit)
+                on_pass()
+        return False
+
+    def _map_chunks(self, pool, fn, items):
+        """``[fn(item) for item in items]`` on the worker threads (at most ``threads`` in
+        flight, results in order); None as soon as ``cancel()`` says so."""
+        items, results, pending = list(items), [], []
+        i = 0
+        while i < len(items) or pending:
+            while i < len(items) and len(pending) < self.threads:
+                pending.append(pool.submit(fn, items[i]))
+                i += 1
+            results.append(pending.pop(0).result())
+            if self.cancel is not None and self.cancel():
+                for f in pending:
+                    f.result()
+                return None
+        return results
 
     def _run_pass(self, pool, units, k):
         """Run the ``units`` of one pass of ``k`` samples per pixel. Returns the number of
@@ -422,6 +498,15 @@ class _Passes:
                     self.accumulate(*f.result())
                 return finished, cancelled
         return finished, False
+
+
+def show_estimate(film, image, passes):
+    """Make ``film`` show ``image (n_pixels, 3)`` as the estimate of ``passes`` samples per
+    pixel (integrators with ``whole_passes``: their image is not a mean of samples, so the
+    film's sums are replaced, and its variance is zero: not estimated)."""
+    film.count[:] = passes
+    film.sum[:] = image * passes
+    film.sum_sq[:] = image * image * passes
 
 
 def preparation_key(scene, settings):

@@ -9,6 +9,9 @@
   light: the caustic and the "light seen in a mirror" cases of light transport.
 - :func:`many_lights`: the box lit by 1,024 small emissive quads of varied power, where light
   selection decides the noise (the light tree's benchmark).
+- :func:`mirror_point_light`: a point light between a diffuse floor and a mirror, seen by a
+  pinhole that does not see the mirror; its closed form (:func:`mirror_floor_radiance`,
+  :func:`mirror_point_light_reference`): the light's mirror image.
 """
 
 from __future__ import annotations
@@ -298,3 +301,109 @@ def many_lights(width=64, height=64, n=1024, size=0.04, seed=7):
     visibility[-faces.shape[0]:] = VIS_ALL & ~VIS_CAMERA
     return Scene(v, f, m, Materials.from_lists(names, colors, emissions), Lights.empty(),
                  _cornell_camera(width, height), visibility=visibility)
+
+
+def mirror_point_light(width=64, height=64, power=100.0, albedo=0.5, light_z=1.0, mirror_z=1.5,
+                       mirror_half=0.5, glass=False):
+    """A point light between a diffuse floor and a perfect mirror facing it, seen by a pinhole
+    that does not see the mirror: the floor receives the light directly and as reflected by
+    the mirror, from the light's mirror image at ``z = 2 mirror_z - light_z``
+    (:func:`mirror_floor_radiance` gives both in closed form).
+
+    Parameters
+    ----------
+    power : float
+        The point light's power in W (intensity ``power / (4 pi)`` W/sr), radius 0.
+    albedo : float
+        The floor's grey diffuse albedo (floor: the square ``[-1, 1]^2`` at ``z = 0``).
+    light_z, mirror_z : float
+        Heights of the light and of the mirror (a square of half side ``mirror_half``,
+        centred above the light, reflecting on both faces).
+    glass : bool
+        Add a smooth glass ball (IOR 1.5, radius 0.3) on the floor beside the light's foot:
+        a refracted caustic besides the reflected light (no closed form then).
+    """
+    b = _Builder()
+    b.add(*_quad((-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)), 0)
+    h = mirror_half
+    b.add(*_quad((-h, -h, mirror_z), (-h, h, mirror_z), (h, h, mirror_z), (h, -h, mirror_z)), 1)
+    names, colors, kinds = ["Floor", "Mirror"], [(albedo,) * 3, (1.0, 1.0, 1.0)], [0, MAT_CONDUCTOR]
+    if glass:
+        v, f = icosphere(4, 0.3)
+        b.add(v + np.array([0.45, 0.2, 0.3]), f, 2)
+        names.append("Glass")
+        colors.append((1.0, 1.0, 1.0))
+        kinds.append(MAT_DIELECTRIC)
+    k = len(names)
+    mats = Materials.from_lists(names, colors, [(0, 0, 0)] * k, kinds=kinds,
+                                roughness=np.array([0.5, 0.0, 0.0][:k], np.float32),
+                                ior=np.full(k, 1.5, np.float32))
+    lights = L.point_light((0.0, 0.0, light_z), (1, 1, 1), power, radius=0.0)
+    camera = Camera(to_world=look_at((0, -3.0, 1.0), (0, 0, 0)), width=width, height=height,
+                    lens=50.0, sensor_width=36.0, clip_start=0.1, clip_end=100.0)
+    v, f, m = b.arrays()
+    return Scene(v, f, m, mats, lights, camera)
+
+
+def mirror_floor_radiance(points, power=100.0, albedo=0.5, light_z=1.0, mirror_z=1.5,
+                          mirror_half=0.5):
+    """Closed-form radiance of floor points ``points (n, 3)`` of :func:`mirror_point_light`:
+    ``(direct, reflected)``, each ``(n,)``: ``albedo / pi * I cos / d^2`` from the light and
+    from its mirror image (where the line from the image crosses the mirror's square)."""
+    p = np.asarray(points, np.float64)
+    intensity = power / (4 * np.pi)
+
+    def from_source(z):
+        d = np.array([0.0, 0.0, z]) - p
+        dist2 = np.einsum("ij,ij->i", d, d)
+        return albedo / np.pi * intensity * (d[:, 2] / np.sqrt(dist2)) / dist2
+
+    image_z = 2 * mirror_z - light_z
+    t = mirror_z / image_z  # where the segment floor -> image crosses the mirror plane
+    cross = p[:, :2] * (1 - t)
+    inside = (np.abs(cross) <= mirror_half).all(axis=1)
+    return from_source(light_z), np.where(inside, from_source(image_z), 0.0)
+
+
+def mirror_point_light_reference(scene, supersample=8, **kw):
+    """Closed-form pixels of a :func:`mirror_point_light` image with a box filter of one pixel
+    and ``max_bounces = 1`` (no light bounces back from the floor): the mean of
+    :func:`mirror_floor_radiance` over ``supersample^2`` camera rays per pixel.
+
+    Parameters
+    ----------
+    scene : Scene
+        Made by :func:`mirror_point_light` with the keywords ``kw`` (``power``, ``albedo``,
+        ``light_z``, ``mirror_z``, ``mirror_half``).
+
+    Returns
+    -------
+    direct, reflected : (h, w) float64
+        Radiance from the light and from its mirror image (grey: every channel alike).
+    lit : (h, w) bool
+        Pixels that see only floor lit by the mirror.
+    """
+    from .camera import generate_rays
+
+    cam, k = scene.camera, int(supersample)
+    ys, xs = np.mgrid[0:cam.height * k, 0:cam.width * k]
+    xy = np.stack([(xs.ravel() + 0.5) / k, (ys.ravel() + 0.5) / k], axis=1)
+    o, d, _ = generate_rays(cam, xy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -o[:, 2] / d[:, 2]
+    p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
+    floor = (t > 0) & (np.abs(p[:, :2]) <= 1).all(axis=1)
+    direct, reflected = mirror_floor_radiance(np.where(floor[:, None], p, 0.0), **kw)
+
+    def pixels(v):
+        return v.reshape(cam.height, k, cam.width, k).mean(axis=(1, 3))
+
+    lit = (reflected * floor > 0).reshape(cam.height, k, cam.width, k).all(axis=(1, 3))
+    return pixels(direct * floor), pixels(reflected * floor), lit
+
+
+# Point lights through a mirror and through glass onto a diffuse floor (photon mapping's cases).
+BUILTIN.update({
+    "point_mirror": lambda w, h: mirror_point_light(w, h),
+    "point_glass": lambda w, h: cornell_sphere(w, h, "glass", "point"),
+})

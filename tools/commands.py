@@ -66,6 +66,34 @@ def _bench_caustic(args):
     return 0
 
 
+def _bench_photons(args):
+    from .photons import run
+
+    run(scenes=args.scenes, size=args.size, seconds=args.seconds,
+        reference_seconds=args.reference_seconds, photons=args.photons,
+        cycles=not args.no_cycles, output=args.output, update_docs=args.update_docs)
+    return 0
+
+
+def _add_bench_photons(sub, **kw):
+    from .photons import SCENES
+
+    p = _add(sub, "bench-photons", "equal-time error of SPPM, photon mapping, path, BDPT and "
+             "Cycles on point-light mirror and glass caustics, with M photons/s and photon "
+             "memory (PHOTONS_BENCH.md)", _bench_photons, **kw)
+    p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES),
+                   metavar="SCENE", help=f"from: {', '.join(SCENES)} (default: both)")
+    _size(p, (64, 64))
+    p.add_argument("--seconds", type=_positive_float, default=8.0,
+                   help="equal wall-clock budget of every render")
+    p.add_argument("--reference-seconds", type=_positive_float, default=120.0,
+                   help="time of the BDPT reference of point_glass")
+    p.add_argument("--photons", type=_positive_int, default=100_000,
+                   help="photons per SPPM pass and in photon mapping's maps")
+    p.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
+    add_output_arguments(p, "bench-photons", "PHOTONS_BENCH.md")
+
+
 def _bench_lights(args):
     from .light_tree import run
 
@@ -132,6 +160,7 @@ def add_parsers(sub, **kw):
                         "largest sample count)")
     add_output_arguments(s, "bench-strategies", "STRATEGIES.md and its figures")
     _add_bench_scenes(sub, **kw)
+    _add_bench_photons(sub, **kw)
     v = _add(sub, "bdpt-views", "BDPT's per-strategy images in one figure, by path length "
              "(images/bdpt_views_<scene>.png)", _bdpt_views, **kw)
     v.add_argument("--scene", default="glass_caustic", choices=sorted(builtin_scenes.BUILTIN),

@@ -46,11 +46,15 @@ PLATFORMS = {
     "macos-x64": "macosx_13_0_x86_64",
 }
 
+# Older tags pip is also given (it does not always fall back by itself): scipy 1.14.1's Linux
+# wheels are tagged manylinux_2_17 (glibc 2.17 <= 2.28, so Blender runs them).
+OLDER_TAGS = {"linux-x64": ("manylinux_2_17_x86_64",)}
+
 # Wheel Python tag -> version: Blender 4.2 to 5.0 embed Python 3.11, Blender 5.1+ Python 3.13.
 PYTHONS = {"cp311": "3.11", "cp313": "3.13"}
 
 # Modules the archive bundles (numpy comes with Blender).
-BUNDLED = ("embreex", "OpenEXR")
+BUNDLED = ("embreex", "OpenEXR", "scipy")
 
 
 def log(message):
@@ -111,6 +115,8 @@ def download_wheels(pins, platforms, pythons, cache, quiet=False):
                            "--only-binary=:all:", "--no-deps", "--platform", PLATFORMS[platform],
                            "--python-version", PYTHONS[python], "--implementation", "cp",
                            "-d", str(folder)] + [f"{n}=={v}" for n, v in missing]
+                for tag in OLDER_TAGS.get(platform, ()):
+                    command[command.index("--python-version"):0] = ["--platform", tag]
                 if quiet:
                     command.insert(4, "--quiet")
                 subprocess.run(command, check=True)

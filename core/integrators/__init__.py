@@ -10,16 +10,22 @@ No estimator module imports another:
   :class:`.bidir.Bidirectional` integrators over the same subpaths (:mod:`.subpaths`), ``s = 0``
   hits (:mod:`.camera_hits`), connections (:mod:`.connections`), MIS densities
   (:mod:`.mis_densities`) and per-strategy images (:mod:`.strategy_views`);
+- :mod:`.photon`: Jensen's two-pass photon mapping (:class:`.photon.PhotonMapping`, biased but
+  consistent);
+- :mod:`.sppm`: stochastic progressive photon mapping (:class:`.sppm.SPPM`, biased but
+  consistent), over the photon stages of :mod:`core.photons`;
 - :mod:`.common`: stages every estimator shares (camera rays, intersection, surface
   interactions, emitters along rays, Russian roulette).
 """
 
-from . import bdpt, light, path
+from . import bdpt, light, path, photon, sppm
 from .base import Integrator
 
-INTEGRATORS = {"path": path, "light": light, "bdpt": bdpt}
+INTEGRATORS = {"path": path, "light": light, "bdpt": bdpt, "photon": photon,
+               "sppm": sppm}
 
-_CLASSES = {"path": path.PathTracer, "light": light.LightTracer, "bdpt": bdpt.BDPT}
+_CLASSES = {"path": path.PathTracer, "light": light.LightTracer, "bdpt": bdpt.BDPT,
+            "photon": photon.PhotonMapping, "sppm": sppm.SPPM}
 
 
 def integrator_class(name) -> type[Integrator]:

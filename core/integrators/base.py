@@ -19,6 +19,13 @@ What the render loop reads from an integrator:
     besides one radiance per camera sample.
 ``strategy_views`` (class attribute)
     Whether the integrator can write one image per strategy (``settings.strategy_views``).
+``whole_passes`` (class attribute)
+    Whether the integrator renders whole passes itself (SPPM: its photons serve every pixel and
+    its per-pixel radii change between passes, so its image is no mean of independent
+    samples). The render loop then calls ``render_pass(pass_index, frame_pixels, sampler,
+    pixel_filter, counters, map_chunks)`` once per pass instead of :meth:`render_samples`,
+    shows the ``(n_pixels, 3)`` image it returns (None: cancelled, the pass is dropped) and
+    adds ``render_stats(seconds)`` (a dict) to the render's stats; see :mod:`.sppm`.
 ``layers`` (instance attribute)
     Names of the extra images this render writes, in the order the render passes list them;
     :class:`BatchOutput` carries values for no other names.
@@ -146,6 +153,7 @@ class Integrator:
     unit_paths: ClassVar[int] = UNIT_PATHS
     splats: ClassVar[bool] = False
     strategy_views: ClassVar[bool] = False
+    whole_passes: ClassVar[bool] = False
 
     def __init__(self, prep, settings):
         self.prep = prep

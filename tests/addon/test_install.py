@@ -5,7 +5,7 @@ runs; the wheels are cached under ``build/wheels/``, a fresh machine downloads t
 A child process then installs it with ``bpy.ops.extensions.package_install_files`` into a fresh
 user repository under a temporary ``BLENDER_USER_RESOURCES``. The child runs the venv's Python
 with ``-S`` (no site-packages) and a ``PYTHONPATH`` holding only links to ``bpy`` and numpy (which
-Blender ships), so ``embreex`` and ``OpenEXR`` can only come from the archive's wheels; it checks
+Blender ships), so ``embreex``, ``OpenEXR`` and ``scipy`` can only come from the archive's wheels; it checks
 that they cannot be imported before the install. This process already imported ``bpy`` with the
 working tree's add-on enabled (conftest.py), hence the child.
 
@@ -71,7 +71,8 @@ PRELUDE = textwrap.dedent(r'''
         return module.__file__
 
     # Only the archive's wheels may provide these.
-    seen["before"] = {m: importable(m) for m in ("embreex", "OpenEXR", "sampling_lab")}
+    seen["before"] = {m: importable(m) for m in ("embreex", "OpenEXR", "scipy",
+                                                 "sampling_lab")}
 
     import bpy
     import addon_utils
@@ -166,7 +167,7 @@ INSTALL_CHILD = PRELUDE + textwrap.dedent(r'''
     seen["install"] = sorted(result)
     seen["enabled"] = MODULE in {a.module for a in bpy.context.preferences.addons}
     seen["engine_registered"] = ENGINE in engines()
-    seen["after"] = {m: importable(m) for m in ("embreex", "OpenEXR")}
+    seen["after"] = {m: importable(m) for m in ("embreex", "OpenEXR", "scipy.spatial")}
     seen["user_resources"] = user_res
     seen["addon_file"] = sys.modules[MODULE].__file__
 
@@ -294,7 +295,8 @@ def test_archive_holds_only_what_the_addon_needs(linux_archive):
     assert {"__init__.py", "blender_manifest.toml", "addon", "core", "presets", "wheels"} <= tops
     assert not tops & {"tests", "bench", "tools", "docs", ".venv", ".git", "build", "dist", "lab"}
     wheels = sorted(n for n in names if n.endswith(".whl"))
-    assert [w.split("/")[1].split("-")[0].lower() for w in wheels] == ["embreex", "openexr"]
+    assert [w.split("/")[1].split("-")[0].lower() for w in wheels] == ["embreex", "openexr",
+                                                                       "scipy"]
     assert all("-cp311-" in w and "manylinux" in w for w in wheels)
     assert not [n for n in names if "numpy" in n.lower() or n.endswith(".pyc")]
 
@@ -316,7 +318,8 @@ def test_archive_manifest_lists_its_wheels_and_platform(linux_archive):
 
 
 def test_child_sees_no_venv_modules_before_install(installed):
-    assert installed["before"] == {"embreex": None, "OpenEXR": None, "sampling_lab": None}
+    assert installed["before"] == {"embreex": None, "OpenEXR": None, "scipy": None,
+                                   "sampling_lab": None}
     assert not [p for p in installed["sys_path"] if "site-packages" in p]
 
 
@@ -325,7 +328,7 @@ def test_install_enables_the_engine_with_the_bundled_wheels(installed):
     assert installed["enabled"] and installed["engine_registered"]
     user = installed["user_resources"]
     assert installed["addon_file"].startswith(user)
-    for module in ("embreex", "OpenEXR"):
+    for module in ("embreex", "OpenEXR", "scipy.spatial"):
         assert installed["after"][module] and installed["after"][module].startswith(user), \
             installed["after"]
 

@@ -51,7 +51,10 @@ def test_integrator_menu_offers_light_tracing_and_bidirectional_with_documentati
                                                                                     mods):
     items = {i.identifier: i for i in
              empty_scene.sampling_lab.bl_rna.properties["integrator"].enum_items}
-    assert list(items) == ['PATH', 'LIGHT', 'BDPT']
+    assert list(items)[:3] == ['PATH', 'LIGHT', 'BDPT']
+    # The photon estimators are biased, and their menu entries say so.
+    for name in ('PHOTON', 'SPPM'):
+        assert "biased but consistent" in items[name].description.lower()
     assert (items['LIGHT'].name, items['BDPT'].name) == ("Light Tracing", "Bidirectional")
     light, bdpt = items['LIGHT'].description.lower(), items['BDPT'].description.lower()
     assert "caustic" in light and "specular" in light and "no mis" in light
@@ -60,7 +63,7 @@ def test_integrator_menu_offers_light_tracing_and_bidirectional_with_documentati
     assert set(mods["integrators"].INTEGRATORS) <= {k.lower() for k in items}
 
 
-@pytest.mark.parametrize("item", ['PATH', 'LIGHT', 'BDPT'])
+@pytest.mark.parametrize("item", ['PATH', 'LIGHT', 'BDPT', 'PHOTON', 'SPPM'])
 def test_integrator_menu_item_maps_to_a_core_integrator_module(empty_scene, mods, item):
     empty_scene.sampling_lab.integrator = item
     name = mods["engine"].render_settings(empty_scene.sampling_lab).integrator

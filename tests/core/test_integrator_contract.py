@@ -45,6 +45,9 @@ def test_a_work_unit_gives_a_batch_output_with_splats_only_where_declared(name, 
     settings = plain_settings(integrator=name, max_bounces=2, strategy_views=True,
                               strategy_max_length=2)
     integrator = integrator_class(name)(prep, settings)
+    if integrator.whole_passes:
+        _check_whole_pass(integrator)
+        return
     pixels = np.repeat(np.arange(24), 2)
     stream = make_sampler("independent", seed=1).stream(pixels, np.tile([0, 1], 24))
     counters = Counters()
@@ -57,6 +60,21 @@ def test_a_work_unit_gives_a_batch_output_with_splats_only_where_declared(name, 
     assert set(out.camera_layers) | set(out.splat_layers) <= set(integrator.layers)
     for values in out.camera_layers.values():
         assert values.shape == (48, 3)
+
+
+def _check_whole_pass(integrator):
+    """An integrator that renders whole passes (SPPM) returns one finite, non-negative value
+    per film pixel from ``render_pass``, counts its camera samples and rays, and gives None
+    when ``map_chunks`` reports a cancel."""
+    counters = Counters()
+    sampler = make_sampler("independent", seed=1)
+    frame_pixels = np.arange(24, dtype=np.int64)
+    image = integrator.render_pass(0, frame_pixels, sampler, PixelFilter(), counters,
+                                   lambda fn, items: [fn(item) for item in items])
+    assert image.shape == (24, 3) and np.isfinite(image).all() and (image >= 0).all()
+    assert counters.camera_samples == 24 and counters.rays > 0
+    assert integrator.render_pass(1, frame_pixels, sampler, PixelFilter(), counters,
+                                  lambda fn, items: None) is None
 
 
 def _imported_modules(path):

@@ -17,7 +17,8 @@ from sampling_lab.tools import outputs
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 # The docs/ files some tool could write (reports and figures); hand-written pages are not watched.
-WATCHED = ("SAMPLERS.md", "STRATEGIES.md", "HARD_SCENES.md", "CAUSTIC.md", "samplers", "images")
+WATCHED = ("SAMPLERS.md", "STRATEGIES.md", "HARD_SCENES.md", "CAUSTIC.md", "PHOTONS_BENCH.md",
+           "samplers", "images")
 
 COMMANDS = {
     "samplers": ["--quick", "--n", "8", "--sampler", "independent"],
@@ -25,6 +26,8 @@ COMMANDS = {
     "bench-caustic": ["--size", "8x8", "--seconds", "0.1", "--reference-seconds", "0.3"],
     "bdpt-views": ["--size", "8x8", "--spp", "1", "--max-length", "2"],
     "bench-strategies": ["--quick", "--resolution", "4x4"],
+    "bench-photons": ["--size", "8x8", "--seconds", "0.1", "--reference-seconds", "0.3",
+                      "--photons", "1000", "--no-cycles"],
 }
 
 

@@ -1,0 +1,204 @@
+"""Stochastic progressive photon mapping (Hachisuka & Jensen 2009), as pbrt-v4 lays it out.
+
+What it estimates
+    The pixel measurement, by passes. Each pass traces one camera path per pixel through
+    specular bounces to its *visible point* (the first hit that is not a pure delta BSDF,
+    :mod:`core.photons.visible`), adding the emitters the path sees and the visible point's
+    direct light by next-event estimation. Then ``photons`` photons leave the lights
+    (:mod:`core.photons.tracing`); those arriving after at least one bounce and within a
+    pixel's radius ``r`` of its visible point add ``beta_vp f(wo, wi_p) power_p`` to the
+    pixel's flux ``phi`` and one to its count ``M``. After the pass every pixel with ``M > 0``
+    shrinks its radius and rescales its accumulated flux ``tau``::
+
+        N' = N + alpha M,   r' = r sqrt(N' / (N + M)),   tau' = (tau + phi) (r' / r)^2
+
+    The image is ``direct / passes + tau / (photons emitted pi r^2)``.
+Bias and consistency
+    **Biased but consistent.** Density estimation blurs the incident light over a disk of
+    radius ``r`` (and catches photons on nearby surfaces of other orientation, near edges and
+    corners), so each pass's estimate is biased; since ``r`` shrinks to zero while the photon
+    count behind each pixel grows without bound (for ``0 < alpha < 1``), both the bias and the
+    variance vanish as passes grow. ``alpha`` trades them: small values shrink the radius fast
+    (less bias, more noise), values near one keep more photons (less noise, more bias).
+    Light paths are bounded as the path tracer's: ``max_bounces + 1`` scattering vertices.
+Parameters
+    ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0: 1/100 of the
+    scene's bounding-box diagonal), ``sppm_alpha``, ``photon_memory`` (MB cap of a pass's
+    photons), ``max_bounces``. Lookups use a kd-tree (``scipy.spatial.cKDTree``, see
+    :mod:`core.photons.lookup`) with a uniform kernel (the radius update counts photons).
+When to use it
+    Light that reaches diffuse surfaces only through mirrors or smooth glass from small or point
+    lights (caustics, a point light seen in a mirror on the floor): path tracing cannot find it
+    (a point light is never hit), BDPT only where the lit surface is seen directly (light-path
+    vertices joined to the pinhole), not where it is seen through a mirror or glass again
+    (``L S D S E`` paths), which photon mapping renders like any other.
+When it fails
+    Glossy surfaces seen directly blur (the estimate averages the lobe over the disk), and
+    scenes where few photons land in view converge slowly.
+
+Render loop: a pass is one call of :meth:`SPPM.render_pass` (``whole_passes``): photons are
+shared by every pixel and the per-pixel state changes between passes, so the image is not a
+mean of independent samples; the film shows the current estimate after each pass, and its
+variance pass is zero (not estimated).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..photons.lookup import PhotonTree, require_scipy
+from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, auto_radius, check_memory,
+                               photon_sampler, trace_photon_chunks)
+from ..photons.visible import join_points, trace_visible_points
+from .base import Counters, Integrator
+
+
+class SPPM(Integrator):
+    """Stochastic progressive photon mapping (see the module docstring)."""
+
+    whole_passes = True
+    unit_paths = CHUNK
+
+    def __init__(self, prep, settings):
+        super().__init__(prep, settings)
+        require_scipy()
+        check_memory(settings.photons, settings.max_bounces, settings.photon_memory)
+        self.photons = int(settings.photons)
+        self.alpha = float(settings.sppm_alpha)
+        self.radius0 = float(settings.photon_radius) or auto_radius(prep)
+        self.photon_sampler = photon_sampler(settings, prep.scene.camera.width)
+        self.state = None
+        self.peak_bytes = 0
+        self.photons_stored = 0
+        self.photon_s = 0.0
+
+    def _start(self, n_pixels):
+        self.state = {"r": np.full(n_pixels, self.radius0), "N": np.zeros(n_pixels),
+                      "tau": np.zeros((n_pixels, 3)), "direct": np.zeros((n_pixels, 3)),
+                      "passes": 0}
+
+    def render_pass(self, pass_index, frame_pixels, sampler, pixel_filter, counters,
+                    map_chunks):
+        """One SPPM pass over the film's pixels; returns the image ``(n_pixels, 3)`` after it,
+        or None if the render was cancelled during the pass (the pass is then discarded).
+
+        Parameters
+        ----------
+        pass_index : int
+            Sample index of the camera streams and the photon streams.
+        frame_pixels : (n_pixels,) int64
+            Frame pixel of every film pixel.
+        sampler : core.sampling.samplers.Sampler
+        pixel_filter : core.film.PixelFilter
+        counters : Counters
+        map_chunks : callable(fn, items) -> list or None
+            Runs ``fn`` on the items on the worker threads, in order; None when cancelled.
+        """
+        n = frame_pixels.size
+        if self.state is None:
+            self._start(n)
+        direct, points = self._visible_points(pass_index, frame_pixels, sampler,
+                                              pixel_filter, counters, map_chunks)
+        if points is None:
+            return None
+        t0 = time.perf_counter()
+        photons = trace_photon_chunks(self.prep, self.settings, self.photon_sampler, self.photons,
+                                      pass_index, map_chunks, counters)
+        if photons is None:
+            return None
+        self.photon_s += time.perf_counter() - t0
+        # The pass's photons as traced (the peak), then without those straight from a light:
+        # direct light comes from next-event estimation.
+        self.peak_bytes = max(self.peak_bytes, len(photons) * BYTES_PER_PHOTON)
+        photons = photons.take(photons.hit >= 2)
+        self.photons_stored += len(photons)
+        tree = PhotonTree(photons.p, origin=np.zeros(3))
+        found = map_chunks(lambda start: self._gather(points.take(slice(start, start + CHUNK)),
+                                                      photons, tree),
+                           range(0, points.rows.size, CHUNK))
+        if found is None:
+            return None
+        phi = np.concatenate([f for f, _ in found]) if found else np.zeros((0, 3))
+        m = np.concatenate([c for _, c in found]) if found else np.zeros(0)
+        # No NaN or Inf may stay in the per-pixel sums (they would blank a pixel for good).
+        phi[~np.isfinite(phi).all(axis=1)] = 0.0
+        direct[~np.isfinite(direct).all(axis=1)] = 0.0
+        self._update(points.rows, phi, m)
+        self.state["direct"] += direct
+        self.state["passes"] += 1
+        return self.image()
+
+    def _visible_points(self, pass_index, frame_pixels, sampler, pixel_filter, counters,
+                        map_chunks):
+        """Visible points and direct light of one camera path per pixel, in chunks."""
+        n = frame_pixels.size
+        prep, bounces = self.prep, self.settings.max_bounces
+
+        def chunk(start):
+            rows = np.arange(start, min(start + CHUNK, n))
+            stream = sampler.stream(frame_pixels[rows], np.full(rows.size, pass_index,
+                                                                 np.int64))
+            local = Counters()
+            local.camera_samples += rows.size
+            direct = np.zeros((rows.size, 3))
+            points = trace_visible_points(prep, stream, pixel_filter, bounces, local, direct)
+            points.rows = points.rows + start
+            return direct, points, local
+
+        parts = map_chunks(chunk, range(0, n, CHUNK))
+        if parts is None:
+            return None, None
+        for *_, local in parts:
+            counters.add(local)
+        points = join_points([p for _, p, _ in parts])
+        return np.concatenate([d for d, _, _ in parts]), points
+
+    def _gather(self, points, photons, tree):
+        """Flux ``phi (k, 3)`` (times the points' throughput) and photon counts ``m (k,)`` of
+        every visible point from the photons (``tree`` over their positions) within its
+        pixel's radius."""
+        k = points.rows.size
+        i, j, _ = tree.pairs_within(points.p, self.state["r"][points.rows])
+        # Paths no longer than the path tracer's: specular bounces + photon hits <= B + 1.
+        ok = points.bounces[i] + photons.hit[j] <= self.settings.max_bounces + 1
+        i, j = i[ok], j[ok]
+        contrib = (points.f(i, photons.wi[j].astype(np.float64))
+                   * photons.power[j].astype(np.float64))
+        phi = np.stack([np.bincount(i, contrib[:, c], minlength=k) for c in range(3)], axis=1)
+        return phi * points.beta, np.bincount(i, minlength=k).astype(np.float64)
+
+    def _update(self, pixels, phi, m):
+        """The progressive radius reduction of the pixels ``pixels`` that found photons."""
+        s = self.state
+        hit = m > 0
+        px, phi, m = pixels[hit], phi[hit], m[hit]
+        n_old, r_old = s["N"][px], s["r"][px]
+        n_new = n_old + self.alpha * m
+        r_new = r_old * np.sqrt(n_new / (n_old + m))
+        s["tau"][px] = (s["tau"][px] + phi) * ((r_new / r_old) ** 2)[:, None]
+        s["N"][px], s["r"][px] = n_new, r_new
+
+    def image(self):
+        """The current estimate ``(n_pixels, 3)``, finite and non-negative."""
+        s = self.state
+        passes = max(s["passes"], 1)
+        emitted = float(self.photons) * passes
+        img = s["direct"] / passes + s["tau"] / (emitted * np.pi * s["r"] ** 2)[:, None]
+        img[~np.isfinite(img).all(axis=1)] = 0.0
+        return np.maximum(img, 0.0)
+
+    def render_stats(self, seconds):
+        """Photon figures for the render stats."""
+        passes = self.state["passes"] if self.state else 0
+        emitted = self.photons * passes
+        return {"estimator_bias": "biased, consistent (radius shrinks with passes)",
+                "photons_emitted": emitted,
+                "photons_per_s": emitted / self.photon_s if self.photon_s > 0 else 0.0,
+                "photons_stored": self.photons_stored,
+                "photon_memory_peak_mb": self.peak_bytes / (1 << 20),
+                "photon_radius_initial": self.radius0,
+                "photon_radius_mean": (float(np.mean(self.state["r"])) if self.state
+                                       else self.radius0)}
+

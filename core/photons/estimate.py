@@ -1,0 +1,100 @@
+"""Radiance estimates from a photon map: kernel density estimation over photon positions.
+
+The light reflected at a point ``x`` toward ``wo`` is estimated from the photons near it as
+
+``L(x, wo) ~= sum_p K(|x - x_p| / r) / r^2 * f(x, wo, wi_p) * power_p / N``
+
+with ``N`` the photons emitted and ``K`` a kernel normalised over the unit disk
+(:mod:`.kernels`). The radius is either fixed or, for the ``k`` nearest photons, the distance
+to the ``k``-th one (Jensen). With the uniform kernel the ``k``-th photon, on the disk's rim,
+weighs zero: the estimate ``(k - 1) / (pi r_k^2)`` is the one that is unbiased for photons
+spread uniformly (a Poisson process). Either way the estimate is **biased**: it averages the
+incident light over the disk (and catches photons on nearby surfaces); it is consistent when
+the photon count grows while the radius (or ``k / N``) shrinks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .kernels import kernel_weight
+from .lookup import PhotonTree
+
+
+class PhotonMap:
+    """Photons with a kd-tree over their positions.
+
+    Parameters
+    ----------
+    photons : core.photons.tracing.Photons
+    emitted : int
+        Photons emitted to make them (the estimate's denominator).
+    """
+
+    def __init__(self, photons, emitted):
+        self.photons = photons
+        self.emitted = int(emitted)
+        self.tree = PhotonTree(photons.p, origin=np.zeros(3))
+
+    def __len__(self):
+        return len(self.photons)
+
+    def neighbours(self, points, lookup, k, radius):
+        """Pairs ``(point, photon)`` of the lookup and the radius of every point.
+
+        Returns
+        -------
+        i, j : (m,) int64
+        dist : (m,) float64
+        r : (n,) float64
+            Fixed ``radius``, or the distance to the ``k``-th nearest photon (the farthest found
+            when the map holds fewer).
+        """
+        n = points.shape[0]
+        if lookup == "radius":
+            r = np.full(n, float(radius))
+            i, j, dist = self.tree.pairs_within(points, r)
+            return i, j, dist, r
+        dist, idx = self.tree.nearest(points, k)
+        found = np.isfinite(dist)
+        r = np.where(found, dist, 0.0).max(axis=1)
+        i, slot = np.nonzero(found)
+        return i, idx[i, slot], dist[i, slot], r
+
+    def radiance(self, points, max_hit, lookup="knn", k=50, radius=0.01, kernel="uniform",
+                 min_hit=1, skip_caustic=False):
+        """Reflected radiance ``(n, 3)`` at visible points from the photons of this map.
+
+        Parameters
+        ----------
+        points : core.photons.visible.VisiblePoints
+            Where (and with which BSDF) to estimate; their ``beta`` is not applied.
+        max_hit : (n,) int
+            Largest photon hit number each point may use (keeps paths within the bounce
+            limit); photons beyond it are left out of the sum.
+        lookup : str
+            ``'knn'`` or ``'radius'``.
+        k : int
+        radius : float
+        kernel : str
+        min_hit : int
+            Smallest photon hit number used (2: indirect light only).
+        skip_caustic : bool
+            Leave out caustic photons (when a caustic map estimates them).
+        """
+        n = points.rows.size
+        out = np.zeros((n, 3))
+        if n == 0 or len(self) == 0:
+            return out
+        i, j, dist, r = self.neighbours(points.p, lookup, k, radius)
+        ph = self.photons
+        keep = (ph.hit[j] <= max_hit[i]) & (ph.hit[j] >= min_hit) & (r[i] > 0)
+        if skip_caustic:
+            keep &= ~ph.caustic[j]
+        i, j, dist = i[keep], j[keep], dist[keep]
+        w = kernel_weight(kernel, dist / r[i]) / (r[i] ** 2 * self.emitted)
+        contrib = (points.f(i, ph.wi[j].astype(np.float64)) * ph.power[j].astype(np.float64)
+                   * w[:, None])
+        for c in range(3):
+            out[:, c] = np.bincount(i, contrib[:, c], minlength=n)
+        return out

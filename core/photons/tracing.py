@@ -1,0 +1,241 @@
+"""Photon tracing: particles from the lights, stored where they land on non-specular surfaces.
+
+A photon starts as a light subpath does in light tracing and BDPT: an emitter chosen with the
+light sampler's selection, a point and a direction on it (:class:`core.lights.Emission`,
+``sample_le``), power ``Le cos / (pdf_origin pdf_dir)``. It then scatters by BSDF sampling in
+importance mode (with the shading-normal correction of :func:`.subpaths.smooth_factor`) and
+is continued by Russian roulette *by albedo*: it survives with probability
+``q = min(1, max(beta') / max(beta))`` and its power is divided by ``q``, so surviving photons
+keep roughly the power they had (Jensen's photon tracing) and the estimate stays unbiased.
+
+Every hit on a surface that is not purely specular (a delta BSDF cannot be density-estimated)
+is a stored photon: its position, the direction back toward where it came from, its power, the
+number of the hit along the path (1: direct from the light) and whether every earlier bounce
+was specular (``caustic``: a path ``L S+ D``). Storage is float32 (positions relative to the
+prepared scene's origin, which :func:`core.prepare.recentred` puts at the scene's centre), and
+the number of photons a setting may store is bounded by a memory cap (:func:`check_memory`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..integrators.base import Counters
+from ..integrators.common import (intersect_by_class, max_component, ray_class,
+                                  surface_hits, surface_interaction)
+from ..integrators.subpaths import smooth_factor
+from ..materials.bsdf import IMPORTANCE, sample_bsdf
+from ..materials.frame import shading_frame, to_local, to_world
+from ..sampling.samplers import make_sampler
+from ..scene import VIS_SHADOW
+
+# Sample dimensions of a photon: emitter choice, point 2-D, direction 2-D; then per hit the
+# BSDF lobe, the BSDF direction 2-D and Russian roulette.
+DIMS_START = 5
+DIMS_PER_HIT = 4
+# Bytes per stored photon: float32 position, direction and power, int16 hit number, bool
+# caustic flag; plus the kd-tree's float64 copy of the position and its int64 index.
+BYTES_PER_PHOTON = 3 * 12 + 2 + 1 + 24 + 8
+
+
+@dataclass
+class Photons:
+    """Stored photons, struct-of-arrays.
+
+    Attributes
+    ----------
+    p : (m, 3) float32
+        Positions (prepared frame).
+    wi : (m, 3) float32
+        Unit direction from the position back toward where the photon came from.
+    power : (m, 3) float32
+        Power (flux) carried, per emitted photon: an estimate divides by photons emitted.
+    hit : (m,) int16
+        Number of the hit along the light path (1: straight from the emitter).
+    caustic : (m,) bool
+        Every earlier bounce was specular, and there was at least one (``L S+ D``).
+    """
+
+    p: np.ndarray
+    wi: np.ndarray
+    power: np.ndarray
+    hit: np.ndarray
+    caustic: np.ndarray
+
+    @staticmethod
+    def join(parts):
+        """The photons of ``parts`` in order (an empty store if there are none)."""
+        parts = list(parts)
+        if not parts:
+            return Photons(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32),
+                           np.zeros((0, 3), np.float32), np.zeros(0, np.int16),
+                           np.zeros(0, bool))
+        return Photons(*(np.concatenate([getattr(p, name) for p in parts])
+                         for name in ("p", "wi", "power", "hit", "caustic")))
+
+    def take(self, rows):
+        """The photons ``rows`` (index array or mask)."""
+        return Photons(self.p[rows], self.wi[rows], self.power[rows], self.hit[rows],
+                       self.caustic[rows])
+
+    def __len__(self):
+        return self.p.shape[0]
+
+    @property
+    def nbytes(self):
+        """Bytes the arrays hold (without a kd-tree)."""
+        return sum(a.nbytes for a in (self.p, self.wi, self.power, self.hit, self.caustic))
+
+
+def worst_case_bytes(photons, max_bounces):
+    """Bytes needed if each of ``photons`` emitted photons were stored at every one of its
+    ``max_bounces + 1`` possible hits (with the kd-tree's copy)."""
+    return int(photons) * (int(max_bounces) + 1) * BYTES_PER_PHOTON
+
+
+def check_memory(photons, max_bounces, cap_mb):
+    """Raise ``ValueError`` if ``photons`` photons with ``max_bounces`` could need more than
+    ``cap_mb`` megabytes of photon storage (the message names the settings to change)."""
+    need = worst_case_bytes(photons, max_bounces)
+    if need > cap_mb * (1 << 20):
+        raise ValueError(
+            f"photon storage: {photons:,} photons x up to {max_bounces + 1} stored hits each "
+            f"may need {need / (1 << 20):,.0f} MB, more than the Photon Memory cap of "
+            f"{cap_mb:,.0f} MB: lower Photons or Max Bounces, or raise Photon Memory")
+
+
+def trace_photons(prep, stream, max_bounces, counters):
+    """Stage *photon tracing*: one photon per entry of ``stream``, stored at every
+    non-specular hit up to ``max_bounces + 1`` hits.
+
+    Parameters
+    ----------
+    prep : core.prepare.PreparedScene
+    stream : core.sampling.stream.SampleStream
+        One sample vector per photon (dimensions :data:`DIMS_START` + :data:`DIMS_PER_HIT`
+        per hit).
+    max_bounces : int
+    counters : core.integrators.base.Counters
+
+    Returns
+    -------
+    Photons
+    """
+    em = prep.emission
+    stream.skip_to(0)
+    u_sel, u_pos, u_dir = stream.next_1d(), stream.next_2d(), stream.next_2d()
+    pts = em.sample_points(u_sel, u_pos, counters)
+    origin, w, pdf_dir, cos_l, le = em.sample_directions(pts, u_dir)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
+    good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & np.isfinite(beta).all(1)
+    rows = np.nonzero(good & (max_component(np.where(good[:, None], beta, 0.0)) > 0))[0]
+    o = _leave_emitters(prep, pts, origin, w, rows)
+    return _walk(prep, stream, o, w[rows], beta[rows], rows, max_bounces, counters)
+
+
+def _leave_emitters(prep, pts, origin, w, rows):
+    """Ray origins of the photons ``rows``: lamps emit from the point itself, emissive
+    triangles from a point pushed off their surface toward ``w``."""
+    o = origin[rows]
+    k = prep.lights.n_lights
+    tri = np.nonzero((pts.index[rows] >= k) & ~pts.infinite[rows])[0]
+    if tri.size:
+        prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
+        o[tri] = prep.accel.offset_origin(o[tri], pts.normal[rows][tri], prim, w[rows][tri])
+    return o
+
+
+def _walk(prep, stream, o, d, beta, rows, max_bounces, counters):
+    """Scatter the photons ``rows`` from ``o`` along ``d``; store every non-specular hit."""
+    smooth = prep.scene.corner_normals is not None
+    vis = np.full(rows.size, VIS_SHADOW, np.int32)
+    specular = np.zeros(rows.size, bool)  # every bounce so far was specular (and one happened)
+    parts = []
+    for hit in range(1, max_bounces + 2):
+        if rows.size == 0:
+            break
+        hits = intersect_by_class(prep.accel, o, d, None, vis)
+        counters.rays += rows.size
+        live = surface_hits(prep, hits)
+        si = surface_interaction(prep, hits, d, live)
+        r = rows[live]
+        stream.skip_to(DIMS_START + (hit - 1) * DIMS_PER_HIT)
+        u_lobe, u_bsdf, u_rr = stream.next_1d()[r], stream.next_2d()[r], stream.next_1d()[r]
+        params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
+                                                      hits.v[live])
+        beta, specular = beta[live], specular[live]
+        store = np.nonzero(~delta_only)[0]
+        parts.append(Photons(si.p[store].astype(np.float32), si.wo[store].astype(np.float32),
+                             beta[store].astype(np.float32),
+                             np.full(store.size, hit, np.int16), specular[store]))
+        if hit == max_bounces + 1:
+            break
+        # Importance-mode BSDF sampling in the shading frame, then roulette by albedo.
+        if smooth:
+            front = np.where(np.einsum("ij,ij->i", si.ns, si.ng) < 0, -1.0, 1.0)
+            fs, ft, fn = shading_frame(si.ns * front[:, None])
+        else:
+            fs, ft, fn = shading_frame(si.ng)
+        wo_l = to_local(si.wo, fs, ft, fn)
+        smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, IMPORTANCE)
+        wi = to_world(smp.wi, fs, ft, fn)
+        weight = smp.weight
+        if smooth:
+            weight = weight * smooth_factor(si.ng, fn, si.wo, wi, wo_l, smp.wi,
+                                            IMPORTANCE)[:, None]
+        new = beta * weight
+        with np.errstate(divide="ignore", invalid="ignore"):
+            q = np.minimum(1.0, max_component(new) / max_component(beta))
+        alive = (smp.pdf > 0) & np.isfinite(new).all(axis=1) & (u_rr < q) & (q > 0)
+        keep = np.nonzero(alive)[0]
+        rows = r[keep]
+        beta = new[keep] / q[keep, None]
+        specular = np.where(hit == 1, smp.delta, specular & smp.delta)[keep]
+        o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
+        d = wi[keep]
+        vis = ray_class(smp.lobe[keep])
+    return Photons.join(parts)
+
+
+# Photons or camera paths per chunk: the unit of work a worker thread runs.
+CHUNK = 1 << 15
+
+
+def auto_radius(prep):
+    """Initial radius when the setting is 0: 1/100 of the scene's bounding-box diagonal."""
+    v = np.asarray(prep.scene.vertices, np.float64).reshape(-1, 3)
+    return 0.01 * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if v.size else 0.01
+
+
+def photon_seed(seed):
+    """Seed of the photons' sample streams: another stream family than the camera's."""
+    return (int(seed) * 2654435761 + 0x9E3779B9) % ((1 << 31) - 1)
+
+
+def photon_sampler(settings, width):
+    """The sampler of the photons (the render's kind, its own seed); photon ``i`` of pass
+    ``k`` is its 'pixel' ``i``, sample ``k``."""
+    return make_sampler(settings.sampler, seed=photon_seed(settings.seed),
+                        spp=settings.spp if settings.spp > 0 else None, width=width)
+
+
+def trace_photon_chunks(prep, settings, sampler, n, pass_index, map_chunks, counters):
+    """``n`` photons of pass ``pass_index`` (streams of ``sampler``, see
+    :func:`photon_sampler`), traced in chunks of :data:`CHUNK` by ``map_chunks`` (the render
+    loop's worker threads); None if the render was cancelled meanwhile."""
+
+    def chunk(start):
+        ids = np.arange(start, min(start + CHUNK, n), dtype=np.int64)
+        local = Counters()
+        stream = sampler.stream(ids, np.full(ids.size, pass_index, np.int64))
+        return trace_photons(prep, stream, settings.max_bounces, local), local
+
+    parts = map_chunks(chunk, range(0, n, CHUNK))
+    if parts is None:
+        return None
+    for _, local in parts:
+        counters.add(local)
+    return Photons.join(p for p, _ in parts)

@@ -1,0 +1,68 @@
+"""Photon mapping in real Blender: the Photon Mapping panel greys out every row the chosen
+integrator does not read (as ``core.render.used_settings`` reports), and an SPPM render shows
+its image pass by pass and writes a finite EXR."""
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from scenes import ENGINE_ID
+from test_strategy_settings import _Recorder
+
+ROWS = ("photons", "photon_memory", "sppm_alpha", "photon_lookup", "photon_k", "photon_radius",
+        "photon_kernel", "gather_rays")
+
+
+def _drawn(scene, panel_name):
+    class Context:
+        engine = ENGINE_ID
+
+    Context.scene = scene
+    panel = getattr(bpy.types, panel_name)
+    assert panel.poll(Context)
+    calls = []
+    panel.draw(type("Panel", (), {"layout": _Recorder(calls)})(), Context)
+    return dict(calls)
+
+
+@pytest.mark.parametrize("integrator, lookup", [
+    ('PATH', 'KNN'), ('BDPT', 'KNN'), ('SPPM', 'KNN'), ('PHOTON', 'KNN'), ('PHOTON', 'RADIUS')])
+def test_photon_rows_are_active_exactly_where_the_render_uses_them(empty_scene, addon,
+                                                                    integrator, lookup):
+    from importlib import import_module
+    core_render = import_module(f"{addon.__name__}.core.render")
+    props = empty_scene.sampling_lab
+    props.integrator, props.photon_lookup = integrator, lookup
+    active = _drawn(empty_scene, "SAMPLINGLAB_RENDER_PT_photons")
+    assert set(active) == set(ROWS)
+    settings = core_render.RenderSettings(integrator=integrator.lower(),
+                                          photon_lookup=lookup.lower())
+    used = core_render.used_settings(settings)
+    for row in ROWS:
+        assert active[row] == (used[row] != "n/a"), row
+    light = _drawn(empty_scene, "SAMPLINGLAB_RENDER_PT_light_sampling")
+    assert light["mis_heuristic"] == (used["mis_heuristic"] != "n/a")
+
+
+def test_sppm_render_shows_every_pass_and_writes_a_finite_image(empty_scene, tmp_path,
+                                                                addon, monkeypatch):
+    from importlib import import_module
+    engine = import_module(f"{addon.__name__}.addon.engine")
+    scenes.cornell_box_point_light(empty_scene, resolution=(16, 16))
+    scenes.set_sampling_lab(empty_scene, samples=4, max_bounces=3)
+    empty_scene.sampling_lab.integrator = 'SPPM'
+    empty_scene.sampling_lab.photons = 5000
+    monkeypatch.setattr(engine, "UPDATE_INTERVAL", 0.0)
+    write_passes = engine.passes.write_passes
+    counts = []
+
+    def recording(layer, images):
+        counts.append(float(images["Sample Count"].mean()))
+        write_passes(layer, images)
+
+    monkeypatch.setattr(engine.passes, "write_passes", recording)
+    passes = scenes.render_to_exr(empty_scene, tmp_path / "sppm.exr")
+    assert counts[:4] == [1.0, 2.0, 3.0, 4.0]
+    combined = passes["Combined"] if "Combined" in passes else passes["Image"]
+    assert np.isfinite(combined).all() and combined[..., :3].max() > 0

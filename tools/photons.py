@@ -1,0 +1,210 @@
+"""Equal-time error of SPPM, photon mapping, path tracing, BDPT and Cycles on point-light
+caustics, with photon throughput and memory, in one run.
+
+``python -m sampling_lab bench-photons`` calls :func:`run`. Two built-in scenes, each lit by a
+point light (radius 0) and seen through a pinhole:
+
+- ``point_mirror`` (:func:`core.scenes.mirror_point_light`, one bounce): the floor receives
+  the light directly and reflected by a mirror above it. Reference: the closed form (the
+  light's mirror image, :func:`core.scenes.mirror_point_light_reference`), exact.
+- ``point_glass`` (:func:`core.scenes.cornell_sphere` with a glass ball and a point light, 8
+  bounces): a refracted caustic on the floor. Reference: BDPT for ``reference_seconds``
+  (another seed). BDPT finds the caustic seen directly (light-path vertices joined to the
+  pinhole) but not light that reached the floor through the ball *and is seen through it*
+  (a point light and a pinhole both behind specular bounces): that light is in SPPM's and
+  photon mapping's images and counts as their "error" here.
+
+Every renderer gets the same wall-clock budget: ours with ``RenderSettings(spp=0,
+time_limit=seconds)`` (SPPM and photon mapping finish the pass under way), Cycles the sample
+count its measured rate fits into it (:class:`.cycles.CyclesRunner`; the scene is rebuilt in
+``bpy`` with a Glossy mirror of roughness 0 and a Glass BSDF, IOR 1.5). relMSE = mean over
+pixels and RGB of ``(x - ref)^2 / (ref^2 + 0.01)`` (``core.metrics.rel_mse``). For the photon
+estimators the table adds photons emitted, M photons/s (photon tracing time only) and the
+photon memory peak. :func:`lookup_timing` times SPPM's lookup both ways, the kd-tree
+(``scipy.spatial.cKDTree``, what SPPM uses) and pbrt-v4's uniform grid over the visible points
+(:class:`core.photons.grid.PointGrid`), on one pass of each scene. Output: ``PHOTONS_BENCH.md`` and ``photons_bench.csv`` in ``output``
+(default ``out/bench-photons``); with ``update_docs`` the markdown goes to ``docs/``. Figures,
+never asserted.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import traceback
+
+import numpy as np
+
+from ..core.integrators.base import Counters
+from ..core.metrics import rel_mse
+from ..core.photons.grid import PointGrid
+from ..core.photons.lookup import PhotonTree
+from ..core.photons.tracing import auto_radius, trace_photons
+from ..core.photons.visible import trace_visible_points
+from ..core.prepare import prepare
+from ..core.sampling.samplers import make_sampler
+from ..core.film import PixelFilter
+from ..core.render import RenderSettings, render
+from ..core.scenes import BUILTIN, mirror_point_light_reference
+from .common import loadavg, machine_summary, stage, write_csv
+from .outputs import publish
+
+DOCS_FILES = ("PHOTONS_BENCH.md",)
+# scene -> max bounces (the mirror's closed form holds for one bounce).
+SCENES = {"point_mirror": 1, "point_glass": 8}
+INTEGRATORS = ("sppm", "photon", "path", "bdpt")
+
+
+def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.0,
+        reference_seconds=120.0, photons=100_000, cycles=True, threads=2,
+        output="out/bench-photons", update_docs=False):
+    """Render, print and write the table; returns the rows."""
+    w, h = size
+    summary = machine_summary()
+    rows = []
+    for name in scenes:
+        scene = BUILTIN[name](w, h)
+        bounces = SCENES[name]
+        ref = _reference(name, scene, bounces, reference_seconds, threads)
+        for integ in integrators:
+            rows.append(_ours(name, scene, integ, bounces, seconds, photons, threads, ref))
+            print(_line(rows[-1]))
+        if cycles:
+            row = _cycles(name, scene, bounces, seconds, threads, ref)
+            if row is not None:
+                rows.append(row)
+                print(_line(row))
+    for name in scenes:
+        timing = lookup_timing(BUILTIN[name](w, h), SCENES[name], photons)
+        summary[f"lookup_{name}"] = timing
+        print(f"{name}: lookup of one pass: {timing}")
+    summary.update(load_end=loadavg())
+    os.makedirs(output, exist_ok=True)
+    write_csv(os.path.join(output, "photons_bench.csv"), rows)
+    _write_markdown(os.path.join(output, DOCS_FILES[0]), rows, summary, size, seconds,
+                    reference_seconds, photons, threads)
+    print(f"wrote {output}/photons_bench.csv and {DOCS_FILES[0]}")
+    if update_docs:
+        publish(output, DOCS_FILES)
+    return rows
+
+
+def lookup_timing(scene, bounces, photons, repeats=3):
+    """Seconds of SPPM's gather lookup on one pass (one visible point per pixel, ``photons``
+    photons, the initial radius), best of ``repeats``: kd-tree and grid, and the pair count."""
+    prep = prepare(scene)
+    n = scene.camera.width * scene.camera.height
+    sampler = make_sampler("independent", seed=3)
+    points = trace_visible_points(prep, sampler.stream(np.arange(n), np.zeros(n, np.int64)),
+                                  PixelFilter("box", 1.0), bounces, Counters(), np.zeros((n, 3)))
+    ph = trace_photons(prep, sampler.stream(np.arange(photons), np.ones(photons, np.int64)),
+                       bounces, Counters())
+    radii = np.full(points.rows.size, auto_radius(prep))
+    times = {"kdtree": np.inf, "grid": np.inf}
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        tree = PhotonTree(ph.p, origin=np.zeros(3))
+        pairs = tree.pairs_within(points.p, radii)
+        times["kdtree"] = min(times["kdtree"], time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        PointGrid(points.p, radii).pairs_within(ph.p.astype(np.float64))
+        times["grid"] = min(times["grid"], time.perf_counter() - t0)
+    return (f"kd-tree {times['kdtree']:.3f} s, grid {times['grid']:.3f} s "
+            f"({points.rows.size} points, {len(ph)} photons, {pairs[0].size} pairs)")
+
+
+def _reference(name, scene, bounces, seconds, threads):
+    """``(h, w, 3)`` reference image: the closed form, or a long BDPT render."""
+    if name == "point_mirror":
+        direct, reflected, _ = mirror_point_light_reference(scene)
+        return np.repeat((direct + reflected)[..., None], 3, axis=2)
+    stage(f"{name}: BDPT reference, {seconds:g} s")
+    res = render(scene, RenderSettings(integrator="bdpt", spp=0, time_limit=seconds,
+                                       max_bounces=bounces, seed=999, threads=threads,
+                                       filter_type="box", filter_width=1.0))
+    return res.film.mean()
+
+
+def _ours(name, scene, integ, bounces, seconds, photons, threads, ref):
+    stage(f"{name}: {integ}, {seconds:g} s")
+    t0 = time.perf_counter()
+    res = render(scene, RenderSettings(integrator=integ, spp=0, time_limit=seconds,
+                                       max_bounces=bounces, seed=1, threads=threads,
+                                       photons=photons, filter_type="box", filter_width=1.0))
+    wall = time.perf_counter() - t0
+    img = res.film.mean()
+    st = res.stats
+    return dict(scene=name, renderer=integ, spp=st["spp"], time_s=wall,
+                rel_mse=rel_mse(img, ref), mean_ratio=float(img.mean() / ref.mean()),
+                photons_emitted=st.get("photons_emitted", ""),
+                m_photons_per_s=(st["photons_per_s"] / 1e6 if "photons_per_s" in st else ""),
+                photon_memory_peak_mb=st.get("photon_memory_peak_mb", ""))
+
+
+def _cycles(name, scene, bounces, seconds, threads, ref):
+    """Cycles at equal time on the scene rebuilt in ``bpy`` with its mirror and glass."""
+    from . import blender_scene as bs
+    from . import bpy_scenes
+    from .cycles import CyclesRunner
+
+    stage(f"{name}: Cycles, {seconds:g} s")
+    try:
+        bpy = bs.import_bpy()
+        bpy.ops.wm.read_homefile(use_empty=True)
+        bl_scene = bs.build_blender_scene(scene)
+        replacements = {"Mirror": bpy_scenes.glossy_material("Mirror", (1.0, 1.0, 1.0), 0.0),
+                        "Ball": bpy_scenes.glass_material("Ball", (1.0, 1.0, 1.0), 1.5, 0.0)}
+        for ob in bl_scene.collection.objects:
+            mat = ob.active_material
+            if mat is not None and mat.name.split(".")[0] in replacements:
+                ob.data.materials[0] = replacements[mat.name.split(".")[0]]
+        cy = CyclesRunner(scene, threads, bounces, blender_scene=bl_scene)
+        cy.measure_fixed_cost(1)
+        cy.measure_fixed_spp(max(1, (1 << 16) // (scene.camera.width * scene.camera.height)), 1)
+        spp, t, img = cy.equal_time(seconds, 1)
+    except Exception:  # noqa: BLE001 - report and carry on
+        traceback.print_exc()
+        return None
+    img = img[..., :3].astype(np.float64)
+    return dict(scene=name, renderer="Cycles", spp=spp, time_s=t, rel_mse=rel_mse(img, ref),
+                mean_ratio=float(img.mean() / ref.mean()), photons_emitted="",
+                m_photons_per_s="", photon_memory_peak_mb="")
+
+
+def _line(row):
+    extra = (f", {row['m_photons_per_s']:.2f} M photons/s, {row['photon_memory_peak_mb']:.1f} MB"
+             if row["m_photons_per_s"] != "" else "")
+    return (f"{row['scene']} {row['renderer']}: {row['spp']} spp in {row['time_s']:.1f} s, "
+            f"relMSE {row['rel_mse']:.4g}, mean/ref {row['mean_ratio']:.4f}{extra}")
+
+
+def _write_markdown(path, rows, summary, size, seconds, reference_seconds, photons, threads):
+    lines = [
+        "# Point-light caustics: equal-time error of the photon estimators",
+        "",
+        f"Generated by `python -m sampling_lab bench-photons` (tools/photons.py) on "
+        f"{summary['date']}: {size[0]}x{size[1]}, box filter, {threads} threads, "
+        f"{seconds:g} s per render, {photons:,} photons per SPPM pass (and in photon "
+        f"mapping's maps); references: closed form (point_mirror), BDPT for "
+        f"{reference_seconds:g} s (point_glass). CPU {summary['cpu']}, load average "
+        f"{summary['load_start']} at the start, {summary['load_end']} at the end.",
+        "",
+        "| scene | renderer | spp | time s | relMSE | relMSE / SPPM's | mean / ref "
+        "| M photons/s | photon MB |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for row in rows:
+        base = next((r["rel_mse"] for r in rows
+                     if r["scene"] == row["scene"] and r["renderer"] == "sppm"), np.nan)
+        mps = row["m_photons_per_s"]
+        mb = row["photon_memory_peak_mb"]
+        lines.append(
+            f"| {row['scene']} | {row['renderer']} | {row['spp']} | {row['time_s']:.1f} "
+            f"| {row['rel_mse']:.4g} | {row['rel_mse'] / base:.2f} | {row['mean_ratio']:.4f} "
+            f"| {'' if mps == '' else f'{mps:.2f}'} | {'' if mb == '' else f'{mb:.1f}'} |")
+    lines += ["", "SPPM's lookup on one pass (best of 3, building included; SPPM uses the "
+              "kd-tree):", ""]
+    lines += [f"- {k.removeprefix('lookup_')}: {v}" for k, v in summary.items()
+              if k.startswith("lookup_")]
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
