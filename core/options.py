@@ -26,7 +26,9 @@ import numbers
 from dataclasses import dataclass
 
 from .integrators import INTEGRATORS
+from .integrators.radiosity import DISPLAYS as RADIOSITY_DISPLAYS
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
+from .radiosity.solvers import SOLVERS as RADIOSITY_SOLVERS
 from .sampling.distributions import DISTRIBUTION_METHODS
 from .sampling.mis import MIS_SETTINGS
 from .sampling.samplers import available as available_samplers
@@ -201,6 +203,47 @@ _INTEGRATOR_TEXT = {
         "importance sampling with the Light Sampling panel's MIS heuristic. Unbiased; robust "
         "for caustics and indirectly lit scenes, where one strategy's noise is another's "
         "strength"),
+    "radiosity": (
+        "Radiosity",
+        "Finite-element radiosity: diffuse surfaces cut into patches of constant radiosity, "
+        "form factors by ray casting, the linear system solved once per render, then shown by "
+        "camera rays. BIASED, and not consistent unless the patches shrink: more samples only "
+        "antialias a fixed solution. Every material is treated as diffuse (its Base Color)"),
+}
+
+_RADIOSITY_SOLVER_TEXT = {
+    "jacobi": (
+        "Jacobi",
+        "Iterate B = E + rho F B with the whole previous solution (gathering). Stores the dense "
+        "form-factor matrix: refused above 8,192 patches"),
+    "gauss_seidel": (
+        "Gauss-Seidel",
+        "Jacobi's sweep row by row with the newest values: about half the sweeps. Stores the "
+        "dense form-factor matrix: refused above 8,192 patches"),
+    "progressive": (
+        "Progressive Refinement",
+        "Shoot the patch with the most unshot power to all others (Southwell iteration); one "
+        "column of form factors at a time, no stored matrix, but slow for large meshes"),
+    "hierarchical": (
+        "Hierarchical",
+        "Hierarchical radiosity (Hanrahan, Salzman & Aupperle 1991): patch pairs linked at the "
+        "coarsest level where their form factor is small, so cost grows near linearly with "
+        "the patch count; for large meshes"),
+}
+
+_RADIOSITY_DISPLAY_TEXT = {
+    "gouraud": (
+        "Gouraud",
+        "Radiosity interpolated across each patch from its corners (the mean of the patches "
+        "that meet there). Smooth, but shadows are only as sharp as the mesh"),
+    "flat": (
+        "Flat",
+        "Each patch's own constant radiosity: the mesh shows, as the solver sees it"),
+    "final_gather": (
+        "Final Gather",
+        "One bounce of path tracing into the solution: direct light by next-event estimation "
+        "(sharp shadows), indirect light read from the patches where the bounce ray lands. "
+        "Noisy per sample, converges to the radiosity solution's one-bounce image"),
 }
 
 _MIS_TEXT = {
@@ -372,6 +415,23 @@ OPTIONS = {o.name: o for o in (
            "Longest path, in segments, that gets strategy views: 1 is emitters seen directly, "
            "2 direct light, 3 one indirect bounce, and so on. A path of k segments has k + 1 "
            "strategies, so the number of passes grows quadratically", 3, minimum=1, maximum=8),
+    _menu("radiosity_solver", "Solver",
+          "Radiosity only: how the radiosity system B = E + rho F B is solved",
+          "gauss_seidel", _choices(RADIOSITY_SOLVERS, _RADIOSITY_SOLVER_TEXT)),
+    Option("radiosity_patch_size", float, "Patch Size",
+           "Radiosity only: target edge length of a patch in Blender units; every triangle is "
+           "cut into equal sub-triangles no longer than this. Smaller patches: less bias, "
+           "quadratically more patches", 0.5, minimum=1e-3, maximum=1e4),
+    Option("radiosity_samples", int, "Form Factor Samples",
+           "Radiosity only: points per patch pair for each form factor (with one visibility ray "
+           "each), and per patch for the light it receives directly from lamps. Their noise "
+           "stays in the solution as a fixed error", 8, minimum=1, maximum=1024),
+    _menu("radiosity_display", "Display",
+          "Radiosity only: how camera rays read the solved radiosity", "gouraud",
+          _choices(RADIOSITY_DISPLAYS, _RADIOSITY_DISPLAY_TEXT)),
+    Option("radiosity_patches", bool, "Patches Pass",
+           "Radiosity only: write a Radiosity Patches pass that shows the mesh, one colour per "
+           "patch", False, prop="use_radiosity_patches"),
 )}
 
 DEFAULTS = {name: option.default for name, option in OPTIONS.items()}

@@ -10,16 +10,20 @@ No estimator module imports another:
   :class:`.bidir.Bidirectional` integrators over the same subpaths (:mod:`.subpaths`), ``s = 0``
   hits (:mod:`.camera_hits`), connections (:mod:`.connections`), MIS densities
   (:mod:`.mis_densities`) and per-strategy images (:mod:`.strategy_views`);
+- :mod:`.radiosity`: finite-element radiosity (:class:`.radiosity.Radiosity`), solved once
+  per render by :mod:`core.radiosity` and shown by camera rays or one final-gather bounce;
 - :mod:`.common`: stages every estimator shares (camera rays, intersection, surface
   interactions, emitters along rays, Russian roulette).
 """
 
-from . import bdpt, light, path
+from . import bdpt, light, path, radiosity
 from .base import Integrator
 
 INTEGRATORS = {"path": path, "light": light, "bdpt": bdpt}
+INTEGRATORS["radiosity"] = radiosity
 
 _CLASSES = {"path": path.PathTracer, "light": light.LightTracer, "bdpt": bdpt.BDPT}
+_CLASSES["radiosity"] = radiosity.Radiosity
 
 
 def integrator_class(name) -> type[Integrator]:

@@ -1,0 +1,84 @@
+"""Lamps and the world as radiosity sources: the irradiance each patch receives from them
+directly, shot once before the solve.
+
+Lamps (point, spot, sun, area) and the world are not patches: they emit but do not reflect.
+Each patch receives ``H_d = (1 / A) int_patch int L_i cos dw dA`` from them, estimated with
+``samples`` stratified points per patch and one next-event sample of every lamp per point
+(the light families' own ``sample_li``, so every lamp kind is modelled as the path tracer
+models it), with a shadow ray. The reflected part ``rho H_d`` then joins the patches' own
+emission as the source term of the radiosity system: the lamps' light is "shot" directly,
+and only its reflections travel through form factors. The estimate is unbiased for the
+patch's mean irradiance; its noise stays in the solution as a fixed error (it does not
+average out across pixels), which the tests bound with the same standard errors.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..lights.base import LiSamples
+from ..lights.sampler import AREA, POINT, SUN, WORLD
+from ..sampling.warps import sample_uniform_triangle
+from ..scene import VIS_SHADOW
+from .form_factors import pair_uniforms, stratified_points
+
+
+def lamp_families(lights):
+    """``(family, local row)`` of every lamp and of the world, as NEE samples them."""
+    kinds = lights.emitter_family[:lights.n_lights]
+    out = [(lights.families[int(f)], li) for li, f in enumerate(kinds) if f in (POINT, SUN,
+                                                                                    AREA)]
+    if lights.has_world:
+        out.append((lights.families[WORLD], 0))
+    return out
+
+
+def lamp_irradiance(mesh, prep, samples=8, seed=0):
+    """Mean irradiance ``(p, 3)`` of every patch from the lamps and the world, and its standard
+    error ``(p, 3)``.
+
+    Parameters
+    ----------
+    mesh : core.radiosity.mesh.PatchMesh
+    prep : core.prepare.PreparedScene
+    samples : int
+        Points per patch (one light sample of every lamp each).
+    """
+    p = mesh.n_patches
+    sources = lamp_families(prep.lights)
+    if not sources or p == 0:
+        return np.zeros((p, 3)), np.zeros((p, 3))
+    patch = np.arange(p)
+    u = stratified_points(patch, patch, seed + 101, samples).reshape(-1, 2)
+    x = np.einsum("nv,nvi->ni", sample_uniform_triangle(u),
+                  np.repeat(mesh.patch_corners(patch), samples, axis=0))
+    n = np.repeat(mesh.normal, samples, axis=0)
+    prim = np.repeat(mesh.sub_tri[patch // 2], samples)
+    total = np.zeros((x.shape[0], 3))
+    for k, (family, li) in enumerate(sources):
+        u_light = np.stack([pair_uniforms(patch, patch, seed + 211 + k, samples, 0),
+                            pair_uniforms(patch, patch, seed + 211 + k, samples, 1)],
+                           axis=2).reshape(-1, 2)
+        total += _one_lamp(prep, family, li, x, n, prim, u_light)
+    per = total.reshape(p, samples, 3)
+    se = per.std(axis=1, ddof=1) / np.sqrt(samples) if samples > 1 else np.zeros((p, 3))
+    return per.mean(axis=1), se
+
+
+def _one_lamp(prep, family, li, x, n, prim, u):
+    """Irradiance estimates ``(k, 3)`` at points ``x`` with normals ``n`` from one lamp."""
+    k = x.shape[0]
+    out = LiSamples.empty(k)
+    rows = np.arange(k)
+    family.sample_li(rows, np.full(k, li, np.int64), x, u, np.ones(k), out)
+    cos = np.einsum("ij,ij->i", out.wi, n)
+    live = np.nonzero((out.pdf > 0) & (cos > 0))[0]
+    value = np.zeros((k, 3))
+    if live.size == 0:
+        return value
+    o, d, tmax = prep.accel.shadow_rays(x[live], n[live], prim[live], out.wi[live],
+                                        out.dist[live], out.light_normal[live])
+    seen = ~prep.accel.occluded(o, d, tmax, VIS_SHADOW)
+    live = live[seen]
+    value[live] = out.radiance[live] * (cos[live] / out.pdf[live])[:, None]
+    return value
