@@ -218,12 +218,13 @@ def form_factor_column(mesh, accel, col, samples=16, seed=0):
 def form_factor_matrix(mesh, accel, samples=16, seed=0, check=None):
     """The dense ``(p, p)`` form-factor matrix, in blocks of rows.
 
-    ``check()`` (or None) is called after every block with the fraction done; it returns True
-    to stop (then None is returned).
+    ``check()`` (or None) is called after every block (at most about :data:`RAYS_PER_BATCH`
+    rays, a fraction of a second) with the fraction done; it returns True to stop (then None is
+    returned).
     """
     p = mesh.n_patches
     F = np.zeros((p, p))
-    step = max(1, (1 << 20) // max(p, 1))
+    step = max(1, RAYS_PER_BATCH // max(p * samples, 1))
     for a in range(0, p, step):
         rows = np.arange(a, min(a + step, p))
         F[rows] = form_factor_rows(mesh, accel, rows, samples, seed)
