@@ -113,7 +113,7 @@ def stratified_points(i, j, seed, samples):
     return (base[None] + np.stack(shift, axis=1)[:, None, :]) % 1.0
 
 
-def pair_form_factors(mesh, accel, i, j, samples=16, seed=0):
+def pair_form_factors(mesh, accel, i, j, samples=16, seed=0, keys=None):
     """Form factors ``F_ij (k,)`` of patch pairs ``i, j (k,)`` (module docstring).
 
     Parameters
@@ -126,6 +126,10 @@ def pair_form_factors(mesh, accel, i, j, samples=16, seed=0):
     samples : int
         Points on ``i`` per pair (and shadow rays).
     seed : int
+    keys : tuple of two (k,) arrays or None
+        What the pairs' random numbers are hashed from (default ``i, j``): hierarchical
+        radiosity passes the patch numbers of its leaf elements, so a leaf link has the very
+        form factor the dense matrix has.
 
     Returns
     -------
@@ -134,24 +138,26 @@ def pair_form_factors(mesh, accel, i, j, samples=16, seed=0):
         Standard error of each estimate (from the spread of its samples).
     """
     i, j = np.asarray(i, np.int64), np.asarray(j, np.int64)
+    ki, kj = (i, j) if keys is None else (np.asarray(keys[0]), np.asarray(keys[1]))
     out, se = np.zeros(i.size), np.zeros(i.size)
     step = max(1, RAYS_PER_BATCH // samples)
     for a in range(0, i.size, step):
-        out[a:a + step], se[a:a + step] = _pairs(mesh, accel, i[a:a + step], j[a:a + step],
-                                                 samples, seed)
+        part = slice(a, a + step)
+        out[part], se[part] = _pairs(mesh, accel, i[part], j[part], samples, seed,
+                                     ki[part], kj[part])
     return out, se
 
 
-def _pairs(mesh, accel, i, j, samples, seed):
+def _pairs(mesh, accel, i, j, samples, seed, ki, kj):
     k = i.size
     ni = np.where((i % 2 == 0)[:, None], 1.0, -1.0) * mesh.sub_normal[i // 2]
     nj = np.where((j % 2 == 0)[:, None], 1.0, -1.0) * mesh.sub_normal[j // 2]
     ti, tj = mesh.corners[i // 2], mesh.corners[j // 2]
     poly = clip_to_plane(tj, ti[:, 0], ni)
     # Points on i (stratified) and on j (independent), as barycentrics.
-    u_i = stratified_points(i, j, seed, samples).reshape(-1, 2)
-    u_j = np.stack([pair_uniforms(i, j, seed, samples, 2),
-                    pair_uniforms(i, j, seed, samples, 3)], axis=2).reshape(-1, 2)
+    u_i = stratified_points(ki, kj, seed, samples).reshape(-1, 2)
+    u_j = np.stack([pair_uniforms(ki, kj, seed, samples, 2),
+                    pair_uniforms(ki, kj, seed, samples, 3)], axis=2).reshape(-1, 2)
     x = np.einsum("nv,nvi->ni", sample_uniform_triangle(u_i), np.repeat(ti, samples, axis=0))
     y = np.einsum("nv,nvi->ni", sample_uniform_triangle(u_j), np.repeat(tj, samples, axis=0))
     ni_s, nj_s = np.repeat(ni, samples, axis=0), np.repeat(nj, samples, axis=0)

@@ -144,7 +144,7 @@ class PatchMesh:
         return sums.reshape(self.n_patches, 3, values.shape[1])
 
 
-def build_mesh(prep, patch_size, max_patches=None):
+def build_mesh(prep, patch_size, max_patches=None, power_of_two=False):
     """Patches of the prepared scene ``prep``'s triangles at edge length about ``patch_size``.
 
     Parameters
@@ -155,6 +155,9 @@ def build_mesh(prep, patch_size, max_patches=None):
         with ``n = ceil(longest edge / patch_size)``.
     max_patches : int or None
         Raise ``ValueError`` (with the count and what to change) if the mesh would have more.
+    power_of_two : bool
+        Round every ``n`` up to a power of two (the leaves of hierarchical radiosity's
+        quadtrees, :mod:`.hierarchical`).
 
     Returns
     -------
@@ -166,6 +169,8 @@ def build_mesh(prep, patch_size, max_patches=None):
     longest = np.sqrt(np.max([np.einsum("ij,ij->i", e, e) for e in (e1, e2, e2 - e1)], axis=0))
     n = np.where(prep.tri_area > 0, np.ceil(longest / patch_size - 1e-9), 0).astype(np.int64)
     n = np.maximum(n, (prep.tri_area > 0).astype(np.int64))
+    if power_of_two:
+        n = np.where(n > 0, 1 << np.ceil(np.log2(np.maximum(n, 1))).astype(np.int64), 0)
     count = int(2 * np.sum(n * n))
     if max_patches is not None and count > max_patches:
         raise ValueError(f"radiosity: a patch size of {patch_size:g} gives {count:,} patches, "

@@ -113,7 +113,8 @@ def test_gauss_seidel_needs_fewer_sweeps_than_jacobi(box_system):
 
 def test_progressive_refinement_without_a_matrix_gives_the_dense_solution(box_system):
     prep, params, mesh, F, E, exact = box_system
-    sol = solve_scene(prep, RadiosityParams(**{**params.__dict__, "solver": "progressive"}))
+    sol = solve_scene(prep, RadiosityParams(**{**params.__dict__, "solver": "progressive",
+                                               "tolerance": 1e-4}))
     assert np.abs(sol.B - exact).max() <= error_bound(F, mesh.albedo,
                                                       sol.stats["radiosity_residual"])
 
@@ -153,3 +154,47 @@ def test_dense_solvers_refuse_meshes_beyond_their_memory(solver):
     prep = prepare(scenes.cornell_box(8, 8, "mesh"))
     with pytest.raises(ValueError, match="Progressive or Hierarchical"):
         solve_scene(prep, RadiosityParams(solver=solver, patch_size=0.02))
+
+
+# ------------------------------------------------------------------ hierarchical radiosity
+@pytest.fixture(scope="module")
+def quadtree_system():
+    prep = prepare(scenes.cornell_box(8, 8, "area"))
+    params = RadiosityParams(solver="hierarchical", patch_size=1.0, form_factor_samples=4,
+                             seed=4, tolerance=1e-6)
+    mesh = build_mesh(prep, params.patch_size, power_of_two=True)
+    F = ff.form_factor_matrix(mesh, prep.accel, 4, seed=4)
+    E, _ = source_term(mesh, prep, params)
+    exact = gauss_seidel(F, mesh.albedo, E, tol=1e-10).B
+    return prep, params, mesh, F, exact
+
+
+def test_quadtree_children_tile_their_parent_and_leaves_are_the_patches(quadtree_system):
+    from sampling_lab.core.radiosity.hierarchical import build_elements
+
+    prep, _, mesh, _, _ = quadtree_system
+    el = build_elements(prep, mesh)
+    inner = el.children[:, 0] >= 0
+    assert np.allclose(el.area[el.children[inner]].sum(axis=1), el.area[inner])
+    leaves = el.patch_sub >= 0
+    assert np.allclose(el.corners[leaves], mesh.corners[el.patch_sub[leaves]])
+    assert leaves.sum() == mesh.n_patches // 2
+    assert (el.parent[el.children[inner]] == np.nonzero(inner)[0][:, None]).all()
+
+
+def test_hierarchical_with_epsilon_zero_is_the_dense_system(quadtree_system):
+    prep, params, mesh, F, exact = quadtree_system
+    sol = solve_scene(prep, RadiosityParams(**{**params.__dict__, "epsilon": 0.0}))
+    assert np.abs(sol.B - exact).max() <= error_bound(F, mesh.albedo,
+                                                      sol.stats["radiosity_residual"])
+
+
+def test_hierarchical_error_shrinks_with_epsilon_and_links_grow(quadtree_system):
+    prep, params, mesh, F, exact = quadtree_system
+    errors, links = [], []
+    for eps in (0.1, 0.03, 0.01):
+        sol = solve_scene(prep, RadiosityParams(**{**params.__dict__, "epsilon": eps}))
+        errors.append(np.sqrt(np.mean((sol.B - exact) ** 2)))
+        links.append(sol.stats["radiosity_links"])
+    assert errors[0] > errors[1] > errors[2]
+    assert links[0] < links[1] < links[2] < (mesh.n_patches ** 2) / 4
