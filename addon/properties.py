@@ -89,6 +89,12 @@ class SamplingLabSettings(PropertyGroup):
     distribution: _property("distribution")
     use_strategy_views: _property("strategy_views", update=_update_render_passes)
     strategy_max_length: _property("strategy_max_length", update=_update_render_passes)
+    radiosity_solver: _property("radiosity_solver")
+    radiosity_patch_size: _property("radiosity_patch_size", soft_min=0.01, soft_max=2.0,
+                                    precision=3, subtype='DISTANCE', unit='LENGTH')
+    radiosity_samples: _property("radiosity_samples", soft_max=64)
+    radiosity_display: _property("radiosity_display")
+    use_radiosity_patches: _property("radiosity_patches", update=_update_render_passes)
     filter_type: _property("filter_type")
     filter_width: _property("filter_width", soft_max=5.0, precision=2, subtype='PIXEL')
 

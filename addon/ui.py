@@ -57,10 +57,11 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         layout, settings = settings_layout(self, context)
 
         light_tracing = settings.integrator == 'LIGHT'
+        radiosity = settings.integrator == 'RADIOSITY'
         col = layout.column()
         mis = col.column()
-        # Light tracing has one strategy per path: nothing to weight.
-        mis.active = not light_tracing
+        # Light tracing has one strategy per path, radiosity no strategies: nothing to weight.
+        mis.active = not (light_tracing or radiosity)
         mis.prop(settings, "mis_heuristic")
         # Each heuristic's parameter is shown only with the heuristic that reads it.
         if settings.mis_heuristic == 'POWER':
@@ -72,11 +73,14 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         # BSDF sampling alone never samples lights, so the light sampler's options do nothing;
         # light tracing always starts at a light.
         sub.active = light_tracing or settings.mis_heuristic != 'BSDF'
+        if radiosity:
+            # Radiosity samples lights only in its final gather (core.render.used_settings).
+            sub.active = settings.radiosity_display == 'FINAL_GATHER'
         sub.prop(settings, "light_selection")
         area = sub.column()
         # Only the path tracer samples emitters toward a receiving point: light and BDPT
         # paths start on emitters sampled by area (core.render.used_settings).
-        area.active = sub.active and settings.integrator == 'PATH'
+        area.active = sub.active and settings.integrator in {'PATH', 'RADIOSITY'}
         area.prop(settings, "light_sampling")
         # Also draws mixed materials' components: active whatever the light sampling.
         col.prop(settings, "distribution")
@@ -101,6 +105,27 @@ class SAMPLINGLAB_RENDER_PT_strategy_views(SamplingLabButtonsPanel, Panel):
         col.prop(settings, "strategy_max_length")
 
 
+class SAMPLINGLAB_RENDER_PT_radiosity(SamplingLabButtonsPanel, Panel):
+    bl_label = "Radiosity"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout, settings = settings_layout(self, context)
+
+        col = layout.column()
+        # Only the Radiosity integrator meshes the scene and solves; the others ignore these.
+        col.active = settings.integrator == 'RADIOSITY'
+        col.prop(settings, "radiosity_solver")
+        col.prop(settings, "radiosity_patch_size")
+        col.prop(settings, "radiosity_samples")
+        col.prop(settings, "radiosity_display")
+        col.prop(settings, "use_radiosity_patches")
+        if settings.integrator == 'RADIOSITY':
+            note = layout.column(align=True)
+            note.label(text="Biased: not consistent unless the patches shrink.", icon='INFO')
+            note.label(text="Every material is treated as diffuse (its Base Color).")
+
+
 class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
     bl_label = "Light Paths"
 
@@ -108,6 +133,8 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         layout, settings = settings_layout(self, context)
 
         col = layout.column()
+        # Radiosity has no path bounces: its transport is the solved system.
+        col.active = settings.integrator != 'RADIOSITY'
         col.prop(settings, "max_bounces")
         col.prop(settings, "use_russian_roulette")
         sub = col.column()
@@ -185,6 +212,7 @@ classes = (
     SAMPLINGLAB_RENDER_PT_sampling,
     SAMPLINGLAB_RENDER_PT_light_sampling,
     SAMPLINGLAB_RENDER_PT_strategy_views,
+    SAMPLINGLAB_RENDER_PT_radiosity,
     SAMPLINGLAB_RENDER_PT_light_paths,
     SAMPLINGLAB_RENDER_PT_film,
     SAMPLINGLAB_RENDER_PT_performance,
