@@ -92,9 +92,19 @@ class Radiosity(Integrator):
 
     # ------------------------------------------------------------------ the solve
     def prepare_render(self, progress=None, cancel=None):
-        """Solve the radiosity system (once): returns whether ``cancel`` stopped it."""
+        """Solve the radiosity system (once): returns whether ``cancel`` stopped it.
+
+        The solution does not depend on the camera, so it is kept with the prepared scene:
+        a render that reuses it (Persistent Data, the next viewport redraw) reuses the
+        solution of the same parameters too."""
         if self.solution is None:
-            sol = solve_scene(self.prep, self.params, progress, cancel)
+            cache = self.prep.__dict__.setdefault("radiosity_solutions", {})
+            key = repr(self.params)
+            sol = cache.get(key)
+            if sol is None:
+                sol = solve_scene(self.prep, self.params, progress, cancel)
+                if not sol.cancelled:
+                    cache[key] = sol
             self.solution = sol
             # Emission is added exactly along rays; what the patches carry is reflected light.
             self.reflected = np.maximum(sol.B - sol.emission, 0.0)

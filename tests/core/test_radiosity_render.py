@@ -100,3 +100,16 @@ def test_a_cancelled_radiosity_render_stops_in_the_solve():
 def test_a_bad_patch_size_is_a_clear_error():
     with pytest.raises(ValueError, match="radiosity_patch_size"):
         _render(scenes.cornell_box(8, 8, "area"), radiosity_patch_size=0.0)
+
+
+def test_a_reused_prepared_scene_reuses_the_solution_for_a_new_camera():
+    scene = scenes.cornell_box(8, 8, "area")
+    first = _render(scene)
+    calls = []
+    again = render(scene, RenderSettings(**FAST), prepared=first.prepared,
+                   progress=lambda f, t: calls.append(t))
+    assert not any(t.startswith("Radiosity") for t in calls)
+    assert np.array_equal(again.combined(), first.combined())
+    other = render(scene, RenderSettings(**{**FAST, "radiosity_patch_size": 0.7}),
+                   prepared=first.prepared)
+    assert other.stats["radiosity_patch_count"] != first.stats["radiosity_patch_count"]
