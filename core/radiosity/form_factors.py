@@ -28,8 +28,8 @@ from ..sampling.stream import hash_u32, u32_to_unit_float
 from ..sampling.warps import sample_uniform_triangle
 from ..scene import VIS_SHADOW
 
-# Shadow rays per pair and batch: bounds the memory of one batch of pairs (about 1 KB a ray).
-RAYS_PER_BATCH = 1 << 18
+# Shadow rays per batch of pairs: bounds the memory of one batch (about 1 KB a ray).
+RAYS_PER_BATCH = 1 << 16
 
 
 def point_polygon_form_factor(x, n, poly):

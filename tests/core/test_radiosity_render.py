@@ -113,3 +113,16 @@ def test_a_reused_prepared_scene_reuses_the_solution_for_a_new_camera():
     other = render(scene, RenderSettings(**{**FAST, "radiosity_patch_size": 0.7}),
                    prepared=first.prepared)
     assert other.stats["radiosity_patch_count"] != first.stats["radiosity_patch_count"]
+
+
+def test_the_benchmark_runs_and_writes_only_its_report(tmp_path):
+    from sampling_lab import cli
+
+    out = tmp_path / "bench"
+    code = cli.main(["bench-radiosity", "--quick", "--size", "4x4", "--seconds", "0.3",
+                     "--reference-seconds", "0.3", "--output", str(out)])
+    assert code == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "RADIOSITY_BENCH.md", "radiosity_equal_time.csv", "radiosity_scaling.csv"]
+    text = (out / "RADIOSITY_BENCH.md").read_text()
+    assert "radiosity, gouraud" in text and "path tracing" in text
