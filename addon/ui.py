@@ -118,6 +118,10 @@ class SAMPLINGLAB_RENDER_PT_radiosity(SamplingLabButtonsPanel, Panel):
         col.prop(settings, "radiosity_solver")
         col.prop(settings, "radiosity_patch_size")
         col.prop(settings, "radiosity_samples")
+        adaptive = col.column()
+        # Hierarchical radiosity's links adapt instead (core.render.used_settings).
+        adaptive.active = col.active and settings.radiosity_solver != 'HIERARCHICAL'
+        adaptive.prop(settings, "radiosity_adaptive")
         col.prop(settings, "radiosity_display")
         col.prop(settings, "use_radiosity_patches")
         if settings.integrator == 'RADIOSITY':

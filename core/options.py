@@ -426,6 +426,11 @@ OPTIONS = {o.name: o for o in (
            "Radiosity only: points per patch pair for each form factor (with one visibility ray "
            "each), and per patch for the light it receives directly from lamps. Their noise "
            "stays in the solution as a fixed error", 8, minimum=1, maximum=1024),
+    Option("radiosity_adaptive", float, "Adaptive Threshold",
+           "Radiosity only, not with the Hierarchical solver: after a solve, split the patches "
+           "whose radiosity differs from their corners' by more than this fraction of the "
+           "brightest patch into four, and solve again (two rounds at most). 0 keeps the uniform "
+           "mesh", 0.0, minimum=0.0, maximum=1.0),
     _menu("radiosity_display", "Display",
           "Radiosity only: how camera rays read the solved radiosity", "gouraud",
           _choices(RADIOSITY_DISPLAYS, _RADIOSITY_DISPLAY_TEXT)),

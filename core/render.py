@@ -65,7 +65,8 @@ class RenderSettings:
 
     Radiosity (``integrator='radiosity'``, :mod:`core.integrators.radiosity`):
     ``radiosity_solver``, ``radiosity_patch_size``, ``radiosity_samples`` (form-factor and
-    lamp samples), ``radiosity_display`` and ``radiosity_patches`` (the patches pass).
+    lamp samples), ``radiosity_adaptive`` (threshold of adaptive subdivision, 0 off),
+    ``radiosity_display`` and ``radiosity_patches`` (the patches pass).
 
     ``region`` is a render region ``(x0, y0, x1, y1)``: frame pixels ``x0 <= x < x1`` (from the
     left) and ``y0 <= y < y1`` (from the bottom); None renders the whole frame.
@@ -93,6 +94,7 @@ class RenderSettings:
     radiosity_solver: str = DEFAULTS["radiosity_solver"]
     radiosity_patch_size: float = DEFAULTS["radiosity_patch_size"]
     radiosity_samples: int = DEFAULTS["radiosity_samples"]
+    radiosity_adaptive: float = DEFAULTS["radiosity_adaptive"]
     radiosity_display: str = DEFAULTS["radiosity_display"]
     radiosity_patches: bool = DEFAULTS["radiosity_patches"]
     region: tuple = None
@@ -204,7 +206,7 @@ def used_settings(settings):
 
 
 RADIOSITY_OPTIONS = ("radiosity_solver", "radiosity_patch_size", "radiosity_samples",
-                     "radiosity_display", "radiosity_patches")
+                     "radiosity_adaptive", "radiosity_display", "radiosity_patches")
 
 
 def _radiosity_used(settings):
@@ -218,6 +220,9 @@ def _radiosity_used(settings):
         "light_sampling": settings.light_sampling if gather else na,
         "distribution": settings.distribution,
         **{name: getattr(settings, name) for name in RADIOSITY_OPTIONS},
+        # Hierarchical radiosity's links adapt instead; its leaves stay uniform.
+        "radiosity_adaptive": (settings.radiosity_adaptive
+                               if settings.radiosity_solver != "hierarchical" else na),
     }
 
 

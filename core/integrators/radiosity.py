@@ -25,6 +25,7 @@ Materials
 Parameters
     ``radiosity_solver`` (Jacobi, Gauss-Seidel, progressive refinement, hierarchical),
     ``radiosity_patch_size``, ``radiosity_samples`` (form-factor and lamp samples),
+    ``radiosity_adaptive`` (adaptive subdivision's threshold; not with hierarchical),
     ``radiosity_display``, ``radiosity_patches`` (the "Radiosity Patches" pass). The path
     tracer's bounce limit, Russian roulette and MIS settings do not apply.
 When to use it
@@ -57,6 +58,8 @@ def params_from_settings(settings):
     return RadiosityParams(solver=settings.radiosity_solver,
                            patch_size=settings.radiosity_patch_size,
                            form_factor_samples=settings.radiosity_samples,
+                           adaptive=(settings.radiosity_adaptive
+                                     if settings.radiosity_solver != "hierarchical" else 0.0),
                            seed=settings.seed)
 
 

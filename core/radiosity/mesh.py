@@ -76,6 +76,11 @@ class PatchMesh:
         Emitted radiosity ``E = pi Le`` (W / m^2) of each patch.
     corner_rows, corner_weights
         Gouraud averaging (see :meth:`corner_values`).
+    node_children, node_leaf, base_node
+        Adaptive refinement (:mod:`.adaptive`), or None for a uniform mesh: a quadtree below
+        every grid sub-triangle, ``base_node (b,)`` its root node, ``node_children (k, 4)``
+        (-1 at leaves; children in the parent's own frame: corner 0, 1, 2, middle) and
+        ``node_leaf (k,)`` the sub-triangle of a leaf node.
     """
 
     corners: np.ndarray
@@ -89,6 +94,9 @@ class PatchMesh:
     corner_indptr: np.ndarray = None
     corner_rows: np.ndarray = None
     corner_weights: np.ndarray = None
+    node_children: np.ndarray = None
+    node_leaf: np.ndarray = None
+    base_node: np.ndarray = None
 
     @property
     def n_patches(self):
@@ -128,11 +136,32 @@ class PatchMesh:
         fu, fv = gu - i, gv - j
         down = (fu + fv > 1.0) & (i + j <= n - 2)
         sub = self.first[prim] + local_index(i, j, down, n)
-        w_up = np.stack([1.0 - fu - fv, fu, fv], axis=1)
-        w_down = np.stack([fu + fv - 1.0, 1.0 - fu, 1.0 - fv], axis=1)
-        weights = np.clip(np.where(down[:, None], w_down, w_up), 0.0, 1.0)
+        # Coordinates in the sub-triangle's own frame (weights of its corners 1 and 2).
+        a, b = np.where(down, 1.0 - fu, fu), np.where(down, 1.0 - fv, fv)
+        if self.node_children is not None:
+            sub, a, b = self._descend(sub, a, b)
+        weights = np.clip(np.stack([1.0 - a - b, a, b], axis=1), 0.0, 1.0)
         weights /= np.maximum(weights.sum(axis=1, keepdims=True), 1e-300)
         return 2 * sub + np.asarray(back, np.int64), weights
+
+    def _descend(self, base, a, b):
+        """Leaf sub-triangles and own-frame coordinates below grid sub-triangles ``base``."""
+        node = self.base_node[base]
+        while True:
+            inner = np.nonzero(self.node_children[node, 0] >= 0)[0]
+            if inner.size == 0:
+                return self.node_leaf[node], a, b
+            ai, bi = a[inner], b[inner]
+            child = np.where(ai >= 0.5, 1, np.where(bi >= 0.5, 2,
+                                                    np.where(ai + bi < 0.5, 0, 3)))
+            a = a.copy()
+            b = b.copy()
+            a[inner] = np.select([child == 0, child == 1, child == 2], [2 * ai, 2 * ai - 1, 2 * ai],
+                                 1 - 2 * ai)
+            b[inner] = np.select([child == 0, child == 1, child == 2], [2 * bi, 2 * bi, 2 * bi - 1],
+                                 1 - 2 * bi)
+            node = node.copy()
+            node[inner] = self.node_children[node[inner], child]
 
     def corner_values(self, values):
         """Gouraud corner values ``(p, 3, c)`` of per-patch ``values (p, c)``: at each corner,

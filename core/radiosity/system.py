@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import adaptive
 from . import form_factors as ff
 from .mesh import build_mesh
 from .solvers import SOLVERS, gauss_seidel, jacobi, southwell
@@ -50,9 +51,10 @@ class RadiosityParams:
     epsilon : float
         Hierarchical radiosity's form-factor threshold: pairs whose estimated form factor is
         below it are linked as they are, others subdivided.
-    adaptive : bool
-        Split patches where the solved radiosity changes fast, and solve again
-        (:mod:`.adaptive`).
+    adaptive : float
+        Adaptive subdivision's threshold (:mod:`.adaptive`): split the patches whose relative
+        radiosity gradient exceeds it and solve again (at most two rounds); 0 keeps the
+        uniform mesh. Not with the hierarchical solver (its links already adapt).
     seed : int
     """
 
@@ -61,7 +63,7 @@ class RadiosityParams:
     form_factor_samples: int = 16
     tolerance: float = 1e-4
     epsilon: float = 0.02
-    adaptive: bool = False
+    adaptive: float = 0.0
     seed: int = 0
 
 
@@ -121,6 +123,21 @@ def solve_scene(prep, params: RadiosityParams, progress=None, cancel=None, mesh=
     if params.solver == "hierarchical":
         from .hierarchical import solve_hierarchical
         return solve_hierarchical(prep, params, progress, cancel)
+    sol = _solve_mesh(prep, params, progress, cancel, mesh)
+    limit = MAX_DENSE_PATCHES if params.solver in ("jacobi", "gauss_seidel") else MAX_PATCHES
+    rounds = 0
+    while params.adaptive > 0 and rounds < adaptive.ROUNDS and not sol.cancelled:
+        finer = adaptive.refine(sol.mesh, sol.B, params.adaptive, limit)
+        if finer is None:
+            break
+        rounds += 1
+        sol = _solve_mesh(prep, params, progress, cancel, finer)
+    sol.stats["radiosity_adaptive_rounds"] = rounds
+    return sol
+
+
+def _solve_mesh(prep, params, progress, cancel, mesh):
+    """One solve of ``mesh`` (None: the uniform mesh at ``params.patch_size``)."""
     t0 = time.perf_counter()
     dense = params.solver in ("jacobi", "gauss_seidel")
     if mesh is None:

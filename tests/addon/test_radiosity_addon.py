@@ -9,7 +9,7 @@ import scenes as S
 from scenes import ENGINE_ID
 
 RADIOSITY_PROPS = ("radiosity_solver", "radiosity_patch_size", "radiosity_samples",
-                   "radiosity_display", "use_radiosity_patches")
+                   "radiosity_adaptive", "radiosity_display", "use_radiosity_patches")
 
 
 class _Recorder:
@@ -48,6 +48,8 @@ def test_radiosity_panel_is_active_only_for_radiosity(empty_scene, integrator):
     drawn = _draw("SAMPLINGLAB_RENDER_PT_radiosity", empty_scene)
     assert set(drawn) == set(RADIOSITY_PROPS)
     assert all(active == (integrator == 'RADIOSITY') for active in drawn.values())
+    empty_scene.sampling_lab.radiosity_solver = 'HIERARCHICAL'
+    assert _draw("SAMPLINGLAB_RENDER_PT_radiosity", empty_scene)["radiosity_adaptive"] is False
     # Bounces and roulette do nothing for radiosity.
     paths = _draw("SAMPLINGLAB_RENDER_PT_light_paths", empty_scene)
     assert paths["max_bounces"] == (integrator != 'RADIOSITY')

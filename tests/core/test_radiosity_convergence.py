@@ -76,3 +76,24 @@ def test_at_a_fixed_mesh_more_samples_leave_the_bias(room):
     assert abs(diff.mean()) <= z * se
     # Power: had the error dropped by a quarter, this would have seen it.
     assert z * se < 0.25 * bias2.mean()
+
+
+def test_adaptive_subdivision_lowers_the_error_of_its_starting_mesh(room):
+    scene, ref, var_ref = room
+
+    def run(adaptive):
+        r = render(scene, RenderSettings(integrator="radiosity", radiosity_patch_size=1.0,
+                                         radiosity_adaptive=adaptive, radiosity_samples=8,
+                                         spp=1024, seed=1))
+        image = r.combined()[..., :3].astype(np.float64)
+        return _bias2(image, r.variance().astype(np.float64), ref, var_ref), r.stats
+
+    uniform, stats_u = run(0.0)
+    adapted, stats_a = run(0.05)
+    assert stats_a["radiosity_adaptive_rounds"] >= 1
+    assert stats_a["radiosity_patch_count"] > stats_u["radiosity_patch_count"]
+    diff = uniform - adapted
+    z = z_for_false_failure(1e-4)
+    print(f"adaptive: {stats_u['radiosity_patch_count']} -> {stats_a['radiosity_patch_count']} "
+          f"patches, relative squared bias {uniform.mean():.5f} -> {adapted.mean():.5f}")
+    assert diff.mean() > z * diff.std(ddof=1) / np.sqrt(diff.size)
