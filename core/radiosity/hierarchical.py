@@ -151,8 +151,9 @@ def refine(el, epsilon, check=None):
     roots = np.nonzero(el.parent < 0)[0]
     root_sides = np.concatenate([2 * roots, 2 * roots + 1])
     eps_plane = ff.plane_eps(el)
-    links = []
-    frontier = []
+    none = np.zeros(0, np.int64)
+    links = [(none, none)]
+    frontier = [(none, none)]
     step = max(1, ROOT_BLOCK // max(root_sides.size, 1))
     for a in range(0, root_sides.size, step):
         p = np.repeat(root_sides[a:a + step], root_sides.size)

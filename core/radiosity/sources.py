@@ -5,7 +5,7 @@ Lamps (point, spot, sun, area) and the world are not patches: they emit but do n
 Each patch receives ``H_d = (1 / A) int_patch int L_i cos dw dA`` from them, estimated with
 ``samples`` stratified points per patch and one next-event sample of every lamp per point
 (the light families' own ``sample_li``, so every lamp kind is modelled as the path tracer
-models it), with a shadow ray. The reflected part ``rho H_d`` then joins the patches' own
+models it; a constant world by cosine-distributed directions), with a shadow ray. The reflected part ``rho H_d`` then joins the patches' own
 emission as the source term of the radiosity system: the lamps' light is "shot" directly,
 and only its reflections travel through form factors. The estimate is unbiased for the
 patch's mean irradiance; its noise stays in the solution as a fixed error (it does not
@@ -18,7 +18,8 @@ import numpy as np
 
 from ..lights.base import LiSamples
 from ..lights.sampler import AREA, POINT, SUN, WORLD
-from ..sampling.warps import sample_uniform_triangle
+from ..sampling.warps import (frame_from_normal, sample_cosine_hemisphere,
+                              sample_uniform_triangle, to_world)
 from ..scene import VIS_SHADOW
 from .form_factors import pair_uniforms, stratified_points
 
@@ -59,10 +60,24 @@ def lamp_irradiance(mesh, prep, samples=8, seed=0):
         u_light = np.stack([pair_uniforms(patch, patch, seed + 211 + k, samples, 0),
                             pair_uniforms(patch, patch, seed + 211 + k, samples, 1)],
                            axis=2).reshape(-1, 2)
-        total += _one_lamp(prep, family, li, x, n, prim, u_light)
+        if family is prep.lights.families[WORLD] and family.dist is None:
+            total += _constant_world(prep, family.color, x, n, prim, u_light)
+        else:
+            total += _one_lamp(prep, family, li, x, n, prim, u_light)
     per = total.reshape(p, samples, 3)
     se = per.std(axis=1, ddof=1) / np.sqrt(samples) if samples > 1 else np.zeros((p, 3))
     return per.mean(axis=1), se
+
+
+def _constant_world(prep, color, x, n, prim, u):
+    """Irradiance estimates ``(k, 3)`` from a constant world: cosine-distributed directions,
+    each worth ``pi L`` if it escapes (no noise where the sky is unobstructed; the light
+    sampler's uniform sphere would waste half its samples below the horizon)."""
+    s, t = frame_from_normal(n)
+    wi = to_world(sample_cosine_hemisphere(u), s, t, n)
+    o = prep.accel.offset_origin(x, n, prim, wi)
+    escaped = ~prep.accel.occluded(o, wi, np.full(x.shape[0], np.inf), VIS_SHADOW)
+    return np.where(escaped[:, None], np.pi * np.asarray(color, np.float64)[None, :], 0.0)
 
 
 def _one_lamp(prep, family, li, x, n, prim, u):

@@ -120,6 +120,8 @@ def solve_scene(prep, params: RadiosityParams, progress=None, cancel=None, mesh=
     """
     if params.solver not in SOLVERS:
         raise ValueError(f"radiosity solver {params.solver!r} is not one of {', '.join(SOLVERS)}")
+    if not (prep.tri_area > 0).any():
+        return _nothing_to_solve(prep, params)
     if params.solver == "hierarchical":
         from .hierarchical import solve_hierarchical
         return solve_hierarchical(prep, params, progress, cancel)
@@ -181,6 +183,15 @@ def source_term(mesh, prep, params):
     world, and the lamp part's standard error ``(p, 3)``."""
     H, se = lamp_irradiance(mesh, prep, params.form_factor_samples, params.seed)
     return mesh.emission + mesh.albedo * H, mesh.albedo * se
+
+
+def _nothing_to_solve(prep, params):
+    """The solution of a scene without surfaces: no patches."""
+    mesh = build_mesh(prep, params.patch_size)
+    E = np.zeros((0, 3))
+    stats = {"radiosity_patch_count": 0, "radiosity_solver": params.solver,
+             "radiosity_iterations": 0, "radiosity_residual": 0.0, "radiosity_bias": BIAS_NOTE}
+    return RadiositySolution(mesh, E, E, np.zeros((0, 3, 3)), stats)
 
 
 def _cancelled(mesh, E, stats):

@@ -126,3 +126,23 @@ def test_the_benchmark_runs_and_writes_only_its_report(tmp_path):
         "RADIOSITY_BENCH.md", "radiosity_equal_time.csv", "radiosity_scaling.csv"]
     text = (out / "RADIOSITY_BENCH.md").read_text()
     assert "radiosity, gouraud" in text and "path tracing" in text
+
+
+@pytest.mark.parametrize("lamp", ["sun", "world"])
+def test_an_open_plane_under_the_sun_or_the_sky_is_exact(lamp):
+    # Nothing occludes the plane, so every patch's irradiance is exact: the sun's S cos, or
+    # pi L from a constant sky (cosine-sampled directions that all escape).
+    from sampling_lab.core import lights as L
+    from sampling_lab.core.scene import Lights, Materials, Scene
+
+    mats = Materials.from_lists(["W"], [(0.5,) * 3], [(0, 0, 0)])
+    v = np.array([[-10, -10, 0], [10, -10, 0], [10, 10, 0], [-10, 10, 0]], float)
+    d = np.array((0.3, 0.2, -1.0))
+    lights = L.sun_light(d, (1, 1, 1), 3.0) if lamp == "sun" else Lights.empty()
+    world = (0, 0, 0) if lamp == "sun" else (0.2, 0.2, 0.2)
+    camera = scenes.Camera(scenes.look_at((0, 0, 3), (0, 0, 0), up=(0, 1, 0)), 8, 8)
+    scene = Scene(v, [[0, 1, 2], [0, 2, 3]], np.zeros(2), mats, lights, camera,
+                  world_color=world)
+    expected = 0.5 * 3.0 / np.linalg.norm(d) / np.pi if lamp == "sun" else 0.5 * 0.2
+    image = _render(scene, radiosity_patch_size=5.0).combined()[..., :3]
+    assert np.allclose(image, expected, rtol=1e-5)
