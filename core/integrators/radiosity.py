@@ -115,7 +115,15 @@ class Radiosity(Integrator):
         return self.solution.cancelled
 
     def messages(self):
-        return approximation_messages(self.prep.scene) + [f"radiosity: {BIAS_NOTE}"]
+        """Approximations, what was solved (Blender's stats line has no room for it), bias."""
+        out = approximation_messages(self.prep.scene)
+        st = self.solution.stats if self.solution is not None else {}
+        if st:
+            out.append(f"radiosity: {st.get('radiosity_patch_count', 0):,} patches, "
+                       f"{st.get('radiosity_solver', '')}, "
+                       f"{st.get('radiosity_iterations', 0)} sweeps or shots, residual "
+                       f"{st.get('radiosity_residual', 0.0):.3g}")
+        return out + [f"radiosity: {BIAS_NOTE}"]
 
     def stats(self):
         return dict(self.solution.stats) if self.solution is not None else {}
