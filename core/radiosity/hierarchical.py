@@ -234,7 +234,7 @@ def _pull(el, B):
 
 def solve_hierarchical(prep, params, progress=None, cancel=None):
     """Hierarchical radiosity of ``prep`` (see :func:`.system.solve_scene`)."""
-    from .system import MAX_PATCHES, RadiositySolution, _checker, source_term
+    from .system import BIAS_NOTE, MAX_PATCHES, RadiositySolution, progress_check, source_term
 
     t0 = time.perf_counter()
     if prep.scene.n_triangles > MAX_ROOTS:
@@ -248,8 +248,8 @@ def solve_hierarchical(prep, params, progress=None, cancel=None):
     leaf_sides = np.concatenate([2 * leaves, 2 * leaves + 1])
     patch_of = np.concatenate([2 * el.patch_sub[leaves], 2 * el.patch_sub[leaves] + 1])
     stats = {"radiosity_patch_count": mesh.n_patches, "radiosity_solver": "hierarchical",
-             "radiosity_elements": el.n}
-    check = _checker(progress, cancel, 0.0, 1.0, "hierarchical")
+             "radiosity_elements": el.n, "radiosity_bias": BIAS_NOTE}
+    check = progress_check(progress, cancel, 0.0, 1.0, "hierarchical")
     links = refine(el, params.epsilon, check)
     t_refine = time.perf_counter()
     if links is None:

@@ -3,13 +3,13 @@ directly, shot once before the solve.
 
 Lamps (point, spot, sun, area) and the world are not patches: they emit but do not reflect.
 Each patch receives ``H_d = (1 / A) int_patch int L_i cos dw dA`` from them, estimated with
-``samples`` stratified points per patch and one next-event sample of every lamp per point
-(the light families' own ``sample_li``, so every lamp kind is modelled as the path tracer
-models it; a constant world by cosine-distributed directions), with a shadow ray. The reflected part ``rho H_d`` then joins the patches' own
-emission as the source term of the radiosity system: the lamps' light is "shot" directly,
-and only its reflections travel through form factors. The estimate is unbiased for the
-patch's mean irradiance; its noise stays in the solution as a fixed error (it does not
-average out across pixels), which the tests bound with the same standard errors.
+``samples`` stratified points per patch and one sample of every lamp per point (the light
+families' own ``sample_li``, so every lamp kind is modelled as the path tracer models it; a
+constant world by cosine-distributed directions), with a shadow ray. The reflected part
+``rho H_d`` then joins the patches' own emission as the source term of the radiosity
+system: the lamps' light is "shot" directly, and only its reflections travel through form
+factors. The estimate is unbiased for the patch's mean irradiance; its noise stays in the
+solution as a fixed error (it does not average out across pixels).
 """
 
 from __future__ import annotations

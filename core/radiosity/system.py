@@ -92,7 +92,7 @@ class RadiositySolution:
     cancelled: bool = False
 
 
-def _checker(progress, cancel, start, span, what):
+def progress_check(progress, cancel, start, span, what):
     """``check(fraction)`` for a solver step: reports ``start + span * fraction`` of the solve
     and returns whether the render was cancelled."""
     def check(fraction):
@@ -155,19 +155,20 @@ def _solve_mesh(prep, params, progress, cancel, mesh):
     stats = {"radiosity_patch_count": mesh.n_patches, "radiosity_solver": params.solver}
     if dense:
         F = ff.form_factor_matrix(mesh, prep.accel, S, seed,
-                                  _checker(progress, cancel, 0.0, 0.5, "form factors"))
+                                  progress_check(progress, cancel, 0.0, 0.5, "form factors"))
         t_ff = time.perf_counter()
         if F is None:
             return _cancelled(mesh, E, stats)
         run = jacobi if params.solver == "jacobi" else gauss_seidel
+        name = params.solver.replace("_", "-")
         sol = run(F, rho, E, params.tolerance,
-                  check=_checker(progress, cancel, 0.5, 0.5, params.solver.replace("_", "-")))
+                  check=progress_check(progress, cancel, 0.5, 0.5, name))
         stats["radiosity_matrix_mb"] = F.nbytes / 1e6
     else:
         t_ff = t_mesh
         sol = southwell(lambda i: ff.form_factor_column(mesh, prep.accel, i, S, seed),
                         mesh.area, rho, E, params.tolerance,
-                        check=_checker(progress, cancel, 0.0, 1.0, "progressive refinement"))
+                        check=progress_check(progress, cancel, 0.0, 1.0, "progressive refinement"))
         stats["radiosity_unshot_start"] = sol.unshot[0] if sol.unshot else 0.0
     t_end = time.perf_counter()
     stats.update({"radiosity_iterations": sol.iterations, "radiosity_residual": sol.residual,

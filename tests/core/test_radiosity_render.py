@@ -31,7 +31,8 @@ def test_furnace_pixels_are_emission_over_one_minus_albedo(display):
 def test_final_gather_of_the_furnace_is_unbiased_for_the_solution():
     # One gather bounce: Le + rho Le (next-event estimation) + rho R / pi (the gather ray) = 2
     # on average; pixels are independent estimates, so their spread gives the interval.
-    result = _render(scenes.furnace(subdivisions=1, width=16, height=16), radiosity_display="final_gather",
+    result = _render(scenes.furnace(subdivisions=1, width=16, height=16),
+                     radiosity_display="final_gather",
                      radiosity_samples=16, spp=4)
     pixels = result.combined()[..., 0].reshape(-1)
     assert_mean_within_ci(pixels, 2.0, what="final-gather pixel")
