@@ -37,7 +37,7 @@ from .mesh import build_mesh, local_index
 # Root pairs (all input triangles' sides against each other) are formed in blocks of this many.
 ROOT_BLOCK = 1 << 20
 # Input triangles beyond which linking every pair of roots would take too long.
-MAX_ROOTS = 20_000
+MAX_ROOTS = 4_000
 
 
 @dataclass
