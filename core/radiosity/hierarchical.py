@@ -243,13 +243,13 @@ def solve_hierarchical(prep, params, progress=None, cancel=None):
                          f"{MAX_ROOTS:,}: choose the Progressive solver")
     mesh = build_mesh(prep, params.patch_size, MAX_PATCHES, power_of_two=True)
     el = build_elements(prep, mesh)
-    E, lamp_se = source_term(mesh, prep, params)
+    check = progress_check(progress, cancel, 0.0, 1.0, "hierarchical")
+    E, lamp_se = source_term(mesh, prep, params, check)
     leaves = np.nonzero(el.patch_sub >= 0)[0]
     leaf_sides = np.concatenate([2 * leaves, 2 * leaves + 1])
     patch_of = np.concatenate([2 * el.patch_sub[leaves], 2 * el.patch_sub[leaves] + 1])
     stats = {"radiosity_patch_count": mesh.n_patches, "radiosity_solver": "hierarchical",
              "radiosity_elements": el.n, "radiosity_bias": BIAS_NOTE}
-    check = progress_check(progress, cancel, 0.0, 1.0, "hierarchical")
     links = refine(el, params.epsilon, check)
     t_refine = time.perf_counter()
     if links is None:

@@ -21,7 +21,7 @@ from ..lights.sampler import AREA, POINT, SUN, WORLD
 from ..sampling.warps import (frame_from_normal, sample_cosine_hemisphere,
                               sample_uniform_triangle, to_world)
 from ..scene import VIS_SHADOW
-from .form_factors import pair_uniforms, stratified_points
+from .form_factors import RAYS_PER_BATCH, pair_uniforms, stratified_points
 
 
 def lamp_families(lights):
@@ -34,7 +34,7 @@ def lamp_families(lights):
     return out
 
 
-def lamp_irradiance(mesh, prep, samples=8, seed=0):
+def lamp_irradiance(mesh, prep, samples=8, seed=0, check=None):
     """Mean irradiance ``(p, 3)`` of every patch from the lamps and the world, and its standard
     error ``(p, 3)``.
 
@@ -44,16 +44,30 @@ def lamp_irradiance(mesh, prep, samples=8, seed=0):
     prep : core.prepare.PreparedScene
     samples : int
         Points per patch (one light sample of every lamp each).
+    check : callable(fraction) -> bool or None
+        Called between blocks of patches (about :data:`.form_factors.RAYS_PER_BATCH` rays
+        each); True stops, leaving the rest zero.
     """
     p = mesh.n_patches
     sources = lamp_families(prep.lights)
+    H, se = np.zeros((p, 3)), np.zeros((p, 3))
     if not sources or p == 0:
-        return np.zeros((p, 3)), np.zeros((p, 3))
-    patch = np.arange(p)
+        return H, se
+    step = max(1, RAYS_PER_BATCH // samples)
+    for a in range(0, p, step):
+        patch = np.arange(a, min(a + step, p))
+        H[patch], se[patch] = _block(mesh, prep, patch, sources, samples, seed)
+        if check is not None and check(min(a + step, p) / p):
+            break
+    return H, se
+
+
+def _block(mesh, prep, patch, sources, samples, seed):
+    """Irradiance and standard error ``(k, 3)`` of the patches ``patch (k,)``."""
     u = stratified_points(patch, patch, seed + 101, samples).reshape(-1, 2)
     x = np.einsum("nv,nvi->ni", sample_uniform_triangle(u),
                   np.repeat(mesh.patch_corners(patch), samples, axis=0))
-    n = np.repeat(mesh.normal, samples, axis=0)
+    n = np.repeat(mesh.normal[patch], samples, axis=0)
     prim = np.repeat(mesh.sub_tri[patch // 2], samples)
     total = np.zeros((x.shape[0], 3))
     for k, (family, li) in enumerate(sources):
@@ -64,8 +78,9 @@ def lamp_irradiance(mesh, prep, samples=8, seed=0):
             total += _constant_world(prep, family.color, x, n, prim, u_light)
         else:
             total += _one_lamp(prep, family, li, x, n, prim, u_light)
-    per = total.reshape(p, samples, 3)
-    se = per.std(axis=1, ddof=1) / np.sqrt(samples) if samples > 1 else np.zeros((p, 3))
+    per = total.reshape(patch.size, samples, 3)
+    se = (per.std(axis=1, ddof=1) / np.sqrt(samples) if samples > 1
+          else np.zeros((patch.size, 3)))
     return per.mean(axis=1), se
 
 

@@ -148,7 +148,8 @@ def _solve_mesh(prep, params, progress, cancel, mesh):
     elif dense and mesh.n_patches > MAX_DENSE_PATCHES:
         raise ValueError(f"radiosity: {mesh.n_patches:,} patches are more than the "
                          f"{MAX_DENSE_PATCHES:,} a dense solver can hold")
-    E, lamp_se = source_term(mesh, prep, params)
+    E, lamp_se = source_term(mesh, prep, params,
+                             progress_check(progress, cancel, 0.0, 0.05, "lamps"))
     t_mesh = time.perf_counter()
     rho = mesh.albedo
     S, seed = params.form_factor_samples, params.seed
@@ -179,10 +180,11 @@ def _solve_mesh(prep, params, progress, cancel, mesh):
                              sol.cancelled)
 
 
-def source_term(mesh, prep, params):
+def source_term(mesh, prep, params, check=None):
     """``E (p, 3)``: each patch's emission plus the reflected direct light of the lamps and the
-    world, and the lamp part's standard error ``(p, 3)``."""
-    H, se = lamp_irradiance(mesh, prep, params.form_factor_samples, params.seed)
+    world, and the lamp part's standard error ``(p, 3)`` (``check`` as
+    :func:`.sources.lamp_irradiance`'s)."""
+    H, se = lamp_irradiance(mesh, prep, params.form_factor_samples, params.seed, check)
     return mesh.emission + mesh.albedo * H, mesh.albedo * se
 
 
