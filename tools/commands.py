@@ -80,7 +80,8 @@ def _bench_radiosity(args):
     sizes = ({k: (1.5,) for k in SIZES} if args.quick
              else {k: v[:args.levels] for k, v in SIZES.items()})
     run(size=args.size, seconds=args.seconds, reference_seconds=args.reference_seconds,
-        cycles=not (args.no_cycles or args.quick), sizes=sizes, output=args.output)
+        cycles=not (args.no_cycles or args.quick), sizes=sizes, output=args.output,
+        figure=not args.quick)
     return 0
 
 

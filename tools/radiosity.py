@@ -15,8 +15,9 @@
    trace (another seed; its own noise is in every figure alike). Radiosity's error is mostly
    bias: it does not shrink with time.
 
-Figures only, never asserted; the markdown report ``RADIOSITY_BENCH.md`` and a CSV go into
-``output``. The machine's load is part of every figure: run it on a quiet machine to compare.
+Figures only, never asserted; the markdown report ``RADIOSITY_BENCH.md``, two CSVs and
+``images/radiosity_displays.png`` (the displays side by side, which ``docs/RADIOSITY.md``
+shows) go into ``output``. The machine's load is part of every figure: run it on a quiet machine to compare.
 """
 
 from __future__ import annotations
@@ -135,9 +136,34 @@ def equal_time(size=(64, 64), seconds=10.0, reference_seconds=120.0, cycles=True
     return rows, ref.stats["spp"]
 
 
+FIGURE = "images/radiosity_displays.png"
+
+
+def displays_figure(path, size=128, spp=64, patch_size=0.35):
+    """One row of the Cornell box (area lamp) by radiosity: flat, Gouraud, final gather,
+    Gouraud after adaptive subdivision (threshold 0.05), and that render's Radiosity Patches
+    pass; written as an sRGB PNG (row 0 at the bottom, as every image here)."""
+    from ..core.exr import write_png_preview
+
+    scene = cornell_box(size, size, "area")
+    images = []
+    for display, adaptive in (("flat", 0.0), ("gouraud", 0.0), ("final_gather", 0.0),
+                              ("gouraud", 0.05)):
+        res = render(scene, RenderSettings(integrator="radiosity", spp=spp,
+                                           radiosity_patch_size=patch_size,
+                                           radiosity_display=display,
+                                           radiosity_adaptive=adaptive,
+                                           radiosity_patches=True))
+        images.append(res.combined()[..., :3])
+    images.append(res.layers()["Radiosity Patches"])
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    write_png_preview(path, np.concatenate(images, axis=1))
+
+
 def run(size=(64, 64), seconds=10.0, reference_seconds=120.0, cycles=True, sizes=SIZES,
-        output="out/bench-radiosity", progress=print):
-    """Both parts; prints the figures and writes ``output/RADIOSITY_BENCH.md`` and CSVs."""
+        output="out/bench-radiosity", progress=print, figure=True):
+    """Both parts; prints the figures and writes ``output/RADIOSITY_BENCH.md``, CSVs and (with
+    ``figure``) ``output/images/radiosity_displays.png``."""
     machine = machine_summary()
     scale_rows, exponents = scaling(sizes, progress)
     time_rows, ref_spp = equal_time(size, seconds, reference_seconds, cycles, progress=progress)
@@ -153,6 +179,9 @@ def run(size=(64, 64), seconds=10.0, reference_seconds=120.0, cycles=True, sizes
             f.write("\n".join(lines) + "\n")
         os.replace(path + ".tmp", path)
         progress(f"wrote {path}")
+        if figure:
+            stage("figure of the displays")
+            displays_figure(os.path.join(output, FIGURE))
     return scale_rows, exponents, time_rows
 
 
