@@ -37,12 +37,25 @@ def strategy_passes(settings):
     return strategy_pass_names(settings.strategy_max_length)
 
 
+# The radiosity integrator's optional pass showing its patches (core.integrators.radiosity).
+RADIOSITY_PATCHES_PASS = "Radiosity Patches"
+
+
+def radiosity_passes(settings):
+    """``["Radiosity Patches"]`` when the scene's settings render radiosity with the patches
+    pass on, else []."""
+    if settings is None or settings.integrator != 'RADIOSITY':
+        return []
+    return [RADIOSITY_PATCHES_PASS] if settings.use_radiosity_patches else []
+
+
 def register_passes(engine, scene, view_layer):
-    """Declare every pass of :data:`PASSES`, and the strategy views the scene asks for, for
-    ``view_layer`` (``update_render_passes``)."""
+    """Declare every pass of :data:`PASSES`, and the strategy views and radiosity patches the
+    scene asks for, for ``view_layer`` (``update_render_passes``)."""
     for name, channels, chan_id, pass_type in PASSES:
         engine.register_pass(scene, view_layer, name, channels, chan_id, pass_type)
-    for name in strategy_passes(getattr(scene, "sampling_lab", None)):
+    settings = getattr(scene, "sampling_lab", None)
+    for name in strategy_passes(settings) + radiosity_passes(settings):
         engine.register_pass(scene, view_layer, name, 3, "RGB", 'COLOR')
 
 

@@ -98,6 +98,14 @@ class SamplingLabSettings(PropertyGroup):
     photon_k: _property("photon_k", soft_max=500)
     photon_kernel: _property("photon_kernel")
     gather_rays: _property("gather_rays", soft_max=64)
+    radiosity_solver: _property("radiosity_solver")
+    radiosity_patch_size: _property("radiosity_patch_size", soft_min=0.01, soft_max=2.0,
+                                    precision=3, subtype='DISTANCE', unit='LENGTH')
+    radiosity_samples: _property("radiosity_samples", soft_max=64)
+    radiosity_adaptive: _property("radiosity_adaptive", soft_max=0.5, precision=3,
+                                  subtype='FACTOR')
+    radiosity_display: _property("radiosity_display")
+    use_radiosity_patches: _property("radiosity_patches", update=_update_render_passes)
     filter_type: _property("filter_type")
     filter_width: _property("filter_width", soft_max=5.0, precision=2, subtype='PIXEL')
 

@@ -58,11 +58,12 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
 
         light_tracing = settings.integrator == 'LIGHT'
         photon = settings.integrator in {'PHOTON', 'SPPM'}
+        radiosity = settings.integrator == 'RADIOSITY'
         col = layout.column()
         mis = col.column()
-        # Light tracing has one strategy per path, and photon mapping one per light
-        # contribution (direct light by light sampling alone): nothing to weight.
-        mis.active = not (light_tracing or photon)
+        # Light tracing has one strategy per path, photon mapping one per light contribution
+        # (direct light by light sampling alone), radiosity no strategies: nothing to weight.
+        mis.active = not (light_tracing or photon or radiosity)
         mis.prop(settings, "mis_heuristic")
         # Each heuristic's parameter is shown only with the heuristic that reads it.
         if settings.mis_heuristic == 'POWER':
@@ -74,12 +75,15 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         # BSDF sampling alone never samples lights, so the light sampler's options do nothing;
         # light tracing always starts at a light.
         sub.active = light_tracing or settings.mis_heuristic != 'BSDF'
+        if radiosity:
+            # Radiosity samples lights only in its final gather (core.render.used_settings).
+            sub.active = settings.radiosity_display == 'FINAL_GATHER'
         sub.prop(settings, "light_selection")
         area = sub.column()
-        # The path tracer and photon mapping's direct light sample emitters toward a receiving
-        # point: light and BDPT paths start on emitters sampled by area
-        # (core.render.used_settings).
-        area.active = sub.active and (settings.integrator == 'PATH' or photon)
+        # The path tracer, photon mapping's direct light and radiosity's final gather sample
+        # emitters toward a receiving point: light and BDPT paths start on emitters sampled
+        # by area (core.render.used_settings).
+        area.active = sub.active and (settings.integrator in {'PATH', 'RADIOSITY'} or photon)
         area.prop(settings, "light_sampling")
         # Also draws mixed materials' components: active whatever the light sampling.
         col.prop(settings, "distribution")
@@ -139,6 +143,31 @@ class SAMPLINGLAB_RENDER_PT_photons(SamplingLabButtonsPanel, Panel):
         sub.prop(settings, "gather_rays")
 
 
+class SAMPLINGLAB_RENDER_PT_radiosity(SamplingLabButtonsPanel, Panel):
+    bl_label = "Radiosity"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout, settings = settings_layout(self, context)
+
+        col = layout.column()
+        # Only the Radiosity integrator meshes the scene and solves; the others ignore these.
+        col.active = settings.integrator == 'RADIOSITY'
+        col.prop(settings, "radiosity_solver")
+        col.prop(settings, "radiosity_patch_size")
+        col.prop(settings, "radiosity_samples")
+        adaptive = col.column()
+        # Hierarchical radiosity's links adapt instead (core.render.used_settings).
+        adaptive.active = col.active and settings.radiosity_solver != 'HIERARCHICAL'
+        adaptive.prop(settings, "radiosity_adaptive")
+        col.prop(settings, "radiosity_display")
+        col.prop(settings, "use_radiosity_patches")
+        if settings.integrator == 'RADIOSITY':
+            note = layout.column(align=True)
+            note.label(text="Biased: not consistent unless the patches shrink.", icon='INFO')
+            note.label(text="Every material is treated as diffuse (its Base Color).")
+
+
 class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
     bl_label = "Light Paths"
 
@@ -146,6 +175,8 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         layout, settings = settings_layout(self, context)
 
         col = layout.column()
+        # Radiosity has no path bounces: its transport is the solved system.
+        col.active = settings.integrator != 'RADIOSITY'
         col.prop(settings, "max_bounces")
         rr = col.column()
         # Photon mapping's camera paths stop at the first rough surface, and its photons
@@ -228,6 +259,7 @@ classes = (
     SAMPLINGLAB_RENDER_PT_light_sampling,
     SAMPLINGLAB_RENDER_PT_strategy_views,
     SAMPLINGLAB_RENDER_PT_photons,
+    SAMPLINGLAB_RENDER_PT_radiosity,
     SAMPLINGLAB_RENDER_PT_light_paths,
     SAMPLINGLAB_RENDER_PT_film,
     SAMPLINGLAB_RENDER_PT_performance,

@@ -26,7 +26,9 @@ import numbers
 from dataclasses import dataclass
 
 from .integrators import INTEGRATORS
+from .integrators.radiosity import DISPLAYS as RADIOSITY_DISPLAYS
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
+from .radiosity.solvers import SOLVERS as RADIOSITY_SOLVERS
 from .sampling.distributions import DISTRIBUTION_METHODS
 from .sampling.mis import MIS_SETTINGS
 from .sampling.samplers import available as available_samplers
@@ -217,6 +219,47 @@ _INTEGRATOR_TEXT = {
         "grow. Renders light from point lights through mirrors and glass onto diffuse "
         "surfaces, which path tracing cannot find, and BDPT only where that surface is seen "
         "directly (not through a mirror or glass again)"),
+    "radiosity": (
+        "Radiosity",
+        "Finite-element radiosity: diffuse surfaces cut into patches of constant radiosity, "
+        "form factors by ray casting, the linear system solved once per render, then shown by "
+        "camera rays. BIASED, and not consistent unless the patches shrink: more samples only "
+        "antialias a fixed solution. Every material is treated as diffuse (its Base Color)"),
+}
+
+_RADIOSITY_SOLVER_TEXT = {
+    "jacobi": (
+        "Jacobi",
+        "Iterate B = E + rho F B with the whole previous solution (gathering). Stores the dense "
+        "form-factor matrix: refused above 8,192 patches"),
+    "gauss_seidel": (
+        "Gauss-Seidel",
+        "Jacobi's sweep row by row with the newest values: about half the sweeps. Stores the "
+        "dense form-factor matrix: refused above 8,192 patches"),
+    "progressive": (
+        "Progressive Refinement",
+        "Shoot the patch with the most unshot power to all others (Southwell iteration); one "
+        "column of form factors at a time, no stored matrix, but slow for large meshes"),
+    "hierarchical": (
+        "Hierarchical",
+        "Hierarchical radiosity (Hanrahan, Salzman & Aupperle 1991): patch pairs linked at the "
+        "coarsest level where their form factor is small, so cost grows near linearly with "
+        "the patch count; for large meshes"),
+}
+
+_RADIOSITY_DISPLAY_TEXT = {
+    "gouraud": (
+        "Gouraud",
+        "Radiosity interpolated across each patch from its corners (the mean of the patches "
+        "that meet there). Smooth, but shadows are only as sharp as the mesh"),
+    "flat": (
+        "Flat",
+        "Each patch's own constant radiosity: the mesh shows, as the solver sees it"),
+    "final_gather": (
+        "Final Gather",
+        "One bounce of path tracing into the solution: direct light by next-event estimation "
+        "(sharp shadows), indirect light read from the patches where the bounce ray lands. "
+        "Noisy per sample, converges to the radiosity solution's one-bounce image"),
 }
 
 _MIS_TEXT = {
@@ -432,6 +475,28 @@ OPTIONS = {o.name: o for o in (
            "Photon mapping: largest photon storage in MB (photons of one pass and their "
            "kd-tree). A render whose photons could need more stops with a message before it "
            "starts", 1024.0, minimum=1.0, maximum=1 << 20),
+    _menu("radiosity_solver", "Solver",
+          "Radiosity only: how the radiosity system B = E + rho F B is solved",
+          "gauss_seidel", _choices(RADIOSITY_SOLVERS, _RADIOSITY_SOLVER_TEXT)),
+    Option("radiosity_patch_size", float, "Patch Size",
+           "Radiosity only: target edge length of a patch in Blender units; every triangle is "
+           "cut into equal sub-triangles no longer than this. Smaller patches: less bias, "
+           "quadratically more patches", 0.5, minimum=1e-3, maximum=1e4),
+    Option("radiosity_samples", int, "Form Factor Samples",
+           "Radiosity only: points per patch pair for each form factor (with one visibility ray "
+           "each), and per patch for the light it receives directly from lamps. Their noise "
+           "stays in the solution as a fixed error", 8, minimum=1, maximum=1024),
+    Option("radiosity_adaptive", float, "Adaptive Threshold",
+           "Radiosity only, not with the Hierarchical solver: after a solve, split the patches "
+           "whose radiosity differs from their corners' by more than this fraction of the "
+           "brightest patch into four, and solve again (two rounds at most). 0 keeps the uniform "
+           "mesh", 0.0, minimum=0.0, maximum=1.0),
+    _menu("radiosity_display", "Display",
+          "Radiosity only: how camera rays read the solved radiosity", "gouraud",
+          _choices(RADIOSITY_DISPLAYS, _RADIOSITY_DISPLAY_TEXT)),
+    Option("radiosity_patches", bool, "Patches Pass",
+           "Radiosity only: write a Radiosity Patches pass that shows the mesh, one colour per "
+           "patch", False, prop="use_radiosity_patches"),
 )}
 
 DEFAULTS = {name: option.default for name, option in OPTIONS.items()}

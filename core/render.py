@@ -66,6 +66,11 @@ class RenderSettings:
 
     ``threads`` is the number of worker threads, 0 for one per CPU core (Blender's Auto).
 
+    Radiosity (``integrator='radiosity'``, :mod:`core.integrators.radiosity`):
+    ``radiosity_solver``, ``radiosity_patch_size``, ``radiosity_samples`` (form-factor and
+    lamp samples), ``radiosity_adaptive`` (threshold of adaptive subdivision, 0 off),
+    ``radiosity_display`` and ``radiosity_patches`` (the patches pass).
+
     ``region`` is a render region ``(x0, y0, x1, y1)``: frame pixels ``x0 <= x < x1`` (from the
     left) and ``y0 <= y < y1`` (from the bottom); None renders the whole frame.
     """
@@ -97,6 +102,12 @@ class RenderSettings:
     photon_kernel: str = DEFAULTS["photon_kernel"]
     gather_rays: int = DEFAULTS["gather_rays"]
     photon_memory: float = DEFAULTS["photon_memory"]
+    radiosity_solver: str = DEFAULTS["radiosity_solver"]
+    radiosity_patch_size: float = DEFAULTS["radiosity_patch_size"]
+    radiosity_samples: int = DEFAULTS["radiosity_samples"]
+    radiosity_adaptive: float = DEFAULTS["radiosity_adaptive"]
+    radiosity_display: str = DEFAULTS["radiosity_display"]
+    radiosity_patches: bool = DEFAULTS["radiosity_patches"]
     region: tuple = None
 
 
@@ -171,7 +182,9 @@ def used_settings(settings):
     emitters by power when ``light_selection`` is ``'tree'`` (which needs a receiving point);
     the path tracer's ``bsdf`` setting never samples lights (``distribution`` still draws mixed
     materials' components). The render stats report these values, and the add-on greys out
-    the same options.
+    the same options. Radiosity weighs no strategies and samples lights only for its final
+    gather (uniformly over what the light sampler offers, without MIS); its own options are
+    ``'n/a'`` for every other integrator.
 
     Parameters
     ----------
@@ -181,11 +194,14 @@ def used_settings(settings):
     -------
     dict
         ``mis_heuristic``, ``mis_beta``, ``mis_alpha``, ``light_selection``,
-        ``light_sampling``, ``distribution``, and the photon-mapping settings ``photons``,
+        ``light_sampling``, ``distribution``, the photon-mapping settings ``photons``,
         ``sppm_alpha``, ``photon_memory``, ``photon_lookup``, ``photon_k``, ``photon_radius``,
-        ``photon_kernel``, ``gather_rays`` (``'n/a'`` where the integrator does not read
-        them; the photon estimators use no MIS: one strategy per light contribution).
+        ``photon_kernel``, ``gather_rays`` and the ``radiosity_*`` options (``'n/a'`` where
+        the integrator does not read them; the photon estimators use no MIS: one strategy per
+        light contribution).
     """
+    if settings.integrator == "radiosity":
+        return _radiosity_used(settings)
     photon = settings.integrator in PHOTON_INTEGRATORS
     jensen = settings.integrator == "photon"
     # Photon mapping's next-event estimation at visible points samples lights as the path
@@ -216,6 +232,31 @@ def used_settings(settings):
                           or (jensen and settings.photon_lookup == "radius") else na),
         "photon_kernel": settings.photon_kernel if jensen else na,
         "gather_rays": settings.gather_rays if jensen else na,
+        **{name: na for name in RADIOSITY_OPTIONS},
+    }
+
+
+PHOTON_OPTIONS = ("photons", "sppm_alpha", "photon_memory", "photon_lookup", "photon_k",
+                  "photon_radius", "photon_kernel", "gather_rays")
+RADIOSITY_OPTIONS = ("radiosity_solver", "radiosity_patch_size", "radiosity_samples",
+                     "radiosity_adaptive", "radiosity_display", "radiosity_patches")
+
+
+def _radiosity_used(settings):
+    """:func:`used_settings` of a radiosity render: MIS never applies; the light sampler's
+    settings only with the final gather's next-event estimation (which draws no MIS weights)."""
+    na = "n/a"
+    gather = settings.radiosity_display == "final_gather"
+    return {
+        "mis_heuristic": na, "mis_beta": na, "mis_alpha": na,
+        "light_selection": settings.light_selection if gather else na,
+        "light_sampling": settings.light_sampling if gather else na,
+        "distribution": settings.distribution,
+        **{name: na for name in PHOTON_OPTIONS},
+        **{name: getattr(settings, name) for name in RADIOSITY_OPTIONS},
+        # Hierarchical radiosity's links adapt instead; its leaves stay uniform.
+        "radiosity_adaptive": (settings.radiosity_adaptive
+                               if settings.radiosity_solver != "hierarchical" else na),
     }
 
 
@@ -288,12 +329,15 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     sampler = make_sampler(settings.sampler, seed=settings.seed,
                            spp=settings.spp if settings.spp > 0 else None, width=cam.width)
     integrator = integrator_class(settings.integrator)(prep, settings)
+    # Work done once before the first unit (radiosity's solve), with progress and cancel.
+    solve_cancelled = integrator.prepare_render(progress, cancel)
     result = RenderResult(film, messages=list(scene.messages) + _messages(scene, settings,
                                                                           integrator),
                           layer_names=list(integrator.layers), prepared=prep)
     keep_freed_memory()
     passes = _Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths)
-    result.cancelled = passes.run(lambda: on_update is not None and on_update(result))
+    result.cancelled = solve_cancelled or passes.run(
+        lambda: on_update is not None and on_update(result))
     t = passes.elapsed()
     counters = passes.counters
     result.stats = {
@@ -314,6 +358,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         "distribution_samples": counters.distribution_samples,
         "distribution_ns_per_sample": (1e9 * counters.distribution_s
                                        / max(counters.distribution_samples, 1)),
+        **integrator.stats(),
     }
     if integrator.whole_passes:
         result.stats.update(integrator.render_stats(t))
@@ -321,8 +366,9 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
 
 
 def _messages(scene, settings, integrator):
-    """What a render with light paths tells the user once about the scene."""
-    messages = []
+    """What a render with light paths tells the user once about the scene (and what the
+    integrator itself reports, :meth:`core.integrators.base.Integrator.messages`)."""
+    messages = list(integrator.messages())
     # Photon mapping's photons leave the lamps as light paths do.
     if (integrator.splats or integrator.whole_passes) and len(scene.lights):
         soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]

@@ -117,6 +117,17 @@ def _bench_export(args):
     return 0
 
 
+def _bench_radiosity(args):
+    from .radiosity import SIZES, run
+
+    sizes = ({k: (1.5,) for k in SIZES} if args.quick
+             else {k: v[:args.levels] for k, v in SIZES.items()})
+    run(size=args.size, seconds=args.seconds, reference_seconds=args.reference_seconds,
+        cycles=not (args.no_cycles or args.quick), sizes=sizes, output=args.output,
+        figure=not args.quick)
+    return 0
+
+
 def _samplers(args):
     from .sampler_lab import main
 
@@ -193,6 +204,22 @@ def add_parsers(sub, **kw):
     e.add_argument("--triangles", type=_positive_int, default=1_000_000,
                    help="about this many triangles")
     e.add_argument("--repeats", type=_positive_int, default=5, help="exports timed")
+    r = _add(sub, "bench-radiosity", "radiosity: solve time and peak memory against patch "
+             "count for every solver, and equal-time error against path tracing and Cycles "
+             "(a table; docs/RADIOSITY.md quotes a run)", _bench_radiosity, **kw)
+    _size(r, (64, 64))
+    r.add_argument("--seconds", type=_positive_float, default=10.0,
+                   help="equal wall-clock budget of every render (radiosity's includes its "
+                        "solve)")
+    r.add_argument("--reference-seconds", type=_positive_float, default=120.0,
+                   help="time of the path-traced reference render")
+    r.add_argument("--levels", type=_positive_int, default=4,
+                   help="patch sizes per solver, coarsest first (hierarchical: 4 reaches "
+                        "about 106k patches)")
+    r.add_argument("--no-cycles", action="store_true", help="skip the Cycles comparison")
+    r.add_argument("--quick", action="store_true",
+                   help="tiny smoke run: one coarse mesh per solver, no Cycles")
+    add_output_arguments(r, "bench-radiosity")
 
 
 def _add_bench_gap(sub, **kw):

@@ -14,18 +14,21 @@ No estimator module imports another:
   consistent);
 - :mod:`.sppm`: stochastic progressive photon mapping (:class:`.sppm.SPPM`, biased but
   consistent), over the photon stages of :mod:`core.photons`;
+- :mod:`.radiosity`: finite-element radiosity (:class:`.radiosity.Radiosity`), solved once
+  per render by :mod:`core.radiosity` and shown by camera rays or one final-gather bounce;
 - :mod:`.common`: stages every estimator shares (camera rays, intersection, surface
   interactions, emitters along rays, Russian roulette).
 """
 
-from . import bdpt, light, path, photon, sppm
+from . import bdpt, light, path, photon, radiosity, sppm
 from .base import Integrator
 
-INTEGRATORS = {"path": path, "light": light, "bdpt": bdpt, "photon": photon,
-               "sppm": sppm}
+INTEGRATORS = {"path": path, "light": light, "bdpt": bdpt, "photon": photon, "sppm": sppm,
+               "radiosity": radiosity}
 
 _CLASSES = {"path": path.PathTracer, "light": light.LightTracer, "bdpt": bdpt.BDPT,
-            "photon": photon.PhotonMapping, "sppm": sppm.SPPM}
+            "photon": photon.PhotonMapping, "sppm": sppm.SPPM,
+            "radiosity": radiosity.Radiosity}
 
 
 def integrator_class(name) -> type[Integrator]:

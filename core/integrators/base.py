@@ -29,6 +29,10 @@ What the render loop reads from an integrator:
 ``layers`` (instance attribute)
     Names of the extra images this render writes, in the order the render passes list them;
     :class:`BatchOutput` carries values for no other names.
+``prepare_render(progress, cancel)``, ``messages()``, ``stats()``
+    Work done once per render before the first work unit, with the render's progress and
+    cancel callbacks (radiosity solves its system there; the others do nothing); what the
+    render tells the user once about it; figures added to the render stats.
 """
 
 from __future__ import annotations
@@ -159,6 +163,19 @@ class Integrator:
         self.prep = prep
         self.settings = settings
         self.layers = ()
+
+    def prepare_render(self, progress=None, cancel=None) -> bool:
+        """Work done once before the first work unit (default: none). ``progress(fraction,
+        text)`` and ``cancel()`` are the render's; returns whether ``cancel`` stopped it."""
+        return False
+
+    def messages(self) -> list:
+        """What this render tells the user once (approximations, bias); default none."""
+        return []
+
+    def stats(self) -> dict:
+        """Figures of this estimator's own work for the render stats; default none."""
+        return {}
 
     def render_samples(self, stream, pixel_filter, counters: Counters) -> BatchOutput:
         """Estimates of one work unit: one sample per entry of ``stream``.

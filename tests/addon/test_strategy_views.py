@@ -51,6 +51,7 @@ def test_integrator_menu_offers_light_tracing_and_bidirectional_with_documentati
                                                                                     mods):
     items = {i.identifier: i for i in
              empty_scene.sampling_lab.bl_rna.properties["integrator"].enum_items}
+    # The Monte Carlo estimators first; the others (photon mapping, radiosity) follow them.
     assert list(items)[:3] == ['PATH', 'LIGHT', 'BDPT']
     # The photon estimators are biased, and their menu entries say so.
     for name in ('PHOTON', 'SPPM'):
