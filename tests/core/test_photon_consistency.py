@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import render, scenes
-from tests.helpers import assert_images_agree
+from tests.helpers import assert_images_agree, plain_settings
 
 
 def _settings(**kw):
     base = dict(threads=2, filter_type="box", filter_width=1.0, max_bounces=3)
     base.update(kw)
-    return render.RenderSettings(**base)
+    return plain_settings(**base)
 
 
 @pytest.fixture(scope="module")

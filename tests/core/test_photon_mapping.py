@@ -7,13 +7,14 @@ from __future__ import annotations
 import numpy as np
 
 from sampling_lab.core import render, scenes
+from tests.helpers import plain_settings
 from tests.core.test_sppm import mirror_reference
 
 
 def _settings(**kw):
     base = dict(integrator="photon", threads=2, filter_type="box", filter_width=1.0)
     base.update(kw)
-    return render.RenderSettings(**base)
+    return plain_settings(**base)
 
 
 def test_photon_mapping_reproduces_the_mirror_image_of_a_point_light():

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
-from sampling_lab.core.render import RenderSettings, render
-from tests.helpers import z_for_false_failure
+from sampling_lab.core.render import render
+from tests.helpers import z_for_false_failure, plain_settings
 
 SIZES = (1.0, 0.5, 0.25)
 
@@ -28,12 +28,12 @@ SIZES = (1.0, 0.5, 0.25)
 def room():
     scene = scenes.cornell_box(16, 16, "area")
     scene.lights.visible_camera[:] = False
-    ref = render(scene, RenderSettings(integrator="path", spp=2048, max_bounces=16, seed=9))
+    ref = render(scene, plain_settings(integrator="path", spp=2048, max_bounces=16, seed=9))
     return scene, ref.combined()[..., :3].astype(np.float64), ref.variance().astype(np.float64)
 
 
 def _radiosity(scene, patch_size, spp):
-    r = render(scene, RenderSettings(integrator="radiosity", radiosity_solver="hierarchical",
+    r = render(scene, plain_settings(integrator="radiosity", radiosity_solver="hierarchical",
                                      radiosity_patch_size=patch_size, radiosity_samples=8,
                                      spp=spp, seed=1))
     return r.combined()[..., :3].astype(np.float64), r.variance().astype(np.float64)
@@ -82,7 +82,7 @@ def test_adaptive_subdivision_lowers_the_error_of_its_starting_mesh(room):
     scene, ref, var_ref = room
 
     def run(adaptive):
-        r = render(scene, RenderSettings(integrator="radiosity", radiosity_patch_size=1.0,
+        r = render(scene, plain_settings(integrator="radiosity", radiosity_patch_size=1.0,
                                          radiosity_adaptive=adaptive, radiosity_samples=8,
                                          spp=1024, seed=1))
         image = r.combined()[..., :3].astype(np.float64)

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
-from sampling_lab.core.render import RenderSettings, render, used_settings
-from tests.helpers import assert_mean_within_ci
+from sampling_lab.core.render import render, used_settings
+from tests.helpers import assert_mean_within_ci, plain_settings
 
 FAST = dict(integrator="radiosity", radiosity_patch_size=1.0, radiosity_samples=4, spp=2)
 
 
 def _render(scene, **kw):
-    return render(scene, RenderSettings(**{**FAST, **kw}))
+    return render(scene, plain_settings(**{**FAST, **kw}))
 
 
 @pytest.mark.parametrize("display", ["gouraud", "flat"])
@@ -71,9 +71,9 @@ def test_stats_and_messages_say_what_was_used_and_that_it_is_biased():
 
 
 def test_radiosity_settings_do_not_apply_to_other_integrators():
-    used = used_settings(RenderSettings(integrator="path"))
+    used = used_settings(plain_settings(integrator="path"))
     assert used["radiosity_solver"] == "n/a" and used["radiosity_patch_size"] == "n/a"
-    used = used_settings(RenderSettings(integrator="radiosity",
+    used = used_settings(plain_settings(integrator="radiosity",
                                         radiosity_display="final_gather"))
     assert used["radiosity_display"] == "final_gather" and used["mis_heuristic"] == "n/a"
     assert used["light_selection"] == "power"
@@ -91,7 +91,7 @@ def test_the_patches_pass_is_written_only_when_asked_for():
 def test_a_cancelled_radiosity_render_stops_in_the_solve():
     calls = []
     result = render(scenes.cornell_box(8, 8, "area"),
-                    RenderSettings(**{**FAST, "radiosity_patch_size": 0.25}),
+                    plain_settings(**{**FAST, "radiosity_patch_size": 0.25}),
                     progress=lambda f, t: calls.append(t), cancel=lambda: len(calls) >= 2)
     assert result.cancelled
     assert result.stats["spp"] == 0
@@ -107,11 +107,11 @@ def test_a_reused_prepared_scene_reuses_the_solution_for_a_new_camera():
     scene = scenes.cornell_box(8, 8, "area")
     first = _render(scene)
     calls = []
-    again = render(scene, RenderSettings(**FAST), prepared=first.prepared,
+    again = render(scene, plain_settings(**FAST), prepared=first.prepared,
                    progress=lambda f, t: calls.append(t))
     assert not any(t.startswith("Radiosity") for t in calls)
     assert np.array_equal(again.combined(), first.combined())
-    other = render(scene, RenderSettings(**{**FAST, "radiosity_patch_size": 0.7}),
+    other = render(scene, plain_settings(**{**FAST, "radiosity_patch_size": 0.7}),
                    prepared=first.prepared)
     assert other.stats["radiosity_patch_count"] != first.stats["radiosity_patch_count"]
 

@@ -9,13 +9,13 @@ import pytest
 
 from sampling_lab.core import render, scenes
 from sampling_lab.core.options import OPTIONS
-from tests.helpers import assert_estimates_agree, z_for_false_failure
+from tests.helpers import assert_estimates_agree, z_for_false_failure, plain_settings
 
 
 def _settings(**kw):
     base = dict(integrator="sppm", threads=2, filter_type="box", filter_width=1.0)
     base.update(kw)
-    return render.RenderSettings(**base)
+    return plain_settings(**base)
 
 
 def mirror_reference(scene, supersample=8, **kw):
