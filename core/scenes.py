@@ -304,7 +304,7 @@ def many_lights(width=64, height=64, n=1024, size=0.04, seed=7):
 
 
 def mirror_point_light(width=64, height=64, power=100.0, albedo=0.5, light_z=1.0, mirror_z=1.5,
-                       mirror_half=0.5, glass=False):
+                       mirror_half=0.5, glass=False, view="floor"):
     """A point light between a diffuse floor and a perfect mirror facing it, seen by a pinhole
     that does not see the mirror: the floor receives the light directly and as reflected by
     the mirror, from the light's mirror image at ``z = 2 mirror_z - light_z``
@@ -322,6 +322,11 @@ def mirror_point_light(width=64, height=64, power=100.0, albedo=0.5, light_z=1.0
     glass : bool
         Add a smooth glass ball (IOR 1.5, radius 0.3) on the floor beside the light's foot:
         a refracted caustic besides the reflected light (no closed form then).
+    view : str
+        ``'floor'``: the camera looks down at the floor and does not see the mirror;
+        ``'mirror'``: it looks up at the mirror and sees the floor *in* it (the reflected light
+        then reaches the camera through the mirror twice, ``L S D S E``: neither path tracing
+        nor BDPT can find it; 2 bounces hold it).
     """
     b = _Builder()
     b.add(*_quad((-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)), 0)
@@ -339,7 +344,9 @@ def mirror_point_light(width=64, height=64, power=100.0, albedo=0.5, light_z=1.0
                                 roughness=np.array([0.5, 0.0, 0.0][:k], np.float32),
                                 ior=np.full(k, 1.5, np.float32))
     lights = L.point_light((0.0, 0.0, light_z), (1, 1, 1), power, radius=0.0)
-    camera = Camera(to_world=look_at((0, -3.0, 1.0), (0, 0, 0)), width=width, height=height,
+    eye, target = ((0, -3.0, 1.0), (0, 0, 0)) if view == "floor" else ((0, -0.6, 0.3),
+                                                                        (0, 0.1, mirror_z))
+    camera = Camera(to_world=look_at(eye, target), width=width, height=height,
                     lens=50.0, sensor_width=36.0, clip_start=0.1, clip_end=100.0)
     v, f, m = b.arrays()
     return Scene(v, f, m, mats, lights, camera)
@@ -366,9 +373,10 @@ def mirror_floor_radiance(points, power=100.0, albedo=0.5, light_z=1.0, mirror_z
 
 
 def mirror_point_light_reference(scene, supersample=8, **kw):
-    """Closed-form pixels of a :func:`mirror_point_light` image with a box filter of one pixel
-    and ``max_bounces = 1`` (no light bounces back from the floor): the mean of
-    :func:`mirror_floor_radiance` over ``supersample^2`` camera rays per pixel.
+    """Closed-form pixels of a :func:`mirror_point_light` image with a box filter of one pixel:
+    the mean of :func:`mirror_floor_radiance` over ``supersample^2`` camera rays per pixel,
+    each followed through the mirror if it meets it first. Exact with ``max_bounces = 1``
+    (``view='floor'``) or 2 (``view='mirror'``): no light bounces back from the floor then.
 
     Parameters
     ----------
@@ -389,10 +397,7 @@ def mirror_point_light_reference(scene, supersample=8, **kw):
     ys, xs = np.mgrid[0:cam.height * k, 0:cam.width * k]
     xy = np.stack([(xs.ravel() + 0.5) / k, (ys.ravel() + 0.5) / k], axis=1)
     o, d, _ = generate_rays(cam, xy)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = -o[:, 2] / d[:, 2]
-    p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
-    floor = (t > 0) & (np.abs(p[:, :2]) <= 1).all(axis=1)
+    floor, p = _floor_hits(o, d, kw.get("mirror_z", 1.5), kw.get("mirror_half", 0.5))
     direct, reflected = mirror_floor_radiance(np.where(floor[:, None], p, 0.0), **kw)
 
     def pixels(v):
@@ -402,8 +407,27 @@ def mirror_point_light_reference(scene, supersample=8, **kw):
     return pixels(direct * floor), pixels(reflected * floor), lit
 
 
+def _floor_hits(o, d, mirror_z, mirror_half):
+    """Where rays ``o + t d`` meet the floor square, after reflecting off the mirror's square
+    if they meet it first: ``(hit (n,) bool, point (n, 3))``."""
+    o, d = o.astype(np.float64).copy(), d.astype(np.float64).copy()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_m = (mirror_z - o[:, 2]) / d[:, 2]
+        t_f = -o[:, 2] / d[:, 2]
+    pm = o + np.where(np.isfinite(t_m), t_m, 0.0)[:, None] * d
+    on_mirror = ((t_m > 0) & (np.abs(pm[:, :2]) <= mirror_half).all(axis=1)
+                 & ~((t_f > 0) & (t_f < t_m)))
+    o[on_mirror] = pm[on_mirror]
+    d[on_mirror, 2] *= -1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -o[:, 2] / d[:, 2]
+    p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
+    return (t > 0) & (np.abs(p[:, :2]) <= 1).all(axis=1), p
+
+
 # Point lights through a mirror and through glass onto a diffuse floor (photon mapping's cases).
 BUILTIN.update({
     "point_mirror": lambda w, h: mirror_point_light(w, h),
     "point_glass": lambda w, h: cornell_sphere(w, h, "glass", "point"),
+    "point_mirror_seen": lambda w, h: mirror_point_light(w, h, view="mirror"),
 })

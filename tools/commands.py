@@ -82,7 +82,7 @@ def _add_bench_photons(sub, **kw):
              "Cycles on point-light mirror and glass caustics, with M photons/s and photon "
              "memory (PHOTONS_BENCH.md)", _bench_photons, **kw)
     p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES),
-                   metavar="SCENE", help=f"from: {', '.join(SCENES)} (default: both)")
+                   metavar="SCENE", help=f"from: {', '.join(SCENES)} (default: all)")
     _size(p, (64, 64))
     p.add_argument("--seconds", type=_positive_float, default=8.0,
                    help="equal wall-clock budget of every render")
