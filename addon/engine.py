@@ -66,6 +66,20 @@ def used_text(stats):
     return ", ".join(parts)
 
 
+def estimator_text(stats):
+    """What a biased estimator adds to the stats line: photon and radiosity figures (empty for
+    the unbiased integrators, whose stats have neither)."""
+    if "photons_emitted" in stats:
+        return (f", {stats.get('estimator_bias')}: {stats['photons_emitted'] / 1e6:.2f} M photons "
+                f"({stats.get('photons_per_s', 0.0) / 1e6:.2f} M/s, peak "
+                f"{stats.get('photon_memory_peak_mb', 0.0):.1f} MB)")
+    if "radiosity_patch_count" in stats:
+        return (f", biased (radiosity): {stats['radiosity_patch_count']} patches, "
+                f"{stats.get('radiosity_solver')} in {stats.get('radiosity_iterations')} "
+                f"iterations (residual {stats.get('radiosity_residual', 0.0):.2g})")
+    return ""
+
+
 def render_region(render, width, height, result_width, result_height):
     """The window of the full frame that Blender's result covers (Render Region).
 
@@ -222,6 +236,7 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
                    f"{used_text(stats)}, build "
                    f"{1e3 * stats.get('distribution_build_s', 0.0):.2f} ms, sampling "
                    f"{1e3 * stats.get('distribution_sample_s', 0.0):.1f} ms"
+                   + estimator_text(stats)
                    + (", cancelled" if out.cancelled else ""))
         self.update_stats("", f"Sampling Lab | {summary}")
         self.report({'INFO'}, f"Sampling Lab: {summary}")

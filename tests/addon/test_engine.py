@@ -408,3 +408,17 @@ def test_reloading_the_package_reimports_its_submodules():
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split()[-2:] == ["True", "True"], proc.stdout + proc.stderr
+
+
+def test_stats_line_names_the_biased_estimators_figures(engine_module):
+    """Photon mapping and radiosity add their figures, and the word biased, to the stats line;
+    the unbiased integrators add nothing."""
+    photon = engine_module.estimator_text(
+        {"estimator_bias": "biased, consistent", "photons_emitted": 2_500_000,
+         "photons_per_s": 1.5e6, "photon_memory_peak_mb": 12.0})
+    assert photon == ", biased, consistent: 2.50 M photons (1.50 M/s, peak 12.0 MB)"
+    radiosity = engine_module.estimator_text(
+        {"radiosity_patch_count": 992, "radiosity_solver": "gauss_seidel",
+         "radiosity_iterations": 14, "radiosity_residual": 1e-4})
+    assert radiosity.startswith(", biased (radiosity): 992 patches, gauss_seidel in 14")
+    assert engine_module.estimator_text({"spp": 4}) == ""
