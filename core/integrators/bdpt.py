@@ -66,7 +66,7 @@ from .connections import Fresh, connect_all, connect_emitter_to_camera
 class BDPT(Bidirectional):
     """Bidirectional path tracing (see the module docstring)."""
 
-    # A BDPT sample costs several path-tracing samples (about 8 x the CPU time on the bench's
+    # A BDPT sample costs several path-tracing samples (about 7 x the CPU time on the bench's
     # Cornell box), so units are smaller than the path tracer's to keep cancel and progress
     # within a second. A call has a few milliseconds of fixed cost (7 ms for 256 paths, one
     # core, 2026-11-25), and NumPy's per-call cost falls with larger batches: much smaller
