@@ -66,7 +66,7 @@ from .connections import Fresh, connect_all, connect_emitter_to_camera
 class BDPT(Bidirectional):
     """Bidirectional path tracing (see the module docstring)."""
 
-    # A BDPT sample costs several path-tracing samples (about 8 x the CPU time on the bench's
+    # A BDPT sample costs several path-tracing samples (about 7 x the CPU time on the bench's
     # Cornell box), so units are smaller than the path tracer's to keep cancel and progress
     # within a second. A call has a few milliseconds of fixed cost (7 ms for 256 paths, one
     # core, 2026-11-25), and NumPy's per-call cost falls with larger batches: much smaller
@@ -84,26 +84,25 @@ class BDPT(Bidirectional):
 def _fresh_points(ctx, stream, C):
     """Strategy ``s = 1``: a fresh point on an emitter for every connectible camera vertex
     (drawn from that vertex's dimensions of the stream, so each is the same whichever other
-    vertices exist)."""
+    vertices exist), sampled for all vertices in one call."""
     depth = C.valid.shape[0]
     reach = C.valid & C.connectible
-    zj, rows, points = [], [], []
+    zj, rows, u_sel, u_pos = [], [], [], []
     for j in range(1, depth):
         r = np.nonzero(reach[j])[0]
         if r.size == 0:
             continue
         stream.skip_to(DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX + 4)
-        u_sel = stream.next_1d()[r]
-        u_pos = stream.next_2d()[r]
-        pts = ctx.emission.sample_points(u_sel, u_pos, ctx.counters)
-        got = np.nonzero(pts.index >= 0)[0]
-        zj.append(np.full(got.size, j, np.int64))
-        rows.append(r[got])
-        points.append(EmitterPoints(*(a[got] for a in pts)))
-    if not points:
+        u_sel.append(stream.next_1d()[r])
+        u_pos.append(stream.next_2d()[r])
+        zj.append(np.full(r.size, j, np.int64))
+        rows.append(r)
+    if not rows:
         return None
-    return Fresh(np.concatenate(zj), np.concatenate(rows),
-                 EmitterPoints(*(np.concatenate(col) for col in zip(*points))))
+    pts = ctx.emission.sample_points(np.concatenate(u_sel), np.concatenate(u_pos), ctx.counters)
+    got = np.nonzero(pts.index >= 0)[0]
+    return Fresh(np.concatenate(zj)[got], np.concatenate(rows)[got],
+                 EmitterPoints(*(a[got] for a in pts)))
 
 
 # One work unit without a render loop (tests, one-off use); a render builds BDPT once.

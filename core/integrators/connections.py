@@ -1,8 +1,10 @@
-"""Connection strategies of the bidirectional estimators: a light vertex joined to a camera
-vertex (``s >= 1, t >= 2``, :func:`connect`), a light vertex seen by the pinhole and splatted
-(``t = 1``, :func:`connect_camera`), and a point on an emitter seen by the pinhole
-(``s = 1, t = 1``, :func:`connect_emitter_to_camera`). Each traces its shadow rays and adds
-its MIS-weighted contributions to the batch's :class:`.strategy_views.Tally`.
+"""Connection strategies of the bidirectional estimators: light vertices (or fresh points on
+emitters) joined to camera vertices (``s >= 1, t >= 2``, :func:`connect_all`, all lengths in
+batches), light vertices seen by the pinhole and splatted (``t = 1``, :func:`connect_camera`
+for stored subpaths, :func:`camera_splatter` during a light walk that stores none, both
+through :func:`splat_vertices`), and a point on an emitter seen by the pinhole (``s = 1,
+t = 1``, :func:`connect_emitter_to_camera`). Each traces its shadow rays and adds its
+MIS-weighted contributions to the batch's :class:`.strategy_views.Tally`.
 """
 
 from __future__ import annotations
