@@ -7,23 +7,10 @@ import numpy as np
 import pytest
 
 import scenes
-from scenes import ENGINE_ID
-from test_strategy_settings import _Recorder
+from panels import drawn_rows
 
 ROWS = ("photons", "photon_memory", "sppm_alpha", "photon_lookup", "photon_k", "photon_radius",
         "photon_kernel", "gather_rays")
-
-
-def _drawn(scene, panel_name):
-    class Context:
-        engine = ENGINE_ID
-
-    Context.scene = scene
-    panel = getattr(bpy.types, panel_name)
-    assert panel.poll(Context)
-    calls = []
-    panel.draw(type("Panel", (), {"layout": _Recorder(calls)})(), Context)
-    return dict(calls)
 
 
 @pytest.mark.parametrize("integrator, lookup", [
@@ -34,14 +21,14 @@ def test_photon_rows_are_active_exactly_where_the_render_uses_them(empty_scene, 
     core_render = import_module(f"{addon.__name__}.core.render")
     props = empty_scene.sampling_lab
     props.integrator, props.photon_lookup = integrator, lookup
-    active = _drawn(empty_scene, "SAMPLINGLAB_RENDER_PT_photons")
+    active = drawn_rows("SAMPLINGLAB_RENDER_PT_photons", empty_scene)
     assert set(active) == set(ROWS)
     settings = core_render.RenderSettings(integrator=integrator.lower(),
                                           photon_lookup=lookup.lower())
     used = core_render.used_settings(settings)
     for row in ROWS:
         assert active[row] == (used[row] != "n/a"), row
-    light = _drawn(empty_scene, "SAMPLINGLAB_RENDER_PT_light_sampling")
+    light = drawn_rows("SAMPLINGLAB_RENDER_PT_light_sampling", empty_scene)
     assert light["mis_heuristic"] == (used["mis_heuristic"] != "n/a")
 
 

@@ -6,52 +6,22 @@ import numpy as np
 import pytest
 
 import scenes as S
-from scenes import ENGINE_ID
+from panels import drawn_rows
 
 RADIOSITY_PROPS = ("radiosity_solver", "radiosity_patch_size", "radiosity_samples",
                    "radiosity_adaptive", "radiosity_display", "use_radiosity_patches")
 
 
-class _Recorder:
-    """Stands in for a UILayout: records ``(property, active)`` of every ``prop`` call."""
-
-    def __init__(self, calls, active=True):
-        object.__setattr__(self, "_calls", calls)
-        object.__setattr__(self, "active", active)
-
-    def prop(self, data, name, **_):
-        assert name in data.bl_rna.properties, name
-        self._calls.append((name, self.active))
-
-    def __getattr__(self, name):
-        return lambda *args, **kwargs: _Recorder(self._calls, self.active)
-
-    def __setattr__(self, name, value):
-        object.__setattr__(self, name, value)
-
-
-def _draw(panel_name, scene):
-    class Context:
-        engine = ENGINE_ID
-
-    Context.scene = scene
-    panel = getattr(bpy.types, panel_name)
-    assert panel.poll(Context)
-    calls = []
-    panel.draw(type("Panel", (), {"layout": _Recorder(calls)})(), Context)
-    return dict(calls)
-
-
 @pytest.mark.parametrize("integrator", ['PATH', 'RADIOSITY'])
 def test_radiosity_panel_is_active_only_for_radiosity(empty_scene, integrator):
     empty_scene.sampling_lab.integrator = integrator
-    drawn = _draw("SAMPLINGLAB_RENDER_PT_radiosity", empty_scene)
+    drawn = drawn_rows("SAMPLINGLAB_RENDER_PT_radiosity", empty_scene)
     assert set(drawn) == set(RADIOSITY_PROPS)
     assert all(active == (integrator == 'RADIOSITY') for active in drawn.values())
     empty_scene.sampling_lab.radiosity_solver = 'HIERARCHICAL'
-    assert _draw("SAMPLINGLAB_RENDER_PT_radiosity", empty_scene)["radiosity_adaptive"] is False
+    assert drawn_rows("SAMPLINGLAB_RENDER_PT_radiosity", empty_scene)["radiosity_adaptive"] is False
     # Bounces and roulette do nothing for radiosity.
-    paths = _draw("SAMPLINGLAB_RENDER_PT_light_paths", empty_scene)
+    paths = drawn_rows("SAMPLINGLAB_RENDER_PT_light_paths", empty_scene)
     assert paths["max_bounces"] == (integrator != 'RADIOSITY')
 
 
@@ -60,7 +30,7 @@ def test_light_sampling_applies_to_radiosity_only_in_its_final_gather(empty_scen
                                                                        samples_lights):
     s = empty_scene.sampling_lab
     s.integrator, s.radiosity_display = 'RADIOSITY', display
-    drawn = _draw("SAMPLINGLAB_RENDER_PT_light_sampling", empty_scene)
+    drawn = drawn_rows("SAMPLINGLAB_RENDER_PT_light_sampling", empty_scene)
     assert drawn["mis_heuristic"] is False
     assert drawn["light_selection"] == samples_lights
     assert drawn["light_sampling"] == samples_lights
