@@ -132,6 +132,11 @@ class Materials:
         Principled Specular IOR Level (layered rows); default 0.5 (keeps the IOR).
     specular_tint : (m, 3) float32
         Reflection tint (dielectric) or coat tint (layered); default white.
+    multiscatter : (m,) bool
+        Blender's *Multiscatter GGX*: rough conductor rows get Cycles' energy compensation
+        for light that bounces between microfacets (:mod:`core.materials.multiscatter`).
+        Ignored on other kinds (the exporter reports it there). Default False: single
+        scattering.
     texture : (m,) int32
         Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
         (an Image Texture into the base colour); -1 (the default) for none.
@@ -158,6 +163,7 @@ class Materials:
     transmission: np.ndarray = None
     specular_ior_level: np.ndarray = None
     specular_tint: np.ndarray = None
+    multiscatter: np.ndarray = None
     texture: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
@@ -177,6 +183,8 @@ class Materials:
         self.transmission = column(self.transmission, 0.0)
         self.specular_ior_level = column(self.specular_ior_level, DEFAULT_SPECULAR_IOR_LEVEL)
         self.specular_tint = column(self.specular_tint, 1.0, (3,))
+        self.multiscatter = (np.zeros(m, bool) if self.multiscatter is None
+                             else np.broadcast_to(np.asarray(self.multiscatter, bool), (m,)).copy())
         self.texture = texture_column(self.texture, m)
         self._check_mix(m)
 
@@ -213,7 +221,7 @@ class Materials:
     def from_lists(names, base_colors, emissions, kinds=None, roughness=None, ior=None,
                    metallic=None, transmission=None, specular_ior_level=None,
                    specular_tint=None, texture=None, mix_rows=None,
-                   mix_weights=None) -> "Materials":
+                   mix_weights=None, multiscatter=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -225,7 +233,8 @@ class Materials:
             specular_ior_level=specular_ior_level,
             specular_tint=None if specular_tint is None
             else np.asarray(specular_tint, np.float32).reshape(-1, 3),
-            texture=texture, mix_rows=mix_rows, mix_weights=mix_weights,
+            multiscatter=multiscatter, texture=texture, mix_rows=mix_rows,
+            mix_weights=mix_weights,
         )
 
 

@@ -50,6 +50,7 @@ class Surface(NamedTuple):
     transmission: float = 0.0
     specular_ior_level: float = 0.5
     specular_tint: np.ndarray = np.ones(3)
+    multiscatter: bool = False  # Multiscatter GGX (honoured on conductors, see Materials)
     texture: np.ndarray = None  # (h, w, 3) float32 base colour image, see surface_texture
     texture_mode: tuple = ("Linear", "REPEAT")  # the image node's interpolation, extension
     # A mixture: ((weight, Surface), ...) of plain surfaces (see mix_surfaces); this row's own
@@ -95,10 +96,10 @@ def material_surface(material, messages):
     return _shader_surface(follow_link(output.inputs["Surface"]), owner, messages)
 
 
-def _distribution_note(node, read, owner, what="GGX"):
-    """Report a rough microfacet node whose distribution is not single-scattering GGX."""
+def _distribution_note(node, read, owner, what="GGX", handled=('GGX', 'SHARP')):
+    """Report a rough microfacet node whose distribution is not among ``handled``."""
     distribution = getattr(node, "distribution", 'GGX')
-    if distribution not in {'GGX', 'SHARP'} and read.value(node, "Roughness") > 0:
+    if distribution not in handled and read.value(node, "Roughness") > 0:
         read.messages.add(f"{owner}: {distribution} distribution of node '{node_name(node)}' "
                           f"is not supported yet; rendered as {what}")
 
@@ -146,12 +147,14 @@ def _node_surface(node, read, owner, messages):
         return Surface(MAT_DIFFUSE, np.zeros(3), emission)
 
     if kind in {'ShaderNodeBsdfGlossy', 'ShaderNodeBsdfAnisotropic'}:
-        _distribution_note(node, read, owner)
+        # Multiscatter GGX: Cycles' energy compensation, modelled for conductors.
+        _distribution_note(node, read, owner, handled=('GGX', 'SHARP', 'MULTI_GGX'))
         if read.value(node, "Anisotropy") != 0:
             messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
                          f"rendered isotropic")
         return Surface(MAT_CONDUCTOR, read.color(node, "Color", (1.0, 1.0, 1.0)), np.zeros(3),
-                       roughness=read.value(node, "Roughness", 0.5))
+                       roughness=read.value(node, "Roughness", 0.5),
+                       multiscatter=getattr(node, "distribution", 'GGX') == 'MULTI_GGX')
 
     if kind in {'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction'}:
         _distribution_note(node, read, owner)
@@ -189,7 +192,7 @@ def _surface_key(surface):
     """What makes two plain surfaces the same BSDF (to merge equal mixture components)."""
     return (surface.kind, tuple(np.round(surface.base_color, 9)), surface.roughness,
             surface.ior, surface.specular_ior_level, tuple(np.round(surface.specular_tint, 9)),
-            id(surface.texture), surface.texture_mode)
+            surface.multiscatter, id(surface.texture), surface.texture_mode)
 
 
 def mix_surfaces(parts, owner, messages):
@@ -259,13 +262,11 @@ def _principled_surface(node, read, owner, texture=None):
     if read.value(node, "Anisotropic") != 0:
         messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
                      f"rendered isotropic")
-    distribution = getattr(node, "distribution", 'GGX')
-    if distribution != 'GGX' and roughness > 0:
-        messages.add(f"{owner}: {distribution} distribution of node '{name}' is not "
-                     f"supported yet; rendered as GGX")
-
     weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
                MAT_LAYERED: (1 - metallic) * (1 - transmission)}
+    distribution = getattr(node, "distribution", 'GGX')
+    multiscatter = distribution == 'MULTI_GGX'
+    _principled_distribution_note(distribution, weights, roughness, owner, name, messages)
     if metallic > 0 and np.any(tint != 1.0):
         messages.add(f"{owner}: metallic specular tint (F82) of node '{name}' is not "
                      f"supported yet; ignored")
@@ -275,7 +276,7 @@ def _principled_surface(node, read, owner, texture=None):
     pixels, mode = texture if texture is not None else (None, ("Linear", "REPEAT"))
     parts = [(w, Surface(kind, base, np.zeros(3), roughness, ior,
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
-                         tint, pixels, mode))
+                         tint, multiscatter and kind == MAT_CONDUCTOR, pixels, mode))
              for kind, w in weights.items() if w > 0]
     parts = [(alpha * w, surface) for w, surface in parts]
     if alpha < 1.0:
@@ -284,6 +285,23 @@ def _principled_surface(node, read, owner, texture=None):
     surface = mix_surfaces(parts, owner, messages)
     return surface._replace(emission=alpha * emission, metallic=metallic,
                             transmission=transmission)
+
+
+def _principled_distribution_note(distribution, weights, roughness, owner, name, messages):
+    """Report what of a rough Principled BSDF's distribution is not modelled: Multiscatter GGX
+    is compensated on the metallic lobe only (as Cycles does, :mod:`core.materials.multiscatter`),
+    not on the specular layer (the opaque dielectric) nor on the transmission."""
+    if roughness <= 0 or distribution == 'GGX':
+        return
+    if distribution != 'MULTI_GGX':
+        messages.add(f"{owner}: {distribution} distribution of node '{name}' is not "
+                     f"supported yet; rendered as GGX")
+        return
+    layers = [label for kind, label in ((MAT_LAYERED, "specular layer"),
+                                        (MAT_DIELECTRIC, "transmission")) if weights[kind] > 0]
+    if layers:
+        messages.add(f"{owner}: Multiscatter GGX on the {' and '.join(layers)} of node "
+                     f"'{name}' is not supported yet; rendered as single-scattering GGX")
 
 
 class MaterialTable:
@@ -338,7 +356,8 @@ class MaterialTable:
             self.names, col["base_color"], col["emission"], kinds=col["kind"],
             roughness=col["roughness"], ior=col["ior"], metallic=col["metallic"],
             transmission=col["transmission"], specular_ior_level=col["specular_ior_level"],
-            specular_tint=col["specular_tint"], texture=self._texture_index()[0],
+            specular_tint=col["specular_tint"], multiscatter=col["multiscatter"],
+            texture=self._texture_index()[0],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):

@@ -50,6 +50,11 @@ Kinds and parameters (:class:`BSDFParams`, one row per shading point)
     ``KIND_DIFFUSE``: ``color`` = albedo (two-sided Lambert).
     ``KIND_CONDUCTOR``: ``color`` = F0 (Schlick), ``alpha``; a perfect mirror below the smooth
     threshold (:data:`.microfacet.ALPHA_SMOOTH`).
+    ``KIND_CONDUCTOR_MS``: the same conductor with Cycles' Multiscatter GGX energy compensation
+    (:mod:`.multiscatter`; not reciprocal: importance mode evaluates the adjoint). A material
+    table marks it with its ``multiscatter`` column on a conductor row, not with a kind code
+    of its own: :meth:`BSDFParams.from_materials` maps those rows to this kind, so that every
+    copy of the parameters (which copies ``kind``) keeps it.
     ``KIND_DIELECTRIC``: ``eta`` (interior / exterior), ``alpha``, ``tint`` = reflection tint,
     ``color`` = transmission tint (Glass BSDF: both the colour). Smooth below the threshold or
     for ``|eta - 1| < 1e-4``.
@@ -82,7 +87,8 @@ from .lambert import eval_lambert, pdf_lambert, sample_lambert
 from .microfacet import alpha_from_roughness, is_smooth
 
 __all__ = [
-    "KIND_DIFFUSE", "KIND_CONDUCTOR", "KIND_DIELECTRIC", "KIND_LAYERED", "KINDS", "KIND_NAMES",
+    "KIND_DIFFUSE", "KIND_CONDUCTOR", "KIND_DIELECTRIC", "KIND_LAYERED", "KIND_CONDUCTOR_MS",
+    "KINDS", "KIND_NAMES",
     "RADIANCE", "IMPORTANCE", "TRANSPORT_MODES", "LOBE_REFLECT", "LOBE_TRANSMIT", "LOBE_DIFFUSE",
     "LOBE_GLOSSY", "LOBE_SINGULAR", "BSDFParams", "BSDFSample", "make_params",
     "eval_bsdf", "pdf_bsdf", "sample_bsdf", "is_delta_only",
@@ -93,9 +99,12 @@ KIND_DIFFUSE = 0
 KIND_CONDUCTOR = 1
 KIND_DIELECTRIC = 2
 KIND_LAYERED = 3
-KINDS = (KIND_DIFFUSE, KIND_CONDUCTOR, KIND_DIELECTRIC, KIND_LAYERED)
+# A BSDF kind only: material tables say "multiscatter" with a column (see the module docstring).
+KIND_CONDUCTOR_MS = 4
+KINDS = (KIND_DIFFUSE, KIND_CONDUCTOR, KIND_DIELECTRIC, KIND_LAYERED, KIND_CONDUCTOR_MS)
 KIND_NAMES = {KIND_DIFFUSE: "diffuse", KIND_CONDUCTOR: "conductor",
-              KIND_DIELECTRIC: "dielectric", KIND_LAYERED: "layered"}
+              KIND_DIELECTRIC: "dielectric", KIND_LAYERED: "layered",
+              KIND_CONDUCTOR_MS: "conductor_ms"}
 
 # Labels of sampled lobes (bits, as Cycles' LABEL_*).
 LOBE_REFLECT = 1
@@ -150,11 +159,17 @@ class BSDFParams:
         """Gather the rows ``mat_ids (k,)`` of a material table.
 
         Reads the table's ``kind`` and ``base_color`` and, when present, ``roughness (m,)``,
-        ``ior (m,)``, ``specular_ior_level (m,)`` and ``specular_tint (m, 3)`` (Blender's
-        defaults otherwise: 0.5, 1.5, 0.5, white). Layered rows fold Specular IOR Level into the
-        coat index; dielectric rows use the IOR as is.
+        ``ior (m,)``, ``specular_ior_level (m,)``, ``specular_tint (m, 3)`` and
+        ``multiscatter (m,)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5, white, single
+        scattering). Layered rows fold Specular IOR Level into the coat index; dielectric rows
+        use the IOR as is; conductor rows marked ``multiscatter`` become ``KIND_CONDUCTOR_MS``.
         """
         ids = np.asarray(mat_ids, np.int64)
+        kind = np.asarray(materials.kind, np.int32)[ids]
+        multiscatter = getattr(materials, "multiscatter", None)
+        if multiscatter is not None:
+            ms = np.asarray(multiscatter, bool)[ids]
+            kind = np.where(ms & (kind == KIND_CONDUCTOR), KIND_CONDUCTOR_MS, kind)
 
         def column(name, default, shape=()):
             values = getattr(materials, name, None)
@@ -162,8 +177,7 @@ class BSDFParams:
                 return np.full((ids.size,) + shape, default, np.float64)
             return np.asarray(values, np.float64)[ids]
 
-        return make_params(np.asarray(materials.kind, np.int32)[ids],
-                           np.asarray(materials.base_color, np.float64)[ids],
+        return make_params(kind, np.asarray(materials.base_color, np.float64)[ids],
                            roughness=column("roughness", DEFAULT_ROUGHNESS),
                            ior=column("ior", DEFAULT_IOR),
                            specular_ior_level=column("specular_ior_level",
@@ -267,6 +281,14 @@ def _conductor_sample(p, wo, u_lobe, u, mode):
     return conductor.sample_conductor(p.color, p.alpha, wo, u)
 
 
+def _conductor_ms_eval(p, wo, wi, mode):
+    return conductor.eval_conductor(p.color, p.alpha, wo, wi, multiscatter=True, mode=mode)
+
+
+def _conductor_ms_sample(p, wo, u_lobe, u, mode):
+    return conductor.sample_conductor(p.color, p.alpha, wo, u, multiscatter=True, mode=mode)
+
+
 def _dielectric_eval(p, wo, wi, mode):
     return dielectric.eval_dielectric(p.eta, p.alpha, p.tint, p.color, wo, wi, mode)
 
@@ -296,6 +318,7 @@ _FAMILIES = {
     KIND_CONDUCTOR: (_conductor_eval, _conductor_pdf, _conductor_sample, _glossy_kind),
     KIND_DIELECTRIC: (_dielectric_eval, _dielectric_pdf, _dielectric_sample, _glossy_kind),
     KIND_LAYERED: (_layered_eval, _layered_pdf, _layered_sample, _layered_kind),
+    KIND_CONDUCTOR_MS: (_conductor_ms_eval, _conductor_pdf, _conductor_ms_sample, _glossy_kind),
 }
 
 
@@ -305,7 +328,7 @@ def _groups(params):
     if kind.size == 0:
         return []
     lo, hi = int(kind.min()), int(kind.max())
-    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..3
+    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..4
         unknown = ~np.isin(kind, KINDS)
         raise ValueError(f"unknown BSDF kind codes {np.unique(kind[unknown]).tolist()}")
     first = kind[0]
@@ -404,7 +427,8 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
 
 def is_delta_only(params):
     """Rows whose BSDF is a pure delta distribution (``eval`` and ``pdf`` always zero). ``(k,)``."""
-    smooth_conductor = (params.kind == KIND_CONDUCTOR) & is_smooth(params.alpha)
+    conductor_rows = (params.kind == KIND_CONDUCTOR) | (params.kind == KIND_CONDUCTOR_MS)
+    smooth_conductor = conductor_rows & is_smooth(params.alpha)
     smooth_dielectric = (params.kind == KIND_DIELECTRIC) & is_smooth_dielectric(params.eta,
                                                                                 params.alpha)
     return smooth_conductor | smooth_dielectric

@@ -53,6 +53,7 @@ from . import microfacet as mf
 from .dielectric import RADIANCE, _check_mode
 from .frame import dot, flip_to_upper, normalize, reflect, reflect_z, side_of
 from .fresnel import fresnel_dielectric
+from .multiscatter import ggx_albedo
 
 # Table resolution: nodes uniform in sqrt(mu), in roughness = sqrt(alpha), and in
 # sqrt((eta - 1) / (eta + 1)) (= F0^(1/4)), which puts them where E changes fastest: at grazing
@@ -69,15 +70,9 @@ QUADRATURE = 48
 
 
 def coat_albedo(mu, alpha, eta, n=QUADRATURE):
-    """Directional albedo ``E(mu) = int f_coat(wo, wi) cos_i dwi`` of the GGX dielectric coat.
-
-    Quadrature over microfacet normals: ``E = int D(m) cos_m g(m) dm`` with
-    ``g = F(wo.m) G2 (wo.m) / (cos_o cos_m)`` over the normals that reflect ``wo`` above the
-    surface. ``D cos_m dm`` is uniform in ``(v, phi)`` with ``tan^2 theta_m = alpha^2 v / (1 - v)``;
-    the substitution ``v = 1 - s^2`` removes the integrable ``tan theta_m`` singularity at the
-    horizon, after which Gauss-Legendre in ``s`` and the midpoint rule in ``phi`` converge as
-    ``n^-2`` (the integrand has kinks where ``wi`` or ``m`` meets the horizon): ``n = 48`` is
-    accurate to about 2e-4.
+    """Directional albedo ``E(mu) = int f_coat(wo, wi) cos_i dwi`` of the GGX dielectric coat:
+    :func:`.multiscatter.ggx_albedo` with the dielectric Fresnel of ``eta``; ``n = 48`` nodes per
+    dimension are accurate to about 2e-4.
 
     Parameters
     ----------
@@ -90,32 +85,7 @@ def coat_albedo(mu, alpha, eta, n=QUADRATURE):
     -------
     (k,) float64
     """
-    mu, alpha, eta = np.broadcast_arrays(
-        *(np.asarray(v, np.float64).reshape(-1) for v in (mu, alpha, eta)))
-    x, w = np.polynomial.legendre.leggauss(n)
-    s = 0.5 * (x + 1.0)
-    ws = w * s  # 0.5 w from [-1, 1] -> [0, 1], times dv/ds = 2 s
-    phi = (np.arange(n) + 0.5) / n * np.pi  # wo lies in the xz plane: g is even in phi
-    S, P = (a.reshape(-1) for a in np.meshgrid(s, phi, indexing="ij"))
-    W = np.outer(ws, np.full(n, 1.0 / n)).reshape(-1)
-    out = np.empty(mu.size)
-    step = max(1, 2_000_000 // S.size)
-    for lo in range(0, mu.size, step):
-        sl = slice(lo, lo + step)
-        a = alpha[sl, None]
-        co = mu[sl, None]
-        den = np.sqrt(S * S + a * a * (1.0 - S * S))
-        cm = S / den
-        sm = a * np.sqrt(1.0 - S * S) / den
-        om = np.sqrt(np.maximum(0.0, 1.0 - co * co)) * sm * np.cos(P) + co * cm
-        ci = 2.0 * om * cm - co
-        ok = (om > 0.0) & (ci > 0.0)
-        aa = np.broadcast_to(a, ci.shape)
-        # G2 / cos_o, finite at grazing angles (see microfacet.ggx_visibility).
-        g2_over_co = 4.0 * ci * mf.ggx_visibility(co, ci, aa)
-        f = fresnel_dielectric(om.reshape(-1), np.repeat(eta[sl], S.size)).reshape(om.shape)
-        out[sl] = np.where(ok, f * g2_over_co * om * den / S, 0.0) @ W
-    return out
+    return ggx_albedo(mu, alpha, eta, n)
 
 
 def _table_nodes():

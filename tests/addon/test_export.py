@@ -293,16 +293,55 @@ def test_glossy_glass_refraction_transparent_and_mix_nodes_map_to_core_kinds(emp
     np.testing.assert_allclose(m.ior[row["Glass"]], 1.45, rtol=1e-6)
     assert m.ior[row["Clear"]] == 1.0 and m.roughness[row["Clear"]] == 0.0
     text = "\n".join(s.messages)
-    # Multiscatter GGX (the Glossy default), refraction-only and transparent: one each.
-    assert "Material 'Glossy': MULTI_GGX distribution" in text
+    # Refraction-only and transparent: one each. Multiscatter GGX (the Glossy default) is
+    # modelled on conductors, so it is not reported.
+    assert "Material 'Glossy'" not in text
     assert "Material 'Glass'" not in text
     assert "Material 'Refr': node 'Refraction BSDF' (refraction only)" in text
     assert "Material 'Clear': node 'Transparent BSDF'" in text
     assert "Mix Shader" not in text
-    assert len(s.messages) == 3, s.messages
+    assert len(s.messages) == 2, s.messages
+    assert m.multiscatter[row["Glossy"]] and not m.multiscatter[row["Mix"]]
     # Mix: diffuse 1 - Fac, glossy Fac.
     mix = _mixture(m, row["Mix"])
     np.testing.assert_allclose([mix[0], mix[1]], [0.2, 0.8], rtol=1e-6)
+
+
+def test_multiscatter_ggx_is_flagged_on_metals_and_reported_on_other_layers(empty_scene,
+                                                                            export):
+    from sampling_lab.core.materials.bsdf import KIND_CONDUCTOR_MS, BSDFParams
+
+    def glossy(name, distribution):
+        return scenes.glossy_material(name, (0.9, 0.7, 0.5), 0.4, distribution)
+
+    def principled(name, distribution, **inputs):
+        mat = _principled(name, Roughness=0.5, **inputs)
+        next(n for n in mat.node_tree.nodes
+             if n.bl_idname == "ShaderNodeBsdfPrincipled").distribution = distribution
+        return mat
+
+    glass = scenes.glass_material("RoughGlass", roughness=0.3, distribution='MULTI_GGX')
+    s, row = _export_materials(
+        empty_scene, export, glossy("MultiGlossy", 'MULTI_GGX'), glossy("Glossy", 'GGX'),
+        principled("Metal", 'MULTI_GGX', Metallic=1.0),
+        principled("GGXMetal", 'GGX', Metallic=1.0),
+        principled("HalfMetal", 'MULTI_GGX', Metallic=0.5), glass)
+    m = s.materials
+    assert [bool(m.multiscatter[row[k]]) for k in ("MultiGlossy", "Glossy", "Metal", "GGXMetal")] \
+        == [True, False, True, False]
+    # The mixture: its metal component is compensated, its specular layer is not (reported).
+    components = {int(m.kind[r]): bool(m.multiscatter[r])
+                  for r, w in zip(m.mix_rows[row["HalfMetal"]], m.mix_weights[row["HalfMetal"]])
+                  if w > 0}
+    assert components == {1: True, 3: False}
+    assert sorted(s.messages) == sorted([
+        "Material 'HalfMetal': Multiscatter GGX on the specular layer of node 'Principled BSDF' "
+        "is not supported yet; rendered as single-scattering GGX",
+        "Material 'RoughGlass': MULTI_GGX distribution of node 'Glass BSDF' is not supported "
+        "yet; rendered as GGX"]), s.messages
+    # The core shades the flagged conductor rows with the compensated BSDF.
+    kinds = BSDFParams.from_materials(m, np.array([row["MultiGlossy"], row["Glossy"]])).kind
+    assert kinds.tolist() == [KIND_CONDUCTOR_MS, 1]
 
 
 def test_texture_driven_color_uses_socket_value_and_is_reported(empty_scene, export):

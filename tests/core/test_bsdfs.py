@@ -653,8 +653,8 @@ def test_refraction_obeys_generalized_reciprocity():
     np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-300)
 
 
-@pytest.mark.parametrize("kind", [B.KIND_DIELECTRIC, B.KIND_LAYERED],
-                         ids=["dielectric", "layered"])
+@pytest.mark.parametrize("kind", [B.KIND_DIELECTRIC, B.KIND_LAYERED, B.KIND_CONDUCTOR_MS],
+                         ids=["dielectric", "layered", "conductor_ms"])
 def test_importance_mode_is_the_adjoint_of_radiance_mode(kind):
     rng = np.random.default_rng(15)
     k = 20_000
@@ -666,8 +666,9 @@ def test_importance_mode_is_the_adjoint_of_radiance_mode(kind):
     assert np.count_nonzero(a[:, 0]) > k // 10
     # The two sides build the half vector from different sums: rounding, not 1e-9.
     np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-300)
-    if kind == B.KIND_LAYERED:
-        # The albedo-scaled base is not reciprocal by itself: the modes must differ somewhere.
+    if kind in (B.KIND_LAYERED, B.KIND_CONDUCTOR_MS):
+        # The albedo-scaled base and the multiscatter factor are not reciprocal by themselves:
+        # the modes must differ somewhere.
         assert not np.allclose(_f(params, wo, wi, B.RADIANCE), a)
 
 
