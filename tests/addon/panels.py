@@ -25,9 +25,9 @@ class LayoutRecorder:
         object.__setattr__(self, name, value)
 
 
-def drawn_rows(panel_name, scene):
+def drawn_rows(panel_name, scene, header=False):
     """``{property: active}`` of the rows panel ``panel_name`` draws for ``scene`` (the panel
-    must poll true for the Sampling Lab engine)."""
+    must poll true for the Sampling Lab engine); ``header``: of its ``draw_header``."""
 
     class Context:
         engine = ENGINE_ID
@@ -36,5 +36,6 @@ def drawn_rows(panel_name, scene):
     panel = getattr(bpy.types, panel_name)
     assert panel.poll(Context)
     calls = []
-    panel.draw(type("Panel", (), {"layout": LayoutRecorder(calls)})(), Context)
+    getattr(panel, "draw_header" if header else "draw")(
+        type("Panel", (), {"layout": LayoutRecorder(calls)})(), Context)
     return dict(calls)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import scenes as S
+from panels import drawn_rows
 from scenes import ADDON_MODULE
 
 BASE_OUTPUTS = ["Image", "Alpha", "Variance", "Sample Count"]
@@ -103,32 +104,18 @@ def test_strategy_view_properties_default_to_the_core_and_map_to_render_settings
 # --------------------------------------------------------------------------- UI
 
 
-def _draw(panel, scene, header=False):
-    """(property name, active) of every ``prop`` call of ``panel.draw`` (or ``draw_header``)."""
-    from test_strategy_settings import _Recorder
-
-    class Context:
-        engine = S.ENGINE_ID
-
-    Context.scene = scene
-    calls = []
-    layout = _Recorder(calls)
-    getattr(panel, "draw_header" if header else "draw")(
-        type("Panel", (), {"layout": layout})(), Context)
-    return calls
-
-
 @pytest.mark.parametrize("integrator", ['PATH', 'LIGHT', 'BDPT'])
 def test_strategy_views_panel_is_active_only_for_bidirectional(empty_scene, integrator):
     panel = bpy.types.SAMPLINGLAB_RENDER_PT_strategy_views
     assert panel.bl_parent_id == "SAMPLINGLAB_RENDER_PT_sampling"
     settings = empty_scene.sampling_lab
     settings.integrator, settings.use_strategy_views = integrator, True
-    assert dict(_draw(panel, empty_scene, header=True)) == {
+    name = panel.__name__
+    assert drawn_rows(name, empty_scene, header=True) == {
         "use_strategy_views": integrator == 'BDPT'}
-    assert dict(_draw(panel, empty_scene)) == {"strategy_max_length": integrator == 'BDPT'}
+    assert drawn_rows(name, empty_scene) == {"strategy_max_length": integrator == 'BDPT'}
     settings.use_strategy_views = False
-    assert dict(_draw(panel, empty_scene)) == {"strategy_max_length": False}
+    assert drawn_rows(name, empty_scene) == {"strategy_max_length": False}
 
 
 @pytest.mark.parametrize("integrator", ['PATH', 'LIGHT', 'BDPT'])
@@ -136,7 +123,7 @@ def test_mis_options_are_active_for_path_and_bidirectional_not_light_tracing(emp
                                                                               integrator):
     settings = empty_scene.sampling_lab
     settings.integrator, settings.mis_heuristic = integrator, 'POWER'
-    active = dict(_draw(bpy.types.SAMPLINGLAB_RENDER_PT_light_sampling, empty_scene))
+    active = drawn_rows("SAMPLINGLAB_RENDER_PT_light_sampling", empty_scene)
     assert active["mis_heuristic"] == active["mis_beta"] == (integrator != 'LIGHT')
     assert active["light_selection"] and active["distribution"]
     # Light and BDPT paths start on emitters sampled by area: only the path tracer samples
