@@ -22,6 +22,7 @@ import json
 import os
 import signal
 import sys
+import tempfile
 
 from .core import scenes as builtin_scenes
 from .core.integrators import integrator_class
@@ -54,13 +55,25 @@ class _Help(argparse.HelpFormatter):
                        else " (default: %(default)s)")
 
 
+def _joined_resolution(argv):
+    """``--resolution -5x10`` as ``--resolution=-5x10``: argparse would take ``-5x10`` for an
+    option and say the value is missing instead of saying what is wrong with it."""
+    out = []
+    for arg in argv:
+        if out and out[-1] == "--resolution" and arg[:1] == "-" and arg[1:2].isdigit():
+            out[-1] = f"--resolution={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def _resolution(text):
     try:
         w, h = (int(x) for x in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"resolution must look like 640x480, not {text!r}")
     if w < 1 or h < 1:
-        raise argparse.ArgumentTypeError("resolution must be at least 1x1")
+        raise argparse.ArgumentTypeError(f"resolution must be at least 1x1, not {text!r}")
     return w, h
 
 
@@ -184,11 +197,16 @@ class ProgressBar:
             self.stream.write("\n")
 
 
+def _is_blend(name):
+    """Whether the scene argument names a file (else a built-in scene)."""
+    return name.lower().endswith(".blend") or os.path.sep in name
+
+
 def load_scene(args):
     """Scene and the settings it carries, from a built-in name or a .blend file."""
     settings = RenderSettings()
     name = args.scene
-    if name.lower().endswith(".blend") or os.path.sep in name:
+    if _is_blend(name):
         if not os.path.isfile(name) or not os.access(name, os.R_OK):
             raise UsageError(f"cannot read scene file {name!r}")
         from .addon.blendfile import is_blend_file, load_blend
@@ -241,15 +259,59 @@ def _notes(settings, given):
               f"(only bdpt does)", file=sys.stderr)
 
 
+def check_output(path):
+    """Refuse, before any rendering, an output path the EXR could not be written to: not an
+    ``.exr`` name, an existing folder, a folder part that is a file, or a folder that exists
+    but cannot be written (``UsageError`` naming the cause)."""
+    if not path.lower().endswith(".exr"):
+        raise UsageError(f"output must be an .exr file, not {path!r}")
+    if os.path.isdir(path):
+        raise UsageError(f"cannot write {path!r}: it is a folder")
+    folder = os.path.dirname(os.path.abspath(path))
+    while not os.path.exists(folder):
+        folder = os.path.dirname(folder)
+    if not os.path.isdir(folder):
+        raise UsageError(f"cannot write {path!r}: {folder!r} is a file, not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise UsageError(f"cannot write {path!r}: the folder {folder!r} is not writable")
+
+
+def check_halt(settings):
+    """A render must stop by itself: refuse ``--spp 0`` without a time limit, naming both."""
+    if settings.spp == 0 and not settings.time_limit > 0:
+        raise UsageError("--spp 0 renders no samples: give --spp N with N >= 1, or a time "
+                         "limit with --time SECONDS")
+
+
+def write_output(path, layers):
+    """Write the EXR; if that fails after all (disk full, folder removed meanwhile), write it to
+    the temporary folder instead so that the render is not lost. Returns the path written."""
+    from .core.exr import write_multilayer
+
+    try:
+        write_multilayer(path, layers)
+        return path
+    except OSError as exc:
+        fallback = os.path.join(tempfile.gettempdir(), f"sampling_lab-{os.path.basename(path)}")
+        write_multilayer(fallback, layers)
+        print(f"{PROG}: could not write {path!r} ({exc.strerror or exc}); the image is in "
+              f"{fallback!r}", file=sys.stderr)
+        return fallback
+
+
 def cmd_render(args):
-    if not args.output.lower().endswith(".exr"):
-        raise UsageError(f"output must be an .exr file, not {args.output!r}")
+    check_output(args.output)
     scene, settings = load_scene(args)
-    _notes(settings, apply_flags(settings, args))
+    given = apply_flags(settings, args)
+    check_halt(settings)
+    _notes(settings, given)
+    if args.frame is not None and not _is_blend(args.scene):
+        print(f"note: --frame {args.frame} does not apply to the built-in scene "
+              f"{args.scene!r} (it has no animation); it applies to .blend files", file=sys.stderr)
     for message in scene.messages:
         print(f"note: {message}", file=sys.stderr)
 
-    from .core.exr import write_multilayer, write_png_preview
+    from .core.exr import write_png_preview
 
     bar = ProgressBar(quiet=args.quiet)
     interrupted = []
@@ -265,36 +327,38 @@ def cmd_render(args):
     if result.cancelled:
         print(f"{PROG}: cancelled; writing the samples taken", file=sys.stderr)
     # BDPT's strategy views (empty unless asked for) go into the same file as extra layers.
-    layers = result.layers()
-    write_multilayer(args.output, {
+    layers = {
         "Combined": result.combined(),
         "Variance": result.variance(),
         "Sample Count": result.sample_count()[..., None],
-        **layers,
-    })
+        **result.layers(),
+    }
+    output = write_output(args.output, layers)
     if args.png:
-        write_png_preview(os.path.splitext(args.output)[0] + ".png", result.combined()[..., :3])
+        write_png_preview(os.path.splitext(output)[0] + ".png", result.combined()[..., :3])
     stats = dict(result.stats)
-    stats.update(output=os.path.abspath(args.output), integrator=settings.integrator,
+    stats.update(output=os.path.abspath(output), integrator=settings.integrator,
                  sampler=settings.sampler, width=scene.camera.width, height=scene.camera.height,
                  strategy_views=settings.strategy_views,
                  strategy_max_length=settings.strategy_max_length,
-                 layers=list(layers))
+                 layers=list(layers), cancelled=result.cancelled)
     if args.json:
         print(json.dumps(stats))
     elif not args.quiet:
-        png = f" and {os.path.splitext(args.output)[0]}.png" if args.png else ""
-        print(f"wrote {args.output}{png}: {stats['spp']} spp in {stats['time_s']:.2f} s, "
+        png = f" and {os.path.splitext(output)[0]}.png" if args.png else ""
+        print(f"wrote {output}{png}: {stats['spp']} spp in {stats['time_s']:.2f} s, "
               f"{stats['samples_per_s'] / 1e6:.3f} M samples/s, "
               f"{stats['rays_per_s'] / 1e6:.2f} M rays/s", file=sys.stderr)
-    return 0
+    # Ctrl-C: the samples are written, and the exit code says the render was interrupted.
+    return 130 if interrupted else (0 if output == args.output else 1)
 
 
 def main(argv=None):
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        args = build_parser().parse_args(argv)
-        args.argv = list(sys.argv[1:] if argv is None else argv)
+        args = build_parser().parse_args(_joined_resolution(argv))
+        args.argv = argv
         if args.command == "render":
             return cmd_render(args)
         try:

@@ -39,6 +39,19 @@ ERROR_CASES = {
     "incomplete resolution": ["render", "cornell", "-o", "{tmp}/a.exr", "--resolution", "32x"],
     "missing output": ["render", "cornell"],
     "no command": [],
+    "output under a file": RENDER + ["-o", "{tmp}/a_file/a.exr"],
+    "output is a folder": RENDER + ["-o", "{tmp}/folder.exr"],
+    "zero samples": ["render", "cornell", "-o", "{tmp}/a.exr", "--spp", "0"],
+    "negative resolution": ["render", "cornell", "-o", "{tmp}/a.exr", "--resolution", "-5x10"],
+    "negative time": ["render", "cornell", "-o", "{tmp}/a.exr", "--time", "-1"],
+}
+# What each of those errors must name (the cause, in the user's terms).
+ERROR_WORDS = {
+    "output under a file": "is a file, not a folder",
+    "output is a folder": "it is a folder",
+    "zero samples": "--time SECONDS",
+    "negative resolution": "'-5x10'",
+    "negative time": "-1.0 is not a number in [0, inf]",
 }
 RUNS = {
     "json": RENDER + ["-o", "{tmp}/out.exr", "--json", "--png"],
@@ -70,6 +83,8 @@ def cli_runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("cli")
     (tmp / "corrupt.blend").write_bytes(b"this is not a blend file\n" * 10)
     (tmp / "folder.blend").mkdir()
+    (tmp / "folder.exr").mkdir()
+    (tmp / "a_file").write_text("a file where the output wants a folder\n")
     # A bpy that cannot be imported, for the run that must not need Blender.
     (tmp / "no_bpy" / "bpy").mkdir(parents=True)
     (tmp / "no_bpy" / "bpy" / "__init__.py").write_text("raise ImportError('no bpy here')\n")
@@ -176,6 +191,62 @@ def test_usage_errors_exit_2_with_one_line_on_stderr(cli_runs, case):
     code, out, err = runs["main"][case]
     _assert_usage_error(code, out, err)
     assert not (tmp / "a.exr").exists()
+
+
+@pytest.mark.parametrize("case", list(ERROR_WORDS))
+def test_usage_errors_name_their_cause_before_rendering(cli_runs, case):
+    _, runs = cli_runs
+    code, _, err = runs["main"][case]
+    assert code == 2 and ERROR_WORDS[case] in err, err
+    assert "%" not in err  # refused before the progress bar ever showed
+
+
+def test_json_lists_every_layer_the_exr_holds(cli_runs):
+    tmp, runs = cli_runs
+    stats = json.loads(runs["json"].stdout.splitlines()[0])
+    assert stats["layers"] == list(read_multilayer(str(tmp / "out.exr")))
+    assert stats["layers"][:3] == ["Combined", "Variance", "Sample Count"]
+
+
+def test_a_failed_write_goes_to_the_temporary_folder_and_says_where(tmp_path, monkeypatch,
+                                                                      capsys):
+    from sampling_lab import cli
+
+    (tmp_path / "a_file").write_text("in the way\n")
+    monkeypatch.setattr(cli.tempfile, "tempdir", str(tmp_path))
+    image = np.ones((2, 3, 4), np.float32)
+    written = cli.write_output(str(tmp_path / "a_file" / "x.exr"), {"Combined": image})
+    assert written == str(tmp_path / "sampling_lab-x.exr")
+    assert np.array_equal(read_multilayer(written)["Combined"], image)
+    assert written in capsys.readouterr().err
+
+
+def test_frame_on_a_built_in_scene_prints_a_note(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "sampling_lab", *RENDER, "--frame", "3", "--quiet",
+                        "-o", str(tmp_path / "f.exr")], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "note: --frame 3 does not apply to the built-in scene 'cornell'" in r.stderr
+
+
+def test_ctrl_c_writes_the_samples_taken_and_exits_130(tmp_path):
+    """SIGINT during a render of up to 60 s: the EXR holds the samples taken, exit code 130."""
+    import signal
+    import time
+
+    out = tmp_path / "c.exr"
+    proc = subprocess.Popen([sys.executable, "-m", "sampling_lab", "render", "cornell",
+                             "--resolution", "32x24", "--time", "60", "-o", str(out)],
+                            stderr=subprocess.PIPE, text=True)
+    # Wait for the progress bar's first line: the render loop is running.
+    proc.stderr.read(1)
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err[-500:]
+    assert "cancelled; writing the samples taken" in err
+    count = read_multilayer(str(out))["Sample Count"]
+    assert count.min() >= 1
 
 
 @pytest.mark.parametrize("case", [
