@@ -324,6 +324,9 @@ def cmd_render(args):
     finally:
         signal.signal(signal.SIGINT, previous)
         bar.close()
+    for message in result.messages:
+        if message not in scene.messages:  # those were printed before rendering
+            print(f"note: {message}", file=sys.stderr)
     if result.cancelled:
         print(f"{PROG}: cancelled; writing the samples taken", file=sys.stderr)
     # BDPT's strategy views (empty unless asked for) go into the same file as extra layers.

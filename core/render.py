@@ -331,8 +331,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     integrator = integrator_class(settings.integrator)(prep, settings)
     # Work done once before the first unit (radiosity's solve), with progress and cancel.
     solve_cancelled = integrator.prepare_render(progress, cancel)
-    result = RenderResult(film, messages=list(scene.messages) + _messages(scene, settings,
-                                                                          integrator),
+    result = RenderResult(film, messages=list(scene.messages) + _scene_notes(scene, prep)
+                          + _messages(scene, settings, integrator),
                           layer_names=list(integrator.layers), prepared=prep)
     keep_freed_memory()
     passes = _Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths)
@@ -363,6 +363,17 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     if integrator.whole_passes:
         result.stats.update(integrator.render_stats(t))
     return result
+
+
+def _scene_notes(scene, prep):
+    """What a scene lacks that leaves the image empty: geometry, or any light at all."""
+    notes = []
+    if scene.n_triangles == 0:
+        notes.append("the scene has no geometry: the camera sees only lights and the world")
+    if prep.lights.n_emitters == 0:
+        notes.append("the scene emits no light (no lamps, no emission shaders, a black "
+                     "world): the image is black")
+    return notes
 
 
 def _messages(scene, settings, integrator):
