@@ -153,3 +153,21 @@ def render_ours_and_cycles(scene, folder, our_spp, cycles_spp, cycles_runs, boun
     set_sampling_lab(scene, samples=our_spp, seed=our_seed, max_bounces=bounces)
     ours = render_to_exr(scene, folder / "ours.exr")
     return ours, np.stack(cycles)
+
+
+def assert_ours_agree_with_cycles(ours, cycles, what, detect=None, spp=None):
+    """The checks every Cycles agreement test makes of :func:`render_ours_and_cycles`' output:
+    every sample taken (``spp``: our Sample Count, when given), every image finite, and our
+    Combined within the confidence intervals of Cycles' runs
+    (``tests.helpers.assert_images_agree``, its default ``detect`` unless given). Prints and
+    returns the agreement."""
+    from tests.helpers import DETECT, assert_images_agree
+
+    if spp is not None:
+        assert (ours["Sample Count"] == spp).all()
+    for img in list(ours.values()) + list(cycles):
+        assert np.isfinite(img).all()
+    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
+                                detect=DETECT if detect is None else detect, what=what)
+    print(f"{what}: image mean ours / Cycles {found.ratio}")
+    return found

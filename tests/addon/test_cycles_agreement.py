@@ -9,11 +9,10 @@ detects with 99 % power (the checker asserts them); the slow tier (``-m slow``) 
 ``FULL_SCALE`` times the samples and detects 2 % image-mean and 5 % block errors.
 """
 
-import numpy as np
 import pytest
 
 import scenes as S
-from tests.helpers import DETECT, assert_images_agree, power_tiers
+from tests.helpers import DETECT, power_tiers
 
 RESOLUTION = (64, 64)
 OUR_SPP = 256
@@ -49,10 +48,5 @@ def test_render_agrees_with_cycles(empty_scene, tmp_path, name, tier):
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, our_spp, CYCLES_SPP * scale,
                                             CYCLES_RUNS, BOUNCES, our_seed=7, cycles_seed=101)
     assert set(ours) >= {"Combined", "Variance", "Sample Count"}
-    assert (ours["Sample Count"] == our_spp).all()
-    for img in list(ours.values()) + list(cycles):
-        assert np.isfinite(img).all()
-
-    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                                detect=DETECT if tier.full else STATED[name], what=name)
-    print(f"{name}: image mean ours / Cycles {found.ratio}")
+    S.assert_ours_agree_with_cycles(ours, cycles, name, spp=our_spp,
+                                    detect=DETECT if tier.full else STATED[name])

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import scenes as S
-from tests.helpers import DETECT, assert_estimates_agree, assert_images_agree
+from tests.helpers import DETECT, assert_estimates_agree
 
 RESOLUTION = (64, 32)
 OUR_SPP = 1024
@@ -127,10 +127,6 @@ def test_default_multiscatter_metals_agree_with_cycles(empty_scene, export, tmp_
 
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
                                             BOUNCES, our_seed=5, cycles_seed=301)
-    assert (ours["Sample Count"] == OUR_SPP).all()
-    for img in list(ours.values()) + list(cycles):
-        assert np.isfinite(img).all()
-    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                                detect=STATED[name], what=name)
-    print(f"{name}: image mean ours / Cycles {found.ratio}")
+    S.assert_ours_agree_with_cycles(ours, cycles, name, detect=STATED[name],
+                                    spp=OUR_SPP)
     assert_spheres_agree(ours, cycles, sphere_masks(scene), name)

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 import scenes as S
-from tests.helpers import assert_images_agree
 
 RESOLUTION = (32, 32)
 OUR_SPP = 512
@@ -41,13 +40,8 @@ def test_smooth_shading_agrees_with_cycles(empty_scene, tmp_path, name):
 
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
                                             BOUNCES, our_seed=7, cycles_seed=101)
-    assert (ours["Sample Count"] == OUR_SPP).all()
-    for img in list(ours.values()) + list(cycles):
-        assert np.isfinite(img).all()
-
-    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                                detect=STATED[name], what=name)
-    print(f"{name}: image mean ours / Cycles {found.ratio}")
+    S.assert_ours_agree_with_cycles(ours, cycles, name, detect=STATED[name],
+                                    spp=OUR_SPP)
 
 
 def test_smooth_sphere_exports_world_corner_normals(empty_scene):

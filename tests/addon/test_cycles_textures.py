@@ -158,12 +158,8 @@ def test_textured_plane_agrees_with_cycles(empty_scene, tmp_path):
 
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
                                             BOUNCES, our_seed=11, cycles_seed=301)
-    for img in list(ours.values()) + list(cycles):
-        assert np.isfinite(img).all()
     # Detects 0.9 % image-mean and 2.5 % block errors with 99 % power (the default target).
-    found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                                what="textured plane")
-    print(f"textured plane: image mean ours / Cycles {found.ratio}")
+    S.assert_ours_agree_with_cycles(ours, cycles, "textured plane")
 
 
 @pytest.mark.parametrize("interpolation,extension", [("Closest", 'CLIP'), ("Linear", 'EXTEND'),
