@@ -47,9 +47,7 @@ import numpy as np
 from ..materials.bsdf import RADIANCE, sample_bsdf
 from ..materials.frame import to_world
 from ..photons.estimate import PhotonMap
-from ..photons.lookup import require_scipy
-from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, auto_radius, check_memory,
-                               photon_sampler, trace_photon_chunks)
+from ..photons.tracing import BYTES_PER_PHOTON, CHUNK, photon_setup, trace_photon_chunks
 from ..photons.visible import (DIMS_CAMERA, DIMS_PER_BOUNCE, follow_specular,
                                trace_visible_points)
 from .base import Counters, Integrator
@@ -90,11 +88,7 @@ class PhotonMapping(Integrator):
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
-        require_scipy()
-        check_memory(settings.photons, settings.max_bounces, settings.photon_memory)
-        self.photons = int(settings.photons)
-        self.radius = float(settings.photon_radius) or auto_radius(prep)
-        self.photon_sampler = photon_sampler(settings, prep.scene.camera.width)
+        self.photons, self.radius, self.photon_sampler = photon_setup(prep, settings)
         self.maps = None
         self.sum = None
         self.passes = 0

@@ -48,9 +48,8 @@ import time
 
 import numpy as np
 
-from ..photons.lookup import PhotonTree, require_scipy
-from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, auto_radius, check_memory,
-                               photon_sampler, trace_photon_chunks)
+from ..photons.lookup import PhotonTree
+from ..photons.tracing import BYTES_PER_PHOTON, CHUNK, photon_setup, trace_photon_chunks
 from ..photons.visible import join_points, trace_visible_points
 from .base import Counters, Integrator
 
@@ -63,12 +62,8 @@ class SPPM(Integrator):
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
-        require_scipy()
-        check_memory(settings.photons, settings.max_bounces, settings.photon_memory)
-        self.photons = int(settings.photons)
+        self.photons, self.radius0, self.photon_sampler = photon_setup(prep, settings)
         self.alpha = float(settings.sppm_alpha)
-        self.radius0 = float(settings.photon_radius) or auto_radius(prep)
-        self.photon_sampler = photon_sampler(settings, prep.scene.camera.width)
         self.state = None
         self.peak_bytes = 0
         self.photons_stored = 0

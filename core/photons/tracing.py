@@ -30,6 +30,7 @@ from ..materials.bsdf import IMPORTANCE, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..sampling.samplers import make_sampler
 from ..scene import VIS_SHADOW
+from .lookup import require_scipy
 
 # Sample dimensions of a photon: emitter choice, point 2-D, direction 2-D; then per hit the
 # BSDF lobe, the BSDF direction 2-D and Russian roulette.
@@ -213,6 +214,16 @@ def auto_radius(prep):
 def photon_seed(seed):
     """Seed of the photons' sample streams: another stream family than the camera's."""
     return (int(seed) * 2654435761 + 0x9E3779B9) % ((1 << 31) - 1)
+
+
+def photon_setup(prep, settings):
+    """What both photon estimators take from the settings, checked before a render starts
+    (scipy importable, the photons within the memory cap): ``(photons, radius, sampler)``, the
+    photon count, the given radius or :func:`auto_radius`, and :func:`photon_sampler`."""
+    require_scipy()
+    check_memory(settings.photons, settings.max_bounces, settings.photon_memory)
+    radius = float(settings.photon_radius) or auto_radius(prep)
+    return int(settings.photons), radius, photon_sampler(settings, prep.scene.camera.width)
 
 
 def photon_sampler(settings, width):
