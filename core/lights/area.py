@@ -14,7 +14,7 @@ import numpy as np
 
 from ..sampling import warps
 from ..scene import LIGHT_DISK, LIGHT_RECT, Lights
-from .base import LUMINANCE, LightFamily, dot, light_row, unit
+from .base import LUMINANCE, LightFamily, batch_rows, dot, light_row, set_batch_rows, unit
 from .shapes import ray_parallelogram
 
 
@@ -53,7 +53,7 @@ def area_point_pdf(m, p, q, normal, area, emitted, pmf, one_sided, out):
     """Fill rows ``m`` of ``out`` (:class:`~.base.LiSamples`) for points ``q (k, 3)`` sampled
     uniformly by area on emitters of ``area (k,)`` and unit ``normal (k, 3)``, seen from
     ``p[m]``: the solid-angle pdf ``d^2 / (cos A)`` times the selection ``pmf[m]``."""
-    d = q - p[m]
+    d = q - batch_rows(p, m)
     d2 = dot(d, d)
     r = np.sqrt(d2)
     w = d / np.maximum(r, 1e-300)[:, None]
@@ -63,11 +63,11 @@ def area_point_pdf(m, p, q, normal, area, emitted, pmf, one_sided, out):
     ok = (cos_l > 1e-12) & (area > 0) & (r > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
         sa = np.where(ok, d2 / (cos_l * area), 0.0)
-    out.wi[m] = w
-    out.dist[m] = r
-    out.radiance[m] = np.where(ok[:, None], emitted, 0.0)
-    out.pdf[m] = sa * pmf[m]
-    out.light_normal[m] = normal
+    set_batch_rows(out.wi, m, w)
+    set_batch_rows(out.dist, m, r)
+    set_batch_rows(out.radiance, m, np.where(ok[:, None], emitted, 0.0))
+    set_batch_rows(out.pdf, m, sa * batch_rows(pmf, m))
+    set_batch_rows(out.light_normal, m, normal)
 
 
 def solid_angle_pdf(m, sph, omega, pmf, pdf):

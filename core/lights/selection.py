@@ -255,7 +255,11 @@ class TreeSelection:
         entry, pmf, u_next = self.light_dist.sample(u_select)
         index = self.top_rows[entry]
         t = np.nonzero(index < 0)[0]
-        if t.size:
+        if t.size == index.size:
+            # Only finite emitters (no sun, no world): every row descends, no gathers.
+            index, pmf_tree = self.tree.choose(u_next, p, n)
+            pmf = pmf * pmf_tree
+        elif t.size:
             e, pmf_tree = self.tree.choose(u_next[t], p[t], None if n is None else n[t])
             index[t] = e
             pmf[t] = pmf[t] * pmf_tree

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..sampling import warps
 from .area import area_point_pdf, cosine_from_faces, solid_angle_pdf
-from .base import LUMINANCE, LightFamily, dot
+from .base import LUMINANCE, LightFamily, batch_rows, dot
 
 
 class EmissiveTriangles(LightFamily):
@@ -93,7 +93,8 @@ class EmissiveTriangles(LightFamily):
 
     def _corners(self, e):
         """First vertex and edges ``(m, 3)`` of emitters ``e (m,)``."""
-        return self.emit_v0[e], self.emit_e1[e], self.emit_e2[e]
+        return (np.take(self.emit_v0, e, axis=0), np.take(self.emit_e1, e, axis=0),
+                np.take(self.emit_e2, e, axis=0))
 
     @staticmethod
     def _point(v0, e1, e2, u):
@@ -105,8 +106,8 @@ class EmissiveTriangles(LightFamily):
     def sample_li(self, m, e, p, u, pmf, out, counters=None):
         """Uniformly by area or by solid angle; both faces emit."""
         v0, e1, e2 = self._corners(e)
-        q = self._point(v0, e1, e2, u[m])
-        omega, sph = self.use_spherical(v0, v0 + e1, v0 + e2, p[m])
+        q = self._point(v0, e1, e2, batch_rows(u, m))
+        omega, sph = self.use_spherical(v0, v0 + e1, v0 + e2, batch_rows(p, m))
         if sph.any():
             ps, nrm = p[m[sph]], self.emit_normal[e[sph]]
             w = warps.sample_spherical_triangle(u[m[sph]], v0[sph], v0[sph] + e1[sph],
@@ -115,8 +116,8 @@ class EmissiveTriangles(LightFamily):
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = dot(v0[sph] - ps, nrm) / dot(w, nrm)
             q[sph] = ps + w * np.where(np.isfinite(t) & (t > 0), t, 0.0)[:, None]
-        area_point_pdf(m, p, q, self.emit_normal[e], self.emit_area[e], self.emit_radiance[e],
-                       pmf, False, out)
+        area_point_pdf(m, p, q, np.take(self.emit_normal, e, axis=0), self.emit_area[e],
+                       np.take(self.emit_radiance, e, axis=0), pmf, False, out)
         solid_angle_pdf(m, sph, omega, pmf, out.pdf)
 
     def pdf_li(self, prim, p_prev, dist, cos_light, n_prev=None):

@@ -33,6 +33,7 @@ sampler).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -78,12 +79,27 @@ def path_keys(pixel, seed, salt):
     return hash_combine(hash_u32(lo ^ seed_key), hi)
 
 
+@functools.lru_cache(maxsize=4096)
+def _combine_word(value):
+    """The word :func:`hash_combine` mixes into a key for the scalar ``value`` (cached: slot
+    keys and sub-keys ask for the same few values in every batch)."""
+    return hash_u32(_u32(value) ^ _U32(0x9E3779B9))
+
+
+@functools.lru_cache(maxsize=4096)
+def _scalar_hash(value):
+    """``hash_u32`` of the scalar ``value`` (cached)."""
+    return hash_u32(_u32(value))
+
+
 def slot_keys(path_key, dimension, extra=None):
     """Key of each path's (pixel, dimension, seed): ``(n,)`` uint32.
 
     ``extra`` (e.g. the epoch of a finite point set, ``(n,)``) is hashed in when given.
     """
-    k = hash_combine(path_key, _u32(int(hash_u32(_u32(dimension))) + 0x632BE5AB))
+    # hash_combine(path_key, hash(dimension) + constant), its scalar half cached.
+    word = _combine_word((int(_scalar_hash(int(dimension))) + 0x632BE5AB) & 0xFFFFFFFF)
+    k = hash_u32(np.asarray(path_key, np.uint32) ^ word)
     if extra is not None:
         k = hash_combine(k, np.asarray(extra).astype(np.uint32))
     return k
@@ -91,7 +107,7 @@ def slot_keys(path_key, dimension, extra=None):
 
 def sub_key(key, salt):
     """An independent key derived from ``key`` for another use (index shuffle, x, y, ...)."""
-    return hash_u32(np.asarray(key, np.uint32) ^ hash_u32(_u32(salt)))
+    return hash_u32(np.asarray(key, np.uint32) ^ _scalar_hash(int(salt)))
 
 
 def unit_from_u32(x):
@@ -111,18 +127,16 @@ def jitter(key, index):
 
 def reverse_bits(x):
     """Reverse the 32 bits of each element: the base-2 radical inverse in fixed point."""
-    x = np.array(x, np.uint32)  # a copy: updated in place below
+    # Reverse the byte order (one copy), then swap ever larger groups of bits within each
+    # byte, in place: this runs several times a slot.
+    x = np.asarray(x, np.uint32).byteswap()
     t = np.empty_like(x)
-    # Swap ever larger neighbouring groups of bits (in place: this runs several times a slot).
-    for s, m in ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF)):
+    for s, m in ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F)):
         np.right_shift(x, _U32(s), out=t)
         t &= _U32(m)
         x &= _U32(m)
         x <<= _U32(s)
         x |= t
-    np.right_shift(x, _U32(16), out=t)
-    x <<= _U32(16)
-    x |= t
     return x
 
 

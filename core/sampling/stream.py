@@ -21,12 +21,21 @@ _M2 = np.uint32(0x846CA68B)
 def hash_u32(x):
     """Chris Wellons' ``lowbias32`` integer hash on uint32 arrays (wrapping arithmetic)."""
     x = np.asarray(x, np.uint32)
-    with np.errstate(over="ignore"):
-        x = x ^ (x >> np.uint32(16))
-        x = x * _M1
-        x = x ^ (x >> np.uint32(15))
-        x = x * _M2
-        x = x ^ (x >> np.uint32(16))
+    if x.ndim == 0:
+        # NumPy warns about wrapping only for scalars; arrays wrap silently.
+        with np.errstate(over="ignore"):
+            x = x ^ (x >> np.uint32(16))
+            x = x * _M1
+            x = x ^ (x >> np.uint32(15))
+            x = x * _M2
+            return x ^ (x >> np.uint32(16))
+    # One copy, then in place: this runs several times per sample slot.
+    x = x.copy()
+    x ^= x >> np.uint32(16)
+    x *= _M1
+    x ^= x >> np.uint32(15)
+    x *= _M2
+    x ^= x >> np.uint32(16)
     return x
 
 

@@ -53,30 +53,41 @@ from ..lowdiscrepancy import (
 from .padded import PaddedStream
 
 
-def sobol_2d_u32(key, index, count):
+def sobol_2d_u32(key, index, count, reversed_index=None):
     """Scrambled, shuffled Sobol coordinates as fixed point: ``(n, count)`` uint32, count 1 or 2.
 
     Coordinate c is ``owen_scramble(sobol_c(shuffle_index(index, k0)), k_c)`` with the keys
     k0, k1, k2 derived from ``key``; both scrambles work on bit-reversed values, which is the
-    form :func:`..lowdiscrepancy.sobol_reversed` returns.
+    form :func:`..lowdiscrepancy.sobol_reversed` returns. ``reversed_index`` may give
+    ``reverse_bits(index)`` (a stream keeps it, as it is the same in every slot).
     """
-    index = np.asarray(index).astype(np.uint32)  # indices past 2^32 wrap
-    shuffled = reverse_bits(laine_karras_permutation(reverse_bits(index), sub_key(key, 0)))
-    out = np.empty((index.shape[0], count), np.uint32)
+    if reversed_index is None:
+        reversed_index = reverse_bits(np.asarray(index).astype(np.uint32))  # past 2^32 wraps
+    shuffled = reverse_bits(laine_karras_permutation(reversed_index, sub_key(key, 0)))
+    out = np.empty((count, shuffled.shape[0]), np.uint32)
     for c in range(count):
-        r = laine_karras_permutation(sobol_reversed(c, shuffled), sub_key(key, 1 + c))
-        out[:, c] = reverse_bits(r)
-    return out
+        out[c] = laine_karras_permutation(sobol_reversed(c, shuffled), sub_key(key, 1 + c))
+    # Both coordinates back from bit-reversed form in one pass.
+    return reverse_bits(out).T
 
 
 class SobolStream(PaddedStream):
     salt = 0x510E527F
 
+    def __init__(self, pixel, sample_index, seed):
+        super().__init__(pixel, sample_index, seed)
+        # The bit-reversed sample index every slot starts from (indices past 2^32 wrap).
+        self._reversed_index = reverse_bits(self.sample_index.astype(np.uint32))
+
+    def _compact_state(self, keep):
+        super()._compact_state(keep)
+        self._reversed_index = self._reversed_index[keep]
+
     def _sample_1d(self, key, dimension):
-        return unit_from_u32(sobol_2d_u32(key, self.sample_index, 1)[:, 0])
+        return unit_from_u32(sobol_2d_u32(key, None, 1, self._reversed_index)[:, 0])
 
     def _sample_2d(self, key, dimension):
-        return unit_from_u32(sobol_2d_u32(key, self.sample_index, 2))
+        return unit_from_u32(sobol_2d_u32(key, None, 2, self._reversed_index))
 
 
 class SobolSampler:
