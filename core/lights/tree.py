@@ -234,6 +234,7 @@ class LightTree:
             self.cos_e]).T.astype(np.float32))
         # Two-sided triangles and point lights only: no orientation term to evaluate.
         self.omni = bool(np.all(self.theta_o >= PI))
+        self.packed_omni = np.ascontiguousarray(self.packed_t[[0, 1, 2, 6, 7]])
         self.children = np.stack([self.left, self.right])
         self.child_pairs = self.children.T.ravel()
         # Where both children are dark, go by power (at inner nodes; 0.5 elsewhere, unused).
@@ -292,7 +293,11 @@ class LightTree:
         """
         # One gather of every node field: centre (3), axis (3), r^2, power, cos_o, sin_o,
         # cos_e, each a contiguous (..., m) array.
-        cx, cy, cz, ax, ay, az, r2, power, cos_o, sin_o, cos_e = self.packed_t[:, node]
+        if self.omni:
+            # No cone to evaluate: gather only centre, r^2 and power.
+            cx, cy, cz, r2, power = self.packed_omni[:, node]
+        else:
+            cx, cy, cz, ax, ay, az, r2, power, cos_o, sin_o, cos_e = self.packed_t[:, node]
         vx, vy, vz = p[0] - cx, p[1] - cy, p[2] - cz
         d2 = np.maximum(vx * vx + vy * vy + vz * vz, MIN_DIST2)
         if self.omni and n is None:
@@ -303,8 +308,13 @@ class LightTree:
         inside = d2 <= r2
         # The bounding sphere subtends theta_b (sin^2 = r^2 / d^2), pi from inside it.
         sin2_b = np.minimum(r2 / d2, 1.0)
-        cos_b = np.where(inside, -1.0, np.sqrt(1.0 - sin2_b)).astype(np.float32)
-        sin_b = np.where(inside, 0.0, np.sqrt(sin2_b)).astype(np.float32)
+        if inside.any():
+            cos_b = np.where(inside, -1.0, np.sqrt(1.0 - sin2_b)).astype(np.float32)
+            sin_b = np.where(inside, 0.0, np.sqrt(sin2_b)).astype(np.float32)
+        else:
+            # Every point outside every bounding sphere (the usual case): no selection.
+            cos_b = np.sqrt(1.0 - sin2_b).astype(np.float32, copy=False)
+            sin_b = np.sqrt(sin2_b).astype(np.float32, copy=False)
         if self.omni:
             imp = power / np.maximum(d2, r2)
         else:

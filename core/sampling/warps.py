@@ -24,14 +24,24 @@ def sample_uniform_disk_concentric(u):
     -------
     (n, 2) float64
     """
+    out = np.empty((u.shape[0], 2))
+    _concentric(u, out)
+    return out
+
+
+def _concentric(u, out):
+    """The concentric map of ``u (n, 2)`` written into ``out (n, >= 2)`` (columns 0 and 1)."""
     a = 2.0 * u[:, 0] - 1.0
     b = 2.0 * u[:, 1] - 1.0
     use_a = np.abs(a) > np.abs(b)
     r = np.where(use_a, a, b)
+    # One division: b / a where |a| > |b|, else a / b (r is the larger; zero only at a = b = 0).
     with np.errstate(divide="ignore", invalid="ignore"):
-        theta = np.where(use_a, (np.pi / 4) * (b / a), np.pi / 2 - (np.pi / 4) * (a / b))
-    theta = np.where((a == 0) & (b == 0), 0.0, theta)
-    return np.stack([r * np.cos(theta), r * np.sin(theta)], axis=-1)
+        q = (np.pi / 4) * (np.where(use_a, b, a) / r)
+    theta = np.where(use_a, q, np.pi / 2 - q)
+    theta[r == 0] = 0.0
+    np.multiply(r, np.cos(theta), out=out[:, 0])
+    np.multiply(r, np.sin(theta), out=out[:, 1])
 
 
 def uniform_disk_pdf(p):
@@ -73,9 +83,11 @@ def sample_cosine_hemisphere(u):
     -------
     (n, 3) float64 unit vectors with z >= 0.
     """
-    d = sample_uniform_disk_concentric(u)
-    z = np.sqrt(np.maximum(0.0, 1.0 - d[:, 0] ** 2 - d[:, 1] ** 2))
-    return np.concatenate([d, z[:, None]], axis=-1)
+    out = np.empty((u.shape[0], 3))
+    _concentric(u, out)
+    x, y = out[:, 0], out[:, 1]
+    np.sqrt(np.maximum(0.0, 1.0 - x ** 2 - y ** 2), out=out[:, 2])
+    return out
 
 
 def cosine_hemisphere_pdf(cos_theta):
