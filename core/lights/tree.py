@@ -341,10 +341,13 @@ class LightTree:
         return None if a is None else np.ascontiguousarray(np.asarray(a, np.float32).T)
 
     def _p_left(self, node, p, n):
-        """Probability ``(m,)`` float64 of going left at inner nodes ``node (m,)``: the
-        children's importance share, their power share where both are zero. ``p, n`` as in
+        """Probability ``(m,)`` float64 of going left at inner nodes ``node (m,)``, or at the
+        one inner node ``node`` (an int: the root, where every descent starts): the children's
+        importance share, their power share where both are zero. ``p, n`` as in
         :meth:`importance`."""
-        il, ir = self.importance(self.children[:, node], p, n)
+        # One node for all points: its children's fields broadcast, nothing is gathered.
+        kids = self.children[:, [node]] if np.ndim(node) == 0 else self.children[:, node]
+        il, ir = self.importance(kids, p, n)
         tot = il.astype(np.float64) + ir
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(tot > 0, il / tot, self.fallback_left[node])
@@ -372,7 +375,7 @@ class LightTree:
         pmf = np.ones(m)
         u = np.array(u, np.float64)
         pc, nc = self._components(p), self._components(n)
-        for _ in range(self.depth):
+        for level in range(self.depth):
             act = np.nonzero(self.left[node] >= 0)[0]
             if not act.size:
                 break
@@ -380,7 +383,7 @@ class LightTree:
             # While every point is still inside the tree, work on whole arrays (no gathers).
             nd = node if full else node[act]
             ua = u if full else u[act]
-            pl = (self._p_left(nd, pc, nc) if full else
+            pl = (self._p_left(0 if level == 0 else nd, pc, nc) if full else
                   self._p_left(nd, pc[:, act], None if nc is None else nc[:, act]))
             go_right = ua >= pl
             prob = np.where(go_right, 1.0 - pl, pl)
@@ -406,8 +409,11 @@ class LightTree:
             act = np.nonzero(inside & (self.path_node[leaf, d] >= 0))[0]
             if not act.size:
                 break
-            nd = self.path_node[leaf[act], d]
-            pl = self._p_left(nd, pc[:, act], None if nc is None else nc[:, act])
+            nd = 0 if d == 0 else self.path_node[leaf[act], d]  # every path starts at the root
+            if act.size == out.size:
+                pl = self._p_left(nd, pc, nc)
+            else:
+                pl = self._p_left(nd, pc[:, act], None if nc is None else nc[:, act])
             prob = np.where(self.path_left[leaf[act], d], pl, 1.0 - pl)
             out[act] = out[act] * prob
         return out
