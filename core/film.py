@@ -170,14 +170,19 @@ class Film:
         dropped. Call :meth:`add_splat_paths` once per batch with the number of light paths
         that batch traced.
         """
-        pixel, weighted = self._splat_taps(film_xy, value, pixel_filter)
+        self.add_splat_taps(*self.splat_taps(film_xy, value, pixel_filter))
+
+    def add_splat_taps(self, pixel, weighted):
+        """Add the taps :meth:`splat_taps` made: ``pixel (m,)``, ``weighted (m, 3)``."""
         n = self.n_pixels
         for c in range(3):
             self.splat_sum[:, c] += np.bincount(pixel, weighted[:, c], minlength=n)
             self.splat_sum_sq[:, c] += np.bincount(pixel, weighted[:, c] ** 2, minlength=n)
 
-    def _splat_taps(self, film_xy, value, pixel_filter):
-        """Pixels ``(m,)`` and filter-weighted values ``(m, 3)`` of a batch of splats."""
+    def splat_taps(self, film_xy, value, pixel_filter):
+        """Pixels ``(m,)`` and filter-weighted values ``(m, 3)`` of a batch of splats (see
+        :meth:`splat`). Reads nothing the film accumulates, so a worker thread may make them
+        while the render loop adds other units' taps (:meth:`add_splat_taps`)."""
         film_xy = np.asarray(film_xy, np.float64).reshape(-1, 2)
         value = np.asarray(value, np.float64).reshape(-1, 3)
         # Column by column: an .all(axis=1) over three columns is about ten times slower.
@@ -231,7 +236,7 @@ class Film:
 
     def splat_layer(self, name, film_xy, value, pixel_filter=None):
         """Splat ``value (k, 3)`` at ``film_xy (k, 2)`` into layer ``name`` (as :meth:`splat`)."""
-        pixel, weighted = self._splat_taps(film_xy, value, pixel_filter)
+        pixel, weighted = self.splat_taps(film_xy, value, pixel_filter)
         acc = self._layer(name)[1]
         for c in range(3):
             acc[:, c] += np.bincount(pixel, weighted[:, c], minlength=self.n_pixels)

@@ -436,14 +436,21 @@ class _Passes:
         local = Counters()
         out = self.integrator.render_samples(self.sampler.stream(frame_pixels, samples),
                                              self.pixel_filter, local)
-        return pixels, out, local
+        # The filter taps of the light-path splats are made here, on the worker: the render
+        # loop, whose thread the next unit waits for, only adds them up.
+        taps = (film.splat_taps(out.splats.xy, out.splats.value, self.pixel_filter)
+                if out.splats is not None and len(out.splats.xy) else None)
+        return pixels, out, local, taps
 
-    def accumulate(self, pixels, out, local):
-        """Add one unit's output to the film (in unit order: the image is deterministic)."""
+    def accumulate(self, pixels, out, local, taps=None):
+        """Add one unit's output to the film (in unit order: the image is deterministic);
+        ``taps``: the splats' filter taps if :meth:`run_unit` made them."""
         film, pixel_filter = self.film, self.pixel_filter
         self.counters.add(local)
         film.add_samples(pixels, out.radiance)
-        if out.splats is not None and len(out.splats.xy):
+        if taps is not None:
+            film.add_splat_taps(*taps)
+        elif out.splats is not None and len(out.splats.xy):
             film.splat(out.splats.xy, out.splats.value, pixel_filter)
         film.add_splat_paths(out.light_paths)
         for name, values in out.camera_layers.items():

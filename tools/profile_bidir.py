@@ -120,6 +120,8 @@ STAGES = [
     ("sampling.stream", "SampleStream.compact", "sample stream (draws, compaction)"),
     ("render", "_Passes.accumulate", "film accumulation + splats"),
     ("film", "Film.splat", "film accumulation + splats"),
+    ("film", "Film.add_splat_taps", "film accumulation + splats"),
+    ("film", "Film.splat_taps", "film splat taps (worker thread since issue 12)"),
     ("film", "Film.add_samples", "film accumulation + splats"),
 ]
 
