@@ -3,7 +3,9 @@
 Wraps the named stages of :class:`core.integrators.path.PathTracer` with exclusive timers
 (a stage's time excludes the stages it calls), renders the 36-triangle Cornell box of
 ``python -m sampling_lab bench`` at a fixed sample count, and prints each stage's share of the
-summed worker-thread time, then camera samples/s and rays/s of a second, untimed render.
+summed worker-thread CPU time (``time.thread_time``: since issue 12's second round, so that the
+shares hold on a loaded machine; earlier tables used wall-clock time per thread), after the
+camera samples/s and rays/s of a second, untimed render.
 "Other" is what the named stages leave: the bookkeeping of ``render_samples`` itself (gathers,
 compaction, throughput updates) and the render loop around it.
 
@@ -29,7 +31,9 @@ _LOCK = threading.Lock()
 
 
 def _timed(name, fn):
-    """``fn`` with its exclusive time added to ``_TOTALS[name]`` (nested stages subtracted)."""
+    """``fn`` with its exclusive CPU time (of the calling thread, so that other processes' load
+    on a shared machine does not count) added to ``_TOTALS[name]`` (nested stages
+    subtracted)."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
@@ -37,11 +41,11 @@ def _timed(name, fn):
         if stack is None:
             stack = _LOCAL.stack = []
         stack.append(0.0)
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         try:
             return fn(*args, **kwargs)
         finally:
-            dt = time.perf_counter() - t0
+            dt = time.thread_time() - t0
             children = stack.pop()
             if stack:
                 stack[-1] += dt
@@ -118,7 +122,7 @@ def main(argv=None):
     _TOTALS.clear()
     res = render(scene, settings)
     total = sum(_TOTALS.values())
-    print(f"stage profile (exclusive thread-seconds, total {total:.2f} s):")
+    print(f"stage profile (exclusive thread CPU seconds, total {total:.2f} s):")
     for name, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
         print(f"  {100 * sec / total:5.1f} %  {name}")
 
