@@ -254,6 +254,11 @@ class PiecewiseConstant1D:
     def sample(self, u):
         """Choose bins. ``u : (k,)`` -> ``index (k,) int64, pmf (k,), u_remapped (k,)``."""
         u = np.asarray(u, np.float64)
+        if self.func.size == 1:
+            # One bin (a scene with one light): nothing to search, and u keeps its value (the
+            # remap below is (u - 0) / 1).
+            return (np.zeros(u.shape, np.int64), np.full(u.shape, self.pmf_table[0]),
+                    np.clip(u, 0.0, _ONE_MINUS))
         # side="right" puts a u equal to a run of equal CDF values (zero-mass bins) in the last
         # bin of the run, which is the next bin with mass: empty bins are never chosen.
         index = np.searchsorted(self.cdf, u, side="right") - 1
