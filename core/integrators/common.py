@@ -39,6 +39,20 @@ def finite_rows(v):
     return f[:, 0] & f[:, 1] & f[:, 2]
 
 
+def next_1d_if(stream, needed):
+    """``stream.next_1d()`` if ``needed``, else None with the dimension skipped all the same
+    (samplers give every dimension its own values, so skipping one changes no other)."""
+    if needed:
+        return stream.next_1d()
+    stream.skip_to(stream.dimension + 1)
+    return None
+
+
+def roulette_at(settings, bounce):
+    """Whether :func:`russian_roulette` draws on its random number after ``bounce``."""
+    return settings.use_russian_roulette and bounce >= settings.rr_min_bounces
+
+
 def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     """Stage *Russian roulette*: unbiased termination of low-throughput paths.
 
@@ -49,7 +63,7 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     follows the throughput a path will have once it has left the glass. Returns the new
     ``alive (k,)`` mask and ``beta (k, 3)``.
     """
-    if settings.use_russian_roulette and bounce >= settings.rr_min_bounces:
+    if roulette_at(settings, bounce):
         q = max_component(beta)
         q = np.minimum(1.0, q if eta_scale is None else q * eta_scale)
         alive = alive & (u_rr < q)

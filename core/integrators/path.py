@@ -53,8 +53,9 @@ from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows,
-                     geometric_side_valid, intersect_by_class, max_component, ray_class,
-                     russian_roulette, surface_hits, surface_interaction, take_rows)
+                     geometric_side_valid, intersect_by_class, max_component, next_1d_if,
+                     ray_class, roulette_at, russian_roulette, surface_hits,
+                     surface_interaction, take_rows)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -219,12 +220,15 @@ class PathTracer(Integrator):
                 vis, camera_ray = vis[live], camera_ray[live]
             # This bounce's numbers, all drawn up front in the order of their dimensions: the
             # BSDF lobe number also chooses the component of mixed materials before NEE needs it.
+            # Numbers nothing reads are skipped, not drawn (a Lambert-only scene chooses no
+            # lobe; roulette starts after rr_min_bounces): every number is a function of its
+            # dimension, so the others keep their values.
             stream.skip_to(DIMS_CAMERA + bounce * DIMS_PER_BOUNCE)
             u_sel = stream.next_1d()
             u_light = stream.next_2d()
-            u_lobe = stream.next_1d()
+            u_lobe = next_1d_if(stream, not prep.lambert_only)
             u_bsdf = stream.next_2d()
-            u_rr = stream.next_1d()
+            u_rr = next_1d_if(stream, roulette_at(settings, bounce))
             shading = self._shading(si, hits, live, u_lobe)
 
             # Sample lights: NEE with a shadow ray, MIS against BSDF sampling.

@@ -16,8 +16,9 @@ import numpy as np
 
 from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
-from .common import (finite_rows, geometric_side_valid, intersect_by_class, ray_class,
-                     russian_roulette, surface_hits, surface_interaction, take_rows)
+from .common import (finite_rows, geometric_side_valid, intersect_by_class, next_1d_if,
+                     ray_class, roulette_at, russian_roulette, surface_hits,
+                     surface_interaction, take_rows)
 
 
 def dot(a, b):
@@ -244,7 +245,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         path_stream.skip_to(dims_of(j))
         u_lobe = path_stream.next_1d()
         u_bsdf = path_stream.next_2d()
-        u_rr = path_stream.next_1d()
+        u_rr = next_1d_if(path_stream, roulette_at(settings, j - 1))
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
         if ctx.smooth:
