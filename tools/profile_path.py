@@ -20,6 +20,7 @@ same file profiles an older worktree of the renderer when ``PYTHONPATH`` names t
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import threading
 import time
@@ -95,7 +96,11 @@ def _scene_and_settings(args):
     from sampling_lab.core.scenes import cornell_box
 
     scene = cornell_box(args.width, args.height, light="mesh")
-    settings = RenderSettings(spp=args.spp, threads=args.threads, max_bounces=8, seed=0)
+    extra = {k: v for k, v in (("sampler", args.sampler),
+                               ("light_selection", args.light_selection),
+                               ("light_sampling", args.light_sampling)) if v}
+    settings = RenderSettings(spp=args.spp, threads=args.threads, max_bounces=8, seed=0,
+                              **extra)
     return scene, settings
 
 
@@ -106,6 +111,12 @@ def main(argv=None):
     parser.add_argument("--width", type=int, default=256)
     parser.add_argument("--height", type=int, default=256)
     parser.add_argument("--no-profile", action="store_true", help="speed figures only")
+    parser.add_argument("--sampler", help="instead of the default (e.g. independent)")
+    parser.add_argument("--light-selection", help="instead of the default (e.g. power)")
+    parser.add_argument("--light-sampling", help="instead of the default (e.g. solid_angle)")
+    parser.add_argument("--cpu-repeats", type=int, default=0,
+                        help="also print CPU microseconds per sample of N one-thread renders "
+                             "(the best; hardly moved by other processes' load)")
     args = parser.parse_args(argv)
 
     from sampling_lab.core.render import render
@@ -116,6 +127,15 @@ def main(argv=None):
     s = res.stats
     print(f"threads={args.threads} spp={args.spp}: {s['samples_per_s'] / 1e6:.3f} M samples/s, "
           f"{s['rays_per_s'] / 1e6:.3f} M rays/s, {s['time_s']:.2f} s")
+    if args.cpu_repeats:
+        one = dataclasses.replace(settings, threads=1)
+        best = float("inf")
+        for _ in range(args.cpu_repeats):
+            t0 = time.process_time()
+            res = render(scene, one)
+            best = min(best, time.process_time() - t0)
+        print(f"CPU per camera sample, 1 thread (best of {args.cpu_repeats}): "
+              f"{1e6 * best / res.stats['samples']:.3f} us")
     if args.no_profile:
         return
     install_timers()
