@@ -286,3 +286,35 @@ def test_path_tracer_gives_the_tree_its_shading_normals_in_nee_and_mis(selection
     assert seen["sample"] == {normals}
     # Camera rays have no origin vertex; every later bounce has one.
     assert normals in seen["hit_shapes"] and normals in seen["triangle_pdf"]
+
+
+@pytest.fixture(scope="module")
+def triangles_only():
+    """A tree of two-sided emissive triangles alone (no sun, no world): every NEE row
+    descends the tree, and the tree has no orientation cones (``omni``)."""
+    return prepare(scenes.many_lights(8, 8, n=64), light_selection="tree").lights
+
+
+def test_tree_only_batches_choose_with_the_exact_pmf(triangles_only):
+    """The whole-batch path of ``TreeSelection.choose`` (no sun or world rows to set aside)
+    returns the probability ``pmf`` gives, bit for bit."""
+    assert triangles_only.selector.tree.omni
+    rng = np.random.default_rng(15)
+    p, n = _points(rng, 3000)
+    for normals in (n, None):
+        index, pmf = triangles_only.selector.choose(rng.random(3000), None, p, normals)
+        np.testing.assert_array_equal(pmf, triangles_only.selector.pmf(index, p, normals))
+        assert np.all(pmf > 0)
+
+
+@pytest.mark.parametrize("which", ["mixed", "triangles_only"])
+def test_tree_root_level_broadcast_equals_the_per_point_gather(which, request):
+    """At the root every point asks about the same node: the broadcast fields give the same
+    probabilities, to the bit, as gathering them per point."""
+    tree = request.getfixturevalue(which).selector.tree
+    rng = np.random.default_rng(16)
+    p, n = _points(rng, 2000)
+    pc, nc = tree._components(p), tree._components(n)
+    for normals in (nc, None):
+        np.testing.assert_array_equal(tree._p_left(0, pc, normals),
+                                      tree._p_left(np.zeros(2000, np.int64), pc, normals))

@@ -182,3 +182,16 @@ def test_scene_with_no_geometry_and_no_lights_renders_black():
         [], np.zeros((0, 3)), np.zeros((0, 3))), Lights.empty(), scene.camera)
     res = render(empty, plain_settings(spp=2))
     assert (res.combined()[..., :3] == 0).all()
+
+
+def test_finite_rows_flags_rows_with_any_nan_or_inf():
+    """``finite_rows`` (the path tracer's test for a usable throughput or estimate) agrees with
+    ``np.isfinite(v).all(axis=1)`` on rows with NaN or infinity in any channel."""
+    from sampling_lab.core.integrators.common import finite_rows
+
+    rng = np.random.default_rng(2)
+    v = rng.normal(size=(600, 3))
+    rows = rng.choice(600, 60, replace=False)
+    v[rows, rng.integers(0, 3, 60)] = rng.choice([np.nan, np.inf, -np.inf], 60)
+    np.testing.assert_array_equal(finite_rows(v), np.isfinite(v).all(axis=1))
+    assert (~finite_rows(v)).sum() == 60

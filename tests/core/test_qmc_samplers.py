@@ -521,3 +521,16 @@ def test_owen_scramble_keeps_dyadic_intervals_and_is_uniform():
     for value in (0, 0x12345678, 0xFFFFFFFF):
         u = ld.unit_from_u32(ld.owen_scramble(np.full(keys.size, value, np.uint32), keys))
         ks_uniform_test(u, what=f"Owen scramble of {value:#x}")
+
+
+def test_reverse_bits_reverses_all_32_bits_of_every_element():
+    """The byte-swap form of ``reverse_bits`` against Python's string reversal, on edge values
+    and random words, for 1-D and 2-D arrays (the Sobol stream reverses both coordinates of a
+    slot in one (2, n) call)."""
+    rng = np.random.default_rng(12)
+    x = np.concatenate([np.array([0, 1, 0x80000000, 0xFFFFFFFF, 0x12345678], np.uint32),
+                        rng.integers(0, 2**32, 2000, dtype=np.uint64).astype(np.uint32)])
+    want = np.array([int(f"{int(v):032b}"[::-1], 2) for v in x], np.uint32)
+    np.testing.assert_array_equal(ld.reverse_bits(x), want)
+    np.testing.assert_array_equal(ld.reverse_bits(x.reshape(-1, 5)), want.reshape(-1, 5))
+    np.testing.assert_array_equal(ld.reverse_bits(ld.reverse_bits(x)), x)

@@ -207,3 +207,25 @@ def test_uniformity_check_rejects_a_correlated_pair():
 def test_unknown_sampler_is_rejected():
     with pytest.raises(ValueError, match="unknown sampler"):
         make_sampler("no-such-sampler")
+
+
+@pytest.mark.parametrize("name", SAMPLER_NAMES)
+def test_skipping_a_number_leaves_every_other_dimension_unchanged(name):
+    """Integrators skip numbers nothing reads (``next_1d_if``: the lobe number of a
+    Lambert-only scene, the roulette number before roulette starts); the numbers drawn after
+    a skip must be those a stream that drew everything gives, bit for bit."""
+    from sampling_lab.core.integrators.common import next_1d_if
+
+    pix = np.repeat(np.arange(40, dtype=np.int64), 16)
+    smp = np.tile(np.arange(16, dtype=np.int64), 40)
+    sampler = make_sampler(name, seed=9, spp=16, width=8)
+    full = draw(sampler.stream(pix, smp), (1, 2, 1, 2, 1, 1, 2))
+    s = sampler.stream(pix, smp)
+    u0, u1 = s.next_1d(), s.next_2d()
+    assert next_1d_if(s, False) is None
+    u3 = s.next_2d()
+    u5 = next_1d_if(s, True)
+    assert next_1d_if(s, False) is None and s.dimension == full.shape[1] - 2
+    u7 = s.next_2d()
+    np.testing.assert_array_equal(np.column_stack([u0, u1, u3, u5, u7]),
+                                  full[:, [0, 1, 2, 4, 5, 6, 8, 9]])
