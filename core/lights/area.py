@@ -72,7 +72,11 @@ def area_point_pdf(m, p, q, normal, area, emitted, pmf, one_sided, out):
 
 def solid_angle_pdf(m, sph, omega, pmf, pdf):
     """Replace the area pdf of the rows ``m[sph]`` sampled by solid angle with pmf / omega."""
-    if sph.any():
+    if sph.size and sph.all():
+        # Every row by solid angle (no mask gathers; m as in base.batch_rows).
+        area_pdf = batch_rows(pdf, m)
+        set_batch_rows(pdf, m, np.where(area_pdf > 0, batch_rows(pmf, m) / omega, 0.0))
+    elif sph.any():
         rows = m[sph]
         pdf[rows] = np.where(pdf[rows] > 0, pmf[rows] / omega[sph], 0.0)
 

@@ -106,17 +106,29 @@ class EmissiveTriangles(LightFamily):
     def sample_li(self, m, e, p, u, pmf, out, counters=None):
         """Uniformly by area or by solid angle; both faces emit."""
         v0, e1, e2 = self._corners(e)
-        q = self._point(v0, e1, e2, batch_rows(u, m))
-        omega, sph = self.use_spherical(v0, v0 + e1, v0 + e2, batch_rows(p, m))
+        pm, um = batch_rows(p, m), batch_rows(u, m)
+        b, c = v0 + e1, v0 + e2
+        omega, sph = self.use_spherical(v0, b, c, pm)
+        every = sph.size > 0 and sph.all()
+        # Area points only where the spherical warp is not used (none when it always is).
+        q = None if every else self._point(v0, e1, e2, um)
+        normal = np.take(self.emit_normal, e, axis=0)
         if sph.any():
-            ps, nrm = p[m[sph]], self.emit_normal[e[sph]]
-            w = warps.sample_spherical_triangle(u[m[sph]], v0[sph], v0[sph] + e1[sph],
-                                                v0[sph] + e2[sph], ps)
+            arrays = (um, pm, normal, v0, b, c)
+            if not every:
+                idx = np.nonzero(sph)[0]
+                arrays = [np.take(x, idx, axis=0) for x in arrays]
+            us, ps, nrm, a, bs, cs = arrays
+            w = warps.sample_spherical_triangle(us, a, bs, cs, ps)
             # The sampled point is where the direction meets the triangle's plane.
             with np.errstate(divide="ignore", invalid="ignore"):
-                t = dot(v0[sph] - ps, nrm) / dot(w, nrm)
-            q[sph] = ps + w * np.where(np.isfinite(t) & (t > 0), t, 0.0)[:, None]
-        area_point_pdf(m, p, q, np.take(self.emit_normal, e, axis=0), self.emit_area[e],
+                t = dot(a - ps, nrm) / dot(w, nrm)
+            qs = ps + w * np.where(np.isfinite(t) & (t > 0), t, 0.0)[:, None]
+            if every:
+                q = qs
+            else:
+                q[idx] = qs
+        area_point_pdf(m, p, q, normal, self.emit_area[e],
                        np.take(self.emit_radiance, e, axis=0), pmf, False, out)
         solid_angle_pdf(m, sph, omega, pmf, out.pdf)
 
