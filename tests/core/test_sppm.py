@@ -127,6 +127,34 @@ def test_sppm_runs_with_every_kind_of_sampler_and_repeats_itself(sampler):
     assert np.array_equal(a, b)
 
 
+def test_sppm_image_does_not_depend_on_how_many_threads_share_a_pass():
+    """A pass is cut into one chunk per worker thread (camera paths, photons, lookups); the
+    photons and camera paths follow their own sample streams, so the image is the same for 1
+    and 3 threads (up to the order of floating-point sums)."""
+    scene = scenes.cornell_sphere(12, 12, ball="glass")
+    one, three = (render.render(scene, _settings(spp=3, photons=5000, seed=6, threads=t))
+                  for t in (1, 3))
+    assert one.film.mean().max() > 0
+    assert np.allclose(one.film.mean(), three.film.mean(), rtol=1e-9, atol=1e-12)
+    assert one.stats["photons_stored"] == three.stats["photons_stored"]
+
+
+def test_sppm_default_radius_spans_the_same_number_of_pixels_at_any_resolution():
+    """Radius 0: SPPM starts at SPPM_RADIUS_PIXELS scene diagonals per larger image side, so
+    doubling the resolution halves it (the blur of the first passes stays a few pixels)."""
+    from sampling_lab.core.photons.tracing import SPPM_RADIUS_PIXELS
+
+    radii = {}
+    for w in (16, 32):
+        scene = scenes.mirror_point_light(w, w // 2)
+        v = scene.vertices.astype(np.float64)
+        diag = np.linalg.norm(v.max(axis=0) - v.min(axis=0))
+        res = render.render(scene, _settings(spp=1, photons=1000, max_bounces=1, seed=1))
+        radii[w] = res.stats["photon_radius_initial"]
+        assert radii[w] == pytest.approx(SPPM_RADIUS_PIXELS * diag / w)
+    assert radii[16] == pytest.approx(2 * radii[32])
+
+
 def test_sppm_converges_to_bdpt_on_the_glass_ball_caustic():
     """A point light above a glass ball focuses a caustic on the floor (BDPT finds it by
     connecting light-path vertices to the pinhole). The mean over a window of the floor that
