@@ -116,7 +116,7 @@ def trace_photons(prep, stream, max_bounces, counters, min_hit=1):
     prep : core.prepare.PreparedScene
     stream : core.sampling.stream.SampleStream
         One sample vector per photon (dimensions :data:`DIMS_START` + :data:`DIMS_PER_HIT`
-        per hit).
+        per hit); compacted to the photons still travelling (consumed).
     max_bounces : int
     counters : core.integrators.base.Counters
     min_hit : int
@@ -137,7 +137,8 @@ def trace_photons(prep, stream, max_bounces, counters, min_hit=1):
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & np.isfinite(beta).all(1)
     rows = np.nonzero(good & (max_component(np.where(good[:, None], beta, 0.0)) > 0))[0]
     o = _leave_emitters(prep, pts, origin, w, rows)
-    return _walk(prep, stream, o, w[rows], beta[rows], rows, max_bounces, counters, min_hit)
+    stream.compact(rows)
+    return _walk(prep, stream, o, w[rows], beta[rows], max_bounces, counters, min_hit)
 
 
 def _leave_emitters(prep, pts, origin, w, rows):
@@ -152,23 +153,25 @@ def _leave_emitters(prep, pts, origin, w, rows):
     return o
 
 
-def _walk(prep, stream, o, d, beta, rows, max_bounces, counters, min_hit=1):
-    """Scatter the photons ``rows`` from ``o`` along ``d``; store every non-specular hit from
-    hit ``min_hit`` on."""
+def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
+    """Scatter the photons of ``stream`` from ``o`` along ``d``; store every non-specular hit
+    from hit ``min_hit`` on. The stream is compacted as photons leave (so that later bounces
+    draw samples for the survivors only: the values do not change)."""
     smooth = prep.scene.corner_normals is not None
-    vis = np.full(rows.size, VIS_SHADOW, np.int32)
-    specular = np.zeros(rows.size, bool)  # every bounce so far was specular (and one happened)
+    n = beta.shape[0]
+    vis = np.full(n, VIS_SHADOW, np.int32)
+    specular = np.zeros(n, bool)  # every bounce so far was specular (and one happened)
     parts = []
     for hit in range(1, max_bounces + 2):
-        if rows.size == 0:
+        if beta.shape[0] == 0:
             break
         hits = intersect_by_class(prep.accel, o, d, None, vis)
-        counters.rays += rows.size
+        counters.rays += beta.shape[0]
         live = surface_hits(prep, hits)
         si = surface_interaction(prep, hits, d, live)
-        r = rows[live]
+        stream.compact(live)
         stream.skip_to(DIMS_START + (hit - 1) * DIMS_PER_HIT)
-        u_lobe, u_bsdf, u_rr = stream.next_1d()[r], stream.next_2d()[r], stream.next_1d()[r]
+        u_lobe, u_bsdf, u_rr = stream.next_1d(), stream.next_2d(), stream.next_1d()
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
         beta, specular = beta[live], specular[live]
@@ -196,7 +199,7 @@ def _walk(prep, stream, o, d, beta, rows, max_bounces, counters, min_hit=1):
             q = np.minimum(1.0, max_component(new) / max_component(beta))
         alive = (smp.pdf > 0) & np.isfinite(new).all(axis=1) & (u_rr < q) & (q > 0)
         keep = np.nonzero(alive)[0]
-        rows = r[keep]
+        stream.compact(keep)
         beta = new[keep] / q[keep, None]
         specular = np.where(hit == 1, smp.delta, specular & smp.delta)[keep]
         o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
