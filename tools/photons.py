@@ -33,9 +33,11 @@ pixels and RGB of ``(x - ref)^2 / (ref^2 + 0.01)`` (``core.metrics.rel_mse``). F
 estimators the table adds photons emitted, M photons/s (photon tracing time only) and the
 photon memory peak. :func:`lookup_timing` times SPPM's lookup both ways, the kd-tree
 (``scipy.spatial.cKDTree``, what SPPM uses) and pbrt-v4's uniform grid over the visible points
-(:class:`core.photons.grid.PointGrid`), on one pass of each scene. Output: ``PHOTONS_BENCH.md`` and ``photons_bench.csv`` in ``output``
-(default ``out/bench-photons``); with ``update_docs`` the markdown goes to ``docs/``. Figures,
-never asserted.
+(:class:`core.photons.grid.PointGrid`), on one pass of each scene. Output: ``PHOTONS_BENCH.md``
+and ``photons_bench.csv`` in ``output`` (default ``out/bench-photons``); with ``update_docs``
+the markdown goes to ``docs/``. ``bench-photons --sweep`` runs :func:`sweep` instead: SPPM's
+photons per pass, initial radius and alpha against BDPT at equal time, the measurement behind
+SPPM's defaults (``photons_sweep.csv``). Figures, never asserted.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ from ..core.integrators.base import Counters
 from ..core.metrics import rel_mse
 from ..core.photons.grid import PointGrid
 from ..core.photons.lookup import PhotonTree
-from ..core.photons.tracing import auto_radius, trace_photons
+from ..core.photons.tracing import scene_diagonal, sppm_auto_radius, trace_photons
 from ..core.photons.visible import trace_visible_points
 from ..core.prepare import prepare
 from ..core.sampling.samplers import make_sampler
@@ -104,6 +106,44 @@ def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.
     return rows
 
 
+def sweep(scenes=tuple(SCENES), size=(64, 64), seconds=6.0, reference_seconds=120.0,
+          photons=(25_000, 100_000), radius_pixels=(0.64, 1.25, 2.5), alphas=(0.5, 0.7),
+          threads=2, output="out/bench-photons"):
+    """SPPM's settings at equal time: every combination of photons per pass, initial radius
+    (``radius_pixels`` scene diagonals over the larger image side, as
+    :func:`core.photons.tracing.sppm_auto_radius`) and alpha, between two BDPT renders (the
+    second shows how the machine's load drifted). Writes ``photons_sweep.csv``; returns the
+    rows."""
+    w, h = size
+    rows = []
+    for name in scenes:
+        scene = BUILTIN[name](w, h)
+        bounces = SCENES[name]
+        ref = _reference(name, scene, bounces, reference_seconds, threads)
+        mask = direct_pixels(scene, bounces)
+        unit = scene_diagonal(prepare(scene)) / max(w, h)
+        runs = [dict(integrator="bdpt")]
+        runs += [dict(integrator="sppm", photons=n, photon_radius=k * unit, sppm_alpha=a,
+                      radius_pixels=k)
+                 for n in photons for k in radius_pixels for a in alphas]
+        for run in runs + [dict(integrator="bdpt")]:
+            extra = {key: v for key, v in run.items()
+                     if key in ("photon_radius", "sppm_alpha")}
+            k = run.get("radius_pixels", "")
+            row = _ours(name, scene, run["integrator"], bounces, seconds, run.get("photons"),
+                        threads, ref, mask, **extra)
+            row.update(radius_pixels=k, photons=run.get("photons", ""),
+                       photon_radius=run.get("photon_radius", ""),
+                       sppm_alpha=run.get("sppm_alpha", ""), load=loadavg())
+            rows.append(row)
+            print(_line(row) + (f" [photons {row['photons']}, radius {k} px-diagonals, "
+                                f"alpha {row['sppm_alpha']}]" if k != "" else ""))
+    os.makedirs(output, exist_ok=True)
+    write_csv(os.path.join(output, "photons_sweep.csv"), rows)
+    print(f"wrote {output}/photons_sweep.csv")
+    return rows
+
+
 def lookup_timing(scene, bounces, photons, repeats=3):
     """Seconds of SPPM's gather lookup on one pass (one visible point per pixel, ``photons``
     photons, the initial radius), best of ``repeats``: kd-tree and grid, and the pair count."""
@@ -113,8 +153,8 @@ def lookup_timing(scene, bounces, photons, repeats=3):
     points = trace_visible_points(prep, sampler.stream(np.arange(n), np.zeros(n, np.int64)),
                                   PixelFilter("box", 1.0), bounces, Counters(), np.zeros((n, 3)))
     ph = trace_photons(prep, sampler.stream(np.arange(photons), np.ones(photons, np.int64)),
-                       bounces, Counters())
-    radii = np.full(points.rows.size, auto_radius(prep))
+                       bounces, Counters(), min_hit=2)
+    radii = np.full(points.rows.size, sppm_auto_radius(prep))
     times = {"kdtree": np.inf, "grid": np.inf}
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -160,12 +200,16 @@ def _reference(name, scene, bounces, seconds, threads):
     return res.film.mean()
 
 
-def _ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask):
+def _ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask, **settings):
+    """One equal-time render of ours (``photons`` None: the default; ``settings``: more
+    render settings) and its errors."""
     stage(f"{name}: {integ}, {seconds:g} s")
+    if photons is not None:
+        settings["photons"] = photons
     t0 = time.perf_counter()
     res = render(scene, RenderSettings(integrator=integ, spp=0, time_limit=seconds,
                                        max_bounces=bounces, seed=1, threads=threads,
-                                       photons=photons, filter_type="box", filter_width=1.0))
+                                       filter_type="box", filter_width=1.0, **settings))
     wall = time.perf_counter() - t0
     img = res.film.mean()
     st = res.stats

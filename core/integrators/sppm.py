@@ -22,9 +22,10 @@ Bias and consistency
     (less bias, more noise), values near one keep more photons (less noise, more bias).
     Light paths are bounded as the path tracer's: ``max_bounces + 1`` scattering vertices.
 Parameters
-    ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0: 1/100 of the
-    scene's bounding-box diagonal), ``sppm_alpha``, ``photon_memory`` (MB cap of a pass's
-    photons), ``max_bounces``. Lookups use a kd-tree (``scipy.spatial.cKDTree``, see
+    ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0:
+    :func:`core.photons.tracing.sppm_auto_radius`, 2.5 scene-diagonals over the larger image
+    side, a few pixels at any resolution), ``sppm_alpha``, ``photon_memory`` (MB cap of a
+    pass's photons), ``max_bounces``. Lookups use a kd-tree (``scipy.spatial.cKDTree``, see
     :mod:`core.photons.lookup`) with a uniform kernel (the radius update counts photons).
 When to use it
     Light that reaches diffuse surfaces only through mirrors or smooth glass from small or point
@@ -39,7 +40,10 @@ When it fails
 Render loop: a pass is one call of :meth:`SPPM.render_pass` (``whole_passes``): photons are
 shared by every pixel and the per-pixel state changes between passes, so the image is not a
 mean of independent samples; the film shows the current estimate after each pass, and its
-variance pass is zero (not estimated).
+variance pass is zero (not estimated). Within a pass the camera paths and the photons are cut
+into one chunk per worker thread at least and run in one batch of chunks, then the lookups;
+cancel is polled between chunks. Photons straight from a light are not stored (direct light
+comes from next-event estimation).
 """
 
 from __future__ import annotations

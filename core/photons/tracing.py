@@ -234,7 +234,7 @@ def auto_radius(prep):
 
 # SPPM's initial radius when the setting is 0, in units of diagonal / larger image side (chosen
 # by a sweep, docs/PHOTONS.md; Mitsuba 0.6's SPPM guesses 2.5 of them).
-SPPM_RADIUS_PIXELS = 2.5
+SPPM_RADIUS_PIXELS = 1.25
 
 
 def sppm_auto_radius(prep):
