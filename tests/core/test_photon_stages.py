@@ -164,3 +164,17 @@ def test_photon_integrators_without_scipy_stop_with_a_message_naming_it(monkeypa
         with pytest.raises(ValueError, match="need the Python module scipy"):
             render.render(scenes.cornell_box(4, 4), render.RenderSettings(integrator=integrator,
                                                                           spp=1))
+
+
+def test_bench_scores_apart_the_pixels_seen_through_a_mirror_or_glass():
+    """bench-photons scores the pixels seen directly apart (its BDPT references lack the light
+    seen through specular surfaces): the floor view of the mirror scene sees no mirror, the
+    mirror view sees the floor through it, and the glass ball of point_mirror_glass hides a
+    patch of floor that is seen through it."""
+    from sampling_lab.tools.photons import SCENES, direct_pixels
+
+    masks = {name: direct_pixels(scenes.BUILTIN[name](16, 16), SCENES[name], samples=4)
+             for name in ("point_mirror", "point_mirror_seen", "point_mirror_glass")}
+    assert masks["point_mirror"].all()
+    assert 0.2 < masks["point_mirror_seen"].mean() < 0.8
+    assert 0.5 < masks["point_mirror_glass"].mean() < 1.0
