@@ -23,8 +23,8 @@ Bias and consistency
     Light paths are bounded as the path tracer's: ``max_bounces + 1`` scattering vertices.
 Parameters
     ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0:
-    :func:`core.photons.tracing.sppm_auto_radius`, 2.5 scene-diagonals over the larger image
-    side, a few pixels at any resolution), ``sppm_alpha``, ``photon_memory`` (MB cap of a
+    :func:`core.photons.tracing.sppm_auto_radius`, 1.25 scene diagonals over the larger image
+    side in pixels, a few pixels at any resolution), ``sppm_alpha``, ``photon_memory`` (MB cap of a
     pass's photons), ``max_bounces``. Lookups use a kd-tree (``scipy.spatial.cKDTree``, see
     :mod:`core.photons.lookup`) with a uniform kernel (the radius update counts photons).
 When to use it
