@@ -259,7 +259,8 @@ def _line(row):
     extra = (f", {row['m_photons_per_s']:.2f} M photons/s, {row['photon_memory_peak_mb']:.1f} MB"
              if row["m_photons_per_s"] != "" else "")
     return (f"{row['scene']} {row['renderer']}: {row['spp']} spp in {row['time_s']:.1f} s, "
-            f"relMSE {row['rel_mse']:.4g} (pixels seen directly {row['rel_mse_direct']:.4g}), mean/ref {row['mean_ratio']:.4f}{extra}")
+            f"relMSE {row['rel_mse']:.4g} (pixels seen directly {row['rel_mse_direct']:.4g}), "
+            f"mean/ref {row['mean_ratio']:.4f}{extra}")
 
 
 def _write_markdown(path, rows, summary, size, seconds, reference_seconds, photons, threads):
@@ -271,7 +272,8 @@ def _write_markdown(path, rows, summary, size, seconds, reference_seconds, photo
         f"{seconds:g} s per render, {photons:,} photons per SPPM pass (and in photon "
         f"mapping's maps); references: closed form (point_mirror, point_mirror_seen), BDPT for "
         f"{reference_seconds:g} s (point_glass, point_mirror_glass: they lack the light seen "
-        f"through specular surfaces, hence the column over the pixels seen directly). CPU {summary['cpu']}, load average "
+        f"through specular surfaces, hence the column over the pixels seen directly). "
+        f"CPU {summary['cpu']}, load average "
         f"{summary['load_start']} at the start, {summary['load_end']} at the end.",
         "",
         "| scene | renderer | spp | time s | relMSE | relMSE / SPPM's | relMSE, pixels seen "

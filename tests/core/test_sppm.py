@@ -28,7 +28,8 @@ def test_sppm_reproduces_the_mirror_image_of_a_point_light_that_path_tracing_mis
     """A point light between a diffuse floor and a mirror, through a pinhole that does not see
     the mirror. The floor's reflected light (closed form: the light's mirror image) must be
     reproduced within 2 % by SPPM (the smallest error this test detects: 2 % of the reflected
-    energy; measured -0.8 % with the default initial radius); the path tracer finds none of it (a point light cannot be hit through a mirror),
+    energy; measured -0.8 % with the default initial radius); the path tracer finds none of
+    it (a point light cannot be hit through a mirror),
     which this test shows: its image is the closed-form direct light alone, within its
     confidence interval (narrower than 2 % of the reflected energy)."""
     scene = scenes.mirror_point_light(48, 48)
