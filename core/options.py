@@ -438,7 +438,8 @@ OPTIONS = {o.name: o for o in (
            minimum=1, maximum=1 << 26),
     Option("photon_radius", float, "Radius",
            "Photon mapping: lookup radius in scene units, SPPM's initial one (it shrinks every "
-           "pass) and Photon Mapping's fixed one (0: 1/100 of the scene's bounding-box "
+           "pass; 0: 2.5 times the scene's bounding-box diagonal over the image's larger side "
+           "in pixels, a blur of a few pixels) and Photon Mapping's fixed one (0: 1/100 of the "
            "diagonal). A larger radius gathers more photons (less noise) but blurs the light "
            "over a larger disk (more bias)", 0.0, minimum=0.0, maximum=1e6),
     Option("sppm_alpha", float, "Alpha",

@@ -11,7 +11,9 @@
   selection decides the noise (the light tree's benchmark).
 - :func:`mirror_point_light`: a point light between a diffuse floor and a mirror, seen by a
   pinhole that does not see the mirror; its closed form (:func:`mirror_floor_radiance`,
-  :func:`mirror_point_light_reference`): the light's mirror image.
+  :func:`mirror_point_light_reference`): the light's mirror image. With ``glass=True``
+  (``point_mirror_glass``) a glass ball on the floor adds a refracted caustic, part of it seen
+  through the ball.
 """
 
 from __future__ import annotations
@@ -430,4 +432,5 @@ BUILTIN.update({
     "point_mirror": lambda w, h: mirror_point_light(w, h),
     "point_glass": lambda w, h: cornell_sphere(w, h, "glass", "point"),
     "point_mirror_seen": lambda w, h: mirror_point_light(w, h, view="mirror"),
+    "point_mirror_glass": lambda w, h: mirror_point_light(w, h, glass=True),
 })

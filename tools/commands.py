@@ -67,8 +67,12 @@ def _bench_caustic(args):
 
 
 def _bench_photons(args):
-    from .photons import run
+    from .photons import run, sweep
 
+    if args.sweep:
+        sweep(scenes=args.scenes, size=args.size, seconds=args.seconds,
+              reference_seconds=args.reference_seconds, output=args.output)
+        return 0
     run(scenes=args.scenes, size=args.size, seconds=args.seconds,
         reference_seconds=args.reference_seconds, photons=args.photons,
         cycles=not args.no_cycles, output=args.output, update_docs=args.update_docs)
@@ -87,10 +91,14 @@ def _add_bench_photons(sub, **kw):
     p.add_argument("--seconds", type=_positive_float, default=8.0,
                    help="equal wall-clock budget of every render")
     p.add_argument("--reference-seconds", type=_positive_float, default=120.0,
-                   help="time of the BDPT reference of point_glass")
-    p.add_argument("--photons", type=_positive_int, default=100_000,
-                   help="photons per SPPM pass and in photon mapping's maps")
+                   help="time of the BDPT references of point_glass and point_mirror_glass")
+    p.add_argument("--photons", type=_positive_int, default=None,
+                   help="photons per SPPM pass and in photon mapping's maps (default: the "
+                        "render default, Photons)")
     p.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
+    p.add_argument("--sweep", action="store_true",
+                   help="instead: SPPM's photons per pass, initial radius and alpha against "
+                        "BDPT at equal time (photons_sweep.csv), what its defaults rest on")
     add_output_arguments(p, "bench-photons", "PHOTONS_BENCH.md")
 
 

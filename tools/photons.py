@@ -16,6 +16,14 @@ point light (radius 0) and seen through a pinhole:
   pinhole) but not light that reached the floor through the ball *and is seen through it*
   (a point light and a pinhole both behind specular bounces): that light is in SPPM's and
   photon mapping's images and counts as their "error" here.
+- ``point_mirror_glass`` (:func:`core.scenes.mirror_point_light` with ``glass=True``, 8
+  bounces): the mirror scene with a glass ball (radius 0.3) on the floor: the mirror's
+  reflected light and the ball's caustic on one floor, part of the caustic seen through the
+  ball. Reference: BDPT as for ``point_glass``, with the same gap.
+
+Because the BDPT references lack the light seen through specular surfaces, the table also gives
+relMSE over the *pixels seen directly* (:func:`direct_pixels`: no specular bounce before the
+first rough surface in any of 16 samples of the pixel), where every reference is complete.
 
 Every renderer gets the same wall-clock budget: ours with ``RenderSettings(spp=0,
 time_limit=seconds)`` (SPPM and photon mapping finish the pass under way), Cycles the sample
@@ -25,9 +33,11 @@ pixels and RGB of ``(x - ref)^2 / (ref^2 + 0.01)`` (``core.metrics.rel_mse``). F
 estimators the table adds photons emitted, M photons/s (photon tracing time only) and the
 photon memory peak. :func:`lookup_timing` times SPPM's lookup both ways, the kd-tree
 (``scipy.spatial.cKDTree``, what SPPM uses) and pbrt-v4's uniform grid over the visible points
-(:class:`core.photons.grid.PointGrid`), on one pass of each scene. Output: ``PHOTONS_BENCH.md`` and ``photons_bench.csv`` in ``output``
-(default ``out/bench-photons``); with ``update_docs`` the markdown goes to ``docs/``. Figures,
-never asserted.
+(:class:`core.photons.grid.PointGrid`), on one pass of each scene. Output: ``PHOTONS_BENCH.md``
+and ``photons_bench.csv`` in ``output`` (default ``out/bench-photons``); with ``update_docs``
+the markdown goes to ``docs/``. ``bench-photons --sweep`` runs :func:`sweep` instead: SPPM's
+photons per pass, initial radius and alpha against BDPT at equal time, the measurement behind
+SPPM's defaults (``photons_sweep.csv``). Figures, never asserted.
 """
 
 from __future__ import annotations
@@ -42,11 +52,12 @@ from ..core.integrators.base import Counters
 from ..core.metrics import rel_mse
 from ..core.photons.grid import PointGrid
 from ..core.photons.lookup import PhotonTree
-from ..core.photons.tracing import auto_radius, trace_photons
+from ..core.photons.tracing import scene_diagonal, sppm_auto_radius, trace_photons
 from ..core.photons.visible import trace_visible_points
 from ..core.prepare import prepare
 from ..core.sampling.samplers import make_sampler
 from ..core.film import PixelFilter
+from ..core.options import DEFAULTS
 from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN, mirror_point_light_reference
 from .common import loadavg, machine_summary, stage, write_csv
@@ -54,26 +65,29 @@ from .outputs import publish
 
 DOCS_FILES = ("PHOTONS_BENCH.md",)
 # scene -> max bounces (the mirror's closed form holds for one bounce).
-SCENES = {"point_mirror": 1, "point_mirror_seen": 2, "point_glass": 8}
+SCENES = {"point_mirror": 1, "point_mirror_seen": 2, "point_glass": 8, "point_mirror_glass": 8}
 INTEGRATORS = ("sppm", "photon", "path", "bdpt")
 
 
 def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.0,
-        reference_seconds=120.0, photons=100_000, cycles=True, threads=2,
+        reference_seconds=120.0, photons=None, cycles=True, threads=2,
         output="out/bench-photons", update_docs=False):
-    """Render, print and write the table; returns the rows."""
+    """Render, print and write the table; returns the rows. ``photons`` None: the render
+    default (``Photons``)."""
     w, h = size
+    photons = int(photons or DEFAULTS["photons"])
     summary = machine_summary()
     rows = []
     for name in scenes:
         scene = BUILTIN[name](w, h)
         bounces = SCENES[name]
         ref = _reference(name, scene, bounces, reference_seconds, threads)
+        mask = direct_pixels(scene, bounces)
         for integ in integrators:
-            rows.append(_ours(name, scene, integ, bounces, seconds, photons, threads, ref))
+            rows.append(_ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask))
             print(_line(rows[-1]))
         if cycles:
-            row = _cycles(name, scene, bounces, seconds, threads, ref)
+            row = _cycles(name, scene, bounces, seconds, threads, ref, mask)
             if row is not None:
                 rows.append(row)
                 print(_line(row))
@@ -92,6 +106,44 @@ def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.
     return rows
 
 
+def sweep(scenes=tuple(SCENES), size=(64, 64), seconds=6.0, reference_seconds=120.0,
+          photons=(25_000, 100_000), radius_pixels=(0.64, 1.25, 2.5), alphas=(0.5, 0.7),
+          threads=2, output="out/bench-photons"):
+    """SPPM's settings at equal time: every combination of photons per pass, initial radius
+    (``radius_pixels`` scene diagonals over the larger image side, as
+    :func:`core.photons.tracing.sppm_auto_radius`) and alpha, between two BDPT renders (the
+    second shows how the machine's load drifted). Writes ``photons_sweep.csv``; returns the
+    rows."""
+    w, h = size
+    rows = []
+    for name in scenes:
+        scene = BUILTIN[name](w, h)
+        bounces = SCENES[name]
+        ref = _reference(name, scene, bounces, reference_seconds, threads)
+        mask = direct_pixels(scene, bounces)
+        unit = scene_diagonal(prepare(scene)) / max(w, h)
+        runs = [dict(integrator="bdpt")]
+        runs += [dict(integrator="sppm", photons=n, photon_radius=k * unit, sppm_alpha=a,
+                      radius_pixels=k)
+                 for n in photons for k in radius_pixels for a in alphas]
+        for run in runs + [dict(integrator="bdpt")]:
+            extra = {key: v for key, v in run.items()
+                     if key in ("photon_radius", "sppm_alpha")}
+            k = run.get("radius_pixels", "")
+            row = _ours(name, scene, run["integrator"], bounces, seconds, run.get("photons"),
+                        threads, ref, mask, **extra)
+            row.update(radius_pixels=k, photons=run.get("photons", ""),
+                       photon_radius=run.get("photon_radius", ""),
+                       sppm_alpha=run.get("sppm_alpha", ""), load=loadavg())
+            rows.append(row)
+            print(_line(row) + (f" [photons {row['photons']}, radius {k} px-diagonals, "
+                                f"alpha {row['sppm_alpha']}]" if k != "" else ""))
+    os.makedirs(output, exist_ok=True)
+    write_csv(os.path.join(output, "photons_sweep.csv"), rows)
+    print(f"wrote {output}/photons_sweep.csv")
+    return rows
+
+
 def lookup_timing(scene, bounces, photons, repeats=3):
     """Seconds of SPPM's gather lookup on one pass (one visible point per pixel, ``photons``
     photons, the initial radius), best of ``repeats``: kd-tree and grid, and the pair count."""
@@ -101,8 +153,8 @@ def lookup_timing(scene, bounces, photons, repeats=3):
     points = trace_visible_points(prep, sampler.stream(np.arange(n), np.zeros(n, np.int64)),
                                   PixelFilter("box", 1.0), bounces, Counters(), np.zeros((n, 3)))
     ph = trace_photons(prep, sampler.stream(np.arange(photons), np.ones(photons, np.int64)),
-                       bounces, Counters())
-    radii = np.full(points.rows.size, auto_radius(prep))
+                       bounces, Counters(), min_hit=2)
+    radii = np.full(points.rows.size, sppm_auto_radius(prep))
     times = {"kdtree": np.inf, "grid": np.inf}
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -116,9 +168,29 @@ def lookup_timing(scene, bounces, photons, repeats=3):
             f"({points.rows.size} points, {len(ph)} photons, {pairs[0].size} pairs)")
 
 
+def direct_pixels(scene, bounces, samples=16):
+    """``(h, w)`` bool: pixels none of whose ``samples`` camera paths (independent sampler, box
+    filter of one pixel) meets a specular surface before its first rough one."""
+    prep = prepare(scene)
+    n = scene.camera.width * scene.camera.height
+    through = np.zeros(n, bool)
+    sampler = make_sampler("independent", seed=7)
+    for k in range(samples):
+        stream = sampler.stream(np.arange(n), np.full(n, k, np.int64))
+        points = trace_visible_points(prep, stream, PixelFilter("box", 1.0), bounces, Counters(),
+                                      np.zeros((n, 3)))
+        through[points.rows[points.bounces > 0]] = True
+    return ~through.reshape(scene.camera.height, scene.camera.width)
+
+
+def _errors(img, ref, mask):
+    """relMSE over every pixel and over the pixels of ``mask``."""
+    return rel_mse(img, ref), rel_mse(img[mask], ref[mask])
+
+
 def _reference(name, scene, bounces, seconds, threads):
     """``(h, w, 3)`` reference image: the closed form, or a long BDPT render."""
-    if name.startswith("point_mirror"):
+    if name in ("point_mirror", "point_mirror_seen"):
         direct, reflected, _ = mirror_point_light_reference(scene)
         return np.repeat((direct + reflected)[..., None], 3, axis=2)
     stage(f"{name}: BDPT reference, {seconds:g} s")
@@ -128,23 +200,29 @@ def _reference(name, scene, bounces, seconds, threads):
     return res.film.mean()
 
 
-def _ours(name, scene, integ, bounces, seconds, photons, threads, ref):
+def _ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask, **settings):
+    """One equal-time render of ours (``photons`` None: the default; ``settings``: more
+    render settings) and its errors."""
     stage(f"{name}: {integ}, {seconds:g} s")
+    if photons is not None:
+        settings["photons"] = photons
     t0 = time.perf_counter()
     res = render(scene, RenderSettings(integrator=integ, spp=0, time_limit=seconds,
                                        max_bounces=bounces, seed=1, threads=threads,
-                                       photons=photons, filter_type="box", filter_width=1.0))
+                                       filter_type="box", filter_width=1.0, **settings))
     wall = time.perf_counter() - t0
     img = res.film.mean()
     st = res.stats
+    err, err_direct = _errors(img, ref, mask)
     return dict(scene=name, renderer=integ, spp=st["spp"], time_s=wall,
-                rel_mse=rel_mse(img, ref), mean_ratio=float(img.mean() / ref.mean()),
+                rel_mse=err, rel_mse_direct=err_direct,
+                mean_ratio=float(img.mean() / ref.mean()),
                 photons_emitted=st.get("photons_emitted", ""),
                 m_photons_per_s=(st["photons_per_s"] / 1e6 if "photons_per_s" in st else ""),
                 photon_memory_peak_mb=st.get("photon_memory_peak_mb", ""))
 
 
-def _cycles(name, scene, bounces, seconds, threads, ref):
+def _cycles(name, scene, bounces, seconds, threads, ref, mask):
     """Cycles at equal time on the scene rebuilt in ``bpy`` with its mirror and glass."""
     from . import blender_scene as bs
     from . import bpy_scenes
@@ -156,7 +234,8 @@ def _cycles(name, scene, bounces, seconds, threads, ref):
         bpy.ops.wm.read_homefile(use_empty=True)
         bl_scene = bs.build_blender_scene(scene)
         replacements = {"Mirror": bpy_scenes.glossy_material("Mirror", (1.0, 1.0, 1.0), 0.0),
-                        "Ball": bpy_scenes.glass_material("Ball", (1.0, 1.0, 1.0), 1.5, 0.0)}
+                        "Ball": bpy_scenes.glass_material("Ball", (1.0, 1.0, 1.0), 1.5, 0.0),
+                        "Glass": bpy_scenes.glass_material("Glass", (1.0, 1.0, 1.0), 1.5, 0.0)}
         for ob in bl_scene.collection.objects:
             mat = ob.active_material
             if mat is not None and mat.name.split(".")[0] in replacements:
@@ -169,7 +248,9 @@ def _cycles(name, scene, bounces, seconds, threads, ref):
         traceback.print_exc()
         return None
     img = img[..., :3].astype(np.float64)
-    return dict(scene=name, renderer="Cycles", spp=spp, time_s=t, rel_mse=rel_mse(img, ref),
+    err, err_direct = _errors(img, ref, mask)
+    return dict(scene=name, renderer="Cycles", spp=spp, time_s=t, rel_mse=err,
+                rel_mse_direct=err_direct,
                 mean_ratio=float(img.mean() / ref.mean()), photons_emitted="",
                 m_photons_per_s="", photon_memory_peak_mb="")
 
@@ -178,7 +259,8 @@ def _line(row):
     extra = (f", {row['m_photons_per_s']:.2f} M photons/s, {row['photon_memory_peak_mb']:.1f} MB"
              if row["m_photons_per_s"] != "" else "")
     return (f"{row['scene']} {row['renderer']}: {row['spp']} spp in {row['time_s']:.1f} s, "
-            f"relMSE {row['rel_mse']:.4g}, mean/ref {row['mean_ratio']:.4f}{extra}")
+            f"relMSE {row['rel_mse']:.4g} (pixels seen directly {row['rel_mse_direct']:.4g}), "
+            f"mean/ref {row['mean_ratio']:.4f}{extra}")
 
 
 def _write_markdown(path, rows, summary, size, seconds, reference_seconds, photons, threads):
@@ -189,21 +271,26 @@ def _write_markdown(path, rows, summary, size, seconds, reference_seconds, photo
         f"{summary['date']}: {size[0]}x{size[1]}, box filter, {threads} threads, "
         f"{seconds:g} s per render, {photons:,} photons per SPPM pass (and in photon "
         f"mapping's maps); references: closed form (point_mirror, point_mirror_seen), BDPT for "
-        f"{reference_seconds:g} s (point_glass). CPU {summary['cpu']}, load average "
+        f"{reference_seconds:g} s (point_glass, point_mirror_glass: they lack the light seen "
+        f"through specular surfaces, hence the column over the pixels seen directly). "
+        f"CPU {summary['cpu']}, load average "
         f"{summary['load_start']} at the start, {summary['load_end']} at the end.",
         "",
-        "| scene | renderer | spp | time s | relMSE | relMSE / SPPM's | mean / ref "
-        "| M photons/s | photon MB |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+        "| scene | renderer | spp | time s | relMSE | relMSE / SPPM's | relMSE, pixels seen "
+        "directly | its / SPPM's | mean / ref | M photons/s | photon MB |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for row in rows:
-        base = next((r["rel_mse"] for r in rows
-                     if r["scene"] == row["scene"] and r["renderer"] == "sppm"), np.nan)
+        sppm = next((r for r in rows if r["scene"] == row["scene"] and r["renderer"] == "sppm"),
+                    None)
+        base = (sppm["rel_mse"], sppm["rel_mse_direct"]) if sppm else (np.nan, np.nan)
         mps = row["m_photons_per_s"]
         mb = row["photon_memory_peak_mb"]
         lines.append(
             f"| {row['scene']} | {row['renderer']} | {row['spp']} | {row['time_s']:.1f} "
-            f"| {row['rel_mse']:.4g} | {row['rel_mse'] / base:.2f} | {row['mean_ratio']:.4f} "
+            f"| {row['rel_mse']:.4g} | {row['rel_mse'] / base[0]:.2f} "
+            f"| {row['rel_mse_direct']:.4g} | {row['rel_mse_direct'] / base[1]:.2f} "
+            f"| {row['mean_ratio']:.4f} "
             f"| {'' if mps == '' else f'{mps:.2f}'} | {'' if mb == '' else f'{mb:.1f}'} |")
     lines += ["", "SPPM's lookup on one pass (best of 3, building included; SPPM uses the "
               "kd-tree):", ""]

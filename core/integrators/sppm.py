@@ -22,9 +22,10 @@ Bias and consistency
     (less bias, more noise), values near one keep more photons (less noise, more bias).
     Light paths are bounded as the path tracer's: ``max_bounces + 1`` scattering vertices.
 Parameters
-    ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0: 1/100 of the
-    scene's bounding-box diagonal), ``sppm_alpha``, ``photon_memory`` (MB cap of a pass's
-    photons), ``max_bounces``. Lookups use a kd-tree (``scipy.spatial.cKDTree``, see
+    ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0:
+    :func:`core.photons.tracing.sppm_auto_radius`, 1.25 scene diagonals over the larger image
+    side in pixels, a few pixels at any resolution), ``sppm_alpha``, ``photon_memory`` (MB cap of a
+    pass's photons), ``max_bounces``. Lookups use a kd-tree (``scipy.spatial.cKDTree``, see
     :mod:`core.photons.lookup`) with a uniform kernel (the radius update counts photons).
 When to use it
     Light that reaches diffuse surfaces only through mirrors or smooth glass from small or point
@@ -39,7 +40,10 @@ When it fails
 Render loop: a pass is one call of :meth:`SPPM.render_pass` (``whole_passes``): photons are
 shared by every pixel and the per-pixel state changes between passes, so the image is not a
 mean of independent samples; the film shows the current estimate after each pass, and its
-variance pass is zero (not estimated).
+variance pass is zero (not estimated). Within a pass the camera paths and the photons are cut
+into one chunk per worker thread at least and run in one batch of chunks, then the lookups;
+cancel is polled between chunks. Photons straight from a light are not stored (direct light
+comes from next-event estimation).
 """
 
 from __future__ import annotations
@@ -49,7 +53,8 @@ import time
 import numpy as np
 
 from ..photons.lookup import PhotonTree
-from ..photons.tracing import BYTES_PER_PHOTON, CHUNK, photon_setup, trace_photon_chunks
+from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, Photons, photon_chunk, photon_setup,
+                               spans, sppm_auto_radius)
 from ..photons.visible import join_points, trace_visible_points
 from .base import Counters, Integrator
 
@@ -62,12 +67,16 @@ class SPPM(Integrator):
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
-        self.photons, self.radius0, self.photon_sampler = photon_setup(prep, settings)
+        self.photons, self.radius0, self.photon_sampler = photon_setup(prep, settings,
+                                                                       sppm_auto_radius)
         self.alpha = float(settings.sppm_alpha)
         self.state = None
         self.peak_bytes = 0
         self.photons_stored = 0
         self.photon_s = 0.0
+        from ..render import thread_count  # the render loop imports the integrators
+
+        self.workers = thread_count(settings)
 
     def _start(self, n_pixels):
         self.state = {"r": np.full(n_pixels, self.radius0), "N": np.zeros(n_pixels),
@@ -94,25 +103,14 @@ class SPPM(Integrator):
         n = frame_pixels.size
         if self.state is None:
             self._start(n)
-        direct, points = self._visible_points(pass_index, frame_pixels, sampler,
-                                              pixel_filter, counters, map_chunks)
-        if points is None:
+        traced = self._trace(pass_index, frame_pixels, sampler, pixel_filter, counters,
+                             map_chunks)
+        if traced is None:
             return None
-        t0 = time.perf_counter()
-        photons = trace_photon_chunks(self.prep, self.settings, self.photon_sampler, self.photons,
-                                      pass_index, map_chunks, counters)
-        if photons is None:
-            return None
-        self.photon_s += time.perf_counter() - t0
-        # The pass's photons as traced (the peak), then without those straight from a light:
-        # direct light comes from next-event estimation.
-        self.peak_bytes = max(self.peak_bytes, len(photons) * BYTES_PER_PHOTON)
-        photons = photons.take(photons.hit >= 2)
-        self.photons_stored += len(photons)
+        direct, points, photons = traced
         tree = PhotonTree(photons.p, origin=np.zeros(3))
-        found = map_chunks(lambda start: self._gather(points.take(slice(start, start + CHUNK)),
-                                                      photons, tree),
-                           range(0, points.rows.size, CHUNK))
+        found = map_chunks(lambda span: self._gather(points.take(slice(*span)), photons, tree),
+                           spans(points.rows.size, self.workers))
         if found is None:
             return None
         phi = np.concatenate([f for f, _ in found]) if found else np.zeros((0, 3))
@@ -125,30 +123,48 @@ class SPPM(Integrator):
         self.state["passes"] += 1
         return self.image()
 
-    def _visible_points(self, pass_index, frame_pixels, sampler, pixel_filter, counters,
-                        map_chunks):
-        """Visible points and direct light of one camera path per pixel, in chunks."""
+    def _trace(self, pass_index, frame_pixels, sampler, pixel_filter, counters, map_chunks):
+        """Stages *visible points* (one camera path per pixel, with its direct light) and
+        *photon tracing* (``photons`` photons, those after one bounce at least kept), their
+        chunks in one call of ``map_chunks`` so that both keep every worker thread busy:
+        ``(direct (n, 3), VisiblePoints, Photons)``, or None if cancelled."""
         n = frame_pixels.size
-        prep, bounces = self.prep, self.settings.max_bounces
+        prep, settings = self.prep, self.settings
 
-        def chunk(start):
-            rows = np.arange(start, min(start + CHUNK, n))
+        def camera(span):
+            rows = np.arange(*span)
             stream = sampler.stream(frame_pixels[rows], np.full(rows.size, pass_index,
                                                                  np.int64))
             local = Counters()
             local.camera_samples += rows.size
             direct = np.zeros((rows.size, 3))
-            points = trace_visible_points(prep, stream, pixel_filter, bounces, local, direct)
-            points.rows = points.rows + start
-            return direct, points, local
+            points = trace_visible_points(prep, stream, pixel_filter, settings.max_bounces,
+                                          local, direct)
+            points.rows = points.rows + span[0]
+            return (direct, points), local
 
-        parts = map_chunks(chunk, range(0, n, CHUNK))
+        def photon(span):
+            t0 = time.perf_counter()
+            photons, local = photon_chunk(prep, settings, self.photon_sampler, pass_index, span,
+                                          min_hit=2)
+            return (photons, time.perf_counter() - t0), local
+
+        tasks = ([(camera, span) for span in spans(n, self.workers)]
+                 + [(photon, span) for span in spans(self.photons, self.workers)])
+        parts = map_chunks(lambda task: task[0](task[1]), tasks)
         if parts is None:
-            return None, None
-        for *_, local in parts:
+            return None
+        for _, local in parts:
             counters.add(local)
-        points = join_points([p for _, p, _ in parts])
-        return np.concatenate([d for d, _, _ in parts]), points
+        cams = [out for (fn, _), (out, _) in zip(tasks, parts) if fn is camera]
+        lights = [out for (fn, _), (out, _) in zip(tasks, parts) if fn is photon]
+        # Photon time summed over the chunks, divided by the threads that ran them in parallel.
+        self.photon_s += sum(t for _, t in lights) / self.workers
+        photons = Photons.join(p for p, _ in lights)
+        self.peak_bytes = max(self.peak_bytes, len(photons) * BYTES_PER_PHOTON)
+        self.photons_stored += len(photons)
+        direct = np.concatenate([d for d, _ in cams]) if cams else np.zeros((0, 3))
+        return direct, join_points([p for _, p in cams]), photons
 
     def _gather(self, points, photons, tree):
         """Flux ``phi (k, 3)`` (times the points' throughput) and photon counts ``m (k,)`` of

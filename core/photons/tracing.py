@@ -107,18 +107,21 @@ def check_memory(photons, max_bounces, cap_mb):
             f"{cap_mb:,.0f} MB: lower Photons or Max Bounces, or raise Photon Memory")
 
 
-def trace_photons(prep, stream, max_bounces, counters):
+def trace_photons(prep, stream, max_bounces, counters, min_hit=1):
     """Stage *photon tracing*: one photon per entry of ``stream``, stored at every
-    non-specular hit up to ``max_bounces + 1`` hits.
+    non-specular hit from hit ``min_hit`` up to ``max_bounces + 1`` hits.
 
     Parameters
     ----------
     prep : core.prepare.PreparedScene
     stream : core.sampling.stream.SampleStream
         One sample vector per photon (dimensions :data:`DIMS_START` + :data:`DIMS_PER_HIT`
-        per hit).
+        per hit); compacted to the photons still travelling (consumed).
     max_bounces : int
     counters : core.integrators.base.Counters
+    min_hit : int
+        First hit stored (2: leave out the photons straight from a light, which SPPM does not
+        use: its direct light comes from next-event estimation).
 
     Returns
     -------
@@ -134,7 +137,8 @@ def trace_photons(prep, stream, max_bounces, counters):
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & np.isfinite(beta).all(1)
     rows = np.nonzero(good & (max_component(np.where(good[:, None], beta, 0.0)) > 0))[0]
     o = _leave_emitters(prep, pts, origin, w, rows)
-    return _walk(prep, stream, o, w[rows], beta[rows], rows, max_bounces, counters)
+    stream.compact(rows)
+    return _walk(prep, stream, o, w[rows], beta[rows], max_bounces, counters, min_hit)
 
 
 def _leave_emitters(prep, pts, origin, w, rows):
@@ -149,26 +153,29 @@ def _leave_emitters(prep, pts, origin, w, rows):
     return o
 
 
-def _walk(prep, stream, o, d, beta, rows, max_bounces, counters):
-    """Scatter the photons ``rows`` from ``o`` along ``d``; store every non-specular hit."""
+def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
+    """Scatter the photons of ``stream`` from ``o`` along ``d``; store every non-specular hit
+    from hit ``min_hit`` on. The stream is compacted as photons leave (so that later bounces
+    draw samples for the survivors only: the values do not change)."""
     smooth = prep.scene.corner_normals is not None
-    vis = np.full(rows.size, VIS_SHADOW, np.int32)
-    specular = np.zeros(rows.size, bool)  # every bounce so far was specular (and one happened)
+    n = beta.shape[0]
+    vis = np.full(n, VIS_SHADOW, np.int32)
+    specular = np.zeros(n, bool)  # every bounce so far was specular (and one happened)
     parts = []
     for hit in range(1, max_bounces + 2):
-        if rows.size == 0:
+        if beta.shape[0] == 0:
             break
         hits = intersect_by_class(prep.accel, o, d, None, vis)
-        counters.rays += rows.size
+        counters.rays += beta.shape[0]
         live = surface_hits(prep, hits)
         si = surface_interaction(prep, hits, d, live)
-        r = rows[live]
+        stream.compact(live)
         stream.skip_to(DIMS_START + (hit - 1) * DIMS_PER_HIT)
-        u_lobe, u_bsdf, u_rr = stream.next_1d()[r], stream.next_2d()[r], stream.next_1d()[r]
+        u_lobe, u_bsdf, u_rr = stream.next_1d(), stream.next_2d(), stream.next_1d()
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
         beta, specular = beta[live], specular[live]
-        store = np.nonzero(~delta_only)[0]
+        store = np.nonzero(~delta_only)[0] if hit >= min_hit else np.zeros(0, np.int64)
         parts.append(Photons(si.p[store].astype(np.float32), si.wo[store].astype(np.float32),
                              beta[store].astype(np.float32),
                              np.full(store.size, hit, np.int16), specular[store]))
@@ -192,7 +199,7 @@ def _walk(prep, stream, o, d, beta, rows, max_bounces, counters):
             q = np.minimum(1.0, max_component(new) / max_component(beta))
         alive = (smp.pdf > 0) & np.isfinite(new).all(axis=1) & (u_rr < q) & (q > 0)
         keep = np.nonzero(alive)[0]
-        rows = r[keep]
+        stream.compact(keep)
         beta = new[keep] / q[keep, None]
         specular = np.where(hit == 1, smp.delta, specular & smp.delta)[keep]
         o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
@@ -205,10 +212,37 @@ def _walk(prep, stream, o, d, beta, rows, max_bounces, counters):
 CHUNK = 1 << 15
 
 
-def auto_radius(prep):
-    """Initial radius when the setting is 0: 1/100 of the scene's bounding-box diagonal."""
+def spans(n, parts, most=CHUNK):
+    """``[(start, stop), ...]``: ``range(n)`` cut into near-equal spans, at least ``parts``
+    (so that every worker thread gets one) and none longer than ``most``."""
+    count = min(n, max(int(parts), -(-n // most))) if n > 0 else 0
+    edges = np.linspace(0, n, count + 1).round().astype(np.int64)
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+
+
+def scene_diagonal(prep):
+    """Length of the diagonal of the scene's bounding box (1 for a scene without vertices)."""
     v = np.asarray(prep.scene.vertices, np.float64).reshape(-1, 3)
-    return 0.01 * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if v.size else 0.01
+    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if v.size else 1.0
+
+
+def auto_radius(prep):
+    """Photon Mapping's radius when the setting is 0: 1/100 of the scene's bounding-box
+    diagonal."""
+    return 0.01 * scene_diagonal(prep)
+
+
+# SPPM's initial radius when the setting is 0, in units of diagonal / larger image side (chosen
+# by a sweep, docs/PHOTONS.md; Mitsuba 0.6's SPPM guesses 2.5 of them).
+SPPM_RADIUS_PIXELS = 1.25
+
+
+def sppm_auto_radius(prep):
+    """SPPM's initial radius when the setting is 0: :data:`SPPM_RADIUS_PIXELS` times the scene's
+    bounding-box diagonal over the larger side of the image in pixels, so that the first
+    passes blur over a few pixels at any resolution (the radius then shrinks)."""
+    camera = prep.scene.camera
+    return SPPM_RADIUS_PIXELS * scene_diagonal(prep) / max(camera.width, camera.height, 1)
 
 
 def photon_seed(seed):
@@ -216,13 +250,13 @@ def photon_seed(seed):
     return (int(seed) * 2654435761 + 0x9E3779B9) % ((1 << 31) - 1)
 
 
-def photon_setup(prep, settings):
+def photon_setup(prep, settings, default_radius=auto_radius):
     """What both photon estimators take from the settings, checked before a render starts
     (scipy importable, the photons within the memory cap): ``(photons, radius, sampler)``, the
-    photon count, the given radius or :func:`auto_radius`, and :func:`photon_sampler`."""
+    photon count, the given radius or ``default_radius(prep)``, and :func:`photon_sampler`."""
     require_scipy()
     check_memory(settings.photons, settings.max_bounces, settings.photon_memory)
-    radius = float(settings.photon_radius) or auto_radius(prep)
+    radius = float(settings.photon_radius) or default_radius(prep)
     return int(settings.photons), radius, photon_sampler(settings, prep.scene.camera.width)
 
 
@@ -233,18 +267,24 @@ def photon_sampler(settings, width):
                         spp=settings.spp if settings.spp > 0 else None, width=width)
 
 
+def photon_chunk(prep, settings, sampler, pass_index, span, min_hit=1):
+    """Photons ``span = (start, stop)`` of pass ``pass_index`` (streams of ``sampler``, see
+    :func:`photon_sampler`): ``(Photons, Counters)``. The photons do not depend on how a pass
+    is cut into spans."""
+    ids = np.arange(*span, dtype=np.int64)
+    local = Counters()
+    stream = sampler.stream(ids, np.full(ids.size, pass_index, np.int64))
+    return trace_photons(prep, stream, settings.max_bounces, local, min_hit), local
+
+
 def trace_photon_chunks(prep, settings, sampler, n, pass_index, map_chunks, counters):
-    """``n`` photons of pass ``pass_index`` (streams of ``sampler``, see
-    :func:`photon_sampler`), traced in chunks of :data:`CHUNK` by ``map_chunks`` (the render
-    loop's worker threads); None if the render was cancelled meanwhile."""
+    """``n`` photons of pass ``pass_index`` (:func:`photon_chunk`), traced in chunks (one per
+    worker thread at least, :func:`spans`) by ``map_chunks`` (the render loop's worker
+    threads); None if the render was cancelled meanwhile."""
+    from ..render import thread_count  # the render loop imports the integrators
 
-    def chunk(start):
-        ids = np.arange(start, min(start + CHUNK, n), dtype=np.int64)
-        local = Counters()
-        stream = sampler.stream(ids, np.full(ids.size, pass_index, np.int64))
-        return trace_photons(prep, stream, settings.max_bounces, local), local
-
-    parts = map_chunks(chunk, range(0, n, CHUNK))
+    parts = map_chunks(lambda span: photon_chunk(prep, settings, sampler, pass_index, span),
+                       spans(n, thread_count(settings)))
     if parts is None:
         return None
     for _, local in parts:

@@ -13,7 +13,7 @@ from sampling_lab.core.integrators.base import Counters
 from sampling_lab.core.photons.grid import PointGrid
 from sampling_lab.core.photons.kernels import KERNELS, kernel_weight
 from sampling_lab.core.photons.lookup import PhotonTree
-from sampling_lab.core.photons.tracing import check_memory, trace_photons
+from sampling_lab.core.photons.tracing import check_memory, spans, trace_photons
 from sampling_lab.core.prepare import prepare
 from sampling_lab.core.sampling.samplers import make_sampler
 from tests.helpers import assert_mean_within_ci
@@ -119,6 +119,33 @@ def test_photons_carry_the_light_power_and_roulette_by_albedo_keeps_each_bounce_
                               comparisons=2, what=f"power at hit {hit}")
 
 
+def test_photons_stored_from_the_second_hit_are_the_same_paths_less_their_first_hits():
+    """SPPM stores photons from the second hit on (``min_hit=2``): the same paths as a full
+    trace of the same streams, without the hits straight from the light."""
+    prep = prepare(scenes.cornell_sphere(8, 8, ball="glass", light="point"))
+    sampler = make_sampler("sobol", seed=4, width=8)
+
+    def trace(min_hit):
+        stream = sampler.stream(np.arange(3000), np.full(3000, 2, np.int64))
+        return trace_photons(prep, stream, 4, Counters(), min_hit)
+
+    every, later = trace(1), trace(2)
+    expected = every.take(every.hit >= 2)
+    assert len(later) == len(expected) > 0 and (later.hit >= 2).all()
+    for name in ("p", "wi", "power", "hit", "caustic"):
+        assert np.array_equal(getattr(later, name), getattr(expected, name)), name
+
+
+@pytest.mark.parametrize("n, parts", [(0, 2), (1, 2), (5, 2), (25_000, 2), (100_000, 2),
+                                      (100_000, 8), (7, 16)])
+def test_spans_cover_the_range_once_in_order_with_one_span_per_thread_at_least(n, parts):
+    cut = spans(n, parts, most=32768)
+    flat = np.concatenate([np.arange(a, b) for a, b in cut]) if cut else np.zeros(0)
+    assert np.array_equal(flat, np.arange(n))
+    assert all(0 < b - a <= 32768 for a, b in cut)
+    assert len(cut) >= min(n, parts)
+
+
 def test_photon_memory_cap_stops_a_render_with_a_message():
     with pytest.raises(ValueError, match="lower Photons or Max Bounces, or raise Photon Memory"):
         check_memory(10_000_000, 8, 1024.0)
@@ -137,3 +164,17 @@ def test_photon_integrators_without_scipy_stop_with_a_message_naming_it(monkeypa
         with pytest.raises(ValueError, match="need the Python module scipy"):
             render.render(scenes.cornell_box(4, 4), render.RenderSettings(integrator=integrator,
                                                                           spp=1))
+
+
+def test_bench_scores_apart_the_pixels_seen_through_a_mirror_or_glass():
+    """bench-photons scores the pixels seen directly apart (its BDPT references lack the light
+    seen through specular surfaces): the floor view of the mirror scene sees no mirror, the
+    mirror view sees the floor through it, and the glass ball of point_mirror_glass hides a
+    patch of floor that is seen through it."""
+    from sampling_lab.tools.photons import SCENES, direct_pixels
+
+    masks = {name: direct_pixels(scenes.BUILTIN[name](16, 16), SCENES[name], samples=4)
+             for name in ("point_mirror", "point_mirror_seen", "point_mirror_glass")}
+    assert masks["point_mirror"].all()
+    assert 0.2 < masks["point_mirror_seen"].mean() < 0.8
+    assert 0.5 < masks["point_mirror_glass"].mean() < 1.0
