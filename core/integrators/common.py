@@ -219,7 +219,7 @@ def shading_normals(prep, prim, u, v, ng, wo):
 
 
 def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera, mis,
-                            n_prev=None):
+                            n_prev=None, mis_origin=None, mis_offset=None):
     """Stage *handle escaped + handle emission*: light reaching the ray's origin along it.
 
     Adds ``beta * Le * w`` to ``L[rows_of]`` for the world (escaped rays), light shapes before the
@@ -242,8 +242,18 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
     n_prev : (n, 3) float64 or None
         Shading normals at the origins, as next-event estimation gave them to the light
         selection there (a light tree); None when the selection does not use them.
+    mis_origin : (n, 3) float64 or None
+        Where the rays' MIS densities are measured from (None: ``o``): the last vertex that
+        scattered, when a ray went on straight through transparent surfaces since; it lies
+        ``mis_offset (n,)`` behind ``o`` along ``d``. Next-event estimation there reached the
+        same emitters through the same surfaces (:mod:`.shadows`), so the weights compare the
+        densities of that vertex.
     """
     lights = prep.lights
+    tmin = None
+    if mis_origin is not None and np.any(mis_offset > 0):
+        o, tmin = mis_origin, mis_offset
+        hits = Hits(hits.prim, hits.t + mis_offset, hits.u, hits.v)
 
     def weight(rows, pdf_light):
         w = mis.bsdf_weight(pdf_prev[rows], pdf_light)
@@ -254,7 +264,7 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
         le, pdf_l = lights.world_radiance(d[escaped])
         add_rows(L, rows_of[escaped],
                  take_rows(beta, escaped) * le * weight(escaped, pdf_l)[:, None])
-    for rows, le, pdf_l in lights.hit_shapes(o, d, hits.t, camera, n_prev):
+    for rows, le, pdf_l in lights.hit_shapes(o, d, hits.t, camera, n_prev, tmin):
         add_rows(L, rows_of[rows], take_rows(beta, rows) * le * weight(rows, pdf_l)[:, None])
     hit_rows = np.nonzero(hits.hit)[0]
     if hit_rows.size and lights.emissive_tris.size:
