@@ -177,7 +177,17 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         col = layout.column()
         # Radiosity has no path bounces: its transport is the solved system.
         col.active = settings.integrator != 'RADIOSITY'
-        col.prop(settings, "max_bounces")
+        # Cycles' Light Paths > Max Bounces layout: Total, then one limit per kind, which
+        # only the path tracer counts (core.render.used_settings).
+        bounces = col.column(align=True, heading="Max Bounces")
+        bounces.prop(settings, "max_bounces")
+        kinds = col.column(align=True)
+        kinds.active = settings.integrator == 'PATH'
+        kinds.prop(settings, "diffuse_bounces")
+        kinds.prop(settings, "glossy_bounces")
+        kinds.prop(settings, "transmission_bounces")
+        kinds.prop(settings, "transparent_max_bounces")
+        col.separator()
         rr = col.column()
         # Photon mapping's camera paths stop at the first rough surface, and its photons
         # always use roulette by albedo: the roulette settings do not apply.

@@ -200,9 +200,11 @@ def used_settings(settings):
         ``mis_heuristic``, ``mis_beta``, ``mis_alpha``, ``light_selection``,
         ``light_sampling``, ``distribution``, the photon-mapping settings ``photons``,
         ``sppm_alpha``, ``photon_memory``, ``photon_lookup``, ``photon_k``, ``photon_radius``,
-        ``photon_kernel``, ``gather_rays`` and the ``radiosity_*`` options (``'n/a'`` where
-        the integrator does not read them; the photon estimators use no MIS: one strategy per
-        light contribution).
+        ``photon_kernel``, ``gather_rays``, the ``radiosity_*`` options and the per-kind
+        bounce limits ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces`` and
+        ``transparent_max_bounces`` (path tracing only: the other integrators stop paths at
+        ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
+        estimators use no MIS: one strategy per light contribution).
     """
     if settings.integrator == "radiosity":
         return _radiosity_used(settings)
@@ -237,11 +239,16 @@ def used_settings(settings):
         "photon_kernel": settings.photon_kernel if jensen else na,
         "gather_rays": settings.gather_rays if jensen else na,
         **{name: na for name in RADIOSITY_OPTIONS},
+        # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's.
+        **{name: getattr(settings, name) if settings.integrator == "path" else na
+           for name in BOUNCE_KIND_OPTIONS},
     }
 
 
 PHOTON_OPTIONS = ("photons", "sppm_alpha", "photon_memory", "photon_lookup", "photon_k",
                   "photon_radius", "photon_kernel", "gather_rays")
+BOUNCE_KIND_OPTIONS = ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                       "transparent_max_bounces")
 RADIOSITY_OPTIONS = ("radiosity_solver", "radiosity_patch_size", "radiosity_samples",
                      "radiosity_adaptive", "radiosity_display", "radiosity_patches")
 
@@ -257,6 +264,7 @@ def _radiosity_used(settings):
         "light_sampling": settings.light_sampling if gather else na,
         "distribution": settings.distribution,
         **{name: na for name in PHOTON_OPTIONS},
+        **{name: na for name in BOUNCE_KIND_OPTIONS},
         **{name: getattr(settings, name) for name in RADIOSITY_OPTIONS},
         # Hierarchical radiosity's links adapt instead; its leaves stay uniform.
         "radiosity_adaptive": (settings.radiosity_adaptive
