@@ -404,6 +404,11 @@ def _messages(scene, settings, integrator):
         messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
                         f"visibility are honoured by path tracing only; camera paths "
                         f"bounce with Camera visibility, light paths with Shadow")
+    if (settings.integrator not in ("path", "radiosity")
+            and integrator.prep.material_transparency is not None):
+        messages.append(f"{settings.integrator}: transparent surfaces (Transparent BSDF, "
+                        f"Alpha) block shadow rays and connections, and count as "
+                        f"transmission bounces; path tracing lets shadow rays through them")
     return messages
 
 
