@@ -13,11 +13,17 @@ When a count exceeds its limit after a bounce, the path is *finishing* (Cycles'
 ``PATH_RAY_TERMINATE_AFTER_TRANSPARENT``): the next surface still adds its emission (with the
 same MIS weight as before, so that next-event estimation at the previous vertex stays
 balanced), and the path may still pass through transparent surfaces, but it samples no light
-and scatters no more. When the transparent count exceeds its limit the next surface adds its
-emission and the path ends (``PATH_RAY_TERMINATE_ON_NEXT_SURFACE``). A shadow ray from a vertex
-whose path has passed ``k`` transparent surfaces may cross ``transparent - k`` more (see
-:mod:`.shadows`). Limits of ``n`` therefore allow ``n`` bounces of a kind and light arriving
-after them, as Cycles' (whose kernel stores ``n + 1`` and tests ``>=``).
+and scatters no more. Limits of ``n`` therefore allow ``n`` bounces of a kind and the light
+arriving after them, as Cycles' (whose kernel stores ``n + 1`` and tests ``>=``).
+
+The transparent limit ``T`` counts differently, as in Cycles 4 and 5 (whose kernel stores
+``T`` itself: "0 means no transparent bounce"): once a path has passed ``max(T, 1)`` transparent
+surfaces, the next surface adds its emission and the path ends there
+(``PATH_RAY_TERMINATE_ON_NEXT_SURFACE``); a shadow ray from a vertex whose path has passed
+``k`` transparent surfaces may cross ``T - k`` more (see :mod:`.shadows`). Measured with
+Blender 5.0's Cycles (direct light, sheets of Transparent BSDF): an emitter behind ``n`` sheets
+shows iff ``n <= max(T, 1)``; a floor seen through ``n`` sheets and lit by a sun through the
+same ``n`` is lit iff ``2 n <= T``.
 """
 
 from __future__ import annotations
@@ -93,7 +99,7 @@ class BounceCounts:
         Returns
         -------
         stop_next : (n,) bool
-            Paths whose transparent count now exceeds its limit: their next surface adds its
+            Paths whose transparent count has reached its limit: their next surface adds its
             emission, then they end.
         """
         lobe = np.asarray(lobe)
@@ -109,7 +115,7 @@ class BounceCounts:
         self.finishing |= ((self.total > limits.total) | (self.diffuse > limits.diffuse)
                            | (self.glossy > limits.glossy)
                            | (self.transmission > limits.transmission))
-        return self.transparent > limits.transparent
+        return self.transparent >= limits.transparent
 
     def shadow_budget(self, limits, rows=None):
         """Transparent surfaces a shadow ray from each path's vertex may cross ``(k,)``."""
