@@ -404,6 +404,9 @@ def _messages(scene, settings, integrator):
         messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
                         f"visibility are honoured by path tracing only; camera paths "
                         f"bounce with Camera visibility, light paths with Shadow")
+    if scene.film_transparent and settings.integrator != "path":
+        messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
+                        f"tracing only; the background is rendered opaque")
     if (settings.integrator not in ("path", "radiosity")
             and integrator.prep.material_transparency is not None):
         messages.append(f"{settings.integrator}: transparent surfaces (Transparent BSDF, "
@@ -459,7 +462,7 @@ class _Passes:
         """Add one unit's output to the film (in unit order: the image is deterministic)."""
         film, pixel_filter = self.film, self.pixel_filter
         self.counters.add(local)
-        film.add_samples(pixels, out.radiance)
+        film.add_samples(pixels, out.radiance, out.transparency)
         if out.splats is not None and len(out.splats.xy):
             film.splat(out.splats.xy, out.splats.value, pixel_filter)
         film.add_splat_paths(out.light_paths)

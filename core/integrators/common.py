@@ -219,7 +219,7 @@ def shading_normals(prep, prim, u, v, ng, wo):
 
 
 def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera, mis,
-                            n_prev=None, mis_origin=None, mis_offset=None):
+                            n_prev=None, mis_origin=None, mis_offset=None, world=True):
     """Stage *handle escaped + handle emission*: light reaching the ray's origin along it.
 
     Adds ``beta * Le * w`` to ``L[rows_of]`` for the world (escaped rays), light shapes before the
@@ -248,6 +248,8 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
         ``mis_offset (n,)`` behind ``o`` along ``d``. Next-event estimation there reached the
         same emitters through the same surfaces (:mod:`.shadows`), so the weights compare the
         densities of that vertex.
+    world : bool
+        Whether escaped rays add the world's radiance (not camera rays on a transparent film).
     """
     lights = prep.lights
     tmin = None
@@ -260,7 +262,7 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
         return np.where(use_mis[rows], w, 1.0)
 
     escaped = np.nonzero(~hits.hit)[0]
-    if escaped.size and lights.has_world:
+    if escaped.size and lights.has_world and world:
         le, pdf_l = lights.world_radiance(d[escaped])
         add_rows(L, rows_of[escaped],
                  take_rows(beta, escaped) * le * weight(escaped, pdf_l)[:, None])

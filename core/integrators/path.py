@@ -191,6 +191,8 @@ class PathTracer(Integrator):
         counters.camera_samples += n
         o, d, tmax = camera_rays(prep, pixel_filter, stream)
         path = _Paths(n, o)
+        # Film > Transparent: what of each camera sample reaches the background (alpha = 1 - it).
+        transparency = np.zeros(n) if prep.scene.film_transparent else None
 
         for step in range(limits.steps):
             # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
@@ -199,6 +201,8 @@ class PathTracer(Integrator):
             _add_emitters(prep, L, path.beta, o, d, hits, path.rows_of, path.pdf_prev,
                           path.use_mis, path.camera_ray, self.mis, path.n_prev, path.o_mis,
                           path.t_mis)
+            if transparency is not None:
+                _add_transparency(transparency, path, hits)
 
             # Compact to surface hits; degenerate triangles end the path, and so does the
             # transparent limit (that segment only gathered emission, Cycles' "terminate on
@@ -229,7 +233,9 @@ class PathTracer(Integrator):
         # No NaN or Inf reaches the film: a non-finite estimate is dropped (counted as zero).
         bad = ~np.isfinite(L).all(axis=1)
         L[bad] = 0.0
-        return BatchOutput(np.maximum(L, 0.0))
+        if transparency is not None:
+            transparency = np.clip(np.nan_to_num(transparency, nan=0.0), 0.0, 1.0)
+        return BatchOutput(np.maximum(L, 0.0), transparency=transparency)
 
     def _sample_lights(self, shading, si, path, u_sel, u_light, L, counters):
         """Stage *sample lights*: NEE with a (transparent) shadow ray, MIS against BSDF
@@ -355,6 +361,15 @@ class _Paths:
 # One work unit without a render loop (tests, one-off use); a render builds PathTracer once.
 
 
+def _add_transparency(transparency, path, hits):
+    """Stage *transparent film*: camera rays (also after transparent passes) that escaped add
+    the mean of their throughput to their sample's ``transparency (N,)``, as Cycles'
+    transparent background."""
+    escaped = np.nonzero(~hits.hit & path.camera_ray)[0]
+    if escaped.size:
+        np.add.at(transparency, path.rows_of[escaped], take_rows(path.beta, escaped).mean(axis=1))
+
+
 def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_ray, mis,
                   n_prev=None, o_mis=None, t_mis=None):
     """Stage *handle escaped + handle emission*, with camera rays (``camera_ray (n,)``: lamps
@@ -363,17 +378,19 @@ def _add_emitters(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera_
     (n,)``: how far behind ``o`` they lie (see :func:`.common.add_emitters_along_rays`)."""
     groups = ([(None, bool(camera_ray[0]))] if np.all(camera_ray == camera_ray[:1])
               else [(np.nonzero(camera_ray)[0], True), (np.nonzero(~camera_ray)[0], False)])
+    transparent_film = prep.scene.film_transparent
     for rows, camera in groups:
+        world = not (camera and transparent_film)
         if rows is None:
             add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis,
-                                    camera, mis, n_prev, o_mis, t_mis)
+                                    camera, mis, n_prev, o_mis, t_mis, world)
             continue
         sub = Hits(hits.prim[rows], hits.t[rows], hits.u[rows], hits.v[rows])
         add_emitters_along_rays(prep, L, beta[rows], o[rows], d[rows], sub, rows_of[rows],
                                 pdf_prev[rows], use_mis[rows], camera, mis,
                                 None if n_prev is None else n_prev[rows],
                                 None if o_mis is None else o_mis[rows],
-                                None if t_mis is None else t_mis[rows])
+                                None if t_mis is None else t_mis[rows], world)
 
 
 def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, mis, counters,
