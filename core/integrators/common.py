@@ -78,6 +78,66 @@ def geometric_side_valid(ng, wo, wi, transmit):
     return np.where(transmit, opposite, same)
 
 
+def valid_reflection_normals(ng, wo, ns):
+    """Shading normals bent so that the mirror reflection of ``wo`` stays above the geometry.
+
+    On a smooth-shaded coarse mesh the interpolated normal ``ns`` can tilt so far that the
+    mirror direction ``2 (ns . wo) ns - wo`` points below the geometric surface: the
+    geometric-side rule (:func:`geometric_side_valid`) then drops the reflection and glossy
+    silhouettes turn black. Cycles avoids that by bending the normal of its glossy closures
+    (``ensure_valid_specular_reflection``, after Schüssler et al. 2017's observation that the
+    reflection must stay above the true surface): where the reflection lies below
+    ``t = min(0.9 wo . ng, 0.01)`` above the surface, the normal is replaced by the one in the
+    plane of ``ns`` and ``ng`` whose reflection of ``wo`` rises exactly ``t`` above it.
+
+    That normal is the half vector of ``wo`` and the wanted reflection ``r``: ``r`` keeps the
+    component of ``wo`` outside the plane (negated) and, inside it, has height ``t`` and the
+    in-plane length of ``wo``; of the two such ``r`` the one whose half vector is closer to
+    ``ns`` is taken (the smallest bend).
+
+    Parameters
+    ----------
+    ng : (k, 3) float64
+        Unit geometric normals, any side.
+    wo : (k, 3) float64
+        Unit directions toward the viewer (the previous path vertex).
+    ns : (k, 3) float64
+        Unit shading normals on ``wo``'s side of ``ng`` (:attr:`Interaction.ns`).
+
+    Returns
+    -------
+    (k, 3) float64
+        ``ns`` where its reflection is valid, the bent normal elsewhere (unit, on ``wo``'s side).
+    """
+    g = ng * np.where(np.einsum("ij,ij->i", ng, wo) < 0, -1.0, 1.0)[:, None]
+    cos_o = np.maximum(np.einsum("ij,ij->i", wo, g), 0.0)
+    t = np.minimum(0.9 * cos_o, 0.01)
+    cos_s = np.einsum("ij,ij->i", ns, wo)
+    reflected_height = 2.0 * cos_s * np.einsum("ij,ij->i", ns, g) - np.einsum("ij,ij->i", wo, g)
+    bad = np.nonzero(reflected_height < t)[0]
+    if bad.size == 0:
+        return ns
+    g_b, wo_b, ns_b, t_b, z = g[bad], wo[bad], ns[bad], t[bad], cos_o[bad]
+    # Tangent of ns in the plane it spans with ng (x); wo's in-plane coordinates (x, z).
+    x = ns_b - np.einsum("ij,ij->i", ns_b, g_b)[:, None] * g_b
+    length = np.linalg.norm(x, axis=1)
+    x = np.where(length[:, None] > 1e-12, x / np.maximum(length, 1e-300)[:, None], 0.0)
+    wx = np.einsum("ij,ij->i", wo_b, x)
+    rx = np.sqrt(np.maximum(wx * wx + z * z - t_b * t_b, 0.0))
+    best, best_cos = ns_b, np.full(bad.size, -np.inf)
+    for sign in (1.0, -1.0):
+        h = (sign * rx + wx)[:, None] * x + (t_b + z)[:, None] * g_b
+        h_len = np.linalg.norm(h, axis=1)
+        h = h / np.maximum(h_len, 1e-300)[:, None]
+        cos = np.where(h_len > 1e-12, np.einsum("ij,ij->i", h, ns_b), -np.inf)
+        better = cos > best_cos
+        best = np.where(better[:, None], h, best)
+        best_cos = np.where(better, cos, best_cos)
+    out = ns.copy()
+    out[bad] = np.where((length > 1e-12)[:, None], best, g_b)
+    return out
+
+
 def strategies(max_length):
     """BDPT strategies ``(s, t)`` shown as images, for path lengths 1..``max_length`` segments.
 

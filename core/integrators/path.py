@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..accel import Hits
-from ..materials.bsdf import (KIND_DIELECTRIC, LOBE_DIFFUSE, LOBE_REFLECT, LOBE_TRANSMIT,
+from ..materials.bsdf import (KIND_DIELECTRIC, KIND_DIFFUSE, LOBE_DIFFUSE, LOBE_REFLECT, LOBE_TRANSMIT,
                               RADIANCE, eval_bsdf, pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
@@ -56,7 +56,7 @@ from .bounces import BounceCounts, BounceLimits
 from .shadows import shadow_transmittance
 from .common import (add_emitters_along_rays, add_rows, camera_rays, geometric_side_valid,
                      intersect_by_class, max_component, ray_class, russian_roulette,
-                     surface_hits, surface_interaction, take_rows)
+                     surface_hits, surface_interaction, take_rows, valid_reflection_normals)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -114,8 +114,14 @@ class _BSDFShading:
         else:
             # Smooth shading: the frame's +Z is the shading normal on the stored front side
             # (si.ns is flipped toward wo exactly when ng is), plus the geometric-side test.
-            front = np.where(np.einsum("ij,ij->i", si.ns, si.ng) < 0, -1.0, 1.0)
-            self.s, self.t, self.n = shading_frame(si.ns * front[:, None])
+            # Glossy and glass rows bend it so that their mirror reflection stays above the
+            # geometry, as Cycles' glossy closures (diffuse ones keep it).
+            ns = si.ns
+            glossy = self.params.kind != KIND_DIFFUSE
+            if glossy.any():
+                ns = np.where(glossy[:, None], valid_reflection_normals(si.ng, si.wo, ns), ns)
+            front = np.where(np.einsum("ij,ij->i", ns, si.ng) < 0, -1.0, 1.0)
+            self.s, self.t, self.n = shading_frame(ns * front[:, None])
             self.ng, self.wo_world = si.ng, si.wo
         self.wo = to_local(si.wo, self.s, self.t, self.n)
         # Next-event estimation cannot contribute through smooth mirrors and glass.
