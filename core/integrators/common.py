@@ -85,10 +85,10 @@ def valid_reflection_normals(ng, wo, ns):
     mirror direction ``2 (ns . wo) ns - wo`` points below the geometric surface: the
     geometric-side rule (:func:`geometric_side_valid`) then drops the reflection and glossy
     silhouettes turn black. Cycles avoids that by bending the normal of its glossy closures
-    (``ensure_valid_specular_reflection``, after Schüssler et al. 2017's observation that the
-    reflection must stay above the true surface): where the reflection lies below
-    ``t = min(0.9 wo . ng, 0.01)`` above the surface, the normal is replaced by the one in the
-    plane of ``ns`` and ``ng`` whose reflection of ``wo`` rises exactly ``t`` above it.
+    (``ensure_valid_specular_reflection`` in its kernel; behaviour matched, the construction
+    below is ours): where the reflection lies below ``t = min(0.9 wo . ng, 0.01)`` above the
+    surface, the normal is replaced by the one in the plane of ``ns`` and ``ng`` whose
+    reflection of ``wo`` rises exactly ``t`` above it.
 
     That normal is the half vector of ``wo`` and the wanted reflection ``r``: ``r`` keeps the
     component of ``wo`` outside the plane (negated) and, inside it, has height ``t`` and the

@@ -6,11 +6,13 @@ What it estimates
     also finds emitters, and the two estimates of direct light are combined with MIS (power
     heuristic by default) so neither small lights nor large glossy lobes blow up the variance.
 Bias and consistency
-    Unbiased for paths of up to ``max_bounces + 1`` scattering vertices (Cycles' meaning of
-    "bounces": ``max_bounces = 0`` is direct light only); Russian roulette removes paths without
-    bias. Light carried by longer paths is missing, as in every renderer with a bounce limit.
+    Unbiased for paths within the bounce limits (Cycles' meaning of "bounces": ``max_bounces =
+    0`` is direct light only; the per-kind limits count sampled lobes, :mod:`.bounces`);
+    Russian roulette removes paths without bias. Light carried by longer paths is missing, as
+    in every renderer with a bounce limit.
 Parameters
-    ``max_bounces``, ``use_russian_roulette``, ``rr_min_bounces`` (roulette starts after that many
+    ``max_bounces``, ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces``,
+    ``transparent_max_bounces``, ``use_russian_roulette``, ``rr_min_bounces`` (roulette starts after that many
     bounces, with survival probability ``min(1, max(throughput))``); ``mis_heuristic`` in
     ``balance | power | maximum | cutoff | none | bsdf | light`` with ``mis_beta`` (power) and
     ``mis_alpha`` (cutoff), see :mod:`core.sampling.mis`: ``bsdf`` skips next-event estimation
@@ -26,7 +28,12 @@ Materials
     (:meth:`core.prepare.PreparedScene.choose_bsdf`), which both NEE and BSDF sampling use.
     NEE skips delta-only surfaces; after a delta bounce the emitter found
     keeps weight one (no MIS); the sampled lobe sets the next ray's object visibility class
-    (diffuse, glossy or transmission). Scenes whose materials are all diffuse take a
+    (diffuse, glossy or transmission). Transparent surfaces (Transparent BSDF, Alpha) pass
+    rays straight through, keeping the MIS state of the vertex before them, and let shadow
+    rays through with their attenuation (:mod:`.shadows`). Smooth glossy and glass surfaces
+    bend the shading normal so that mirror reflections stay above the geometry
+    (:func:`.common.valid_reflection_normals`). With Film > Transparent, camera rays that
+    escape give alpha 0 instead of the world. Scenes whose materials are all diffuse take a
     world-space Lambert path with the same estimator.
 When to use it
     The default for most scenes: diffuse and glossy transport lit by area lights, the sky, or
