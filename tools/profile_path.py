@@ -91,7 +91,8 @@ def _scene_and_settings(args):
     from sampling_lab.core.scenes import cornell_box
 
     scene = cornell_box(args.width, args.height, light="mesh")
-    settings = RenderSettings(spp=args.spp, threads=args.threads, max_bounces=8, seed=0)
+    settings = RenderSettings(spp=args.spp, threads=args.threads,
+                              **_bounces(RenderSettings, 8), seed=0)
     return scene, settings
 
 
@@ -125,3 +126,11 @@ def main(argv=None):
 
 if __name__ == "__main__":
     main()
+
+
+def _bounces(settings_class, total):
+    """Every bounce limit the measured tree's ``RenderSettings`` has, set to ``total`` (older
+    trees have ``max_bounces`` only), so that trees are profiled on the same paths."""
+    names = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+             "transparent_max_bounces")
+    return {name: total for name in names if name in settings_class.__dataclass_fields__}

@@ -121,3 +121,13 @@ class BounceCounts:
         """Transparent surfaces a shadow ray from each path's vertex may cross ``(k,)``."""
         used = self.transparent if rows is None else self.transparent[rows]
         return np.maximum(limits.transparent - used, 0)
+
+
+def uniform_limits(total):
+    """Render options setting every bounce limit to ``total`` (a dict of keyword arguments of
+    ``core.render.RenderSettings``): what ``tools.blender_scene.configure_cycles`` sets in
+    Cycles, and what the benchmarks use to compare integrators that do not count bounces by
+    kind with the path tracer."""
+    total = int(total)
+    return dict(max_bounces=total, diffuse_bounces=total, glossy_bounces=total,
+                transmission_bounces=total, transparent_max_bounces=total)

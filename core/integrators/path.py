@@ -12,8 +12,8 @@ Bias and consistency
     in every renderer with a bounce limit.
 Parameters
     ``max_bounces``, ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces``,
-    ``transparent_max_bounces``, ``use_russian_roulette``, ``rr_min_bounces`` (roulette starts after that many
-    bounces, with survival probability ``min(1, max(throughput))``); ``mis_heuristic`` in
+    ``transparent_max_bounces``, ``use_russian_roulette``, ``rr_min_bounces`` (roulette starts
+    after that many bounces, with survival probability ``min(1, max(throughput))``); ``mis_heuristic`` in
     ``balance | power | maximum | cutoff | none | bsdf | light`` with ``mis_beta`` (power) and
     ``mis_alpha`` (cutoff), see :mod:`core.sampling.mis`: ``bsdf`` skips next-event estimation
     (and so cannot see point, spot or sharp sun lights), ``light`` drops emitters that BSDF rays
@@ -52,8 +52,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..accel import Hits
-from ..materials.bsdf import (KIND_DIELECTRIC, KIND_DIFFUSE, LOBE_DIFFUSE, LOBE_REFLECT, LOBE_TRANSMIT,
-                              RADIANCE, eval_bsdf, pdf_bsdf, sample_bsdf)
+from ..materials.bsdf import (KIND_DIELECTRIC, KIND_DIFFUSE, LOBE_DIFFUSE, LOBE_REFLECT,
+                              LOBE_TRANSMIT, RADIANCE, eval_bsdf, pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..sampling.mis import MIS

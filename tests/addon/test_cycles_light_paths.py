@@ -128,8 +128,9 @@ def test_transparent_film_agrees_with_cycles_alpha(empty_scene, tmp_path):
     S.assert_ours_agree_with_cycles({**ours}, cycles[..., :3], "transparent film",
                                     detect=(0.02, 0.2), spp=OUR_SPP)
     ours_alpha, cycles_alpha = ours["Combined"][..., 3], cycles[..., 3].mean(axis=0)
+    leaf = int(((cycles_alpha > 0.2) & (cycles_alpha < 0.8)).sum())
     print(f"alpha mean ours {ours_alpha.mean():.4f}, Cycles {cycles_alpha.mean():.4f}; pixels "
-          f"with 0.2 < alpha < 0.8 (the leaf): {int(((cycles_alpha > 0.2) & (cycles_alpha < 0.8)).sum())}")
+          f"with 0.2 < alpha < 0.8 (the leaf): {leaf}")
     assert 0.1 < cycles_alpha.mean() < 0.9  # sky, plane and leaf all in view
     assert abs(ours_alpha.mean() - cycles_alpha.mean()) < 0.005 * cycles_alpha.mean()
     blocks = lambda a: a.reshape(4, 8, 4, 8).mean(axis=(1, 3))  # noqa: E731
