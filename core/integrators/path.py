@@ -13,11 +13,11 @@ Bias and consistency
 Parameters
     ``max_bounces``, ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces``,
     ``transparent_max_bounces``, ``use_russian_roulette``, ``rr_min_bounces`` (roulette starts
-    after that many bounces, with survival probability ``min(1, max(throughput))``); ``mis_heuristic`` in
-    ``balance | power | maximum | cutoff | none | bsdf | light`` with ``mis_beta`` (power) and
-    ``mis_alpha`` (cutoff), see :mod:`core.sampling.mis`: ``bsdf`` skips next-event estimation
-    (and so cannot see point, spot or sharp sun lights), ``light`` drops emitters that BSDF rays
-    find after a bounce where NEE could have sampled them. The light sampler's
+    after that many bounces, with survival probability ``min(1, max(throughput))``);
+    ``mis_heuristic`` in ``balance | power | maximum | cutoff | none | bsdf | light`` with
+    ``mis_beta`` (power) and ``mis_alpha`` (cutoff), see :mod:`core.sampling.mis`: ``bsdf``
+    skips next-event estimation (and so cannot see point, spot or sharp sun lights), ``light``
+    drops emitters that BSDF rays find after a bounce where NEE could have sampled them. The light sampler's
     ``light_selection``, ``light_sampling`` and ``distribution`` are set in
     :func:`core.prepare.prepare` (see :class:`core.lights.LightSampler`).
 Materials
