@@ -99,8 +99,8 @@ class BounceCounts:
         Returns
         -------
         stop_next : (n,) bool
-            Paths whose transparent count has reached its limit: their next surface adds its
-            emission, then they end.
+            Paths whose transparent pass just now brought the transparent count to its limit:
+            their next surface adds its emission, then they end.
         """
         lobe = np.asarray(lobe)
         scatter = ~through
@@ -115,7 +115,7 @@ class BounceCounts:
         self.finishing |= ((self.total > limits.total) | (self.diffuse > limits.diffuse)
                            | (self.glossy > limits.glossy)
                            | (self.transmission > limits.transmission))
-        return self.transparent >= limits.transparent
+        return through & (self.transparent >= limits.transparent)
 
     def shadow_budget(self, limits, rows=None):
         """Transparent surfaces a shadow ray from each path's vertex may cross ``(k,)``."""

@@ -35,6 +35,16 @@ def test_diffuse_limit_truncates_the_furnace_series(total, diffuse):
     assert_mean_within_ci(pixel_means(res), (1 - rho ** (n + 2)) / (1 - rho))
 
 
+def test_a_transparent_limit_of_zero_leaves_paths_without_transparent_surfaces_alone():
+    # Only a pass through a transparent surface counts toward it (a limit of 0 once ended
+    # every path at its second surface).
+    rho = 0.5
+    scene = scenes.furnace(emission=1.0, albedo=rho, width=16, height=16)
+    res = render(scene, plain_settings(spp=32, max_bounces=3, transparent_max_bounces=0,
+                                       seed=13))
+    assert_mean_within_ci(pixel_means(res), (1 - rho ** 5) / (1 - rho))
+
+
 def _mirror_furnace():
     scene = scenes.furnace(emission=1.0, width=8, height=8)
     scene.materials = Materials.from_lists(["Mirror"], [(1, 1, 1)], [(1, 1, 1)],
