@@ -209,6 +209,11 @@ class SAMPLINGLAB_RENDER_PT_film(SamplingLabButtonsPanel, Panel):
         col = layout.column()
         col.prop(settings, "filter_type")
         col.prop(settings, "filter_width")
+        # Blender's own Film > Transparent, which only the path tracer renders as alpha (the
+        # others report an opaque background).
+        sub = col.column()
+        sub.active = settings.integrator == 'PATH'
+        sub.prop(context.scene.render, "film_transparent", text="Transparent")
 
 
 class SAMPLINGLAB_RENDER_PT_performance(SamplingLabButtonsPanel, Panel):

@@ -135,3 +135,10 @@ def test_transparent_film_agrees_with_cycles_alpha(empty_scene, tmp_path):
     assert abs(ours_alpha.mean() - cycles_alpha.mean()) < 0.005 * cycles_alpha.mean()
     blocks = lambda a: a.reshape(4, 8, 4, 8).mean(axis=(1, 3))  # noqa: E731
     assert S.np.abs(blocks(ours_alpha) - blocks(cycles_alpha)).max() < 0.02
+
+
+@pytest.mark.parametrize("integrator", ['PATH', 'BDPT', 'RADIOSITY'])
+def test_film_panel_shows_transparent_active_for_path_tracing_only(empty_scene, integrator):
+    empty_scene.sampling_lab.integrator = integrator
+    active = drawn_rows("SAMPLINGLAB_RENDER_PT_film", empty_scene)
+    assert active["film_transparent"] == (integrator == 'PATH')
