@@ -18,7 +18,8 @@ BUNDLED_DIR = Path(__file__).resolve().parent.parent / "presets" / PRESET_SUBDIR
 # Every setting a preset stores (the Sampling, Light Sampling, Strategy Views and Light Paths
 # panels). Bundled presets may leave some out: those keep their current values.
 PRESET_VALUES = [f"settings.{name}" for name in (
-    "integrator", "sampler", "samples", "time_limit", "max_bounces", "use_russian_roulette",
+    "integrator", "sampler", "samples", "time_limit", "max_bounces", "diffuse_bounces",
+    "glossy_bounces", "transmission_bounces", "transparent_max_bounces", "use_russian_roulette",
     "rr_min_bounces", "mis_heuristic", "mis_beta", "mis_alpha", "light_selection",
     "light_sampling", "distribution", "use_strategy_views", "strategy_max_length")]
 

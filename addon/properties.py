@@ -79,6 +79,10 @@ class SamplingLabSettings(PropertyGroup):
         default=False,
     )
     max_bounces: _property("max_bounces", soft_max=64)
+    diffuse_bounces: _property("diffuse_bounces", soft_max=64)
+    glossy_bounces: _property("glossy_bounces", soft_max=64)
+    transmission_bounces: _property("transmission_bounces", soft_max=64)
+    transparent_max_bounces: _property("transparent_max_bounces", soft_max=64)
     use_russian_roulette: _property("use_russian_roulette")
     rr_min_bounces: _property("rr_min_bounces", soft_max=64)
     mis_heuristic: _property("mis_heuristic")

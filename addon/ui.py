@@ -177,7 +177,17 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         col = layout.column()
         # Radiosity has no path bounces: its transport is the solved system.
         col.active = settings.integrator != 'RADIOSITY'
-        col.prop(settings, "max_bounces")
+        # Cycles' Light Paths > Max Bounces layout: Total, then one limit per kind, which
+        # only the path tracer counts (core.render.used_settings).
+        bounces = col.column(align=True, heading="Max Bounces")
+        bounces.prop(settings, "max_bounces")
+        kinds = col.column(align=True)
+        kinds.active = settings.integrator == 'PATH'
+        kinds.prop(settings, "diffuse_bounces")
+        kinds.prop(settings, "glossy_bounces")
+        kinds.prop(settings, "transmission_bounces")
+        kinds.prop(settings, "transparent_max_bounces")
+        col.separator()
         rr = col.column()
         # Photon mapping's camera paths stop at the first rough surface, and its photons
         # always use roulette by albedo: the roulette settings do not apply.
@@ -199,6 +209,11 @@ class SAMPLINGLAB_RENDER_PT_film(SamplingLabButtonsPanel, Panel):
         col = layout.column()
         col.prop(settings, "filter_type")
         col.prop(settings, "filter_width")
+        # Blender's own Film > Transparent, which only the path tracer renders as alpha (the
+        # others report an opaque background).
+        sub = col.column()
+        sub.active = settings.integrator == 'PATH'
+        sub.prop(context.scene.render, "film_transparent", text="Transparent")
 
 
 class SAMPLINGLAB_RENDER_PT_performance(SamplingLabButtonsPanel, Panel):

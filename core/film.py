@@ -147,14 +147,22 @@ class Film:
         self.splat_paths = 0
         # Extra layers: name -> [camera-sample sum (n, 3), splat sum (n, 3)].
         self.layers = {}
+        # Sum of the camera samples' transparency (a transparent film), None while opaque.
+        self.transparency = None
 
     @property
     def n_pixels(self):
         return self.width * self.height
 
-    def add_samples(self, pixel, radiance):
-        """Accumulate camera samples ``radiance (k, 3)`` into their pixels ``pixel (k,)``."""
+    def add_samples(self, pixel, radiance, transparency=None):
+        """Accumulate camera samples ``radiance (k, 3)`` into their pixels ``pixel (k,)``;
+        ``transparency (k,)``: what of each reached a transparent film's background (None:
+        nothing)."""
         n = self.n_pixels
+        if transparency is not None:
+            if self.transparency is None:
+                self.transparency = np.zeros(n)
+            self.transparency += np.bincount(pixel, transparency, minlength=n)
         for c in range(3):
             self.sum[:, c] += np.bincount(pixel, radiance[:, c], minlength=n)
             self.sum_sq[:, c] += np.bincount(pixel, radiance[:, c] ** 2, minlength=n)
@@ -274,8 +282,18 @@ class Film:
         """Camera samples per pixel ``(h, w)`` float32."""
         return self.count.reshape(self.height, self.width).astype(np.float32)
 
+    def alpha(self):
+        """Alpha ``(h, w)`` float64: one minus the pixels' mean transparency (one everywhere
+        on an opaque film, Blender's default), in [0, 1]."""
+        if self.transparency is None:
+            return np.ones((self.height, self.width))
+        clear = self.transparency / np.maximum(self.count, 1)
+        return np.clip(1.0 - clear, 0.0, 1.0).reshape(self.height, self.width)
+
     def combined(self):
-        """RGBA ``(h, w, 4)`` float32, alpha one (an opaque film, Blender's default)."""
+        """RGBA ``(h, w, 4)`` float32; RGB as Cycles writes it on a transparent film (the
+        world seen by camera rays left out, not divided by alpha)."""
         rgba = np.ones((self.height, self.width, 4), np.float32)
         rgba[..., :3] = self.mean()
+        rgba[..., 3] = self.alpha()
         return rgba

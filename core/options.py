@@ -376,10 +376,28 @@ OPTIONS = {o.name: o for o in (
            "Seed of the sample streams. The same seed, samples and scene give the same image; "
            "change it to get an independent render of the same scene (e.g. to measure "
            "variance)", 0, minimum=0, maximum=(1 << 31) - 1),
-    Option("max_bounces", int, "Max Bounces",
-           "Maximum number of surface interactions of a path. Cutting paths short loses the "
-           "light they would have carried (a bias toward darker images)", 8, minimum=0,
+    Option("max_bounces", int, "Total",
+           "Maximum number of bounces of a path (transparent ones not counted), as Cycles' "
+           "Light Paths > Max Bounces > Total. Cutting paths short loses the light they would "
+           "have carried (a bias toward darker images)", 12, minimum=0,
            maximum=1024, flag="--max-depth"),
+    Option("diffuse_bounces", int, "Diffuse",
+           "Maximum number of diffuse reflection bounces of a path, as Cycles' limit of the "
+           "same name (path tracing only). Lower values are biased: they cut the light of "
+           "longer diffuse paths", 4, minimum=0, maximum=1024),
+    Option("glossy_bounces", int, "Glossy",
+           "Maximum number of glossy and mirror reflection bounces of a path, as Cycles' limit "
+           "of the same name (path tracing only). Lower values are biased", 4, minimum=0,
+           maximum=1024),
+    Option("transmission_bounces", int, "Transmission",
+           "Maximum number of transmission bounces (through glass) of a path, as Cycles' limit "
+           "of the same name (path tracing only). Lower values are biased", 12, minimum=0,
+           maximum=1024),
+    Option("transparent_max_bounces", int, "Transparent",
+           "Maximum number of transparent surfaces (Transparent BSDF, Principled Alpha) a path "
+           "or a shadow ray passes straight through, as Cycles' limit of the same name; the "
+           "next one blocks it. Does not count toward the other limits", 8, minimum=0,
+           maximum=1024, flag="--transparent-bounces"),
     Option("use_russian_roulette", bool, "Russian Roulette",
            "Terminate low-throughput paths at random and reweight the survivors. Unbiased: it "
            "trades a little variance for a lot less work on long paths", True,

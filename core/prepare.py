@@ -12,7 +12,7 @@ import numpy as np
 
 from .accel import Accel
 from .lights import Emission, LightSampler
-from .materials.bsdf import BSDFParams, is_delta_only
+from .materials.bsdf import KIND_DIELECTRIC, BSDFParams, is_delta_only
 from .sampling.distributions import Segmented1D
 from .scene import Scene
 from .textures import material_base_color, textured_base_color
@@ -87,6 +87,10 @@ class PreparedScene:
         Next-event estimation and the emitters rays find.
     emission : core.lights.Emission
         How light paths leave the same emitters (light tracing, BDPT).
+    material_transparency : (m, 3) float64 or None
+        What a shadow ray keeps when it crosses each material: the summed weight times colour
+        of its transparent components (:func:`transparency_table`); None when no material a
+        triangle uses has any (shadow rays are then plain occlusion queries).
     shift : (3,) float64
         World position of the local frame's origin: everything above is in world space minus
         ``shift`` (see :func:`recentred`).
@@ -111,6 +115,7 @@ class PreparedScene:
     material_mix_count: np.ndarray = None
     lambert_only: bool = False
     emission: Emission = None
+    material_transparency: np.ndarray = None
 
     def bsdf(self, prim):
         """BSDF parameters of the hit triangles' own material rows ``(k,)`` and whether each
@@ -212,10 +217,22 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
            if width > 1 else None)
     used = np.unique(scene.material)
     lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used]))
+    transparency = transparency_table(bsdf, mix_rows, mix_weights)
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
                          mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only,
-                         Emission(lights, scene.vertices))
+                         Emission(lights, scene.vertices),
+                         transparency if np.any(transparency[used] > 0) else None)
+
+
+def transparency_table(bsdf, mix_rows, mix_weights):
+    """Transparency ``(m, 3)`` of every material: ``sum_c w_c color_c`` over its components
+    that pass rays straight through (smooth dielectrics of IOR exactly 1: Transparent BSDF,
+    Principled Alpha), as Cycles' transparent shadows attenuate by the transparent closures'
+    weight. Zero for opaque materials."""
+    passes = (bsdf.kind == KIND_DIELECTRIC) & (bsdf.eta == 1.0)
+    per_row = bsdf.color * passes[:, None]
+    return np.einsum("mc,mcj->mj", mix_weights, per_row[mix_rows])
 
 
 def mixture_table(weights, rows):

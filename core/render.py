@@ -81,6 +81,10 @@ class RenderSettings:
     time_limit: float = DEFAULTS["time_limit"]
     seed: int = DEFAULTS["seed"]
     max_bounces: int = DEFAULTS["max_bounces"]
+    diffuse_bounces: int = DEFAULTS["diffuse_bounces"]
+    glossy_bounces: int = DEFAULTS["glossy_bounces"]
+    transmission_bounces: int = DEFAULTS["transmission_bounces"]
+    transparent_max_bounces: int = DEFAULTS["transparent_max_bounces"]
     use_russian_roulette: bool = DEFAULTS["use_russian_roulette"]
     rr_min_bounces: int = DEFAULTS["rr_min_bounces"]
     mis_heuristic: str = DEFAULTS["mis_heuristic"]
@@ -196,9 +200,11 @@ def used_settings(settings):
         ``mis_heuristic``, ``mis_beta``, ``mis_alpha``, ``light_selection``,
         ``light_sampling``, ``distribution``, the photon-mapping settings ``photons``,
         ``sppm_alpha``, ``photon_memory``, ``photon_lookup``, ``photon_k``, ``photon_radius``,
-        ``photon_kernel``, ``gather_rays`` and the ``radiosity_*`` options (``'n/a'`` where
-        the integrator does not read them; the photon estimators use no MIS: one strategy per
-        light contribution).
+        ``photon_kernel``, ``gather_rays``, the ``radiosity_*`` options and the per-kind
+        bounce limits ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces`` and
+        ``transparent_max_bounces`` (path tracing only: the other integrators stop paths at
+        ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
+        estimators use no MIS: one strategy per light contribution).
     """
     if settings.integrator == "radiosity":
         return _radiosity_used(settings)
@@ -233,11 +239,16 @@ def used_settings(settings):
         "photon_kernel": settings.photon_kernel if jensen else na,
         "gather_rays": settings.gather_rays if jensen else na,
         **{name: na for name in RADIOSITY_OPTIONS},
+        # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's.
+        **{name: getattr(settings, name) if settings.integrator == "path" else na
+           for name in BOUNCE_KIND_OPTIONS},
     }
 
 
 PHOTON_OPTIONS = ("photons", "sppm_alpha", "photon_memory", "photon_lookup", "photon_k",
                   "photon_radius", "photon_kernel", "gather_rays")
+BOUNCE_KIND_OPTIONS = ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                       "transparent_max_bounces")
 RADIOSITY_OPTIONS = ("radiosity_solver", "radiosity_patch_size", "radiosity_samples",
                      "radiosity_adaptive", "radiosity_display", "radiosity_patches")
 
@@ -253,6 +264,7 @@ def _radiosity_used(settings):
         "light_sampling": settings.light_sampling if gather else na,
         "distribution": settings.distribution,
         **{name: na for name in PHOTON_OPTIONS},
+        **{name: na for name in BOUNCE_KIND_OPTIONS},
         **{name: getattr(settings, name) for name in RADIOSITY_OPTIONS},
         # Hierarchical radiosity's links adapt instead; its leaves stay uniform.
         "radiosity_adaptive": (settings.radiosity_adaptive
@@ -392,6 +404,14 @@ def _messages(scene, settings, integrator):
         messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
                         f"visibility are honoured by path tracing only; camera paths "
                         f"bounce with Camera visibility, light paths with Shadow")
+    if scene.film_transparent and settings.integrator != "path":
+        messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
+                        f"tracing only; the background is rendered opaque")
+    if (settings.integrator not in ("path", "radiosity")
+            and integrator.prep.material_transparency is not None):
+        messages.append(f"{settings.integrator}: transparent surfaces (Transparent BSDF, "
+                        f"Alpha) block shadow rays and connections, and count as "
+                        f"transmission bounces; path tracing lets shadow rays through them")
     return messages
 
 
@@ -447,7 +467,7 @@ class _Passes:
         ``taps``: the splats' filter taps if :meth:`run_unit` made them."""
         film, pixel_filter = self.film, self.pixel_filter
         self.counters.add(local)
-        film.add_samples(pixels, out.radiance)
+        film.add_samples(pixels, out.radiance, out.transparency)
         if taps is not None:
             film.add_splat_taps(*taps)
         elif out.splats is not None and len(out.splats.xy):

@@ -362,6 +362,9 @@ class Scene:
         Unit world-space shading normals at each triangle's three corners (Blender's corner
         normals, smooth shading), or None when every face is flat (shading normal = geometric
         normal). See :func:`core.integrators.common.shading_normals`.
+    film_transparent : bool
+        Blender's Film > Transparent: camera rays that escape to the world (also through
+        transparent surfaces) show alpha 0 instead of the world, which still lights the scene.
     """
 
     vertices: np.ndarray
@@ -379,6 +382,7 @@ class Scene:
     corner_normals: np.ndarray | None = None
     texture_interpolation: list = None
     texture_extension: list = None
+    film_transparent: bool = False
 
     def __post_init__(self):
         self._check_corner_normals()

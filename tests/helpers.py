@@ -48,10 +48,29 @@ from sampling_lab.core.render import RenderSettings
 # written before the light tree became the default keep the estimator they were written for).
 PLAIN = dict(sampler="independent", light_selection="power")
 
+# Bounce limits the tests were written for: 8 in all, every per-kind limit (diffuse, glossy,
+# transmission, transparent) equal to the total, as tools/blender_scene.configure_cycles sets
+# Cycles up. The closed forms count every bounce alike; the per-kind limits have tests of their
+# own (tests/core/test_bounce_limits.py).
+TEST_BOUNCES = 8
+PER_KIND_BOUNCES = ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                    "transparent_max_bounces")
+
+
+def uniform_bounces(kw):
+    """``kw`` with ``max_bounces`` (default :data:`TEST_BOUNCES`) and every per-kind limit it
+    does not set equal to that total."""
+    kw = dict(kw)
+    total = kw.setdefault("max_bounces", TEST_BOUNCES)
+    for name in PER_KIND_BOUNCES:
+        kw.setdefault(name, total)
+    return kw
+
 
 def plain_settings(**kw):
-    """``RenderSettings`` with :data:`PLAIN` unless ``kw`` says otherwise."""
-    return RenderSettings(**{**PLAIN, **kw})
+    """``RenderSettings`` with :data:`PLAIN` and :func:`uniform_bounces` unless ``kw`` says
+    otherwise."""
+    return RenderSettings(**uniform_bounces({**PLAIN, **kw}))
 
 TWO_PI = 2.0 * np.pi
 

@@ -19,6 +19,7 @@ import numpy as np
 from ..core.integrators.common import strategies
 from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN
+from ..core.integrators.bounces import uniform_limits
 
 # The figure's folder, in the output folder as in docs/.
 DOCS_FOLDER = "images"
@@ -43,7 +44,8 @@ def run(scene="glass_caustic", size=(96, 96), spp=64, max_length=4, max_bounces=
     sc = BUILTIN[scene](w, h)
     settings = RenderSettings(integrator="bdpt", spp=spp, seed=seed, strategy_views=True,
                               strategy_max_length=max_length,
-                              max_bounces=max_length - 2 if max_bounces is None else max_bounces)
+                              **uniform_limits(max_length - 2 if max_bounces is None
+                                                else max_bounces))
     res = render(sc, settings, progress=progress)
     layers = res.layers()
     combined = res.film.mean()

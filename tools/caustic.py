@@ -20,6 +20,7 @@ from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN
 from .common import equal_time_row
 from .outputs import publish
+from ..core.integrators.bounces import uniform_limits
 
 # What docs/ shows, relative to the output folder (and to docs/).
 DOCS_FILES = ("CAUSTIC.md",)
@@ -34,13 +35,13 @@ def run(size=(64, 64), seconds=8.0, reference_seconds=120.0, integrators=("path"
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     ref = render(scene, RenderSettings(integrator="bdpt", spp=0, time_limit=reference_seconds,
-                                       max_bounces=max_bounces, seed=999))
+                                       **uniform_limits(max_bounces), seed=999))
     ref_img = ref.film.mean()
     progress(f"reference: bdpt, {ref.stats['spp']} spp in {time.perf_counter() - t0:.1f} s")
     rows = []
     for name in integrators:
         settings = RenderSettings(integrator=name, spp=0, time_limit=seconds,
-                                   max_bounces=max_bounces, seed=1)
+                                   **uniform_limits(max_bounces), seed=1)
         row = dict(integrator=name, **equal_time_row(scene, settings, ref_img))
         rows.append(row)
         progress(f"{name}: {row}")

@@ -52,6 +52,8 @@ from ..core.render import RenderSettings, render
 from ..core.scenes import cornell_box
 from .common import EPS, loadavg, machine_summary, mean_ratio, stage, write_csv
 from .cycles import CyclesRunner
+from ..core.integrators.bounces import uniform_limits
+
 # Rays in the raw embreex batch, and how often each thread count is timed (best is kept).
 EMBREE_RAYS = 1 << 21
 EMBREE_REPEATS = 3
@@ -150,7 +152,7 @@ class _Bench:
         self.rows, self.status, self.cy = [], 0, None
 
     def settings(self, **kw):
-        return RenderSettings(**{**dict(seed=self.seed, max_bounces=self.max_bounces,
+        return RenderSettings(**{**dict(seed=self.seed, **uniform_limits(self.max_bounces),
                                         threads=self.threads), **kw})
 
     def ceiling(self):

@@ -40,6 +40,7 @@ from ..core.render import RenderSettings, render
 from .common import EPS, loadavg, machine_summary, stage, write_csv
 from .cycles import CyclesRunner
 from .hard_scenes import SCENES, build_scene
+from ..core.integrators.bounces import uniform_limits
 
 REPORT = "GAP_BENCH.md"
 # Our baseline, spelled out so that the table keeps its meaning when the defaults change.
@@ -136,7 +137,7 @@ def _scene_rows(name, size, spp, seeds, reference_spp, threads, max_bounces, pro
 def _ours_image(scene, settings, spp, seed, threads, max_bounces):
     c0 = time.process_time()
     res = render(scene, RenderSettings(spp=spp, seed=seed, threads=threads,
-                                       max_bounces=max_bounces, **settings))
+                                       **uniform_limits(max_bounces), **settings))
     return res.combined()[..., :3].astype(np.float64), time.process_time() - c0
 
 

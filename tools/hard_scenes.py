@@ -51,6 +51,7 @@ from .common import EPS, loadavg, machine_summary, mean_ratio, stage, write_csv
 from .cycles import CyclesRunner
 from .hard_scenes_report import print_scene, write_montage, write_report
 from .outputs import publish
+from ..core.integrators.bounces import uniform_limits
 
 
 def _glossy_plates(bs, scene, size):
@@ -252,7 +253,7 @@ class _Bench:
         return self.width * self.height
 
     def settings(self, **kw):
-        return RenderSettings(**{**dict(seed=self.seed, max_bounces=self.max_bounces,
+        return RenderSettings(**{**dict(seed=self.seed, **uniform_limits(self.max_bounces),
                                         threads=self.threads), **kw})
 
     def scene(self, name):

@@ -18,6 +18,7 @@ import time
 from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN
 from .common import equal_time_row
+from ..core.integrators.bounces import uniform_limits
 
 REPORT = "LIGHT_TREE_BENCH.md"
 SELECTIONS = ("power", "uniform", "tree")
@@ -33,13 +34,13 @@ def run(size=(64, 64), seconds=10.0, reference_seconds=60.0, selections=SELECTIO
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     ref = render(scene, RenderSettings(spp=0, time_limit=reference_seconds, light_selection="tree",
-                                       max_bounces=max_bounces, seed=999, threads=threads))
+                                       **uniform_limits(max_bounces), seed=999, threads=threads))
     ref_img = ref.film.mean()
     progress(f"reference: tree, {ref.stats['spp']} spp in {time.perf_counter() - t0:.1f} s")
     rows = []
     for name in selections:
         settings = RenderSettings(spp=0, time_limit=seconds, light_selection=name,
-                                   max_bounces=max_bounces, seed=1, threads=threads)
+                                   **uniform_limits(max_bounces), seed=1, threads=threads)
         row = dict(selection=name, **equal_time_row(scene, settings, ref_img))
         rows.append(row)
         progress(f"{name}: {row}")

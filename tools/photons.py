@@ -62,6 +62,7 @@ from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN, mirror_point_light_reference
 from .common import loadavg, machine_summary, stage, write_csv
 from .outputs import publish
+from ..core.integrators.bounces import uniform_limits
 
 DOCS_FILES = ("PHOTONS_BENCH.md",)
 # scene -> max bounces (the mirror's closed form holds for one bounce).
@@ -195,7 +196,7 @@ def _reference(name, scene, bounces, seconds, threads):
         return np.repeat((direct + reflected)[..., None], 3, axis=2)
     stage(f"{name}: BDPT reference, {seconds:g} s")
     res = render(scene, RenderSettings(integrator="bdpt", spp=0, time_limit=seconds,
-                                       max_bounces=bounces, seed=999, threads=threads,
+                                       **uniform_limits(bounces), seed=999, threads=threads,
                                        filter_type="box", filter_width=1.0))
     return res.film.mean()
 
@@ -208,7 +209,7 @@ def _ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask, **s
         settings["photons"] = photons
     t0 = time.perf_counter()
     res = render(scene, RenderSettings(integrator=integ, spp=0, time_limit=seconds,
-                                       max_bounces=bounces, seed=1, threads=threads,
+                                       **uniform_limits(bounces), seed=1, threads=threads,
                                        filter_type="box", filter_width=1.0, **settings))
     wall = time.perf_counter() - t0
     img = res.film.mean()

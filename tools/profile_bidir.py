@@ -185,13 +185,13 @@ def speeds(scene, args, integrators=("path", "light", "bdpt")):
         for name in integrators:
             spp = args.path_spp if name == "path" else args.spp
             settings = RenderSettings(integrator=name, spp=spp, threads=args.threads,
-                                      max_bounces=8, seed=0)
+                                      **_bounces(RenderSettings, 8), seed=0)
             stats = render(scene, settings).stats
             if stats["samples_per_s"] > best.get(name, {}).get("samples_per_s", 0.0):
                 best[name] = stats
             t0 = time.process_time()
             stats = render(scene, RenderSettings(integrator=name, spp=spp, threads=1,
-                                                 max_bounces=8, seed=0)).stats
+                                                 **_bounces(RenderSettings, 8), seed=0)).stats
             cpu[name] = min(cpu.get(name, float("inf")),
                             1e6 * (time.process_time() - t0) / stats["samples"])
     return best, cpu
@@ -228,7 +228,7 @@ def main(argv=None):
     for name in args.integrators.split(","):
         _TOTALS.clear()
         render(scene, RenderSettings(integrator=name, spp=args.spp, threads=args.threads,
-                                     max_bounces=8, seed=0))
+                                     **_bounces(RenderSettings, 8), seed=0))
         total = sum(_TOTALS.values())
         print(f"\n{name}: stage profile (exclusive thread CPU seconds, total {total:.2f} s):")
         for stage, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
@@ -238,3 +238,11 @@ def main(argv=None):
 
 if __name__ == "__main__":
     main()
+
+
+def _bounces(settings_class, total):
+    """Every bounce limit the measured tree's ``RenderSettings`` has, set to ``total`` (older
+    trees have ``max_bounces`` only), so that trees are profiled on the same paths."""
+    names = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+             "transparent_max_bounces")
+    return {name: total for name in names if name in settings_class.__dataclass_fields__}

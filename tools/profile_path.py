@@ -99,8 +99,8 @@ def _scene_and_settings(args):
     extra = {k: v for k, v in (("sampler", args.sampler),
                                ("light_selection", args.light_selection),
                                ("light_sampling", args.light_sampling)) if v}
-    settings = RenderSettings(spp=args.spp, threads=args.threads, max_bounces=8, seed=0,
-                              **extra)
+    settings = RenderSettings(spp=args.spp, threads=args.threads,
+                              **_bounces(RenderSettings, 8), seed=0, **extra)
     return scene, settings
 
 
@@ -149,3 +149,11 @@ def main(argv=None):
 
 if __name__ == "__main__":
     main()
+
+
+def _bounces(settings_class, total):
+    """Every bounce limit the measured tree's ``RenderSettings`` has, set to ``total`` (older
+    trees have ``max_bounces`` only), so that trees are profiled on the same paths."""
+    names = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+             "transparent_max_bounces")
+    return {name: total for name in names if name in settings_class.__dataclass_fields__}

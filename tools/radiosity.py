@@ -34,6 +34,7 @@ from ..core.radiosity.system import RadiosityParams, solve_scene
 from ..core.render import RenderSettings, render
 from ..core.scenes import cornell_box
 from .common import loadavg, machine_summary, stage, write_csv
+from ..core.integrators.bounces import uniform_limits
 
 REPORT = "RADIOSITY_BENCH.md"
 # Patch sizes per solver (Blender units on the 2 m Cornell box): about 0.5k-2k patches for the
@@ -93,7 +94,7 @@ def equal_time(size=(64, 64), seconds=10.0, reference_seconds=120.0, cycles=True
     scene = room(size)
     stage(f"reference: path tracing for {reference_seconds:g} s")
     ref = render(scene, RenderSettings(spp=0, time_limit=reference_seconds,
-                                       max_bounces=max_bounces, seed=999, threads=threads))
+                                       **uniform_limits(max_bounces), seed=999, threads=threads))
     ref_img = ref.film.mean()
     rows = []
 
@@ -121,7 +122,7 @@ def equal_time(size=(64, 64), seconds=10.0, reference_seconds=120.0, cycles=True
             f"{solve.stats['radiosity_patch_count']} patches, solve {solve_s:.1f} s")
     stage(f"path tracing for {seconds:g} s")
     t0 = time.perf_counter()
-    res = render(scene, RenderSettings(spp=0, time_limit=seconds, max_bounces=max_bounces,
+    res = render(scene, RenderSettings(spp=0, time_limit=seconds, **uniform_limits(max_bounces),
                                        seed=1, threads=threads))
     add("path tracing", res.film.mean(), res.stats["spp"], time.perf_counter() - t0)
     if cycles:

@@ -48,6 +48,7 @@ from ..core.sampling.mis import MIS_SETTINGS
 from ..core.sampling.samplers import available as available_samplers
 from ..core.scenes import cornell_box
 from .outputs import publish
+from ..core.integrators.bounces import uniform_limits
 
 # relMSE regulariser, as tools/common.py: (img - ref)^2 / (ref^2 + EPS).
 EPS = 1e-2
@@ -87,7 +88,7 @@ def reference(scene_name, light, resolution, spp, output, seed=12345):
         return data["mean"], data["variance"]
     t0 = time.perf_counter()
     res = render(cornell_box(w, h, light), RenderSettings(spp=spp, seed=seed,
-                                                          max_bounces=MAX_BOUNCES,
+                                                          **uniform_limits(MAX_BOUNCES),
                                                           threads=THREADS, **BASE_SETTINGS))
     mean = res.combined()[..., :3].astype(np.float64)
     var = res.variance().astype(np.float64)
@@ -201,7 +202,7 @@ def _curve(scene, scene_name, group, name, overrides, cfg, ref, ref_var, rows, f
     for k, spp in enumerate(cfg["spps"]):
         try:
             cpu0 = time.process_time()
-            res = render(scene, RenderSettings(spp=spp, seed=1 + k, max_bounces=MAX_BOUNCES,
+            res = render(scene, RenderSettings(spp=spp, seed=1 + k, **uniform_limits(MAX_BOUNCES),
                                                threads=THREADS,
                                                **{**BASE_SETTINGS, **overrides}))
             t = time.process_time() - cpu0

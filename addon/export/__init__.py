@@ -89,7 +89,7 @@ def export_scene(depsgraph, camera_object=None, camera=None):
     messages = Messages()
     if camera is None:
         camera = export_camera(scene, render_camera(depsgraph, camera_object), messages)
-    _report_render_settings(scene.render, messages)
+    _report_render_settings(scene, messages)
     materials = MaterialTable(messages)
     geometry = Geometry(materials, messages)
     light_rows = []
@@ -119,12 +119,16 @@ def export_scene(depsgraph, camera_object=None, camera=None):
         textures=materials.textures,
         texture_interpolation=materials.texture_modes[0],
         texture_extension=materials.texture_modes[1],
+        film_transparent=bool(scene.render.film_transparent),
     )
 
 
-def _report_render_settings(render, messages):
+def _report_render_settings(scene, messages):
     """Report the render settings of the scene that the renderer ignores."""
+    render = scene.render
     if render.use_motion_blur:
         messages.add("Motion blur is not supported yet; rendered without")
-    if render.film_transparent:
-        messages.add("Transparent film is not supported yet; the background is rendered opaque")
+    cycles = getattr(scene, "cycles", None)
+    if render.film_transparent and getattr(cycles, "film_transparent_glass", False):
+        messages.add("Film > Transparent Glass is not supported yet; glass in front of the "
+                     "background is opaque in the alpha channel")

@@ -167,7 +167,6 @@ def _node_surface(node, read, owner, messages):
                        ior=read.value(node, "IOR", 1.5), transmission=1.0, specular_tint=color)
 
     if kind == 'ShaderNodeBsdfTransparent':
-        _transparent_note(owner, messages, f"node '{name}'")
         return _transparent(read.color(node, "Color", (1.0, 1.0, 1.0)))
 
     messages.add(f"{owner}: node '{name}' is not supported yet; rendered as diffuse")
@@ -181,11 +180,6 @@ def _transparent(color):
     color = np.asarray(color, np.float64)
     return Surface(MAT_DIELECTRIC, color, np.zeros(3), roughness=0.0, ior=1.0,
                    transmission=1.0, specular_tint=color)
-
-
-def _transparent_note(owner, messages, what):
-    messages.add(f"{owner}: {what} is rendered as a pass-through (glass of IOR 1) that still "
-                 f"blocks shadow rays and counts as a transmission bounce")
 
 
 def _surface_key(surface):
@@ -280,7 +274,6 @@ def _principled_surface(node, read, owner, texture=None):
              for kind, w in weights.items() if w > 0]
     parts = [(alpha * w, surface) for w, surface in parts]
     if alpha < 1.0:
-        _transparent_note(owner, messages, f"alpha of node '{name}'")
         parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
     surface = mix_surfaces(parts, owner, messages)
     return surface._replace(emission=alpha * emission, metallic=metallic,

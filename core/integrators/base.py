@@ -118,6 +118,10 @@ class BatchOutput:
         sample as ``radiance``.
     splat_layers : dict of str to Splats
         Extra images by layer name, as light-path splats.
+    transparency : (n,) float64 or None
+        Per camera sample, the part of it that reached a transparent film's background (the
+        mean of the throughput of camera rays that escaped, Cycles' ``transparent``): the
+        pixel's alpha is one minus its mean. None: an opaque sample (alpha one).
     """
 
     radiance: np.ndarray
@@ -125,6 +129,7 @@ class BatchOutput:
     light_paths: int = 0
     camera_layers: dict = field(default_factory=dict)
     splat_layers: dict = field(default_factory=dict)
+    transparency: np.ndarray = None
 
     @staticmethod
     def join(parts):
@@ -134,6 +139,9 @@ class BatchOutput:
         camera_names = dict.fromkeys(name for p in parts for name in p.camera_layers)
         splat_names = dict.fromkeys(name for p in parts for name in p.splat_layers)
         splats = [p.splats for p in parts if p.splats is not None]
+        transparency = (np.concatenate([np.zeros(p.radiance.shape[0]) if p.transparency is None
+                                        else p.transparency for p in parts])
+                        if any(p.transparency is not None for p in parts) else None)
         return BatchOutput(
             np.concatenate([p.radiance for p in parts]),
             Splats.join(splats) if splats else None,
@@ -142,7 +150,7 @@ class BatchOutput:
                                    else np.zeros_like(p.radiance) for p in parts])
              for name in camera_names},
             {name: Splats.join(p.splat_layers[name] for p in parts if name in p.splat_layers)
-             for name in splat_names})
+             for name in splat_names}, transparency)
 
 
 class Integrator:

@@ -100,6 +100,66 @@ def geometric_side_valid(ng, wo, wi, transmit):
     return np.where(transmit, opposite, same)
 
 
+def valid_reflection_normals(ng, wo, ns):
+    """Shading normals bent so that the mirror reflection of ``wo`` stays above the geometry.
+
+    On a smooth-shaded coarse mesh the interpolated normal ``ns`` can tilt so far that the
+    mirror direction ``2 (ns . wo) ns - wo`` points below the geometric surface: the
+    geometric-side rule (:func:`geometric_side_valid`) then drops the reflection and glossy
+    silhouettes turn black. Cycles avoids that by bending the normal of its glossy closures
+    (``ensure_valid_specular_reflection`` in its kernel; behaviour matched, the construction
+    below is ours): where the reflection lies below ``t = min(0.9 wo . ng, 0.01)`` above the
+    surface, the normal is replaced by the one in the plane of ``ns`` and ``ng`` whose
+    reflection of ``wo`` rises exactly ``t`` above it.
+
+    That normal is the half vector of ``wo`` and the wanted reflection ``r``: ``r`` keeps the
+    component of ``wo`` outside the plane (negated) and, inside it, has height ``t`` and the
+    in-plane length of ``wo``; of the two such ``r`` the one whose half vector is closer to
+    ``ns`` is taken (the smallest bend).
+
+    Parameters
+    ----------
+    ng : (k, 3) float64
+        Unit geometric normals, any side.
+    wo : (k, 3) float64
+        Unit directions toward the viewer (the previous path vertex).
+    ns : (k, 3) float64
+        Unit shading normals on ``wo``'s side of ``ng`` (:attr:`Interaction.ns`).
+
+    Returns
+    -------
+    (k, 3) float64
+        ``ns`` where its reflection is valid, the bent normal elsewhere (unit, on ``wo``'s side).
+    """
+    g = ng * np.where(np.einsum("ij,ij->i", ng, wo) < 0, -1.0, 1.0)[:, None]
+    cos_o = np.maximum(np.einsum("ij,ij->i", wo, g), 0.0)
+    t = np.minimum(0.9 * cos_o, 0.01)
+    cos_s = np.einsum("ij,ij->i", ns, wo)
+    reflected_height = 2.0 * cos_s * np.einsum("ij,ij->i", ns, g) - np.einsum("ij,ij->i", wo, g)
+    bad = np.nonzero(reflected_height < t)[0]
+    if bad.size == 0:
+        return ns
+    g_b, wo_b, ns_b, t_b, z = g[bad], wo[bad], ns[bad], t[bad], cos_o[bad]
+    # Tangent of ns in the plane it spans with ng (x); wo's in-plane coordinates (x, z).
+    x = ns_b - np.einsum("ij,ij->i", ns_b, g_b)[:, None] * g_b
+    length = np.linalg.norm(x, axis=1)
+    x = np.where(length[:, None] > 1e-12, x / np.maximum(length, 1e-300)[:, None], 0.0)
+    wx = np.einsum("ij,ij->i", wo_b, x)
+    rx = np.sqrt(np.maximum(wx * wx + z * z - t_b * t_b, 0.0))
+    best, best_cos = ns_b, np.full(bad.size, -np.inf)
+    for sign in (1.0, -1.0):
+        h = (sign * rx + wx)[:, None] * x + (t_b + z)[:, None] * g_b
+        h_len = np.linalg.norm(h, axis=1)
+        h = h / np.maximum(h_len, 1e-300)[:, None]
+        cos = np.where(h_len > 1e-12, np.einsum("ij,ij->i", h, ns_b), -np.inf)
+        better = cos > best_cos
+        best = np.where(better[:, None], h, best)
+        best_cos = np.where(better, cos, best_cos)
+    out = ns.copy()
+    out[bad] = np.where((length > 1e-12)[:, None], best, g_b)
+    return out
+
+
 def strategies(max_length):
     """BDPT strategies ``(s, t)`` shown as images, for path lengths 1..``max_length`` segments.
 
@@ -241,7 +301,7 @@ def shading_normals(prep, prim, u, v, ng, wo):
 
 
 def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera, mis,
-                            n_prev=None):
+                            n_prev=None, mis_origin=None, mis_offset=None, world=True):
     """Stage *handle escaped + handle emission*: light reaching the ray's origin along it.
 
     Adds ``beta * Le * w`` to ``L[rows_of]`` for the world (escaped rays), light shapes before the
@@ -264,19 +324,31 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
     n_prev : (n, 3) float64 or None
         Shading normals at the origins, as next-event estimation gave them to the light
         selection there (a light tree); None when the selection does not use them.
+    mis_origin : (n, 3) float64 or None
+        Where the rays' MIS densities are measured from (None: ``o``): the last vertex that
+        scattered, when a ray went on straight through transparent surfaces since; it lies
+        ``mis_offset (n,)`` behind ``o`` along ``d``. Next-event estimation there reached the
+        same emitters through the same surfaces (:mod:`.shadows`), so the weights compare the
+        densities of that vertex.
+    world : bool
+        Whether escaped rays add the world's radiance (not camera rays on a transparent film).
     """
     lights = prep.lights
+    tmin = None
+    if mis_origin is not None and np.any(mis_offset > 0):
+        o, tmin = mis_origin, mis_offset
+        hits = Hits(hits.prim, hits.t + mis_offset, hits.u, hits.v)
 
     def weight(rows, pdf_light):
         w = mis.bsdf_weight(pdf_prev[rows], pdf_light)
         return np.where(use_mis[rows], w, 1.0)
 
     escaped = np.nonzero(~hits.hit)[0]
-    if escaped.size and lights.has_world:
+    if escaped.size and lights.has_world and world:
         le, pdf_l = lights.world_radiance(d[escaped])
         add_rows(L, rows_of[escaped],
                  take_rows(beta, escaped) * le * weight(escaped, pdf_l)[:, None])
-    for rows, le, pdf_l in lights.hit_shapes(o, d, hits.t, camera, n_prev):
+    for rows, le, pdf_l in lights.hit_shapes(o, d, hits.t, camera, n_prev, tmin):
         add_rows(L, rows_of[rows], take_rows(beta, rows) * le * weight(rows, pdf_l)[:, None])
     hit_rows = np.nonzero(hits.hit)[0]
     if hit_rows.size and lights.emissive_tris.size:

@@ -246,7 +246,7 @@ class LightSampler:
             if not (camera and not self.lights.visible_camera[li]):
                 yield li, self.families[self.emitter_family[li]]
 
-    def hit_shapes(self, o, d, tmax, camera, n=None):
+    def hit_shapes(self, o, d, tmax, camera, n=None, tmin=None):
         """Emission from the light shapes (spheres, area lights, sun disks) rays pass, lamp by
         lamp in row order.
 
@@ -260,6 +260,9 @@ class LightSampler:
             Camera rays see only lights with ``visible_camera``.
         n : (n, 3) float64 or None
             Shading normals at the origins (as given to :meth:`sample` there).
+        tmin : (n,) float64 or None
+            Lamps met before this distance are left out (a path that passed a transparent
+            surface found them on its earlier segment; its MIS origin stays behind it).
 
         Yields
         ------
@@ -272,6 +275,11 @@ class LightSampler:
         tree = self.selector.point_dependent
         for li, family in self._lamps(camera):
             hit = family.intersect(li, o, d, tmax, 1.0 if tree else self.select_prob[li])
+            if hit is not None and tmin is not None:
+                before = family.intersect(li, o, d, np.minimum(tmin, tmax), 1.0)
+                if before is not None:
+                    after = ~np.isin(hit[0], before[0])
+                    hit = tuple(x[after] for x in hit) if after.any() else None
             if hit is not None and tree:
                 rows, radiance, pdf = hit
                 sel = self.selector.pmf(np.full(rows.size, li), o[rows],

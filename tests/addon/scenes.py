@@ -84,7 +84,9 @@ def set_cycles_unbiased(scene, samples=64, seed=0, max_bounces=8):
 
 def set_sampling_lab(scene, samples=4, seed=0, max_bounces=8, filter_type='BLACKMAN_HARRIS',
                      filter_width=1.5, time_limit=0.0):
-    """Select Sampling Lab with the given settings (path tracing, independent sampler)."""
+    """Select Sampling Lab with the given settings (path tracing, independent sampler, every
+    per-kind bounce limit equal to ``max_bounces`` as :func:`set_cycles_unbiased` sets
+    Cycles')."""
     scene.render.engine = 'SAMPLING_LAB'
     s = scene.sampling_lab
     s.integrator = 'PATH'
@@ -92,6 +94,9 @@ def set_sampling_lab(scene, samples=4, seed=0, max_bounces=8, filter_type='BLACK
     s.samples = samples
     s.seed = seed
     s.max_bounces = max_bounces
+    for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                 "transparent_max_bounces"):
+        setattr(s, name, max_bounces)
     s.filter_type = filter_type
     s.filter_width = filter_width
     s.time_limit = time_limit

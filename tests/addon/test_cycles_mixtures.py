@@ -5,8 +5,7 @@ image mean per channel and every 8 x 8 block mean compared within confidence int
 a Principled BSDF with Metallic 0.5 and Transmission 0.5 (metal 1/2, glass 1/4, opaque
 dielectric 1/4, as Cycles weighs them), a Mix Shader of a Diffuse and a Glossy BSDF, and a
 Principled BSDF of Alpha 0.5 on a plane between the camera and a Cornell box with a metal
-ball. The plane stands outside the box, so no shadow ray toward the light crosses it (our
-transparent surfaces still block shadow rays, Cycles' do not). Glossy lobes use
+ball (shadow rays through alpha surfaces: test_cycles_light_paths.py). Glossy lobes use
 single-scattering GGX, which is what the core models.
 """
 

@@ -25,7 +25,7 @@ from sampling_lab.core.sampling.samplers.multijitter import cmj_grid
 from sampling_lab.core.sampling.samplers.stratified import grid_shape
 from tests.helpers import (
     assert_estimates_agree, assert_mean_within_ci, block_estimates, chi_square_uniform_square,
-    ks_uniform_test,
+    ks_uniform_test, uniform_bounces,
 )
 
 QMC = ["stratified", "multijitter", "halton", "hammersley", "sobol", "pmj02"]
@@ -456,7 +456,8 @@ def test_furnace_is_unbiased_with_every_sampler(name):
     """All slots of all bounces in use: the furnace's closed form within a CI over pixels."""
     rho, bounces = 0.5, 6
     scene = scenes.furnace(emission=1.0, albedo=rho, width=24, height=24)
-    res = render(scene, RenderSettings(spp=16, max_bounces=bounces, seed=21, sampler=name))
+    res = render(scene, RenderSettings(spp=16, seed=21, sampler=name,
+                                       **uniform_bounces(dict(max_bounces=bounces))))
     expected = (1 - rho ** (bounces + 2)) / (1 - rho)
     assert_mean_within_ci(res.combined()[..., 0].ravel().astype(np.float64), expected,
                           what=f"{name} furnace")
