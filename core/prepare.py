@@ -211,7 +211,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     mix = (Segmented1D(mix_weights.reshape(-1), np.arange(m + 1) * width, method=distribution)
            if width > 1 else None)
     used = np.unique(scene.material)
-    lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used]))
+    lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used])
+                        and not np.any(mats.coat_weight[used] > 0))
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
                          mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only,

@@ -23,6 +23,8 @@ MAT_LAYERED = 3
 DEFAULT_ROUGHNESS = 0.5
 DEFAULT_IOR = 1.5
 DEFAULT_SPECULAR_IOR_LEVEL = 0.5
+DEFAULT_COAT_ROUGHNESS = 0.03
+DEFAULT_COAT_IOR = 1.5
 
 # Light kinds.
 LIGHT_POINT = 0   # point or spot, optionally a sphere of `radius`
@@ -137,6 +139,13 @@ class Materials:
         for light that bounces between microfacets (:mod:`core.materials.multiscatter`).
         Ignored on other kinds (the exporter reports it there). Default False: single
         scattering.
+    coat_weight : (m,) float32
+        Principled Coat Weight in [0, 1]: a clear coat over the row's BSDF
+        (:mod:`core.materials.coat`); default 0 (none).
+    coat_roughness, coat_ior : (m,) float32
+        The coat's roughness and IOR; defaults 0.03 and 1.5, Blender's.
+    coat_tint : (m, 3) float32
+        Coat Tint (transmittance of the coat at normal incidence); default white.
     texture : (m,) int32
         Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
         (an Image Texture into the base colour); -1 (the default) for none.
@@ -164,6 +173,10 @@ class Materials:
     specular_ior_level: np.ndarray = None
     specular_tint: np.ndarray = None
     multiscatter: np.ndarray = None
+    coat_weight: np.ndarray = None
+    coat_roughness: np.ndarray = None
+    coat_ior: np.ndarray = None
+    coat_tint: np.ndarray = None
     texture: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
@@ -185,6 +198,10 @@ class Materials:
         self.specular_tint = column(self.specular_tint, 1.0, (3,))
         self.multiscatter = (np.zeros(m, bool) if self.multiscatter is None
                              else np.broadcast_to(np.asarray(self.multiscatter, bool), (m,)).copy())
+        self.coat_weight = np.clip(column(self.coat_weight, 0.0), 0.0, 1.0)
+        self.coat_roughness = column(self.coat_roughness, DEFAULT_COAT_ROUGHNESS)
+        self.coat_ior = column(self.coat_ior, DEFAULT_COAT_IOR)
+        self.coat_tint = column(self.coat_tint, 1.0, (3,))
         self.texture = texture_column(self.texture, m)
         self._check_mix(m)
 
@@ -221,7 +238,8 @@ class Materials:
     def from_lists(names, base_colors, emissions, kinds=None, roughness=None, ior=None,
                    metallic=None, transmission=None, specular_ior_level=None,
                    specular_tint=None, texture=None, mix_rows=None,
-                   mix_weights=None, multiscatter=None) -> "Materials":
+                   mix_weights=None, multiscatter=None, coat_weight=None,
+                   coat_roughness=None, coat_ior=None, coat_tint=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -234,7 +252,10 @@ class Materials:
             specular_tint=None if specular_tint is None
             else np.asarray(specular_tint, np.float32).reshape(-1, 3),
             multiscatter=multiscatter, texture=texture, mix_rows=mix_rows,
-            mix_weights=mix_weights,
+            mix_weights=mix_weights, coat_weight=coat_weight, coat_roughness=coat_roughness,
+            coat_ior=coat_ior,
+            coat_tint=None if coat_tint is None
+            else np.asarray(coat_tint, np.float32).reshape(-1, 3),
         )
 
 

@@ -75,12 +75,13 @@ In an integrator (one bounce, world-space arrays of the live paths)::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import NamedTuple
 
 import numpy as np
 
-from . import conductor, dielectric, layered
+from . import coat, conductor, dielectric, layered
+from .coat import DEFAULT_COAT_IOR, DEFAULT_COAT_ROUGHNESS, coat_rows
 from .dielectric import IMPORTANCE, RADIANCE, TRANSPORT_MODES, _check_mode, is_smooth_dielectric
 from .fresnel import adjust_ior_for_specular_level
 from .lambert import eval_lambert, pdf_lambert, sample_lambert
@@ -138,6 +139,11 @@ class BSDFParams:
         Interior over exterior index (dielectric), coat index (layered).
     tint : (k, 3) float64
         Reflection tint (dielectric), coat tint (layered), in [0, 1].
+    coat_weight, coat_alpha, coat_eta : (k,) float64 or None
+        Principled Coat over any kind (:mod:`.coat`): weight in [0, 1] (0: no coat), GGX
+        alpha, IOR (>= 1). None (all four) when no row has a coat.
+    coat_tint : (k, 3) float64 or None
+        Coat Tint (>= 0).
     """
 
     kind: np.ndarray
@@ -145,14 +151,59 @@ class BSDFParams:
     alpha: np.ndarray
     eta: np.ndarray
     tint: np.ndarray
+    coat_weight: np.ndarray = None
+    coat_alpha: np.ndarray = None
+    coat_eta: np.ndarray = None
+    coat_tint: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
 
+    @property
+    def has_coat(self):
+        """Whether the coat columns are present (they are None when no row has a coat)."""
+        return self.coat_weight is not None
+
+    def map_columns(self, fn):
+        """A new :class:`BSDFParams` of ``fn(column)`` for every column present."""
+        return BSDFParams(*(None if c is None else fn(c) for c in self.columns()))
+
+    def columns(self):
+        """The columns in field order (the coat's are None when absent)."""
+        return (self.kind, self.color, self.alpha, self.eta, self.tint, self.coat_weight,
+                self.coat_alpha, self.coat_eta, self.coat_tint)
+
     def take(self, rows):
         """The rows ``rows`` (index array or mask) as a new :class:`BSDFParams`."""
-        return BSDFParams(self.kind[rows], self.color[rows], self.alpha[rows], self.eta[rows],
-                          self.tint[rows])
+        return self.map_columns(lambda c: c[rows])
+
+    def scatter(self, rows, src):
+        """Store the rows of ``src`` at ``rows`` of this table (adding coat columns, zero,
+        when ``src`` has them and this table does not)."""
+        if src.has_coat and not self.has_coat:
+            n = len(self)
+            self.coat_weight, self.coat_alpha = np.zeros(n), np.ones(n)
+            self.coat_eta, self.coat_tint = np.ones(n), np.ones((n, 3))
+        if self.has_coat and not src.has_coat:
+            self.coat_weight[rows] = 0.0
+        for name, value in zip(_FIELDS, src.columns()):
+            column = getattr(self, name)
+            if value is not None and column is not None:
+                column[rows] = value
+
+    @staticmethod
+    def concat(parts):
+        """The rows of ``parts`` (a non-empty list of :class:`BSDFParams`) in order."""
+        if any(p.has_coat for p in parts):
+            parts = [p if p.has_coat else p.with_no_coat() for p in parts]
+        return BSDFParams(*(None if cols[0] is None else np.concatenate(cols)
+                            for cols in zip(*(p.columns() for p in parts))))
+
+    def with_no_coat(self):
+        """These rows with explicit coat columns of weight zero."""
+        n = len(self)
+        return BSDFParams(self.kind, self.color, self.alpha, self.eta, self.tint, np.zeros(n),
+                          np.ones(n), np.ones(n), np.ones((n, 3)))
 
     @staticmethod
     def from_materials(materials, mat_ids):
@@ -160,8 +211,9 @@ class BSDFParams:
 
         Reads the table's ``kind`` and ``base_color`` and, when present, ``roughness (m,)``,
         ``ior (m,)``, ``specular_ior_level (m,)``, ``specular_tint (m, 3)`` and
-        ``multiscatter (m,)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5, white, single
-        scattering). Layered rows fold Specular IOR Level into the coat index; dielectric rows
+        ``multiscatter (m,)`` and the coat's ``coat_weight``, ``coat_roughness``, ``coat_ior``
+        ``(m,)`` and ``coat_tint (m, 3)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5, white,
+        single scattering, no coat). Layered rows fold Specular IOR Level into the coat index; dielectric rows
         use the IOR as is; conductor rows marked ``multiscatter`` become ``KIND_CONDUCTOR_MS``.
         """
         ids = np.asarray(mat_ids, np.int64)
@@ -182,11 +234,17 @@ class BSDFParams:
                            ior=column("ior", DEFAULT_IOR),
                            specular_ior_level=column("specular_ior_level",
                                                      DEFAULT_SPECULAR_IOR_LEVEL),
-                           tint=column("specular_tint", 1.0, (3,)), k=ids.size)
+                           tint=column("specular_tint", 1.0, (3,)), k=ids.size,
+                           coat_weight=column("coat_weight", 0.0),
+                           coat_roughness=column("coat_roughness", DEFAULT_COAT_ROUGHNESS),
+                           coat_ior=column("coat_ior", DEFAULT_COAT_IOR),
+                           coat_tint=column("coat_tint", 1.0, (3,)))
 
 
 def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
-                specular_ior_level=DEFAULT_SPECULAR_IOR_LEVEL, tint=1.0, k=None):
+                specular_ior_level=DEFAULT_SPECULAR_IOR_LEVEL, tint=1.0, k=None,
+                coat_weight=0.0, coat_roughness=DEFAULT_COAT_ROUGHNESS,
+                coat_ior=DEFAULT_COAT_IOR, coat_tint=1.0):
     """Build :class:`BSDFParams` from Blender-style inputs, broadcasting scalars to ``k`` rows.
 
     Parameters
@@ -199,6 +257,11 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
     tint : float, (3,) or (k, 3) float
     k : int, optional
         Row count when every input is a scalar.
+    coat_weight, coat_roughness, coat_ior : float or (k,) float
+        Principled Coat (:mod:`.coat`): weight clipped to [0, 1], roughness, IOR (below one:
+        one, as Cycles). The coat columns are left None when every weight is zero.
+    coat_tint : float, (3,) or (k, 3) float
+        Coat Tint, clipped to >= 0.
     """
     if k is None:
         k = max(np.size(kind), np.size(roughness), np.size(ior), np.size(specular_ior_level),
@@ -215,7 +278,22 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
         level = np.broadcast_to(np.asarray(specular_ior_level, np.float64), (k,))
         eta = np.where(layered_rows, adjust_ior_for_specular_level(eta, level), eta)
         eta = np.clip(eta, *ETA_RANGE)
-    return BSDFParams(kind, color.copy(), alpha, eta, tint.copy())
+    params = BSDFParams(kind, color.copy(), alpha, eta, tint.copy())
+    weight = np.clip(np.nan_to_num(np.broadcast_to(np.asarray(coat_weight, np.float64), (k,))),
+                     0.0, 1.0)
+    if np.any(weight > 0.0):
+        params.coat_weight = weight.copy()
+        params.coat_alpha = alpha_from_roughness(
+            np.broadcast_to(np.asarray(coat_roughness, np.float64), (k,)))
+        coat_eta = np.nan_to_num(np.broadcast_to(np.asarray(coat_ior, np.float64), (k,)),
+                                 nan=DEFAULT_COAT_IOR)
+        params.coat_eta = np.clip(coat_eta, 1.0, ETA_RANGE[1])
+        params.coat_tint = np.maximum(
+            np.nan_to_num(np.broadcast_to(np.asarray(coat_tint, np.float64), (k, 3))), 0.0)
+    return params
+
+
+_FIELDS = tuple(f.name for f in fields(BSDFParams))
 
 
 class BSDFSample(NamedTuple):
@@ -367,6 +445,10 @@ def eval_bsdf(params, wo, wi, mode=RADIANCE):
             out = fn(params, wo, wi, mode)
         else:
             out[rows] = fn(params.take(rows), wo[rows], wi[rows], mode)
+    coated = coat_rows(params)
+    if coated.size:
+        out[coated] = coat.eval_coated(params.take(coated), wo[coated], wi[coated],
+                                       out[coated], mode)
     return out
 
 
@@ -381,6 +463,9 @@ def pdf_bsdf(params, wo, wi):
             out = fn(params, wo, wi)
         else:
             out[rows] = fn(params.take(rows), wo[rows], wi[rows])
+    coated = coat_rows(params)
+    if coated.size:
+        out[coated] = coat.pdf_coated(params.take(coated), wo[coated], wi[coated], out[coated])
     return out
 
 
@@ -404,6 +489,15 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
     _check(params, wo, mode)
     u_lobe = np.asarray(u_lobe, np.float64).reshape(-1)
     u = np.asarray(u, np.float64)
+    coated = coat_rows(params)
+    if coated.size:
+        return BSDFSample(*coat.sample_coated(params, coated, wo, u_lobe, u, mode,
+                                              _sample_bases, eval_bsdf, pdf_bsdf))
+    return _sample_bases(params, wo, u_lobe, u, mode)
+
+
+def _sample_bases(params, wo, u_lobe, u, mode):
+    """:func:`sample_bsdf` of the rows' own kinds, ignoring any coat."""
     k = len(params)
     wi = np.zeros((k, 3))
     weight = np.zeros((k, 3))
@@ -431,4 +525,8 @@ def is_delta_only(params):
     smooth_conductor = conductor_rows & is_smooth(params.alpha)
     smooth_dielectric = (params.kind == KIND_DIELECTRIC) & is_smooth_dielectric(params.eta,
                                                                                 params.alpha)
-    return smooth_conductor | smooth_dielectric
+    delta_only = smooth_conductor | smooth_dielectric
+    coated = coat_rows(params)
+    if coated.size:
+        delta_only[coated] &= is_smooth(params.coat_alpha[coated])
+    return delta_only

@@ -214,7 +214,7 @@ def coat_probability(albedo, alpha, eta, tint, wo):
     return _coat_probability(albedo, tint, coat_albedo_lookup(wo[:, 2], alpha, eta))
 
 
-def _coat_eval(eta, alpha, wo_, wi_):
+def coat_lobe_eval(eta, alpha, wo_, wi_):
     """``f_coat cos_i`` (white tint) for directions already in the upper hemisphere."""
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
@@ -224,7 +224,8 @@ def _coat_eval(eta, alpha, wo_, wi_):
     return np.where(ok, val, 0.0)
 
 
-def _coat_pdf(alpha, wo_, wi_):
+def coat_lobe_pdf(alpha, wo_, wi_):
+    """Visible-normal sampling density of the rough coat lobe (upper-hemisphere directions)."""
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
     ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(alpha)
@@ -259,7 +260,7 @@ def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE):
     ok = (co > 0.0) & (ci > 0.0)
     mu = co if mode == RADIANCE else ci
     diffuse_scale = np.maximum(0.0, 1.0 - np.max(tint, axis=1) * coat_albedo_lookup(mu, alpha, eta))
-    f = (tint * _coat_eval(eta, alpha, wo_, wi_)[:, None]
+    f = (tint * coat_lobe_eval(eta, alpha, wo_, wi_)[:, None]
          + albedo * (diffuse_scale * ci * warps.INV_PI)[:, None])
     return np.where(ok[:, None], f, 0.0)
 
@@ -271,7 +272,7 @@ def pdf_layered(albedo, alpha, eta, tint, wo, wi):
     co, ci = wo_[:, 2], wi_[:, 2]
     ok = (co > 0.0) & (ci > 0.0)
     p = _coat_probability(albedo, tint, coat_albedo_lookup(co, alpha, eta))
-    pdf = p * _coat_pdf(alpha, wo_, wi_) + (1.0 - p) * ci * warps.INV_PI
+    pdf = p * coat_lobe_pdf(alpha, wo_, wi_) + (1.0 - p) * ci * warps.INV_PI
     return np.where(ok, pdf, 0.0)
 
 

@@ -1,0 +1,203 @@
+"""The Principled BSDF's coat over every base kind (core/materials/coat.py): sampling follows
+the pdf, weights are eval / pdf, the layering is Cycles', white furnaces, the adjoint."""
+
+from __future__ import annotations
+
+import math
+import zlib
+
+import numpy as np
+import pytest
+
+from sampling_lab.core.materials import bsdf as B
+from sampling_lab.core.materials.coat import coat_attenuation
+from sampling_lab.core.materials.fresnel import fresnel_dielectric
+from sampling_lab.core.scene import Materials
+from tests.core.test_bsdfs import P_FALSE, _wo, chi_square_bsdf, integrate_sphere, lobe_grids
+from tests.helpers import assert_mean_within_ci, z_for_false_failure
+
+N = 100_000
+# (base kind, base roughness, base colour) under a coat of weight 0.8, tint (0.9, 0.6, 0.4).
+BASES = {
+    "diffuse": (B.KIND_DIFFUSE, 0.5, 0.7),
+    "layered": (B.KIND_LAYERED, 0.4, 0.5),
+    "metal": (B.KIND_CONDUCTOR, 0.3, 0.9),
+    "mirror": (B.KIND_CONDUCTOR, 0.0, 0.9),
+    "glass": (B.KIND_DIELECTRIC, 0.5, 1.0),
+    "metal_ms": (B.KIND_CONDUCTOR_MS, 0.6, 0.9),
+}
+TINT = (0.9, 0.6, 0.4)
+
+
+def coated(base, k, coat_roughness=0.2, coat_weight=0.8, coat_ior=1.6, tint=TINT):
+    kind, roughness, color = BASES[base]
+    return B.make_params(kind, color, roughness, 1.5, k=k, coat_weight=coat_weight,
+                         coat_roughness=coat_roughness, coat_ior=coat_ior, coat_tint=tint)
+
+
+CASES = [(b, r, z) for b in BASES for r in (0.0, 0.2) for z in (0.8, 0.1)] + [
+    ("glass", 0.2, -0.6), ("glass", 0.0, -0.6)]
+
+
+@pytest.mark.parametrize("base,coat_roughness,z", CASES)
+def test_coated_samples_follow_their_pdf(base, coat_roughness, z):
+    wo = _wo(z)
+    eta = 1.5 if BASES[base][0] == B.KIND_DIELECTRIC else None
+
+    def sample(u_lobe, u):
+        k = len(u_lobe)
+        s = B.sample_bsdf(coated(base, k, coat_roughness), np.tile(wo, (k, 1)), u_lobe, u)
+        return s.wi, s.pdf, s.delta
+
+    def pdf(w):
+        return B.pdf_bsdf(coated(base, len(w), coat_roughness), np.tile(wo, (len(w), 1)), w)
+
+    if base == "mirror" and coat_roughness == 0.0:
+        pytest.skip("a smooth coat over a mirror has no non-delta samples")
+    chi_square_bsdf(sample, pdf, z, eta, seed=zlib.crc32(f"{base}{coat_roughness}{z}".encode()),
+                    what=f"coat {coat_roughness} over {base}")
+
+
+@pytest.mark.parametrize("base,coat_roughness,z", [c for c in CASES if c[2] != 0.1])
+def test_coated_pdf_integrates_to_the_probability_of_a_non_delta_sample(base, coat_roughness,
+                                                                         z):
+    wo = _wo(z)
+    eta = 1.5 if BASES[base][0] == B.KIND_DIELECTRIC else None
+    rng = np.random.default_rng(3)
+    s = B.sample_bsdf(coated(base, N, coat_roughness), np.tile(wo, (N, 1)), rng.random(N),
+                      rng.random((N, 2)))
+    frac = float(np.mean((s.pdf > 0) & ~s.delta))
+
+    def pdf(w):
+        return B.pdf_bsdf(coated(base, len(w), coat_roughness), np.tile(wo, (len(w), 1)), w)
+
+    if frac == 0.0:
+        assert base == "mirror" and coat_roughness == 0.0
+        return
+    total, quad_err = integrate_sphere(pdf, lobe_grids(pdf, z, eta))
+    se = math.sqrt(max(frac * (1 - frac), 1.0 / N) / N)
+    assert abs(total - frac) <= z_for_false_failure(P_FALSE) * se + quad_err + 1e-6
+
+
+@pytest.mark.parametrize("mode", [B.RADIANCE, B.IMPORTANCE])
+def test_coated_sample_weight_equals_eval_over_pdf(mode):
+    rng = np.random.default_rng(11)
+    k = 60_000
+    kind = rng.choice(B.KINDS, k)
+    params = B.make_params(kind, rng.random((k, 3)), rng.uniform(0, 1, k),
+                           rng.uniform(1.0, 2.5, k), tint=rng.random((k, 3)),
+                           coat_weight=rng.uniform(-0.2, 1.0, k),
+                           coat_roughness=rng.choice([0.0, 0.05, 0.5, 1.0], k),
+                           coat_ior=rng.uniform(1.0, 2.5, k), coat_tint=rng.random((k, 3)))
+    assert 0.6 < np.mean(params.coat_weight > 0) < 0.9
+    wo = rng.normal(size=(k, 3))
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    s = B.sample_bsdf(params, wo, rng.random(k), rng.random((k, 2)), mode)
+    assert np.all(np.isfinite(s.weight)) and np.all(s.weight >= 0)
+    live = (s.pdf > 0) & ~s.delta
+    assert live.mean() > 0.5 and (s.delta & (params.coat_weight > 0)).any()
+    p = params.take(live)
+    f = B.eval_bsdf(p, wo[live], s.wi[live], mode)
+    pdf = B.pdf_bsdf(p, wo[live], s.wi[live])
+    np.testing.assert_allclose(pdf, s.pdf[live], rtol=1e-7)
+    np.testing.assert_allclose(s.weight[live], f / pdf[:, None], rtol=1e-7, atol=1e-12)
+    assert np.all(s.weight[s.pdf == 0] == 0) and np.all(s.wi[s.pdf == 0] == 0)
+    # Sampled coat reflections say so: a reflection, glossy or singular.
+    assert np.all(s.lobe[s.pdf > 0] != 0)
+
+
+def test_coat_of_weight_zero_is_the_base_exactly():
+    rng = np.random.default_rng(2)
+    k = 5000
+    kind = rng.choice(B.KINDS, k)
+    args = (kind, rng.random((k, 3)), rng.uniform(0, 1, k), rng.uniform(1.0, 2.5, k))
+    plain = B.make_params(*args)
+    zero = B.make_params(*args, coat_weight=0.0, coat_tint=0.2)
+    assert not zero.has_coat
+    some = B.make_params(*args, coat_weight=np.where(np.arange(k) < 10, 0.5, 0.0))
+    wo, wi = rng.normal(size=(k, 3)), rng.normal(size=(k, 3))
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    u_lobe, u = rng.random(k), rng.random((k, 2))
+    rest = np.arange(k) >= 10
+    np.testing.assert_array_equal(B.eval_bsdf(some, wo, wi)[rest], B.eval_bsdf(plain, wo, wi)[rest])
+    np.testing.assert_array_equal(B.pdf_bsdf(some, wo, wi)[rest], B.pdf_bsdf(plain, wo, wi)[rest])
+    a, b = B.sample_bsdf(some, wo, u_lobe, u), B.sample_bsdf(plain, wo, u_lobe, u)
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x[rest], y[rest])
+
+
+def test_coat_attenuation_is_cycles_layering_and_tint():
+    # Weight 1, IOR 1.5, tint 0.5 at normal incidence: (1 - F0) * 0.5, F0 = 0.04.
+    a = coat_attenuation(np.ones(1), np.full(1, 1.5), np.full((1, 3), 0.5), np.ones(1))
+    np.testing.assert_allclose(a, 0.96 * 0.5, rtol=1e-12)
+    # At 60 degrees the path through the coat is 1 / cos_t long; weight 0.5 fades both.
+    mu, eta, w = 0.5, 1.5, 0.5
+    cos_t = math.sqrt(1 - (1 - mu * mu) / eta**2)
+    f = fresnel_dielectric(np.array([mu]), np.array([eta]))[0]
+    expect = (1 - w * f) * (1 - w + w * 0.25 ** (1 / cos_t))
+    a = coat_attenuation(np.full(1, w), np.full(1, eta), np.full((1, 3), 0.25), np.full(1, mu))
+    np.testing.assert_allclose(a, expect, rtol=1e-12)
+
+
+@pytest.mark.parametrize("z", [0.9, 0.4, 0.05])
+def test_smooth_coat_over_white_lambert_conserves_energy(z):
+    # Albedo F(mu) + (1 - F(mu)) * 1 = 1: the sample weights average to one.
+    rng = np.random.default_rng(int(z * 100))
+    p = B.make_params(B.KIND_DIFFUSE, 1.0, k=N, coat_weight=1.0, coat_roughness=0.0,
+                      coat_ior=1.5)
+    s = B.sample_bsdf(p, np.tile(_wo(z), (N, 1)), rng.random(N), rng.random((N, 2)))
+    assert s.delta.any() and (~s.delta).any()
+    assert_mean_within_ci(s.weight, np.ones(3), p_false=P_FALSE)
+
+
+@pytest.mark.parametrize("z", [0.9, 0.3])
+def test_rough_coat_reflects_its_weight_times_its_albedo_over_a_black_base(z):
+    # Directional albedo = w E_coat(mu) (quadrature of eval), E from the coat's own table.
+    from sampling_lab.core.materials.layered import coat_albedo
+    wo = _wo(z)
+    p = B.make_params(B.KIND_DIFFUSE, 0.0, k=1, coat_weight=0.7, coat_roughness=0.4,
+                      coat_ior=1.5)
+
+    def f(w):
+        return B.eval_bsdf(p.take(np.zeros(len(w), int)), np.tile(wo, (len(w), 1)), w)[:, 0]
+
+    total, err = integrate_sphere(f, lobe_grids(f, z))
+    expect = 0.7 * coat_albedo(np.array([z]), np.array([0.16]), np.array([1.5]))[0]
+    assert abs(total - expect) <= err + 1e-3, (total, expect)
+
+
+def test_coat_is_not_reciprocal_and_importance_mode_is_its_adjoint():
+    rng = np.random.default_rng(5)
+    k = 20_000
+    p = B.make_params(B.KIND_DIFFUSE, rng.random((k, 3)), k=k, coat_weight=rng.random(k),
+                      coat_roughness=0.3, coat_tint=rng.random((k, 3)))
+    wo = _wo(0.9) * np.ones((k, 1))
+    wi = rng.normal(size=(k, 3))
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    wi[:, 2] = np.abs(wi[:, 2])
+
+    def f(a, b, mode):
+        return B.eval_bsdf(p, a, b, mode) / np.abs(b[:, 2])[:, None]
+
+    np.testing.assert_allclose(f(wo, wi, B.IMPORTANCE), f(wi, wo, B.RADIANCE), rtol=1e-9)
+    assert not np.allclose(f(wo, wi, B.RADIANCE), f(wi, wo, B.RADIANCE), rtol=1e-3)
+
+
+def test_rough_coat_makes_a_smooth_base_shadeable():
+    mirror = B.make_params(B.KIND_CONDUCTOR, 0.9, 0.0, k=3, coat_weight=[0.0, 0.5, 0.5],
+                           coat_roughness=[0.2, 0.2, 0.0])
+    assert B.is_delta_only(mirror).tolist() == [True, False, True]
+
+
+def test_material_table_coat_columns_reach_the_bsdf():
+    mats = Materials.from_lists(["a", "b"], [(0.5,) * 3] * 2, [(0,) * 3] * 2, kinds=[3, 1],
+                                coat_weight=[0.0, 0.6], coat_roughness=[0.1, 0.5],
+                                coat_ior=[1.3, 1.7], coat_tint=[(1, 1, 1), (0.2, 0.3, 0.4)])
+    p = B.BSDFParams.from_materials(mats, np.array([1, 0, 1]))
+    np.testing.assert_allclose(p.coat_weight, [0.6, 0.0, 0.6], rtol=1e-6)
+    np.testing.assert_allclose(p.coat_alpha, [0.25, 0.01, 0.25], rtol=1e-6)
+    np.testing.assert_allclose(p.coat_eta, [1.7, 1.3, 1.7], rtol=1e-6)
+    np.testing.assert_allclose(p.coat_tint[0], [0.2, 0.3, 0.4], rtol=1e-6)
+    plain = Materials.from_lists(["a"], [(0.5,) * 3], [(0,) * 3], kinds=[3])
+    assert not B.BSDFParams.from_materials(plain, np.array([0])).has_coat
