@@ -29,9 +29,7 @@ DEFAULT_SURFACE_COLOR = (0.8, 0.8, 0.8)
 
 # Principled BSDF inputs whose non-zero value adds a lobe the core materials do not have.
 _PRINCIPLED_LOBES = (
-    ("Coat Weight", "coat"),
     ("Sheen Weight", "sheen"),
-    ("Subsurface Weight", "subsurface"),
 )
 
 # Most components a mixture keeps (the largest weights, renormalised; reported beyond).
@@ -56,6 +54,11 @@ class Surface(NamedTuple):
     # A mixture: ((weight, Surface), ...) of plain surfaces (see mix_surfaces); this row's own
     # BSDF fields are then unused, its emission is the mixture's.
     components: tuple = ()
+    # Principled Coat over this surface (core.materials.coat); weight 0: none.
+    coat_weight: float = 0.0
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
+    coat_tint: np.ndarray = np.ones(3)
 
 
 def _diffuse(color, emission=None):
@@ -192,7 +195,9 @@ def _surface_key(surface):
     """What makes two plain surfaces the same BSDF (to merge equal mixture components)."""
     return (surface.kind, tuple(np.round(surface.base_color, 9)), surface.roughness,
             surface.ior, surface.specular_ior_level, tuple(np.round(surface.specular_tint, 9)),
-            surface.multiscatter, id(surface.texture), surface.texture_mode)
+            surface.multiscatter, id(surface.texture), surface.texture_mode,
+            surface.coat_weight, surface.coat_roughness, surface.coat_ior,
+            tuple(np.round(surface.coat_tint, 9)))
 
 
 def mix_surfaces(parts, owner, messages):
@@ -220,7 +225,8 @@ def mix_surfaces(parts, owner, messages):
     flat = sorted(merged.values(), key=lambda wc: -wc[0])
     if not flat:
         return _BLACK._replace(emission=emission)
-    if all(c.kind == MAT_DIFFUSE and c.texture is None for _, c in flat):
+    if all(c.kind == MAT_DIFFUSE and c.texture is None and c.coat_weight == 0
+           for _, c in flat):
         color = sum(w * np.asarray(c.base_color, np.float64) for w, c in flat)
         return _diffuse(color / sum(w for w, _ in flat), emission)
     if len(flat) == 1:
@@ -258,6 +264,13 @@ def _principled_surface(node, read, owner, texture=None):
     if lobes:
         messages.add(f"{owner}: {', '.join(lobes)} of node '{name}' "
                      f"{'is' if len(lobes) == 1 else 'are'} not supported yet; ignored")
+    if read.value(node, "Subsurface Weight") > 0:
+        messages.add(f"{owner}: subsurface scattering of node '{name}' is approximated as "
+                     f"diffuse reflection of the base colour")
+    coat = _principled_coat(node, read, owner)
+    if coat["coat_weight"] > 0 and np.any(emission > 0):
+        messages.add(f"{owner}: emission under the coat of node '{name}' is not attenuated "
+                     f"by the coat yet")
     alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
     if read.value(node, "Anisotropic") != 0:
         messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
@@ -278,13 +291,26 @@ def _principled_surface(node, read, owner, texture=None):
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
                          tint, multiscatter and kind == MAT_CONDUCTOR, pixels, mode))
              for kind, w in weights.items() if w > 0]
-    parts = [(alpha * w, surface) for w, surface in parts]
+    parts = [(alpha * w, surface._replace(**coat)) for w, surface in parts]
     if alpha < 1.0:
         _transparent_note(owner, messages, f"alpha of node '{name}'")
         parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
     surface = mix_surfaces(parts, owner, messages)
     return surface._replace(emission=alpha * emission, metallic=metallic,
                             transmission=transmission)
+
+
+def _principled_coat(node, read, owner):
+    """The Coat inputs of Principled ``node`` as :class:`Surface` fields (weight 0: no coat);
+    a linked Coat Normal is reported (the coat uses the shading normal)."""
+    weight = min(max(read.value(node, "Coat Weight"), 0.0), 1.0)
+    if weight <= 0:
+        return {"coat_weight": 0.0}
+    read.ignored_if_linked(node, "Coat Normal", "the coat normal input")
+    return {"coat_weight": weight,
+            "coat_roughness": min(max(read.value(node, "Coat Roughness", 0.03), 0.0), 1.0),
+            "coat_ior": max(read.value(node, "Coat IOR", 1.5), 1.0),
+            "coat_tint": np.maximum(read.color(node, "Coat Tint", (1.0, 1.0, 1.0)), 0.0)}
 
 
 def _principled_distribution_note(distribution, weights, roughness, owner, name, messages):
@@ -357,6 +383,8 @@ class MaterialTable:
             roughness=col["roughness"], ior=col["ior"], metallic=col["metallic"],
             transmission=col["transmission"], specular_ior_level=col["specular_ior_level"],
             specular_tint=col["specular_tint"], multiscatter=col["multiscatter"],
+            coat_weight=col["coat_weight"], coat_roughness=col["coat_roughness"],
+            coat_ior=col["coat_ior"], coat_tint=col["coat_tint"],
             texture=self._texture_index()[0],
             mix_rows=mix_rows, mix_weights=mix_weights)
 

@@ -244,9 +244,33 @@ def test_fractional_principled_exports_a_mixture_with_cycles_weights(empty_scene
     assert m.mixed[row["Half"]]
     components = m.mix_rows[row["Half"]]
     np.testing.assert_allclose(m.emission[components], 0.0)
+    # The coat covers every component but the transparent one.
+    np.testing.assert_allclose(m.coat_weight[components], np.where(m.ior[components] == 1.0
+                                                                   , 0.0, 0.5), rtol=1e-6)
     assert len(s.messages) == 2, s.messages
-    assert any("coat" in msg and "ignored" in msg for msg in s.messages)
+    assert any("emission under the coat" in msg for msg in s.messages)
     assert any("alpha" in msg and "blocks shadow rays" in msg for msg in s.messages)
+
+
+def test_principled_coat_inputs_and_subsurface_as_diffuse(empty_scene, export):
+    coated = _principled("Coated", **{"Base Color": (0.5, 0.1, 0.1, 1.0), "Coat Weight": 0.8,
+                                      "Coat Roughness": 0.2, "Coat IOR": 1.7,
+                                      "Coat Tint": (0.9, 0.7, 0.5, 1.0)})
+    skin = _principled("Skin", **{"Base Color": (0.8, 0.5, 0.4, 1.0), "Subsurface Weight": 1.0})
+    plain = _principled("Plain", **{"Base Color": (0.8, 0.5, 0.4, 1.0)})
+    s, row = _export_materials(empty_scene, export, coated, skin, plain)
+    m = s.materials
+    c = row["Coated"]
+    np.testing.assert_allclose([m.coat_weight[c], m.coat_roughness[c], m.coat_ior[c]],
+                               [0.8, 0.2, 1.7], rtol=1e-6)
+    np.testing.assert_allclose(m.coat_tint[c], [0.9, 0.7, 0.5], rtol=1e-6)
+    assert m.coat_weight[row["Skin"]] == 0 and m.coat_weight[row["Plain"]] == 0
+    # Subsurface renders as the diffuse base: the same row as without it, and said once.
+    for column in ("kind", "base_color", "roughness", "ior", "specular_ior_level"):
+        np.testing.assert_array_equal(getattr(m, column)[row["Skin"]],
+                                      getattr(m, column)[row["Plain"]])
+    assert s.messages == ["Material 'Skin': subsurface scattering of node 'Principled BSDF' "
+                          "is approximated as diffuse reflection of the base colour"], s.messages
 
 
 def test_mix_of_diffuse_shaders_is_the_diffuse_of_the_blended_colour(empty_scene, export):
