@@ -135,10 +135,10 @@ class Materials:
     specular_tint : (m, 3) float32
         Reflection tint (dielectric) or coat tint (layered); default white.
     multiscatter : (m,) bool
-        Blender's *Multiscatter GGX*: rough conductor rows get Cycles' energy compensation
-        for light that bounces between microfacets (:mod:`core.materials.multiscatter`).
-        Ignored on other kinds (the exporter reports it there). Default False: single
-        scattering.
+        Blender's *Multiscatter GGX*: rough conductor and layered rows get Cycles' energy
+        compensation for light that bounces between microfacets
+        (:mod:`core.materials.multiscatter`). Ignored on other kinds (the exporter reports
+        it there). Default False: single scattering.
     coat_weight : (m,) float32
         Principled Coat Weight in [0, 1]: a clear coat over the row's BSDF
         (:mod:`core.materials.coat`); default 0 (none).

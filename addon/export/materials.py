@@ -48,7 +48,7 @@ class Surface(NamedTuple):
     transmission: float = 0.0
     specular_ior_level: float = 0.5
     specular_tint: np.ndarray = np.ones(3)
-    multiscatter: bool = False  # Multiscatter GGX (honoured on conductors, see Materials)
+    multiscatter: bool = False  # Multiscatter GGX (on conductor and layered rows, see Materials)
     texture: np.ndarray = None  # (h, w, 3) float32 base colour image, see surface_texture
     texture_mode: tuple = ("Linear", "REPEAT")  # the image node's interpolation, extension
     # A mixture: ((weight, Surface), ...) of plain surfaces (see mix_surfaces); this row's own
@@ -289,7 +289,8 @@ def _principled_surface(node, read, owner, texture=None):
     pixels, mode = texture if texture is not None else (None, ("Linear", "REPEAT"))
     parts = [(w, Surface(kind, base, np.zeros(3), roughness, ior,
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
-                         tint, multiscatter and kind == MAT_CONDUCTOR, pixels, mode))
+                         tint, multiscatter and kind in (MAT_CONDUCTOR, MAT_LAYERED), pixels,
+                         mode))
              for kind, w in weights.items() if w > 0]
     parts = [(alpha * w, surface._replace(**coat)) for w, surface in parts]
     if alpha < 1.0:
@@ -315,16 +316,15 @@ def _principled_coat(node, read, owner):
 
 def _principled_distribution_note(distribution, weights, roughness, owner, name, messages):
     """Report what of a rough Principled BSDF's distribution is not modelled: Multiscatter GGX
-    is compensated on the metallic lobe only (as Cycles does, :mod:`core.materials.multiscatter`),
-    not on the specular layer (the opaque dielectric) nor on the transmission."""
+    is compensated on the metallic lobe and the specular layer (as Cycles does,
+    :mod:`core.materials.multiscatter`), not on the transmission."""
     if roughness <= 0 or distribution == 'GGX':
         return
     if distribution != 'MULTI_GGX':
         messages.add(f"{owner}: {distribution} distribution of node '{name}' is not "
                      f"supported yet; rendered as GGX")
         return
-    layers = [label for kind, label in ((MAT_LAYERED, "specular layer"),
-                                        (MAT_DIELECTRIC, "transmission")) if weights[kind] > 0]
+    layers = [label for kind, label in ((MAT_DIELECTRIC, "transmission"),) if weights[kind] > 0]
     if layers:
         messages.add(f"{owner}: Multiscatter GGX on the {' and '.join(layers)} of node "
                      f"'{name}' is not supported yet; rendered as single-scattering GGX")

@@ -59,7 +59,12 @@ Kinds and parameters (:class:`BSDFParams`, one row per shading point)
     ``color`` = transmission tint (Glass BSDF: both the colour). Smooth below the threshold or
     for ``|eta - 1| < 1e-4``.
     ``KIND_LAYERED``: ``color`` = diffuse base, ``alpha`` and ``eta`` of the coat, ``tint`` =
-    coat tint (Principled non-metallic opaque: Specular IOR Level folded into ``eta``).
+    coat tint (Principled non-metallic opaque: Specular IOR Level folded into ``eta``,
+    Specular Tint as Cycles' generalized Schlick Fresnel).
+    ``KIND_LAYERED_MS``: the same with Multiscatter GGX on its specular lobe (from the
+    ``multiscatter`` column of a layered row, as ``KIND_CONDUCTOR_MS``).
+    Coat: any row may carry a Principled Coat (``coat_*`` columns, :mod:`.coat`), layered
+    over its kind by :func:`eval_bsdf`, :func:`pdf_bsdf` and :func:`sample_bsdf`.
     Emission is not a BSDF: it stays a column of the material table.
 In an integrator (one bounce, world-space arrays of the live paths)::
 
@@ -89,6 +94,7 @@ from .microfacet import alpha_from_roughness, is_smooth
 
 __all__ = [
     "KIND_DIFFUSE", "KIND_CONDUCTOR", "KIND_DIELECTRIC", "KIND_LAYERED", "KIND_CONDUCTOR_MS",
+    "KIND_LAYERED_MS",
     "KINDS", "KIND_NAMES",
     "RADIANCE", "IMPORTANCE", "TRANSPORT_MODES", "LOBE_REFLECT", "LOBE_TRANSMIT", "LOBE_DIFFUSE",
     "LOBE_GLOSSY", "LOBE_SINGULAR", "BSDFParams", "BSDFSample", "make_params",
@@ -102,10 +108,12 @@ KIND_DIELECTRIC = 2
 KIND_LAYERED = 3
 # A BSDF kind only: material tables say "multiscatter" with a column (see the module docstring).
 KIND_CONDUCTOR_MS = 4
-KINDS = (KIND_DIFFUSE, KIND_CONDUCTOR, KIND_DIELECTRIC, KIND_LAYERED, KIND_CONDUCTOR_MS)
+KIND_LAYERED_MS = 5
+KINDS = (KIND_DIFFUSE, KIND_CONDUCTOR, KIND_DIELECTRIC, KIND_LAYERED, KIND_CONDUCTOR_MS,
+         KIND_LAYERED_MS)
 KIND_NAMES = {KIND_DIFFUSE: "diffuse", KIND_CONDUCTOR: "conductor",
               KIND_DIELECTRIC: "dielectric", KIND_LAYERED: "layered",
-              KIND_CONDUCTOR_MS: "conductor_ms"}
+              KIND_CONDUCTOR_MS: "conductor_ms", KIND_LAYERED_MS: "layered_ms"}
 
 # Labels of sampled lobes (bits, as Cycles' LABEL_*).
 LOBE_REFLECT = 1
@@ -222,6 +230,7 @@ class BSDFParams:
         if multiscatter is not None:
             ms = np.asarray(multiscatter, bool)[ids]
             kind = np.where(ms & (kind == KIND_CONDUCTOR), KIND_CONDUCTOR_MS, kind)
+            kind = np.where(ms & (kind == KIND_LAYERED), KIND_LAYERED_MS, kind)
 
         def column(name, default, shape=()):
             values = getattr(materials, name, None)
@@ -273,7 +282,7 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
     alpha = alpha_from_roughness(np.broadcast_to(np.asarray(roughness, np.float64), (k,)))
     ior = np.nan_to_num(np.broadcast_to(np.asarray(ior, np.float64), (k,)), nan=DEFAULT_IOR)
     eta = np.clip(ior, *ETA_RANGE)
-    layered_rows = kind == KIND_LAYERED
+    layered_rows = (kind == KIND_LAYERED) | (kind == KIND_LAYERED_MS)
     if layered_rows.any():
         level = np.broadcast_to(np.asarray(specular_ior_level, np.float64), (k,))
         eta = np.where(layered_rows, adjust_ior_for_specular_level(eta, level), eta)
@@ -342,7 +351,8 @@ def _glossy_kind(p, wo, u_lobe, delta):
 
 
 def _layered_kind(p, wo, u_lobe, delta):
-    coat = u_lobe < layered.coat_probability(p.color, p.alpha, p.eta, p.tint, wo)
+    coat = u_lobe < layered.coat_probability(p.color, p.alpha, p.eta, p.tint, wo,
+                                             multiscatter=bool(np.any(p.kind == KIND_LAYERED_MS)))
     return np.where(delta, LOBE_SINGULAR,
                     np.where(coat, LOBE_GLOSSY, LOBE_DIFFUSE)).astype(np.uint8)
 
@@ -391,12 +401,26 @@ def _layered_sample(p, wo, u_lobe, u, mode):
     return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode)
 
 
+def _layered_ms_eval(p, wo, wi, mode):
+    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode, multiscatter=True)
+
+
+def _layered_ms_pdf(p, wo, wi):
+    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, multiscatter=True)
+
+
+def _layered_ms_sample(p, wo, u_lobe, u, mode):
+    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode,
+                                  multiscatter=True)
+
+
 _FAMILIES = {
     KIND_DIFFUSE: (_diffuse_eval, _diffuse_pdf, _diffuse_sample, _diffuse_kind),
     KIND_CONDUCTOR: (_conductor_eval, _conductor_pdf, _conductor_sample, _glossy_kind),
     KIND_DIELECTRIC: (_dielectric_eval, _dielectric_pdf, _dielectric_sample, _glossy_kind),
     KIND_LAYERED: (_layered_eval, _layered_pdf, _layered_sample, _layered_kind),
     KIND_CONDUCTOR_MS: (_conductor_ms_eval, _conductor_pdf, _conductor_ms_sample, _glossy_kind),
+    KIND_LAYERED_MS: (_layered_ms_eval, _layered_ms_pdf, _layered_ms_sample, _layered_kind),
 }
 
 
@@ -406,7 +430,7 @@ def _groups(params):
     if kind.size == 0:
         return []
     lo, hi = int(kind.min()), int(kind.max())
-    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..4
+    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..5
         unknown = ~np.isin(kind, KINDS)
         raise ValueError(f"unknown BSDF kind codes {np.unique(kind[unknown]).tolist()}")
     first = kind[0]

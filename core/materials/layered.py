@@ -28,8 +28,12 @@ Model (Cycles' *albedo scaling* layering, radiance mode)::
   ``1 - E(wo)``), so a white furnace and the base's angular response match Cycles; the
   reciprocal variant ``(1 - E(mu_o)) (1 - E(mu_i)) / (1 - E_avg)`` would brighten the base
   by ~5 % at normal incidence relative to Cycles.
-- Limits: the lobe is single scattering (Cycles' Principled default, Multiscatter GGX,
-  recovers its inter-reflection loss); the base's light is not refracted by the layer nor
+- Multiscatter GGX (``multiscatter=True``, Blender's Principled default): the specular lobe
+  is scaled by Cycles' compensation factor of ``wo`` (:func:`multiscatter_factor`, Kulla and
+  Conty 2017 as in :mod:`.multiscatter`, with the tinted Fresnel's hemispherical average) and
+  the base is attenuated by the compensated lobe's albedo, as Cycles' layering does; a white
+  layer over a white base then still conserves energy.
+- Limits: the base's light is not refracted by the layer nor
   internally reflected (no darkening and saturation of a real varnished surface); the diffuse
   attenuation depends on ``wo`` only, which makes the BSDF **non-reciprocal**. The adjoint
   ``f*(wo, wi) = f(wi, wo)``, i.e. ``(1 - max_c E_t(mu_i))``, is what ``mode='importance'``
@@ -58,7 +62,7 @@ from . import microfacet as mf
 from .dielectric import RADIANCE, _check_mode
 from .frame import dot, flip_to_upper, normalize, reflect, reflect_z, side_of
 from .fresnel import f0_from_ior, fresnel_dielectric
-from .multiscatter import albedo_lookup, ggx_albedo
+from .multiscatter import albedo_lookup, compensation, ggx_albedo
 
 # Table resolution: nodes uniform in sqrt(mu), in roughness = sqrt(alpha), and in
 # sqrt((eta - 1) / (eta + 1)) (= F0^(1/4)), which puts them where E changes fastest: at grazing
@@ -208,17 +212,45 @@ def tinted_fresnel(f, eta, tint):
     return f0t + (1.0 - f0t) * s[:, None]
 
 
-def specular_albedo(mu, alpha, eta, tint):
+def fresnel_average(eta, n=32):
+    """Hemispherical average ``2 int_0^1 F(mu, eta) mu dmu`` of the exact dielectric Fresnel
+    (Gauss-Legendre in ``sqrt(mu)``, ``n`` nodes: ~1e-6 accurate). ``(k,)``."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    t = 0.5 * (x + 1.0)                       # sqrt(mu) in (0, 1)
+    mu = t * t
+    eta = np.asarray(eta, np.float64)
+    f = fresnel_dielectric(mu[None, :], eta[:, None])
+    # 2 int F mu dmu = 2 int F t^2 2 t dt, dt = dx / 2.
+    return np.sum(f * (2.0 * mu * 2.0 * t * 0.5 * w)[None, :], axis=1)
+
+
+def multiscatter_factor(mu, alpha, eta, tint):
+    """Cycles' Multiscatter GGX factor ``(k, 3)`` of the tinted specular lobe at ``|cos| = mu``
+    (:func:`.multiscatter.compensation`), with ``F_ss`` the hemispherical average of
+    :func:`tinted_fresnel`: ``f0 + (1 - f0) s_avg``, ``s_avg`` the remapped average of the
+    exact Fresnel (Cycles' ``bsdf_microfacet_setup_fresnel_generalized_schlick``)."""
+    f0 = f0_from_ior(eta)
+    s_avg = np.clip((fresnel_average(eta) - f0) / np.maximum(1.0 - f0, 1e-12), 0.0, 1.0)
+    f0t = tint * f0[:, None]
+    return compensation(f0t + (1.0 - f0t) * s_avg[:, None], mu, alpha)
+
+
+def specular_albedo(mu, alpha, eta, tint, multiscatter=False):
     """Directional albedo ``(k, 3)`` of the tinted specular lobe: ``f0 E_1 + (1 - f0) E_s``
     with ``E_1`` the GGX albedo for ``F = 1`` (:func:`.multiscatter.albedo_lookup`) and
     ``E_s = (E(mu) - F0 E_1) / (1 - F0)`` the albedo of the remapped Fresnel (linear in
-    ``F``), ``E(mu)`` from :func:`coat_albedo_lookup`; exactly ``E(mu)`` for a white tint."""
+    ``F``), ``E(mu)`` from :func:`coat_albedo_lookup`; exactly ``E(mu)`` for a white tint.
+    With ``multiscatter``, times :func:`multiscatter_factor` (Cycles' estimate of the
+    compensated lobe's albedo)."""
     e = coat_albedo_lookup(mu, alpha, eta)
     e1 = np.where(mf.is_smooth(alpha), 1.0, albedo_lookup(np.abs(mu), alpha)[0])
     f0 = f0_from_ior(eta)
     e_s = np.clip((e - f0 * e1) / np.maximum(1.0 - f0, 1e-12), 0.0, 1.0)
     f0t = tint * f0[:, None]
-    return np.clip(f0t * e1[:, None] + (1.0 - f0t) * e_s[:, None], 0.0, 1.0)
+    e_t = f0t * e1[:, None] + (1.0 - f0t) * e_s[:, None]
+    if multiscatter:
+        e_t = e_t * multiscatter_factor(mu, alpha, eta, tint)
+    return np.clip(e_t, 0.0, 1.0)
 
 
 def _lobe_albedos(albedo, e_spec):
@@ -235,10 +267,10 @@ def _coat_probability(albedo, e_spec):
     return np.where(total > 0.0, s / np.where(total > 0.0, total, 1.0), 0.5)
 
 
-def coat_probability(albedo, alpha, eta, tint, wo):
+def coat_probability(albedo, alpha, eta, tint, wo, multiscatter=False):
     """Probability ``p (k,)`` with which :func:`sample_layered` samples the coat: a sample with
     ``u_lobe < p`` is a coat (glossy or mirror) sample, the others diffuse."""
-    return _coat_probability(albedo, specular_albedo(wo[:, 2], alpha, eta, tint))
+    return _coat_probability(albedo, specular_albedo(wo[:, 2], alpha, eta, tint, multiscatter))
 
 
 def _lobe_parts(eta, alpha, wo_, wi_):
@@ -264,7 +296,7 @@ def coat_lobe_pdf(alpha, wo_, wi_):
     return np.where(ok, mf.ggx_d(h[:, 2], alpha) / (4.0 * mf.ggx_projected_area(co, alpha)), 0.0)
 
 
-def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE):
+def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE, multiscatter=False):
     """``f(wo, wi) |cos theta_i|`` (the non-delta part for smooth coats).
 
     Parameters
@@ -280,6 +312,9 @@ def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE):
     wo, wi : (k, 3) float
     mode : {'radiance', 'importance'}
         Importance mode evaluates the adjoint (diffuse attenuation by ``E(mu_i)``).
+    multiscatter : bool
+        Blender's Multiscatter GGX: the specular lobe scaled by :func:`multiscatter_factor` at
+        ``mu_o`` (``mu_i`` for the adjoint), the base attenuated by that lobe's albedo.
 
     Returns
     -------
@@ -291,30 +326,33 @@ def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE):
     co, ci = wo_[:, 2], wi_[:, 2]
     ok = (co > 0.0) & (ci > 0.0)
     mu = co if mode == RADIANCE else ci
-    diffuse_scale = np.maximum(0.0, 1.0 - np.max(specular_albedo(mu, alpha, eta, tint), axis=1))
+    diffuse_scale = np.maximum(0.0, 1.0 - np.max(
+        specular_albedo(mu, alpha, eta, tint, multiscatter), axis=1))
     dg, fresnel = _lobe_parts(eta, alpha, wo_, wi_)
-    f = (tinted_fresnel(fresnel, eta, tint) * dg[:, None]
-         + albedo * (diffuse_scale * ci * warps.INV_PI)[:, None])
+    spec = tinted_fresnel(fresnel, eta, tint) * dg[:, None]
+    if multiscatter:
+        spec = spec * multiscatter_factor(mu, alpha, eta, tint)
+    f = spec + albedo * (diffuse_scale * ci * warps.INV_PI)[:, None]
     return np.where(ok[:, None], f, 0.0)
 
 
-def pdf_layered(albedo, alpha, eta, tint, wo, wi):
+def pdf_layered(albedo, alpha, eta, tint, wo, wi, multiscatter=False):
     """Solid-angle density of :func:`sample_layered` (non-delta part). ``(k,)``."""
     side = side_of(wo)
     wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
     co, ci = wo_[:, 2], wi_[:, 2]
     ok = (co > 0.0) & (ci > 0.0)
-    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint))
+    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
     pdf = p * coat_lobe_pdf(alpha, wo_, wi_) + (1.0 - p) * ci * warps.INV_PI
     return np.where(ok, pdf, 0.0)
 
 
-def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE):
+def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE, multiscatter=False):
     """Sample the coat (visible normals or delta) or the diffuse base.
 
     Parameters
     ----------
-    albedo, alpha, eta, tint, wo, mode
+    albedo, alpha, eta, tint, wo, mode, multiscatter
         As :func:`eval_layered`.
     u_lobe : (k,) float
         Chooses the coat (``u_lobe < p``) or the base.
@@ -334,7 +372,7 @@ def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE):
     side = side_of(wo)
     wo_ = flip_to_upper(wo, side)
     co = wo_[:, 2]
-    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint))
+    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
     smooth = mf.is_smooth(alpha)
     choose_coat = u_lobe < p
 
@@ -348,8 +386,8 @@ def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE):
 
     # Non-delta samples: weight = f cos / (mixture pdf), evaluated at the sampled direction.
     wi = flip_to_upper(wi_, side)
-    f = eval_layered(albedo, alpha, eta, tint, wo, wi, mode)
-    pdf = pdf_layered(albedo, alpha, eta, tint, wo, wi)
+    f = eval_layered(albedo, alpha, eta, tint, wo, wi, mode, multiscatter)
+    pdf = pdf_layered(albedo, alpha, eta, tint, wo, wi, multiscatter)
     good = ok & (pdf > 0.0)
     weight = f / np.where(good, pdf, 1.0)[:, None]
 

@@ -1,8 +1,10 @@
-"""Rough metals left at Blender's default distribution, Multiscatter GGX, agree with Cycles.
+"""Rough metals and a plastic left at Blender's default distribution, Multiscatter GGX, agree
+with Cycles.
 
 Three flat-shaded spheres of roughness 0.2, 0.6 and 1.0 on a grey floor under a uniform world
-and an area light, made of a Glossy BSDF (Blender's default grey) or of a Principled BSDF with
-Metallic 1 and a copper colour, with the node's distribution left as Blender creates it
+and an area light, made of a Glossy BSDF (Blender's default grey), of a Principled BSDF with
+Metallic 1 and a copper colour, or of a dark Principled plastic (the compensated specular
+layer), with the node's distribution left as Blender creates it
 (``'MULTI_GGX'``, asserted). Method as in ``test_cycles_materials.py``: Cycles under unbiased
 settings renders several seeds, Sampling Lab reports its own variance pass, and
 ``tests.helpers.assert_images_agree`` compares the image mean per channel (0.5 % plus its
@@ -26,8 +28,10 @@ ROUGHNESS = (0.2, 0.6, 1.0)
 # Smallest errors each comparison detects with 99 % power (image mean, worst 8 x 8 block),
 # measured at these sample counts: glossy 1.0 % / 4.5 %, principled 1.1 % / 4.1 %; the checker
 # fails the test if its images fall below the default 2 % / 5 %. Without the compensation the
-# glossy image mean is 7.8 % below Cycles' and the test fails.
-STATED = {"glossy": DETECT, "principled": DETECT}
+# glossy image mean is 7.8 % below Cycles' and the test fails. The dark plastic's blocks are
+# noisier (0.84 % / 5.5 % measured), so its block error is stated at 6 %; rendered with the
+# specular layer single-scattering, three of its blocks fall outside their intervals.
+STATED = {"glossy": DETECT, "principled": DETECT, "plastic": (DETECT[0], 0.06)}
 
 
 def _glossy(name, roughness):
@@ -48,7 +52,19 @@ def _principled(name, roughness):
     return mat, node
 
 
-MATERIALS = {"glossy": _glossy, "principled": _principled}
+def _plastic(name, roughness):
+    """A dark Principled plastic (Specular IOR Level 1, F0 = 0.08): the specular layer's
+    compensation shows above a base that adds little."""
+    mat, node = _principled(name, roughness)
+    node.inputs["Base Color"].default_value = (0.1, 0.05, 0.02, 1.0)
+    node.inputs["Metallic"].default_value = 0.0
+    node.inputs["Specular IOR Level"].default_value = 1.0
+    return mat, node
+
+
+MATERIALS = {"glossy": _glossy, "principled": _principled, "plastic": _plastic}
+# Kind of the exported rows: conductor, or layered (the specular layer over the base).
+KINDS = {"glossy": 1, "principled": 1, "plastic": 3}
 
 
 def three_metal_spheres(scene, make):
@@ -123,7 +139,7 @@ def test_default_multiscatter_metals_agree_with_cycles(empty_scene, export, tmp_
     assert not exported.messages, exported.messages
     m = exported.materials
     metals = [m.names.index(f"Metal{i}") for i in range(3)]
-    assert m.kind[metals].tolist() == [1, 1, 1] and m.multiscatter[metals].all()
+    assert m.kind[metals].tolist() == [KINDS[name]] * 3 and m.multiscatter[metals].all()
 
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
                                             BOUNCES, our_seed=5, cycles_seed=301)

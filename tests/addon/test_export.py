@@ -331,9 +331,9 @@ def test_glossy_glass_refraction_transparent_and_mix_nodes_map_to_core_kinds(emp
     np.testing.assert_allclose([mix[0], mix[1]], [0.2, 0.8], rtol=1e-6)
 
 
-def test_multiscatter_ggx_is_flagged_on_metals_and_reported_on_other_layers(empty_scene,
-                                                                            export):
-    from sampling_lab.core.materials.bsdf import KIND_CONDUCTOR_MS, BSDFParams
+def test_multiscatter_ggx_is_flagged_on_metals_and_specular_layers_reported_on_glass(
+        empty_scene, export):
+    from sampling_lab.core.materials.bsdf import KIND_CONDUCTOR_MS, KIND_LAYERED_MS, BSDFParams
 
     def glossy(name, distribution):
         return scenes.glossy_material(name, (0.9, 0.7, 0.5), 0.4, distribution)
@@ -353,19 +353,19 @@ def test_multiscatter_ggx_is_flagged_on_metals_and_reported_on_other_layers(empt
     m = s.materials
     assert [bool(m.multiscatter[row[k]]) for k in ("MultiGlossy", "Glossy", "Metal", "GGXMetal")] \
         == [True, False, True, False]
-    # The mixture: its metal component is compensated, its specular layer is not (reported).
+    # The mixture: its metal component and its specular layer are compensated.
     components = {int(m.kind[r]): bool(m.multiscatter[r])
                   for r, w in zip(m.mix_rows[row["HalfMetal"]], m.mix_weights[row["HalfMetal"]])
                   if w > 0}
-    assert components == {1: True, 3: False}
+    assert components == {1: True, 3: True}
     assert sorted(s.messages) == sorted([
-        "Material 'HalfMetal': Multiscatter GGX on the specular layer of node 'Principled BSDF' "
-        "is not supported yet; rendered as single-scattering GGX",
         "Material 'RoughGlass': MULTI_GGX distribution of node 'Glass BSDF' is not supported "
         "yet; rendered as GGX"]), s.messages
-    # The core shades the flagged conductor rows with the compensated BSDF.
-    kinds = BSDFParams.from_materials(m, np.array([row["MultiGlossy"], row["Glossy"]])).kind
-    assert kinds.tolist() == [KIND_CONDUCTOR_MS, 1]
+    # The core shades the flagged conductor and layered rows with the compensated BSDFs.
+    layered = [r for r in m.mix_rows[row["HalfMetal"]] if m.kind[r] == 3][0]
+    kinds = BSDFParams.from_materials(m, np.array([row["MultiGlossy"], row["Glossy"],
+                                                   layered])).kind
+    assert kinds.tolist() == [KIND_CONDUCTOR_MS, 1, KIND_LAYERED_MS]
 
 
 def test_texture_driven_color_uses_socket_value_and_is_reported(empty_scene, export):
