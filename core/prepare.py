@@ -13,9 +13,10 @@ import numpy as np
 from .accel import Accel
 from .lights import Emission, LightSampler
 from .materials.bsdf import BSDFParams, is_delta_only
+from .materials.microfacet import alpha_from_roughness
 from .sampling.distributions import Segmented1D
 from .scene import Scene
-from .textures import material_base_color, textured_base_color
+from .textures import material_base_color, material_roughness, textured_base_color
 
 
 def recentred(scene: Scene):
@@ -154,8 +155,8 @@ class PreparedScene:
         ``f_k`` is the mixture, so estimates stay unbiased.
 
         Given the hits' barycentrics ``u, v (k,)``, textured components get their looked-up
-        base colour (a texture belongs to the component it feeds, so mixtures need this
-        rather than :meth:`textured_base_color`).
+        base colour and roughness (a texture belongs to the component it feeds, so mixtures
+        need this rather than :meth:`textured_base_color`).
 
         Returns
         -------
@@ -166,10 +167,17 @@ class PreparedScene:
         """
         material, u_lobe = self.choose_material(prim, u_lobe)
         params = self.material_bsdf.take(material)
+        delta_only = self.material_delta_only[material]
         if u is not None and self.scene.textures:
             rows, color = material_base_color(self.scene, material, prim, u, v)
             params.color[rows] = color
-        return params, self.material_delta_only[material], u_lobe
+            rows, roughness = material_roughness(self.scene, material, prim, u, v)
+            if rows.size:
+                # A textured roughness may make a smooth row rough, or the other way round.
+                params.alpha[rows] = alpha_from_roughness(roughness)
+                delta_only = delta_only.copy()
+                delta_only[rows] = is_delta_only(params.take(rows))
+        return params, delta_only, u_lobe
 
     def textured_base_color(self, prim, u, v):
         """Base colour of hits ``prim, u, v (k,)`` on textured materials: ``rows (j,)`` into

@@ -149,6 +149,10 @@ class Materials:
     texture : (m,) int32
         Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
         (an Image Texture into the base colour); -1 (the default) for none.
+    roughness_texture : (m,) int32
+        Row of :attr:`Scene.textures` whose lookup (its luminance, as Blender converts a
+        colour to a float socket) replaces ``roughness`` at shading time (an Image Texture
+        into the Roughness input); -1 (the default) for none.
     mix_rows : (m, c) int32
         Component rows of each material: a row whose ``mix_rows`` is more than itself is a
         *mixture* (a Principled BSDF with fractional Metallic, Transmission or Alpha, a Mix
@@ -178,6 +182,7 @@ class Materials:
     coat_ior: np.ndarray = None
     coat_tint: np.ndarray = None
     texture: np.ndarray = None
+    roughness_texture: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
 
@@ -203,6 +208,7 @@ class Materials:
         self.coat_ior = column(self.coat_ior, DEFAULT_COAT_IOR)
         self.coat_tint = column(self.coat_tint, 1.0, (3,))
         self.texture = texture_column(self.texture, m)
+        self.roughness_texture = texture_column(self.roughness_texture, m)
         self._check_mix(m)
 
     def _check_mix(self, m):
@@ -239,7 +245,8 @@ class Materials:
                    metallic=None, transmission=None, specular_ior_level=None,
                    specular_tint=None, texture=None, mix_rows=None,
                    mix_weights=None, multiscatter=None, coat_weight=None,
-                   coat_roughness=None, coat_ior=None, coat_tint=None) -> "Materials":
+                   coat_roughness=None, coat_ior=None, coat_tint=None,
+                   roughness_texture=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -253,7 +260,7 @@ class Materials:
             else np.asarray(specular_tint, np.float32).reshape(-1, 3),
             multiscatter=multiscatter, texture=texture, mix_rows=mix_rows,
             mix_weights=mix_weights, coat_weight=coat_weight, coat_roughness=coat_roughness,
-            coat_ior=coat_ior,
+            coat_ior=coat_ior, roughness_texture=roughness_texture,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
         )
@@ -431,7 +438,7 @@ class Scene:
                                                     TEXTURE_INTERPOLATIONS)
         self.texture_extension = _texture_modes(self.texture_extension, n, "REPEAT",
                                                 TEXTURE_EXTENSIONS)
-        if np.any(self.materials.texture >= len(self.textures)):
+        if np.any(self.materials.texture >= n) or np.any(self.materials.roughness_texture >= n):
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:
             raise ValueError("textured scenes need corner_uvs")

@@ -21,7 +21,7 @@ from ...core.scene import (
     Materials,
 )
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
-from .textures import surface_texture
+from .textures import roughness_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
 DEFAULT_SURFACE_NAME = "Default Surface"
@@ -59,6 +59,9 @@ class Surface(NamedTuple):
     coat_roughness: float = 0.03
     coat_ior: float = 1.5
     coat_tint: np.ndarray = np.ones(3)
+    # (h, w, 3) float32 image whose luminance is the roughness (None: the roughness field).
+    roughness_texture: np.ndarray = None
+    roughness_texture_mode: tuple = ("Linear", "REPEAT")
 
 
 def _diffuse(color, emission=None):
@@ -123,13 +126,16 @@ def _shader_surface(source, owner, messages, depth=0):
                                        depth + 1))]
         return mix_surfaces(parts, owner, messages)
     texture = surface_texture(node, owner, messages)
+    rough = roughness_texture(node, owner, messages)
+    rough = {} if rough is None else {"roughness_texture": rough[0],
+                                      "roughness_texture_mode": rough[1]}
     if kind == 'ShaderNodeBsdfPrincipled':
         read.ignored_if_linked(node, "Normal", "the normal input")
-        return _principled_surface(node, read, owner, texture)
+        return _principled_surface(node, read, owner, texture, rough)
     surface = _node_surface(node, read, owner, messages)
     if texture is not None:
         surface = surface._replace(texture=texture[0], texture_mode=texture[1])
-    return surface
+    return surface._replace(**rough)
 
 
 def _node_surface(node, read, owner, messages):
@@ -197,7 +203,8 @@ def _surface_key(surface):
             surface.ior, surface.specular_ior_level, tuple(np.round(surface.specular_tint, 9)),
             surface.multiscatter, id(surface.texture), surface.texture_mode,
             surface.coat_weight, surface.coat_roughness, surface.coat_ior,
-            tuple(np.round(surface.coat_tint, 9)))
+            tuple(np.round(surface.coat_tint, 9)), id(surface.roughness_texture),
+            surface.roughness_texture_mode)
 
 
 def mix_surfaces(parts, owner, messages):
@@ -226,7 +233,7 @@ def mix_surfaces(parts, owner, messages):
     if not flat:
         return _BLACK._replace(emission=emission)
     if all(c.kind == MAT_DIFFUSE and c.texture is None and c.coat_weight == 0
-           for _, c in flat):
+           and c.roughness_texture is None for _, c in flat):
         color = sum(w * np.asarray(c.base_color, np.float64) for w, c in flat)
         return _diffuse(color / sum(w for w, _ in flat), emission)
     if len(flat) == 1:
@@ -241,14 +248,15 @@ def mix_surfaces(parts, owner, messages):
     return main._replace(emission=emission, texture=None, components=components)
 
 
-def _principled_surface(node, read, owner, texture=None):
+def _principled_surface(node, read, owner, texture=None, rough=None):
     """Principled BSDF -> a mixture of conductor (metallic), dielectric (transmission), coat
     over diffuse and, for Alpha < 1, a transparent pass-through.
 
     Weights as Cycles' Principled: transparent ``1 - a``, then of the rest ``a``: metal ``m``,
     glass ``(1 - m) t`` and the opaque dielectric ``(1 - m)(1 - t)``; emission is scaled by
     ``a`` too. ``texture`` (pixels, modes) drives the base colour of every component but the
-    transparent one.
+    transparent one, ``rough`` (the :class:`Surface` fields of a roughness texture) their
+    roughness.
     """
     messages = read.messages
     name = node_name(node)
@@ -292,7 +300,7 @@ def _principled_surface(node, read, owner, texture=None):
                          tint, multiscatter and kind in (MAT_CONDUCTOR, MAT_LAYERED), pixels,
                          mode))
              for kind, w in weights.items() if w > 0]
-    parts = [(alpha * w, surface._replace(**coat)) for w, surface in parts]
+    parts = [(alpha * w, surface._replace(**coat, **(rough or {}))) for w, surface in parts]
     if alpha < 1.0:
         _transparent_note(owner, messages, f"alpha of node '{name}'")
         parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
@@ -385,33 +393,37 @@ class MaterialTable:
             specular_tint=col["specular_tint"], multiscatter=col["multiscatter"],
             coat_weight=col["coat_weight"], coat_roughness=col["coat_roughness"],
             coat_ior=col["coat_ior"], coat_tint=col["coat_tint"],
-            texture=self._texture_index()[0],
+            texture=self._texture_index()[0], roughness_texture=self._texture_index()[1],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):
-        """``(m,) int32`` index into the distinct textures per row (-1 for untextured rows),
-        and those textures as ``[(pixels, (interpolation, extension)), ...]``."""
-        index, distinct, found = [], [], {}
+        """``(m,) int32`` indices into the distinct textures per row for the base colour and
+        for the roughness (-1 for none), and those textures as
+        ``[(pixels, (interpolation, extension)), ...]``."""
+        columns, distinct, found = ([], []), [], {}
         for s in self.surfaces:
-            if s.texture is None:
-                index.append(-1)
-                continue
-            key = (id(s.texture), s.texture_mode)
-            if key not in found:
-                found[key] = len(distinct)
-                distinct.append((s.texture, s.texture_mode))
-            index.append(found[key])
-        return np.asarray(index, np.int32), distinct
+            for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
+                                         (columns[1], s.roughness_texture,
+                                          s.roughness_texture_mode)):
+                if pixels is None:
+                    column.append(-1)
+                    continue
+                key = (id(pixels), mode)
+                if key not in found:
+                    found[key] = len(distinct)
+                    distinct.append((pixels, mode))
+                column.append(found[key])
+        return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct)
 
     @property
     def textures(self):
-        """Distinct base colour images in order of first use (``Scene.textures``)."""
-        return [pixels for pixels, _ in self._texture_index()[1]]
+        """Distinct images in order of first use (``Scene.textures``)."""
+        return [pixels for pixels, _ in self._texture_index()[2]]
 
     @property
     def texture_modes(self):
         """``(interpolations, extensions)`` of :attr:`textures` (``Scene.texture_*``)."""
-        modes = [mode for _, mode in self._texture_index()[1]]
+        modes = [mode for _, mode in self._texture_index()[2]]
         return [m[0] for m in modes], [m[1] for m in modes]
 
     def texture_rows(self):
@@ -421,4 +433,5 @@ class MaterialTable:
     def textured(self, rows):
         """Whether any of the material rows ``rows`` (or their components) has a texture."""
         return any(self.surfaces[c].texture is not None
+                   or self.surfaces[c].roughness_texture is not None
                    for r in np.unique(rows) for c, _ in self.mixes[int(r)])
