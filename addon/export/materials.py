@@ -166,14 +166,18 @@ def _node_surface(node, read, owner, messages):
                        multiscatter=getattr(node, "distribution", 'GGX') == 'MULTI_GGX')
 
     if kind in {'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction'}:
-        _distribution_note(node, read, owner)
+        # Multiscatter GGX: Cycles' compensation of glass (the Glass BSDF's rule).
+        glass = kind == 'ShaderNodeBsdfGlass'
+        _distribution_note(node, read, owner,
+                           handled=('GGX', 'SHARP', 'MULTI_GGX') if glass else ('GGX', 'SHARP'))
         if kind == 'ShaderNodeBsdfRefraction':
             messages.add(f"{owner}: node '{name}' (refraction only) is not supported yet; "
                          f"rendered as glass (with Fresnel reflection)")
         color = read.color(node, "Color", (1.0, 1.0, 1.0))
         return Surface(MAT_DIELECTRIC, color, np.zeros(3),
                        roughness=read.value(node, "Roughness", 0.0),
-                       ior=read.value(node, "IOR", 1.5), transmission=1.0, specular_tint=color)
+                       ior=read.value(node, "IOR", 1.5), transmission=1.0, specular_tint=color,
+                       multiscatter=glass and getattr(node, "distribution", 'GGX') == 'MULTI_GGX')
 
     if kind == 'ShaderNodeBsdfTransparent':
         _transparent_note(owner, messages, f"node '{name}'")
@@ -287,7 +291,11 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
                MAT_LAYERED: (1 - metallic) * (1 - transmission)}
     distribution = getattr(node, "distribution", 'GGX')
     multiscatter = distribution == 'MULTI_GGX'
-    _principled_distribution_note(distribution, weights, roughness, owner, name, messages)
+    # Cycles' Multiscatter GGX on the transmission uses F_ss = 1, ours the transmission tint:
+    # the same for white, untextured glass only.
+    white_glass = texture is None and bool(np.all(base >= 0.999))
+    _principled_distribution_note(distribution, weights, roughness, owner, name, messages,
+                                  white_glass)
     if metallic > 0 and np.any(tint != 1.0):
         messages.add(f"{owner}: metallic specular tint (F82) of node '{name}' is not "
                      f"supported yet; ignored")
@@ -295,10 +303,17 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
         messages.add(f"{owner}: specular IOR level of transmissive node '{name}' is not "
                      f"supported yet; ignored")
     pixels, mode = texture if texture is not None else (None, ("Linear", "REPEAT"))
-    parts = [(w, Surface(kind, base, np.zeros(3), roughness, ior,
+    if weights[MAT_DIELECTRIC] > 0 and pixels is not None:
+        messages.add(f"{owner}: the base colour texture of transmissive node '{name}' tints "
+                     f"each pass through the surface by the texture itself, not by its square "
+                     f"root as Cycles does")
+    # Cycles tints each pass through a Principled glass surface by sqrt(Base Color), so that
+    # entering and leaving give the base colour.
+    colors = {MAT_DIELECTRIC: np.sqrt(np.maximum(base, 0.0)) if pixels is None else base}
+    compensated = {MAT_CONDUCTOR: True, MAT_LAYERED: True, MAT_DIELECTRIC: white_glass}
+    parts = [(w, Surface(kind, colors.get(kind, base), np.zeros(3), roughness, ior,
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
-                         tint, multiscatter and kind in (MAT_CONDUCTOR, MAT_LAYERED), pixels,
-                         mode))
+                         tint, multiscatter and compensated[kind], pixels, mode))
              for kind, w in weights.items() if w > 0]
     parts = [(alpha * w, surface._replace(**coat, **(rough or {}))) for w, surface in parts]
     if alpha < 1.0:
@@ -322,19 +337,20 @@ def _principled_coat(node, read, owner):
             "coat_tint": np.maximum(read.color(node, "Coat Tint", (1.0, 1.0, 1.0)), 0.0)}
 
 
-def _principled_distribution_note(distribution, weights, roughness, owner, name, messages):
+def _principled_distribution_note(distribution, weights, roughness, owner, name, messages,
+                                  white_glass):
     """Report what of a rough Principled BSDF's distribution is not modelled: Multiscatter GGX
-    is compensated on the metallic lobe and the specular layer (as Cycles does,
-    :mod:`core.materials.multiscatter`), not on the transmission."""
+    is compensated on the metallic lobe, the specular layer (as Cycles does,
+    :mod:`core.materials.multiscatter`) and white untextured transmission
+    (:mod:`core.materials.glass_albedo`), not on coloured or textured transmission."""
     if roughness <= 0 or distribution == 'GGX':
         return
     if distribution != 'MULTI_GGX':
         messages.add(f"{owner}: {distribution} distribution of node '{name}' is not "
                      f"supported yet; rendered as GGX")
         return
-    layers = [label for kind, label in ((MAT_DIELECTRIC, "transmission"),) if weights[kind] > 0]
-    if layers:
-        messages.add(f"{owner}: Multiscatter GGX on the {' and '.join(layers)} of node "
+    if weights[MAT_DIELECTRIC] > 0 and not white_glass:
+        messages.add(f"{owner}: Multiscatter GGX on the coloured transmission of node "
                      f"'{name}' is not supported yet; rendered as single-scattering GGX")
 
 

@@ -63,6 +63,8 @@ Kinds and parameters (:class:`BSDFParams`, one row per shading point)
     Specular Tint as Cycles' generalized Schlick Fresnel).
     ``KIND_LAYERED_MS``: the same with Multiscatter GGX on its specular lobe (from the
     ``multiscatter`` column of a layered row, as ``KIND_CONDUCTOR_MS``).
+    ``KIND_DIELECTRIC_MS``: the dielectric with Multiscatter GGX (:mod:`.glass_albedo`;
+    from the ``multiscatter`` column of a dielectric row).
     Coat: any row may carry a Principled Coat (``coat_*`` columns, :mod:`.coat`), layered
     over its kind by :func:`eval_bsdf`, :func:`pdf_bsdf` and :func:`sample_bsdf`.
     Emission is not a BSDF: it stays a column of the material table.
@@ -94,7 +96,7 @@ from .microfacet import alpha_from_roughness, is_smooth
 
 __all__ = [
     "KIND_DIFFUSE", "KIND_CONDUCTOR", "KIND_DIELECTRIC", "KIND_LAYERED", "KIND_CONDUCTOR_MS",
-    "KIND_LAYERED_MS",
+    "KIND_LAYERED_MS", "KIND_DIELECTRIC_MS",
     "KINDS", "KIND_NAMES",
     "RADIANCE", "IMPORTANCE", "TRANSPORT_MODES", "LOBE_REFLECT", "LOBE_TRANSMIT", "LOBE_DIFFUSE",
     "LOBE_GLOSSY", "LOBE_SINGULAR", "BSDFParams", "BSDFSample", "make_params",
@@ -109,11 +111,13 @@ KIND_LAYERED = 3
 # A BSDF kind only: material tables say "multiscatter" with a column (see the module docstring).
 KIND_CONDUCTOR_MS = 4
 KIND_LAYERED_MS = 5
+KIND_DIELECTRIC_MS = 6
 KINDS = (KIND_DIFFUSE, KIND_CONDUCTOR, KIND_DIELECTRIC, KIND_LAYERED, KIND_CONDUCTOR_MS,
-         KIND_LAYERED_MS)
+         KIND_LAYERED_MS, KIND_DIELECTRIC_MS)
 KIND_NAMES = {KIND_DIFFUSE: "diffuse", KIND_CONDUCTOR: "conductor",
               KIND_DIELECTRIC: "dielectric", KIND_LAYERED: "layered",
-              KIND_CONDUCTOR_MS: "conductor_ms", KIND_LAYERED_MS: "layered_ms"}
+              KIND_CONDUCTOR_MS: "conductor_ms", KIND_LAYERED_MS: "layered_ms",
+              KIND_DIELECTRIC_MS: "dielectric_ms"}
 
 # Labels of sampled lobes (bits, as Cycles' LABEL_*).
 LOBE_REFLECT = 1
@@ -221,22 +225,27 @@ class BSDFParams:
         ``ior (m,)``, ``specular_ior_level (m,)``, ``specular_tint (m, 3)`` and
         ``multiscatter (m,)`` and the coat's ``coat_weight``, ``coat_roughness``, ``coat_ior``
         ``(m,)`` and ``coat_tint (m, 3)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5, white,
-        single scattering, no coat). Layered rows fold Specular IOR Level into the coat index; dielectric rows
-        use the IOR as is; conductor rows marked ``multiscatter`` become ``KIND_CONDUCTOR_MS``.
+        single scattering, no coat). Layered rows fold Specular IOR Level into the coat
+        index; dielectric rows use the IOR as is; conductor, layered and (not index-matched)
+        dielectric rows marked ``multiscatter`` become ``KIND_*_MS``.
         """
         ids = np.asarray(mat_ids, np.int64)
         kind = np.asarray(materials.kind, np.int32)[ids]
-        multiscatter = getattr(materials, "multiscatter", None)
-        if multiscatter is not None:
-            ms = np.asarray(multiscatter, bool)[ids]
-            kind = np.where(ms & (kind == KIND_CONDUCTOR), KIND_CONDUCTOR_MS, kind)
-            kind = np.where(ms & (kind == KIND_LAYERED), KIND_LAYERED_MS, kind)
 
         def column(name, default, shape=()):
             values = getattr(materials, name, None)
             if values is None:
                 return np.full((ids.size,) + shape, default, np.float64)
             return np.asarray(values, np.float64)[ids]
+
+        multiscatter = getattr(materials, "multiscatter", None)
+        if multiscatter is not None:
+            ms = np.asarray(multiscatter, bool)[ids]
+            kind = np.where(ms & (kind == KIND_CONDUCTOR), KIND_CONDUCTOR_MS, kind)
+            kind = np.where(ms & (kind == KIND_LAYERED), KIND_LAYERED_MS, kind)
+            # Index-matched glass stays a pass-through: smooth, nothing to compensate.
+            matched = np.abs(column("ior", DEFAULT_IOR) - 1.0) < dielectric.ETA_SMOOTH
+            kind = np.where(ms & (kind == KIND_DIELECTRIC) & ~matched, KIND_DIELECTRIC_MS, kind)
 
         return make_params(kind, np.asarray(materials.base_color, np.float64)[ids],
                            roughness=column("roughness", DEFAULT_ROUGHNESS),
@@ -401,6 +410,16 @@ def _layered_sample(p, wo, u_lobe, u, mode):
     return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode)
 
 
+def _dielectric_ms_eval(p, wo, wi, mode):
+    return dielectric.eval_dielectric(p.eta, p.alpha, p.tint, p.color, wo, wi, mode,
+                                      multiscatter=True)
+
+
+def _dielectric_ms_sample(p, wo, u_lobe, u, mode):
+    return dielectric.sample_dielectric(p.eta, p.alpha, p.tint, p.color, wo, u_lobe, u, mode,
+                                        multiscatter=True)
+
+
 def _layered_ms_eval(p, wo, wi, mode):
     return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode, multiscatter=True)
 
@@ -421,6 +440,8 @@ _FAMILIES = {
     KIND_LAYERED: (_layered_eval, _layered_pdf, _layered_sample, _layered_kind),
     KIND_CONDUCTOR_MS: (_conductor_ms_eval, _conductor_pdf, _conductor_ms_sample, _glossy_kind),
     KIND_LAYERED_MS: (_layered_ms_eval, _layered_ms_pdf, _layered_ms_sample, _layered_kind),
+    KIND_DIELECTRIC_MS: (_dielectric_ms_eval, _dielectric_pdf, _dielectric_ms_sample,
+                         _glossy_kind),
 }
 
 
@@ -430,7 +451,7 @@ def _groups(params):
     if kind.size == 0:
         return []
     lo, hi = int(kind.min()), int(kind.max())
-    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..5
+    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..6
         unknown = ~np.isin(kind, KINDS)
         raise ValueError(f"unknown BSDF kind codes {np.unique(kind[unknown]).tolist()}")
     first = kind[0]
@@ -547,8 +568,8 @@ def is_delta_only(params):
     """Rows whose BSDF is a pure delta distribution (``eval`` and ``pdf`` always zero). ``(k,)``."""
     conductor_rows = (params.kind == KIND_CONDUCTOR) | (params.kind == KIND_CONDUCTOR_MS)
     smooth_conductor = conductor_rows & is_smooth(params.alpha)
-    smooth_dielectric = (params.kind == KIND_DIELECTRIC) & is_smooth_dielectric(params.eta,
-                                                                                params.alpha)
+    dielectric_rows = (params.kind == KIND_DIELECTRIC) | (params.kind == KIND_DIELECTRIC_MS)
+    smooth_dielectric = dielectric_rows & is_smooth_dielectric(params.eta, params.alpha)
     delta_only = smooth_conductor | smooth_dielectric
     coated = coat_rows(params)
     if coated.size:

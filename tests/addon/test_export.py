@@ -331,9 +331,9 @@ def test_glossy_glass_refraction_transparent_and_mix_nodes_map_to_core_kinds(emp
     np.testing.assert_allclose([mix[0], mix[1]], [0.2, 0.8], rtol=1e-6)
 
 
-def test_multiscatter_ggx_is_flagged_on_metals_and_specular_layers_reported_on_glass(
-        empty_scene, export):
-    from sampling_lab.core.materials.bsdf import KIND_CONDUCTOR_MS, KIND_LAYERED_MS, BSDFParams
+def test_multiscatter_ggx_is_flagged_on_metals_specular_layers_and_glass(empty_scene, export):
+    from sampling_lab.core.materials.bsdf import (KIND_CONDUCTOR_MS, KIND_DIELECTRIC_MS,
+                                                  KIND_LAYERED_MS, BSDFParams)
 
     def glossy(name, distribution):
         return scenes.glossy_material(name, (0.9, 0.7, 0.5), 0.4, distribution)
@@ -358,14 +358,32 @@ def test_multiscatter_ggx_is_flagged_on_metals_and_specular_layers_reported_on_g
                   for r, w in zip(m.mix_rows[row["HalfMetal"]], m.mix_weights[row["HalfMetal"]])
                   if w > 0}
     assert components == {1: True, 3: True}
-    assert sorted(s.messages) == sorted([
-        "Material 'RoughGlass': MULTI_GGX distribution of node 'Glass BSDF' is not supported "
-        "yet; rendered as GGX"]), s.messages
-    # The core shades the flagged conductor and layered rows with the compensated BSDFs.
+    assert s.messages == [], s.messages
+    # The core shades the flagged rows with the compensated BSDFs.
     layered = [r for r in m.mix_rows[row["HalfMetal"]] if m.kind[r] == 3][0]
     kinds = BSDFParams.from_materials(m, np.array([row["MultiGlossy"], row["Glossy"],
-                                                   layered])).kind
-    assert kinds.tolist() == [KIND_CONDUCTOR_MS, 1, KIND_LAYERED_MS]
+                                                   layered, row["RoughGlass"]])).kind
+    assert kinds.tolist() == [KIND_CONDUCTOR_MS, 1, KIND_LAYERED_MS, KIND_DIELECTRIC_MS]
+
+
+def test_principled_glass_tints_each_pass_by_the_square_root_of_its_base_colour(empty_scene,
+                                                                              export):
+    def glass(name, color):
+        mat = _principled(name, **{"Transmission Weight": 1.0, "Roughness": 0.4,
+                                   "Base Color": (*color, 1.0)})
+        next(n for n in mat.node_tree.nodes
+             if n.bl_idname == "ShaderNodeBsdfPrincipled").distribution = 'MULTI_GGX'
+        return mat
+
+    s, row = _export_materials(empty_scene, export, glass("White", (1.0, 1.0, 1.0)),
+                               glass("Green", (0.25, 0.64, 0.09)))
+    m = s.materials
+    np.testing.assert_allclose(m.base_color[row["Green"]], [0.5, 0.8, 0.3], rtol=1e-6)
+    # Multiscatter GGX is compensated on white glass only (Cycles' F_ss = 1 there).
+    assert m.multiscatter[row["White"]] and not m.multiscatter[row["Green"]]
+    assert s.messages == ["Material 'Green': Multiscatter GGX on the coloured transmission of "
+                          "node 'Principled BSDF' is not supported yet; rendered as "
+                          "single-scattering GGX"], s.messages
 
 
 def test_texture_driven_color_uses_socket_value_and_is_reported(empty_scene, export):
