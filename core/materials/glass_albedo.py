@@ -13,9 +13,10 @@ the interior). Kulla and Conty, "Revisiting Physically Based Shading at Imagewor
 
 ``f_ms(wo, wi) = f_ss(wo, wi) / E(mu_o, eta_o)`` for white glass; a coloured Glass BSDF gets
 Cycles' darkening with ``F_ss`` = its colour (``1 + F_ms (1 - E) / E``, as
-:mod:`.multiscatter`, with ``E_avg`` the table's cosine-weighted average). Sampling is unchanged (the pdf is the
-single-scattering one; the sample weight is divided by ``E``); the BSDF is not reciprocal, and
-its adjoint (importance mode) takes the factor at ``wi`` with the index seen from ``wi``.
+:mod:`.multiscatter`, with ``E_avg`` the table's cosine-weighted average). Sampling is
+unchanged (the pdf is the single-scattering one; the sample weight is scaled); the BSDF is not
+reciprocal, and its adjoint (importance mode) takes the factor at ``wi`` with the index seen
+from ``wi``.
 
 Tables. ``E`` on :data:`N_MU` x :data:`N_ROUGHNESS` x :data:`N_Z` nodes uniform in
 ``sqrt(mu)``, roughness and ``z = sqrt((n - 1) / (n + 1))`` (``n`` = the index or its

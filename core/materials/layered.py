@@ -218,10 +218,11 @@ def fresnel_average(eta, n=32):
     x, w = np.polynomial.legendre.leggauss(n)
     t = 0.5 * (x + 1.0)                       # sqrt(mu) in (0, 1)
     mu = t * t
-    eta = np.asarray(eta, np.float64)
+    # A batch holds few distinct indices (one per material): integrate each once.
+    eta, inverse = np.unique(np.asarray(eta, np.float64), return_inverse=True)
     f = fresnel_dielectric(mu[None, :], eta[:, None])
     # 2 int F mu dmu = 2 int F t^2 2 t dt, dt = dx / 2.
-    return np.sum(f * (2.0 * mu * 2.0 * t * 0.5 * w)[None, :], axis=1)
+    return np.sum(f * (2.0 * mu * 2.0 * t * 0.5 * w)[None, :], axis=1)[inverse.reshape(-1)]
 
 
 def multiscatter_factor(mu, alpha, eta, tint):

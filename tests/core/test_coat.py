@@ -121,7 +121,8 @@ def test_coat_of_weight_zero_is_the_base_exactly():
     wi /= np.linalg.norm(wi, axis=1, keepdims=True)
     u_lobe, u = rng.random(k), rng.random((k, 2))
     rest = np.arange(k) >= 10
-    np.testing.assert_array_equal(B.eval_bsdf(some, wo, wi)[rest], B.eval_bsdf(plain, wo, wi)[rest])
+    np.testing.assert_array_equal(B.eval_bsdf(some, wo, wi)[rest],
+                                  B.eval_bsdf(plain, wo, wi)[rest])
     np.testing.assert_array_equal(B.pdf_bsdf(some, wo, wi)[rest], B.pdf_bsdf(plain, wo, wi)[rest])
     a, b = B.sample_bsdf(some, wo, u_lobe, u), B.sample_bsdf(plain, wo, u_lobe, u)
     for x, y in zip(a, b):
@@ -319,7 +320,8 @@ def test_glass_albedo_table_matches_its_quadrature_between_nodes():
     assert err.max() < 0.02 and err.mean() < 5e-3, (err.max(), err.mean())
 
 
-@pytest.mark.parametrize("roughness,z,eta", [(1.0, 0.9, 1.5), (0.5, 0.3, 1.5), (1.0, 0.8, 1 / 1.5)])
+@pytest.mark.parametrize("roughness,z,eta", [(1.0, 0.9, 1.5), (0.5, 0.3, 1.5),
+                                             (1.0, 0.8, 1 / 1.5)])
 def test_white_rough_glass_loses_no_energy_with_multiscatter(roughness, z, eta):
     # Seen from the camera (radiance mode, the factor at wo), reflection plus transmission in
     # flux terms (the transmitted samples' 1 / etap^2 undone) sums to one up to the table's
