@@ -103,7 +103,9 @@ class Subpath:
             getattr(self, name).fill(0.0)
         table = self.all_params
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
-                              (table.eta, 1.0), (table.tint, 0.0), (table.coat_weight, 0.0)):
+                              (table.eta, 1.0), (table.tint, 0.0), (table.coat_weight, 0.0),
+                              (table.coat_alpha, 1.0), (table.coat_eta, 1.0),
+                              (table.coat_tint, 1.0)):
             column.fill(value)
         return self
 

@@ -39,6 +39,7 @@ import numpy as np
 
 from . import microfacet as mf
 from .dielectric import RADIANCE
+from .families import LOBE_GLOSSY, LOBE_REFLECT, LOBE_SINGULAR
 from .frame import flip_to_upper, reflect, reflect_z, side_of
 from .fresnel import fresnel_dielectric
 from .layered import coat_albedo_lookup, coat_lobe_eval, coat_lobe_pdf
@@ -50,8 +51,7 @@ __all__ = ["coat_rows", "coat_attenuation", "coat_probability", "eval_coated", "
 DEFAULT_COAT_ROUGHNESS = 0.03
 DEFAULT_COAT_IOR = 1.5
 
-# Lobe labels (the values of core.materials.bsdf's LOBE_*, which imports this module).
-_REFLECT, _GLOSSY, _SINGULAR = 1, 8, 16
+_REFLECT, _GLOSSY, _SINGULAR = LOBE_REFLECT, LOBE_GLOSSY, LOBE_SINGULAR
 
 
 def coat_rows(params):
