@@ -361,3 +361,27 @@ def test_coloured_glass_darkens_like_cycles_with_its_colour_as_fresnel_average()
     np.testing.assert_allclose(f[0], 1.0 / albedo_lookup(mu[:1], alpha[:1], eta[:1])[0],
                                rtol=1e-12)
     assert f[1, 0] == f[0, 0] and 1.0 < f[1, 2] < f[1, 1] < f[1, 0]
+
+
+def test_coated_outputs_are_finite_and_non_negative_on_hard_inputs():
+    # The hard direction pairs of test_bsdf_stability (grazing, tangent, mirrored,
+    # antiparallel) under coats over every kind, with floating-point errors raised.
+    from tests.core.test_bsdf_stability import ONE_MINUS, _pairs
+    wo, wi = _pairs()
+    k = len(wo)
+    rng = np.random.default_rng(21)
+    with np.errstate(divide="raise", invalid="raise", over="raise"):
+        for coat_roughness in (0.0, 0.3, 1.0):
+            params = B.make_params(rng.choice(B.KINDS, k), rng.random((k, 3)),
+                                   rng.choice([0.0, 0.5, 1.0], k), rng.choice([1.0, 1.5], k),
+                                   coat_weight=rng.random(k), coat_roughness=coat_roughness,
+                                   coat_ior=rng.choice([1.0, 1.5, 3.0], k),
+                                   coat_tint=rng.random((k, 3)))
+            assert np.all(B.pdf_bsdf(params, wo, wi) >= 0)
+            for mode in B.TRANSPORT_MODES:
+                assert np.all(B.eval_bsdf(params, wo, wi, mode) >= 0)
+                for u_val in (0.0, 0.5, ONE_MINUS):
+                    s = B.sample_bsdf(params, wo, np.full(k, u_val), np.full((k, 2), u_val),
+                                      mode)
+                    assert np.all(np.isfinite(s.weight)) and np.all(s.weight >= 0)
+                    assert np.all(np.isfinite(s.pdf)) and np.all(s.pdf >= 0)
