@@ -13,9 +13,10 @@ import numpy as np
 from .accel import Accel
 from .lights import Emission, LightSampler
 from .materials.bsdf import KIND_DIELECTRIC, BSDFParams, is_delta_only
+from .materials.microfacet import alpha_from_roughness
 from .sampling.distributions import Segmented1D
 from .scene import Scene
-from .textures import material_base_color, textured_base_color
+from .textures import material_base_color, material_roughness, textured_base_color
 
 
 def recentred(scene: Scene):
@@ -159,8 +160,8 @@ class PreparedScene:
         ``f_k`` is the mixture, so estimates stay unbiased.
 
         Given the hits' barycentrics ``u, v (k,)``, textured components get their looked-up
-        base colour (a texture belongs to the component it feeds, so mixtures need this
-        rather than :meth:`textured_base_color`).
+        base colour and roughness (a texture belongs to the component it feeds, so mixtures
+        need this rather than :meth:`textured_base_color`).
 
         Returns
         -------
@@ -171,10 +172,17 @@ class PreparedScene:
         """
         material, u_lobe = self.choose_material(prim, u_lobe)
         params = self.material_bsdf.take(material)
+        delta_only = self.material_delta_only[material]
         if u is not None and self.scene.textures:
             rows, color = material_base_color(self.scene, material, prim, u, v)
             params.color[rows] = color
-        return params, self.material_delta_only[material], u_lobe
+            rows, roughness = material_roughness(self.scene, material, prim, u, v)
+            if rows.size:
+                # A textured roughness may make a smooth row rough, or the other way round.
+                params.alpha[rows] = alpha_from_roughness(roughness)
+                delta_only = delta_only.copy()
+                delta_only[rows] = is_delta_only(params.take(rows))
+        return params, delta_only, u_lobe
 
     def textured_base_color(self, prim, u, v):
         """Base colour of hits ``prim, u, v (k,)`` on textured materials: ``rows (j,)`` into
@@ -216,7 +224,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     mix = (Segmented1D(mix_weights.reshape(-1), np.arange(m + 1) * width, method=distribution)
            if width > 1 else None)
     used = np.unique(scene.material)
-    lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used]))
+    lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used])
+                        and not np.any(mats.coat_weight[used] > 0))
     transparency = transparency_table(bsdf, mix_rows, mix_weights)
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),

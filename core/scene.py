@@ -23,6 +23,8 @@ MAT_LAYERED = 3
 DEFAULT_ROUGHNESS = 0.5
 DEFAULT_IOR = 1.5
 DEFAULT_SPECULAR_IOR_LEVEL = 0.5
+DEFAULT_COAT_ROUGHNESS = 0.03
+DEFAULT_COAT_IOR = 1.5
 
 # Light kinds.
 LIGHT_POINT = 0   # point or spot, optionally a sphere of `radius`
@@ -133,13 +135,24 @@ class Materials:
     specular_tint : (m, 3) float32
         Reflection tint (dielectric) or coat tint (layered); default white.
     multiscatter : (m,) bool
-        Blender's *Multiscatter GGX*: rough conductor rows get Cycles' energy compensation
-        for light that bounces between microfacets (:mod:`core.materials.multiscatter`).
-        Ignored on other kinds (the exporter reports it there). Default False: single
-        scattering.
+        Blender's *Multiscatter GGX*: rough conductor and layered rows get Cycles' energy
+        compensation for light that bounces between microfacets
+        (:mod:`core.materials.multiscatter`). Ignored on other kinds (the exporter reports
+        it there). Default False: single scattering.
+    coat_weight : (m,) float32
+        Principled Coat Weight in [0, 1]: a clear coat over the row's BSDF
+        (:mod:`core.materials.coat`); default 0 (none).
+    coat_roughness, coat_ior : (m,) float32
+        The coat's roughness and IOR; defaults 0.03 and 1.5, Blender's.
+    coat_tint : (m, 3) float32
+        Coat Tint (transmittance of the coat at normal incidence); default white.
     texture : (m,) int32
         Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
         (an Image Texture into the base colour); -1 (the default) for none.
+    roughness_texture : (m,) int32
+        Row of :attr:`Scene.textures` whose lookup (its luminance, as Blender converts a
+        colour to a float socket) replaces ``roughness`` at shading time (an Image Texture
+        into the Roughness input); -1 (the default) for none.
     mix_rows : (m, c) int32
         Component rows of each material: a row whose ``mix_rows`` is more than itself is a
         *mixture* (a Principled BSDF with fractional Metallic, Transmission or Alpha, a Mix
@@ -164,7 +177,12 @@ class Materials:
     specular_ior_level: np.ndarray = None
     specular_tint: np.ndarray = None
     multiscatter: np.ndarray = None
+    coat_weight: np.ndarray = None
+    coat_roughness: np.ndarray = None
+    coat_ior: np.ndarray = None
+    coat_tint: np.ndarray = None
     texture: np.ndarray = None
+    roughness_texture: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
 
@@ -185,7 +203,12 @@ class Materials:
         self.specular_tint = column(self.specular_tint, 1.0, (3,))
         self.multiscatter = (np.zeros(m, bool) if self.multiscatter is None
                              else np.broadcast_to(np.asarray(self.multiscatter, bool), (m,)).copy())
+        self.coat_weight = np.clip(column(self.coat_weight, 0.0), 0.0, 1.0)
+        self.coat_roughness = column(self.coat_roughness, DEFAULT_COAT_ROUGHNESS)
+        self.coat_ior = column(self.coat_ior, DEFAULT_COAT_IOR)
+        self.coat_tint = column(self.coat_tint, 1.0, (3,))
         self.texture = texture_column(self.texture, m)
+        self.roughness_texture = texture_column(self.roughness_texture, m)
         self._check_mix(m)
 
     def _check_mix(self, m):
@@ -221,7 +244,9 @@ class Materials:
     def from_lists(names, base_colors, emissions, kinds=None, roughness=None, ior=None,
                    metallic=None, transmission=None, specular_ior_level=None,
                    specular_tint=None, texture=None, mix_rows=None,
-                   mix_weights=None, multiscatter=None) -> "Materials":
+                   mix_weights=None, multiscatter=None, coat_weight=None,
+                   coat_roughness=None, coat_ior=None, coat_tint=None,
+                   roughness_texture=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -234,7 +259,10 @@ class Materials:
             specular_tint=None if specular_tint is None
             else np.asarray(specular_tint, np.float32).reshape(-1, 3),
             multiscatter=multiscatter, texture=texture, mix_rows=mix_rows,
-            mix_weights=mix_weights,
+            mix_weights=mix_weights, coat_weight=coat_weight, coat_roughness=coat_roughness,
+            coat_ior=coat_ior, roughness_texture=roughness_texture,
+            coat_tint=None if coat_tint is None
+            else np.asarray(coat_tint, np.float32).reshape(-1, 3),
         )
 
 
@@ -414,7 +442,7 @@ class Scene:
                                                     TEXTURE_INTERPOLATIONS)
         self.texture_extension = _texture_modes(self.texture_extension, n, "REPEAT",
                                                 TEXTURE_EXTENSIONS)
-        if np.any(self.materials.texture >= len(self.textures)):
+        if np.any(self.materials.texture >= n) or np.any(self.materials.roughness_texture >= n):
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:
             raise ValueError("textured scenes need corner_uvs")

@@ -1,4 +1,5 @@
-"""Image textures on surfaces: the base colour of a material looked up at the hit's UV.
+"""Image textures on surfaces: the base colour and roughness of a material looked up at the
+hit's UV.
 
 What Cycles' Image Texture node computes (``kernel/device/cpu/image.h``) on the active UV map:
 Linear (bilinear between texel centres) or Closest (the texel containing the point)
@@ -83,6 +84,40 @@ def textured_base_color(scene, tri_material, prim, u, v):
     return material_base_color(scene, tri_material[prim], prim, u, v)
 
 
+# Blender's colour -> float socket conversion: the luminance of linear Rec.709.
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def material_texture_values(scene, column, material, prim, u, v):
+    """Lookups of the texture column ``column (m,)`` (an index into ``scene.textures`` per
+    material row, -1 for none) for the hits of ``material (k,)`` rows on ``prim, u, v (k,)``:
+    ``rows (j,)`` into the hits that have one, and their ``(j, 3)`` colours (unclipped)."""
+    if not scene.textures or prim.size == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 3))
+    tex = column[material]
+    rows = np.nonzero(tex >= 0)[0]
+    color = np.zeros((rows.size, 3))
+    if rows.size == 0:
+        return rows, color
+    uv = hit_uv(scene.corner_uvs, prim[rows], u[rows], v[rows])
+    # One lookup per texture used by this batch (bounded by the scene's texture count).
+    for index in np.unique(tex[rows]):
+        sel = np.nonzero(tex[rows] == index)[0]
+        color[sel] = texture_lookup(scene.textures[index], uv[sel],
+                                    scene.texture_interpolation[index],
+                                    scene.texture_extension[index])
+    return rows, color
+
+
+def material_roughness(scene, material, prim, u, v):
+    """Roughness of the hits whose material row has a roughness texture: ``rows (j,)`` into
+    ``prim`` and the luminance of the lookup ``(j,)``, clipped to [0, 1] (see
+    :func:`material_base_color` for the parameters)."""
+    rows, color = material_texture_values(scene, scene.materials.roughness_texture, material,
+                                          prim, u, v)
+    return rows, np.clip(color @ LUMINANCE, 0.0, 1.0)
+
+
 def material_base_color(scene, material, prim, u, v):
     """Base colours of the hits whose material row is textured.
 
@@ -101,18 +136,5 @@ def material_base_color(scene, material, prim, u, v):
     color : (j, 3) float64
         Their base colours, clipped to [0, 1] as every material colour is.
     """
-    if not scene.textures or prim.size == 0:
-        return np.zeros(0, np.int64), np.zeros((0, 3))
-    tex = scene.materials.texture[material]
-    rows = np.nonzero(tex >= 0)[0]
-    color = np.zeros((rows.size, 3))
-    if rows.size == 0:
-        return rows, color
-    uv = hit_uv(scene.corner_uvs, prim[rows], u[rows], v[rows])
-    # One lookup per texture used by this batch (bounded by the scene's texture count).
-    for index in np.unique(tex[rows]):
-        sel = np.nonzero(tex[rows] == index)[0]
-        color[sel] = texture_lookup(scene.textures[index], uv[sel],
-                                    scene.texture_interpolation[index],
-                                    scene.texture_extension[index])
+    rows, color = material_texture_values(scene, scene.materials.texture, material, prim, u, v)
     return rows, np.clip(color, 0.0, 1.0)

@@ -125,6 +125,13 @@ def _bench_export(args):
     return 0
 
 
+def _bench_materials(args):
+    from .materials_speed import run
+
+    run(rows=args.rows, repeats=args.repeats)
+    return 0
+
+
 def _bench_radiosity(args):
     from .radiosity import SIZES, run
 
@@ -212,6 +219,11 @@ def add_parsers(sub, **kw):
     e.add_argument("--triangles", type=_positive_int, default=1_000_000,
                    help="about this many triangles")
     e.add_argument("--repeats", type=_positive_int, default=5, help="exports timed")
+    m = _add(sub, "bench-materials", "rows per second of BSDF sample + eval + pdf for every "
+             "material model (coat, Multiscatter GGX, ...), side by side (figures, not tests)",
+             _bench_materials, **kw)
+    m.add_argument("--rows", type=_positive_int, default=100_000, help="rows per round")
+    m.add_argument("--repeats", type=_positive_int, default=5, help="rounds (best is kept)")
     r = _add(sub, "bench-radiosity", "radiosity: solve time and peak memory against patch "
              "count for every solver, and equal-time error against path tracing and Cycles "
              "(a table; docs/RADIOSITY.md quotes a run)", _bench_radiosity, **kw)

@@ -21,7 +21,7 @@ from ...core.scene import (
     Materials,
 )
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
-from .textures import surface_texture
+from .textures import roughness_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
 DEFAULT_SURFACE_NAME = "Default Surface"
@@ -29,9 +29,7 @@ DEFAULT_SURFACE_COLOR = (0.8, 0.8, 0.8)
 
 # Principled BSDF inputs whose non-zero value adds a lobe the core materials do not have.
 _PRINCIPLED_LOBES = (
-    ("Coat Weight", "coat"),
     ("Sheen Weight", "sheen"),
-    ("Subsurface Weight", "subsurface"),
 )
 
 # Most components a mixture keeps (the largest weights, renormalised; reported beyond).
@@ -50,12 +48,20 @@ class Surface(NamedTuple):
     transmission: float = 0.0
     specular_ior_level: float = 0.5
     specular_tint: np.ndarray = np.ones(3)
-    multiscatter: bool = False  # Multiscatter GGX (honoured on conductors, see Materials)
+    multiscatter: bool = False  # Multiscatter GGX (on conductor and layered rows, see Materials)
     texture: np.ndarray = None  # (h, w, 3) float32 base colour image, see surface_texture
     texture_mode: tuple = ("Linear", "REPEAT")  # the image node's interpolation, extension
     # A mixture: ((weight, Surface), ...) of plain surfaces (see mix_surfaces); this row's own
     # BSDF fields are then unused, its emission is the mixture's.
     components: tuple = ()
+    # Principled Coat over this surface (core.materials.coat); weight 0: none.
+    coat_weight: float = 0.0
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
+    coat_tint: np.ndarray = np.ones(3)
+    # (h, w, 3) float32 image whose luminance is the roughness (None: the roughness field).
+    roughness_texture: np.ndarray = None
+    roughness_texture_mode: tuple = ("Linear", "REPEAT")
 
 
 def _diffuse(color, emission=None):
@@ -120,13 +126,16 @@ def _shader_surface(source, owner, messages, depth=0):
                                        depth + 1))]
         return mix_surfaces(parts, owner, messages)
     texture = surface_texture(node, owner, messages)
+    rough = roughness_texture(node, owner, messages)
+    rough = {} if rough is None else {"roughness_texture": rough[0],
+                                      "roughness_texture_mode": rough[1]}
     if kind == 'ShaderNodeBsdfPrincipled':
         read.ignored_if_linked(node, "Normal", "the normal input")
-        return _principled_surface(node, read, owner, texture)
+        return _principled_surface(node, read, owner, texture, rough)
     surface = _node_surface(node, read, owner, messages)
     if texture is not None:
         surface = surface._replace(texture=texture[0], texture_mode=texture[1])
-    return surface
+    return surface._replace(**rough)
 
 
 def _node_surface(node, read, owner, messages):
@@ -157,14 +166,18 @@ def _node_surface(node, read, owner, messages):
                        multiscatter=getattr(node, "distribution", 'GGX') == 'MULTI_GGX')
 
     if kind in {'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction'}:
-        _distribution_note(node, read, owner)
+        # Multiscatter GGX: Cycles' compensation of glass (the Glass BSDF's rule).
+        glass = kind == 'ShaderNodeBsdfGlass'
+        _distribution_note(node, read, owner,
+                           handled=('GGX', 'SHARP', 'MULTI_GGX') if glass else ('GGX', 'SHARP'))
         if kind == 'ShaderNodeBsdfRefraction':
             messages.add(f"{owner}: node '{name}' (refraction only) is not supported yet; "
                          f"rendered as glass (with Fresnel reflection)")
         color = read.color(node, "Color", (1.0, 1.0, 1.0))
         return Surface(MAT_DIELECTRIC, color, np.zeros(3),
                        roughness=read.value(node, "Roughness", 0.0),
-                       ior=read.value(node, "IOR", 1.5), transmission=1.0, specular_tint=color)
+                       ior=read.value(node, "IOR", 1.5), transmission=1.0, specular_tint=color,
+                       multiscatter=glass and getattr(node, "distribution", 'GGX') == 'MULTI_GGX')
 
     if kind == 'ShaderNodeBsdfTransparent':
         return _transparent(read.color(node, "Color", (1.0, 1.0, 1.0)))
@@ -186,7 +199,10 @@ def _surface_key(surface):
     """What makes two plain surfaces the same BSDF (to merge equal mixture components)."""
     return (surface.kind, tuple(np.round(surface.base_color, 9)), surface.roughness,
             surface.ior, surface.specular_ior_level, tuple(np.round(surface.specular_tint, 9)),
-            surface.multiscatter, id(surface.texture), surface.texture_mode)
+            surface.multiscatter, id(surface.texture), surface.texture_mode,
+            surface.coat_weight, surface.coat_roughness, surface.coat_ior,
+            tuple(np.round(surface.coat_tint, 9)), id(surface.roughness_texture),
+            surface.roughness_texture_mode)
 
 
 def mix_surfaces(parts, owner, messages):
@@ -214,7 +230,8 @@ def mix_surfaces(parts, owner, messages):
     flat = sorted(merged.values(), key=lambda wc: -wc[0])
     if not flat:
         return _BLACK._replace(emission=emission)
-    if all(c.kind == MAT_DIFFUSE and c.texture is None for _, c in flat):
+    if all(c.kind == MAT_DIFFUSE and c.texture is None and c.coat_weight == 0
+           and c.roughness_texture is None for _, c in flat):
         color = sum(w * np.asarray(c.base_color, np.float64) for w, c in flat)
         return _diffuse(color / sum(w for w, _ in flat), emission)
     if len(flat) == 1:
@@ -229,14 +246,15 @@ def mix_surfaces(parts, owner, messages):
     return main._replace(emission=emission, texture=None, components=components)
 
 
-def _principled_surface(node, read, owner, texture=None):
+def _principled_surface(node, read, owner, texture=None, rough=None):
     """Principled BSDF -> a mixture of conductor (metallic), dielectric (transmission), coat
     over diffuse and, for Alpha < 1, a transparent pass-through.
 
     Weights as Cycles' Principled: transparent ``1 - a``, then of the rest ``a``: metal ``m``,
     glass ``(1 - m) t`` and the opaque dielectric ``(1 - m)(1 - t)``; emission is scaled by
     ``a`` too. ``texture`` (pixels, modes) drives the base colour of every component but the
-    transparent one.
+    transparent one, ``rough`` (the :class:`Surface` fields of a roughness texture) their
+    roughness.
     """
     messages = read.messages
     name = node_name(node)
@@ -252,6 +270,13 @@ def _principled_surface(node, read, owner, texture=None):
     if lobes:
         messages.add(f"{owner}: {', '.join(lobes)} of node '{name}' "
                      f"{'is' if len(lobes) == 1 else 'are'} not supported yet; ignored")
+    if read.value(node, "Subsurface Weight") > 0:
+        messages.add(f"{owner}: subsurface scattering of node '{name}' is approximated as "
+                     f"diffuse reflection of the base colour")
+    coat = _principled_coat(node, read, owner)
+    if coat["coat_weight"] > 0 and np.any(emission > 0):
+        messages.add(f"{owner}: emission under the coat of node '{name}' is not attenuated "
+                     f"by the coat yet")
     alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
     if read.value(node, "Anisotropic") != 0:
         messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
@@ -260,7 +285,11 @@ def _principled_surface(node, read, owner, texture=None):
                MAT_LAYERED: (1 - metallic) * (1 - transmission)}
     distribution = getattr(node, "distribution", 'GGX')
     multiscatter = distribution == 'MULTI_GGX'
-    _principled_distribution_note(distribution, weights, roughness, owner, name, messages)
+    # Cycles' Multiscatter GGX on the transmission uses F_ss = 1, ours the transmission tint:
+    # the same for white, untextured glass only.
+    white_glass = texture is None and bool(np.all(base >= 0.999))
+    _principled_distribution_note(distribution, weights, roughness, owner, name, messages,
+                                  white_glass)
     if metallic > 0 and np.any(tint != 1.0):
         messages.add(f"{owner}: metallic specular tint (F82) of node '{name}' is not "
                      f"supported yet; ignored")
@@ -268,11 +297,19 @@ def _principled_surface(node, read, owner, texture=None):
         messages.add(f"{owner}: specular IOR level of transmissive node '{name}' is not "
                      f"supported yet; ignored")
     pixels, mode = texture if texture is not None else (None, ("Linear", "REPEAT"))
-    parts = [(w, Surface(kind, base, np.zeros(3), roughness, ior,
+    if weights[MAT_DIELECTRIC] > 0 and pixels is not None:
+        messages.add(f"{owner}: the base colour texture of transmissive node '{name}' tints "
+                     f"each pass through the surface by the texture itself, not by its square "
+                     f"root as Cycles does")
+    # Cycles tints each pass through a Principled glass surface by sqrt(Base Color), so that
+    # entering and leaving give the base colour.
+    colors = {MAT_DIELECTRIC: np.sqrt(np.maximum(base, 0.0)) if pixels is None else base}
+    compensated = {MAT_CONDUCTOR: True, MAT_LAYERED: True, MAT_DIELECTRIC: white_glass}
+    parts = [(w, Surface(kind, colors.get(kind, base), np.zeros(3), roughness, ior,
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
-                         tint, multiscatter and kind == MAT_CONDUCTOR, pixels, mode))
+                         tint, multiscatter and compensated[kind], pixels, mode))
              for kind, w in weights.items() if w > 0]
-    parts = [(alpha * w, surface) for w, surface in parts]
+    parts = [(alpha * w, surface._replace(**coat, **(rough or {}))) for w, surface in parts]
     if alpha < 1.0:
         parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
     surface = mix_surfaces(parts, owner, messages)
@@ -280,20 +317,33 @@ def _principled_surface(node, read, owner, texture=None):
                             transmission=transmission)
 
 
-def _principled_distribution_note(distribution, weights, roughness, owner, name, messages):
+def _principled_coat(node, read, owner):
+    """The Coat inputs of Principled ``node`` as :class:`Surface` fields (weight 0: no coat);
+    a linked Coat Normal is reported (the coat uses the shading normal)."""
+    weight = min(max(read.value(node, "Coat Weight"), 0.0), 1.0)
+    if weight <= 0:
+        return {"coat_weight": 0.0}
+    read.ignored_if_linked(node, "Coat Normal", "the coat normal input")
+    return {"coat_weight": weight,
+            "coat_roughness": min(max(read.value(node, "Coat Roughness", 0.03), 0.0), 1.0),
+            "coat_ior": max(read.value(node, "Coat IOR", 1.5), 1.0),
+            "coat_tint": np.maximum(read.color(node, "Coat Tint", (1.0, 1.0, 1.0)), 0.0)}
+
+
+def _principled_distribution_note(distribution, weights, roughness, owner, name, messages,
+                                  white_glass):
     """Report what of a rough Principled BSDF's distribution is not modelled: Multiscatter GGX
-    is compensated on the metallic lobe only (as Cycles does, :mod:`core.materials.multiscatter`),
-    not on the specular layer (the opaque dielectric) nor on the transmission."""
+    is compensated on the metallic lobe, the specular layer (as Cycles does,
+    :mod:`core.materials.multiscatter`) and white untextured transmission
+    (:mod:`core.materials.glass_albedo`), not on coloured or textured transmission."""
     if roughness <= 0 or distribution == 'GGX':
         return
     if distribution != 'MULTI_GGX':
         messages.add(f"{owner}: {distribution} distribution of node '{name}' is not "
                      f"supported yet; rendered as GGX")
         return
-    layers = [label for kind, label in ((MAT_LAYERED, "specular layer"),
-                                        (MAT_DIELECTRIC, "transmission")) if weights[kind] > 0]
-    if layers:
-        messages.add(f"{owner}: Multiscatter GGX on the {' and '.join(layers)} of node "
+    if weights[MAT_DIELECTRIC] > 0 and not white_glass:
+        messages.add(f"{owner}: Multiscatter GGX on the coloured transmission of node "
                      f"'{name}' is not supported yet; rendered as single-scattering GGX")
 
 
@@ -350,33 +400,39 @@ class MaterialTable:
             roughness=col["roughness"], ior=col["ior"], metallic=col["metallic"],
             transmission=col["transmission"], specular_ior_level=col["specular_ior_level"],
             specular_tint=col["specular_tint"], multiscatter=col["multiscatter"],
-            texture=self._texture_index()[0],
+            coat_weight=col["coat_weight"], coat_roughness=col["coat_roughness"],
+            coat_ior=col["coat_ior"], coat_tint=col["coat_tint"],
+            texture=self._texture_index()[0], roughness_texture=self._texture_index()[1],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):
-        """``(m,) int32`` index into the distinct textures per row (-1 for untextured rows),
-        and those textures as ``[(pixels, (interpolation, extension)), ...]``."""
-        index, distinct, found = [], [], {}
+        """``(m,) int32`` indices into the distinct textures per row for the base colour and
+        for the roughness (-1 for none), and those textures as
+        ``[(pixels, (interpolation, extension)), ...]``."""
+        columns, distinct, found = ([], []), [], {}
         for s in self.surfaces:
-            if s.texture is None:
-                index.append(-1)
-                continue
-            key = (id(s.texture), s.texture_mode)
-            if key not in found:
-                found[key] = len(distinct)
-                distinct.append((s.texture, s.texture_mode))
-            index.append(found[key])
-        return np.asarray(index, np.int32), distinct
+            for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
+                                         (columns[1], s.roughness_texture,
+                                          s.roughness_texture_mode)):
+                if pixels is None:
+                    column.append(-1)
+                    continue
+                key = (id(pixels), mode)
+                if key not in found:
+                    found[key] = len(distinct)
+                    distinct.append((pixels, mode))
+                column.append(found[key])
+        return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct)
 
     @property
     def textures(self):
-        """Distinct base colour images in order of first use (``Scene.textures``)."""
-        return [pixels for pixels, _ in self._texture_index()[1]]
+        """Distinct images in order of first use (``Scene.textures``)."""
+        return [pixels for pixels, _ in self._texture_index()[2]]
 
     @property
     def texture_modes(self):
         """``(interpolations, extensions)`` of :attr:`textures` (``Scene.texture_*``)."""
-        modes = [mode for _, mode in self._texture_index()[1]]
+        modes = [mode for _, mode in self._texture_index()[2]]
         return [m[0] for m in modes], [m[1] for m in modes]
 
     def texture_rows(self):
@@ -386,4 +442,5 @@ class MaterialTable:
     def textured(self, rows):
         """Whether any of the material rows ``rows`` (or their components) has a texture."""
         return any(self.surfaces[c].texture is not None
+                   or self.surfaces[c].roughness_texture is not None
                    for r in np.unique(rows) for c, _ in self.mixes[int(r)])

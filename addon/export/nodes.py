@@ -19,6 +19,15 @@ TEXTURED_SOCKETS = {
 }
 
 
+# The roughness input of each BSDF node that an Image Texture may drive (its luminance).
+ROUGHNESS_SOCKETS = {
+    'ShaderNodeBsdfPrincipled': "Roughness",
+    'ShaderNodeBsdfGlossy': "Roughness",
+    'ShaderNodeBsdfAnisotropic': "Roughness",
+    'ShaderNodeBsdfGlass': "Roughness",
+}
+
+
 def uses_nodes(id_data):
     """Whether a material or world shades with its node tree."""
     # Blender 5 always shades with nodes and deprecates `use_nodes`.
@@ -94,8 +103,9 @@ class NodeReader:
             # Constant nodes are exact; anything else (textures, math) is approximated.
             if src_node.bl_idname in {'ShaderNodeRGB', 'ShaderNodeValue'}:
                 return as_size(out.default_value, size)
-            if TEXTURED_SOCKETS.get(node.bl_idname) == socket.name \
-                    and src_node.bl_idname == 'ShaderNodeTexImage':
+            textured = socket.name in (TEXTURED_SOCKETS.get(node.bl_idname),
+                                       ROUGHNESS_SOCKETS.get(node.bl_idname))
+            if textured and src_node.bl_idname == 'ShaderNodeTexImage':
                 # Read by textures.surface_texture, which reports what it cannot translate.
                 return as_size(socket.default_value, size)
             self.messages.add(

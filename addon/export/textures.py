@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.scene import TEXTURE_EXTENSIONS, TEXTURE_INTERPOLATIONS
-from .nodes import TEXTURED_SOCKETS, follow_link, node_name
+from .nodes import ROUGHNESS_SOCKETS, TEXTURED_SOCKETS, follow_link, node_name
 
 # Colour spaces whose float values are scene-linear Rec.709 (Blender's working space) already.
 _LINEAR_COLORSPACES = {'Linear Rec.709', 'Linear', 'Non-Color'}
@@ -20,6 +20,19 @@ def surface_texture(node, owner, messages):
     """``(pixels, (interpolation, extension))`` of the Image Texture driving the base colour
     of BSDF node ``node``, or None (unsupported ones reported)."""
     name = TEXTURED_SOCKETS.get(node.bl_idname)
+    socket = node.inputs.get(name) if name else None
+    link = follow_link(socket) if socket is not None else None
+    if link is None or link[0].bl_idname != 'ShaderNodeTexImage':
+        return None
+    return _image_texture_pixels(link[0], link[1], owner, messages)
+
+
+def roughness_texture(node, owner, messages):
+    """``(pixels, (interpolation, extension))`` of the Image Texture driving the Roughness of
+    BSDF node ``node`` (its luminance is the roughness; the image's colour space is honoured
+    as for colours, so Non-Color data is used as stored), or None (unsupported ones
+    reported)."""
+    name = ROUGHNESS_SOCKETS.get(node.bl_idname)
     socket = node.inputs.get(name) if name else None
     link = follow_link(socket) if socket is not None else None
     if link is None or link[0].bl_idname != 'ShaderNodeTexImage':

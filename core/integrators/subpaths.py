@@ -26,30 +26,24 @@ def dot(a, b):
 
 
 def _empty_params(n):
+    # With coat columns (weight zero), so that views of one table can take coated rows.
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
-                      np.zeros((n, 3)))
+                      np.zeros((n, 3))).with_no_coat()
 
 
 def take_params(params, rows):
     """The rows ``rows (k,)`` of ``params`` (as :meth:`BSDFParams.take`, gathered by
     ``np.take``: several times faster for the ``(n, 3)`` columns)."""
-    return BSDFParams(np.take(params.kind, rows), take_rows(params.color, rows),
-                      np.take(params.alpha, rows), np.take(params.eta, rows),
-                      take_rows(params.tint, rows))
+    return params.map_columns(lambda c: take_rows(c, rows) if c.ndim == 2 else np.take(c, rows))
 
 
 def _slice_params(params, part):
     """Rows ``part`` (a slice) of ``params``, as views."""
-    return BSDFParams(params.kind[part], params.color[part], params.alpha[part],
-                      params.eta[part], params.tint[part])
+    return params.take(part)
 
 
 def _scatter_params(dst, rows, src):
-    dst.kind[rows] = src.kind
-    dst.color[rows] = src.color
-    dst.alpha[rows] = src.alpha
-    dst.eta[rows] = src.eta
-    dst.tint[rows] = src.tint
+    dst.scatter(rows, src)
 
 
 @dataclass
@@ -110,7 +104,9 @@ class Subpath:
             getattr(self, name).fill(0.0)
         table = self.all_params
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
-                              (table.eta, 1.0), (table.tint, 0.0)):
+                              (table.eta, 1.0), (table.tint, 0.0), (table.coat_weight, 0.0),
+                              (table.coat_alpha, 1.0), (table.coat_eta, 1.0),
+                              (table.coat_tint, 1.0)):
             column.fill(value)
         return self
 

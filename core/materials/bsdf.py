@@ -1,7 +1,9 @@
 """The BSDF interface: per-row parameters, and eval / pdf / sample over batches of mixed kinds.
 
 Every integrator talks to materials through this module; the families live one per module
-(:mod:`.lambert`, :mod:`.conductor` + :mod:`.mirror`, :mod:`.dielectric`, :mod:`.layered`).
+(:mod:`.lambert`, :mod:`.conductor` + :mod:`.mirror`, :mod:`.dielectric`, :mod:`.layered`),
+the kind codes, lobe labels and per-kind adapters in :mod:`.families`, the Principled coat
+over any kind in :mod:`.coat`.
 
 Frames and directions
     All directions are **local**: ``(k, 3)`` float64 unit vectors in a frame whose +Z is the
@@ -59,7 +61,14 @@ Kinds and parameters (:class:`BSDFParams`, one row per shading point)
     ``color`` = transmission tint (Glass BSDF: both the colour). Smooth below the threshold or
     for ``|eta - 1| < 1e-4``.
     ``KIND_LAYERED``: ``color`` = diffuse base, ``alpha`` and ``eta`` of the coat, ``tint`` =
-    coat tint (Principled non-metallic opaque: Specular IOR Level folded into ``eta``).
+    coat tint (Principled non-metallic opaque: Specular IOR Level folded into ``eta``,
+    Specular Tint as Cycles' generalized Schlick Fresnel).
+    ``KIND_LAYERED_MS``: the same with Multiscatter GGX on its specular lobe (from the
+    ``multiscatter`` column of a layered row, as ``KIND_CONDUCTOR_MS``).
+    ``KIND_DIELECTRIC_MS``: the dielectric with Multiscatter GGX (:mod:`.glass_albedo`;
+    from the ``multiscatter`` column of a dielectric row).
+    Coat: any row may carry a Principled Coat (``coat_*`` columns, :mod:`.coat`), layered
+    over its kind by :func:`eval_bsdf`, :func:`pdf_bsdf` and :func:`sample_bsdf`.
     Emission is not a BSDF: it stays a column of the material table.
 In an integrator (one bounce, world-space arrays of the live paths)::
 
@@ -75,43 +84,30 @@ In an integrator (one bounce, world-space arrays of the live paths)::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import NamedTuple
 
 import numpy as np
 
-from . import conductor, dielectric, layered
+from . import coat, dielectric
+from .coat import DEFAULT_COAT_IOR, DEFAULT_COAT_ROUGHNESS, coat_rows
 from .dielectric import IMPORTANCE, RADIANCE, TRANSPORT_MODES, _check_mode, is_smooth_dielectric
+from .families import (FAMILIES, KIND_CONDUCTOR, KIND_CONDUCTOR_MS, KIND_DIELECTRIC,
+                       KIND_DIELECTRIC_MS, KIND_DIFFUSE, KIND_LAYERED, KIND_LAYERED_MS, KIND_NAMES,
+                       KINDS, LOBE_DIFFUSE, LOBE_GLOSSY, LOBE_REFLECT, LOBE_SINGULAR,
+                       LOBE_TRANSMIT)
 from .fresnel import adjust_ior_for_specular_level
-from .lambert import eval_lambert, pdf_lambert, sample_lambert
 from .microfacet import alpha_from_roughness, is_smooth
 
 __all__ = [
     "KIND_DIFFUSE", "KIND_CONDUCTOR", "KIND_DIELECTRIC", "KIND_LAYERED", "KIND_CONDUCTOR_MS",
+    "KIND_LAYERED_MS", "KIND_DIELECTRIC_MS",
     "KINDS", "KIND_NAMES",
     "RADIANCE", "IMPORTANCE", "TRANSPORT_MODES", "LOBE_REFLECT", "LOBE_TRANSMIT", "LOBE_DIFFUSE",
     "LOBE_GLOSSY", "LOBE_SINGULAR", "BSDFParams", "BSDFSample", "make_params",
     "eval_bsdf", "pdf_bsdf", "sample_bsdf", "is_delta_only",
 ]
 
-# Kind codes of the material table (scene.MAT_DIFFUSE == KIND_DIFFUSE == 0).
-KIND_DIFFUSE = 0
-KIND_CONDUCTOR = 1
-KIND_DIELECTRIC = 2
-KIND_LAYERED = 3
-# A BSDF kind only: material tables say "multiscatter" with a column (see the module docstring).
-KIND_CONDUCTOR_MS = 4
-KINDS = (KIND_DIFFUSE, KIND_CONDUCTOR, KIND_DIELECTRIC, KIND_LAYERED, KIND_CONDUCTOR_MS)
-KIND_NAMES = {KIND_DIFFUSE: "diffuse", KIND_CONDUCTOR: "conductor",
-              KIND_DIELECTRIC: "dielectric", KIND_LAYERED: "layered",
-              KIND_CONDUCTOR_MS: "conductor_ms"}
-
-# Labels of sampled lobes (bits, as Cycles' LABEL_*).
-LOBE_REFLECT = 1
-LOBE_TRANSMIT = 2
-LOBE_DIFFUSE = 4
-LOBE_GLOSSY = 8
-LOBE_SINGULAR = 16
 
 # Blender's defaults for material-table columns a scene does not provide.
 DEFAULT_ROUGHNESS = 0.5
@@ -138,6 +134,11 @@ class BSDFParams:
         Interior over exterior index (dielectric), coat index (layered).
     tint : (k, 3) float64
         Reflection tint (dielectric), coat tint (layered), in [0, 1].
+    coat_weight, coat_alpha, coat_eta : (k,) float64 or None
+        Principled Coat over any kind (:mod:`.coat`): weight in [0, 1] (0: no coat), GGX
+        alpha, IOR (>= 1). None (all four) when no row has a coat.
+    coat_tint : (k, 3) float64 or None
+        Coat Tint (>= 0).
     """
 
     kind: np.ndarray
@@ -145,14 +146,59 @@ class BSDFParams:
     alpha: np.ndarray
     eta: np.ndarray
     tint: np.ndarray
+    coat_weight: np.ndarray = None
+    coat_alpha: np.ndarray = None
+    coat_eta: np.ndarray = None
+    coat_tint: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
 
+    @property
+    def has_coat(self):
+        """Whether the coat columns are present (they are None when no row has a coat)."""
+        return self.coat_weight is not None
+
+    def map_columns(self, fn):
+        """A new :class:`BSDFParams` of ``fn(column)`` for every column present."""
+        return BSDFParams(*(None if c is None else fn(c) for c in self.columns()))
+
+    def columns(self):
+        """The columns in field order (the coat's are None when absent)."""
+        return (self.kind, self.color, self.alpha, self.eta, self.tint, self.coat_weight,
+                self.coat_alpha, self.coat_eta, self.coat_tint)
+
     def take(self, rows):
         """The rows ``rows`` (index array or mask) as a new :class:`BSDFParams`."""
-        return BSDFParams(self.kind[rows], self.color[rows], self.alpha[rows], self.eta[rows],
-                          self.tint[rows])
+        return self.map_columns(lambda c: c[rows])
+
+    def scatter(self, rows, src):
+        """Store the rows of ``src`` at ``rows`` of this table (adding coat columns, zero,
+        when ``src`` has them and this table does not)."""
+        if src.has_coat and not self.has_coat:
+            n = len(self)
+            self.coat_weight, self.coat_alpha = np.zeros(n), np.ones(n)
+            self.coat_eta, self.coat_tint = np.ones(n), np.ones((n, 3))
+        if self.has_coat and not src.has_coat:
+            self.coat_weight[rows] = 0.0
+        for name, value in zip(_FIELDS, src.columns()):
+            column = getattr(self, name)
+            if value is not None and column is not None:
+                column[rows] = value
+
+    @staticmethod
+    def concat(parts):
+        """The rows of ``parts`` (a non-empty list of :class:`BSDFParams`) in order."""
+        if any(p.has_coat for p in parts):
+            parts = [p if p.has_coat else p.with_no_coat() for p in parts]
+        return BSDFParams(*(None if cols[0] is None else np.concatenate(cols)
+                            for cols in zip(*(p.columns() for p in parts))))
+
+    def with_no_coat(self):
+        """These rows with explicit coat columns of weight zero."""
+        n = len(self)
+        return BSDFParams(self.kind, self.color, self.alpha, self.eta, self.tint, np.zeros(n),
+                          np.ones(n), np.ones(n), np.ones((n, 3)))
 
     @staticmethod
     def from_materials(materials, mat_ids):
@@ -160,16 +206,14 @@ class BSDFParams:
 
         Reads the table's ``kind`` and ``base_color`` and, when present, ``roughness (m,)``,
         ``ior (m,)``, ``specular_ior_level (m,)``, ``specular_tint (m, 3)`` and
-        ``multiscatter (m,)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5, white, single
-        scattering). Layered rows fold Specular IOR Level into the coat index; dielectric rows
-        use the IOR as is; conductor rows marked ``multiscatter`` become ``KIND_CONDUCTOR_MS``.
+        ``multiscatter (m,)`` and the coat's ``coat_weight``, ``coat_roughness``, ``coat_ior``
+        ``(m,)`` and ``coat_tint (m, 3)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5, white,
+        single scattering, no coat). Layered rows fold Specular IOR Level into the coat
+        index; dielectric rows use the IOR as is; conductor, layered and (not index-matched)
+        dielectric rows marked ``multiscatter`` become ``KIND_*_MS``.
         """
         ids = np.asarray(mat_ids, np.int64)
         kind = np.asarray(materials.kind, np.int32)[ids]
-        multiscatter = getattr(materials, "multiscatter", None)
-        if multiscatter is not None:
-            ms = np.asarray(multiscatter, bool)[ids]
-            kind = np.where(ms & (kind == KIND_CONDUCTOR), KIND_CONDUCTOR_MS, kind)
 
         def column(name, default, shape=()):
             values = getattr(materials, name, None)
@@ -177,16 +221,31 @@ class BSDFParams:
                 return np.full((ids.size,) + shape, default, np.float64)
             return np.asarray(values, np.float64)[ids]
 
+        multiscatter = getattr(materials, "multiscatter", None)
+        if multiscatter is not None:
+            ms = np.asarray(multiscatter, bool)[ids]
+            kind = np.where(ms & (kind == KIND_CONDUCTOR), KIND_CONDUCTOR_MS, kind)
+            kind = np.where(ms & (kind == KIND_LAYERED), KIND_LAYERED_MS, kind)
+            # Index-matched glass stays a pass-through: smooth, nothing to compensate.
+            matched = np.abs(column("ior", DEFAULT_IOR) - 1.0) < dielectric.ETA_SMOOTH
+            kind = np.where(ms & (kind == KIND_DIELECTRIC) & ~matched, KIND_DIELECTRIC_MS, kind)
+
         return make_params(kind, np.asarray(materials.base_color, np.float64)[ids],
                            roughness=column("roughness", DEFAULT_ROUGHNESS),
                            ior=column("ior", DEFAULT_IOR),
                            specular_ior_level=column("specular_ior_level",
                                                      DEFAULT_SPECULAR_IOR_LEVEL),
-                           tint=column("specular_tint", 1.0, (3,)), k=ids.size)
+                           tint=column("specular_tint", 1.0, (3,)), k=ids.size,
+                           coat_weight=column("coat_weight", 0.0),
+                           coat_roughness=column("coat_roughness", DEFAULT_COAT_ROUGHNESS),
+                           coat_ior=column("coat_ior", DEFAULT_COAT_IOR),
+                           coat_tint=column("coat_tint", 1.0, (3,)))
 
 
 def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
-                specular_ior_level=DEFAULT_SPECULAR_IOR_LEVEL, tint=1.0, k=None):
+                specular_ior_level=DEFAULT_SPECULAR_IOR_LEVEL, tint=1.0, k=None,
+                coat_weight=0.0, coat_roughness=DEFAULT_COAT_ROUGHNESS,
+                coat_ior=DEFAULT_COAT_IOR, coat_tint=1.0):
     """Build :class:`BSDFParams` from Blender-style inputs, broadcasting scalars to ``k`` rows.
 
     Parameters
@@ -199,6 +258,11 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
     tint : float, (3,) or (k, 3) float
     k : int, optional
         Row count when every input is a scalar.
+    coat_weight, coat_roughness, coat_ior : float or (k,) float
+        Principled Coat (:mod:`.coat`): weight clipped to [0, 1], roughness, IOR (below one:
+        one, as Cycles). The coat columns are left None when every weight is zero.
+    coat_tint : float, (3,) or (k, 3) float
+        Coat Tint, clipped to >= 0.
     """
     if k is None:
         k = max(np.size(kind), np.size(roughness), np.size(ior), np.size(specular_ior_level),
@@ -210,12 +274,27 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
     alpha = alpha_from_roughness(np.broadcast_to(np.asarray(roughness, np.float64), (k,)))
     ior = np.nan_to_num(np.broadcast_to(np.asarray(ior, np.float64), (k,)), nan=DEFAULT_IOR)
     eta = np.clip(ior, *ETA_RANGE)
-    layered_rows = kind == KIND_LAYERED
+    layered_rows = (kind == KIND_LAYERED) | (kind == KIND_LAYERED_MS)
     if layered_rows.any():
         level = np.broadcast_to(np.asarray(specular_ior_level, np.float64), (k,))
         eta = np.where(layered_rows, adjust_ior_for_specular_level(eta, level), eta)
         eta = np.clip(eta, *ETA_RANGE)
-    return BSDFParams(kind, color.copy(), alpha, eta, tint.copy())
+    params = BSDFParams(kind, color.copy(), alpha, eta, tint.copy())
+    weight = np.clip(np.nan_to_num(np.broadcast_to(np.asarray(coat_weight, np.float64), (k,))),
+                     0.0, 1.0)
+    if np.any(weight > 0.0):
+        params.coat_weight = weight.copy()
+        params.coat_alpha = alpha_from_roughness(
+            np.broadcast_to(np.asarray(coat_roughness, np.float64), (k,)))
+        coat_eta = np.nan_to_num(np.broadcast_to(np.asarray(coat_ior, np.float64), (k,)),
+                                 nan=DEFAULT_COAT_IOR)
+        params.coat_eta = np.clip(coat_eta, 1.0, ETA_RANGE[1])
+        params.coat_tint = np.maximum(
+            np.nan_to_num(np.broadcast_to(np.asarray(coat_tint, np.float64), (k, 3))), 0.0)
+    return params
+
+
+_FIELDS = tuple(f.name for f in fields(BSDFParams))
 
 
 class BSDFSample(NamedTuple):
@@ -228,107 +307,13 @@ class BSDFSample(NamedTuple):
     lobe: np.ndarray    # (k,) uint8, LOBE_* bits; 0 where the sample failed
 
 
-# --------------------------------------------------------------------------------------------
-# Families in the common protocol: f(p, wo, wi, mode), pdf(p, wo, wi), sample(p, wo, u_lobe, u,
-# mode) -> (wi, weight, pdf, delta), on the rows of one kind.
-# --------------------------------------------------------------------------------------------
-
-
-def _diffuse_normal(wo):
-    """Two-sided Lambert: the local normal on ``wo``'s side, for :mod:`.lambert`'s functions."""
-    n = np.zeros_like(wo)
-    n[:, 2] = np.where(wo[:, 2] >= 0.0, 1.0, -1.0)
-    return n
-
-
-def _diffuse_eval(p, wo, wi, mode):
-    return eval_lambert(p.color, _diffuse_normal(wo), wi)
-
-
-def _diffuse_pdf(p, wo, wi):
-    return pdf_lambert(_diffuse_normal(wo), wi)
-
-
-def _diffuse_sample(p, wo, u_lobe, u, mode):
-    wi, weight, pdf = sample_lambert(p.color, _diffuse_normal(wo), u)
-    ok = pdf > 0.0
-    return (np.where(ok[:, None], wi, 0.0), weight, pdf, np.zeros(wo.shape[0], bool))
-
-
-def _diffuse_kind(p, wo, u_lobe, delta):
-    return np.full(wo.shape[0], LOBE_DIFFUSE, np.uint8)
-
-
-def _glossy_kind(p, wo, u_lobe, delta):
-    return np.where(delta, LOBE_SINGULAR, LOBE_GLOSSY).astype(np.uint8)
-
-
-def _layered_kind(p, wo, u_lobe, delta):
-    coat = u_lobe < layered.coat_probability(p.color, p.alpha, p.eta, p.tint, wo)
-    return np.where(delta, LOBE_SINGULAR,
-                    np.where(coat, LOBE_GLOSSY, LOBE_DIFFUSE)).astype(np.uint8)
-
-
-def _conductor_eval(p, wo, wi, mode):
-    return conductor.eval_conductor(p.color, p.alpha, wo, wi)
-
-
-def _conductor_pdf(p, wo, wi):
-    return conductor.pdf_conductor(p.alpha, wo, wi)
-
-
-def _conductor_sample(p, wo, u_lobe, u, mode):
-    return conductor.sample_conductor(p.color, p.alpha, wo, u)
-
-
-def _conductor_ms_eval(p, wo, wi, mode):
-    return conductor.eval_conductor(p.color, p.alpha, wo, wi, multiscatter=True, mode=mode)
-
-
-def _conductor_ms_sample(p, wo, u_lobe, u, mode):
-    return conductor.sample_conductor(p.color, p.alpha, wo, u, multiscatter=True, mode=mode)
-
-
-def _dielectric_eval(p, wo, wi, mode):
-    return dielectric.eval_dielectric(p.eta, p.alpha, p.tint, p.color, wo, wi, mode)
-
-
-def _dielectric_pdf(p, wo, wi):
-    return dielectric.pdf_dielectric(p.eta, p.alpha, wo, wi)
-
-
-def _dielectric_sample(p, wo, u_lobe, u, mode):
-    return dielectric.sample_dielectric(p.eta, p.alpha, p.tint, p.color, wo, u_lobe, u, mode)
-
-
-def _layered_eval(p, wo, wi, mode):
-    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode)
-
-
-def _layered_pdf(p, wo, wi):
-    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi)
-
-
-def _layered_sample(p, wo, u_lobe, u, mode):
-    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode)
-
-
-_FAMILIES = {
-    KIND_DIFFUSE: (_diffuse_eval, _diffuse_pdf, _diffuse_sample, _diffuse_kind),
-    KIND_CONDUCTOR: (_conductor_eval, _conductor_pdf, _conductor_sample, _glossy_kind),
-    KIND_DIELECTRIC: (_dielectric_eval, _dielectric_pdf, _dielectric_sample, _glossy_kind),
-    KIND_LAYERED: (_layered_eval, _layered_pdf, _layered_sample, _layered_kind),
-    KIND_CONDUCTOR_MS: (_conductor_ms_eval, _conductor_pdf, _conductor_ms_sample, _glossy_kind),
-}
-
-
 def _groups(params):
     """``(kind, rows)`` per kind present; ``rows`` is None when one kind covers the batch."""
     kind = params.kind
     if kind.size == 0:
         return []
     lo, hi = int(kind.min()), int(kind.max())
-    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..4
+    if lo < min(KINDS) or hi > max(KINDS):  # KINDS are the consecutive codes 0..6
         unknown = ~np.isin(kind, KINDS)
         raise ValueError(f"unknown BSDF kind codes {np.unique(kind[unknown]).tolist()}")
     first = kind[0]
@@ -362,11 +347,15 @@ def eval_bsdf(params, wo, wi, mode=RADIANCE):
     _check(params, wo, mode)
     out = np.zeros((len(params), 3))
     for kind, rows in _groups(params):
-        fn = _FAMILIES[kind][0]
+        fn = FAMILIES[kind][0]
         if rows is None:
             out = fn(params, wo, wi, mode)
         else:
             out[rows] = fn(params.take(rows), wo[rows], wi[rows], mode)
+    coated = coat_rows(params)
+    if coated.size:
+        out[coated] = coat.eval_coated(params.take(coated), wo[coated], wi[coated],
+                                       out[coated], mode)
     return out
 
 
@@ -376,11 +365,14 @@ def pdf_bsdf(params, wo, wi):
     _check(params, wo)
     out = np.zeros(len(params))
     for kind, rows in _groups(params):
-        fn = _FAMILIES[kind][1]
+        fn = FAMILIES[kind][1]
         if rows is None:
             out = fn(params, wo, wi)
         else:
             out[rows] = fn(params.take(rows), wo[rows], wi[rows])
+    coated = coat_rows(params)
+    if coated.size:
+        out[coated] = coat.pdf_coated(params.take(coated), wo[coated], wi[coated], out[coated])
     return out
 
 
@@ -404,6 +396,15 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
     _check(params, wo, mode)
     u_lobe = np.asarray(u_lobe, np.float64).reshape(-1)
     u = np.asarray(u, np.float64)
+    coated = coat_rows(params)
+    if coated.size:
+        return BSDFSample(*coat.sample_coated(params, coated, wo, u_lobe, u, mode,
+                                              _sample_bases, eval_bsdf, pdf_bsdf))
+    return _sample_bases(params, wo, u_lobe, u, mode)
+
+
+def _sample_bases(params, wo, u_lobe, u, mode):
+    """:func:`sample_bsdf` of the rows' own kinds, ignoring any coat."""
     k = len(params)
     wi = np.zeros((k, 3))
     weight = np.zeros((k, 3))
@@ -411,7 +412,7 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
     delta = np.zeros(k, bool)
     kind_bits = np.zeros(k, np.uint8)
     for kind, rows in _groups(params):
-        sample, label = _FAMILIES[kind][2:]
+        sample, label = FAMILIES[kind][2:]
         if rows is None:
             wi, weight, pdf, delta = sample(params, wo, u_lobe, u, mode)
             kind_bits = label(params, wo, u_lobe, delta)
@@ -429,6 +430,10 @@ def is_delta_only(params):
     """Rows whose BSDF is a pure delta distribution (``eval`` and ``pdf`` always zero). ``(k,)``."""
     conductor_rows = (params.kind == KIND_CONDUCTOR) | (params.kind == KIND_CONDUCTOR_MS)
     smooth_conductor = conductor_rows & is_smooth(params.alpha)
-    smooth_dielectric = (params.kind == KIND_DIELECTRIC) & is_smooth_dielectric(params.eta,
-                                                                                params.alpha)
-    return smooth_conductor | smooth_dielectric
+    dielectric_rows = (params.kind == KIND_DIELECTRIC) | (params.kind == KIND_DIELECTRIC_MS)
+    smooth_dielectric = dielectric_rows & is_smooth_dielectric(params.eta, params.alpha)
+    delta_only = smooth_conductor | smooth_dielectric
+    coated = coat_rows(params)
+    if coated.size:
+        delta_only[coated] &= is_smooth(params.coat_alpha[coated])
+    return delta_only

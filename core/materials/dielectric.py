@@ -90,7 +90,18 @@ def _rough_terms(eta, alpha, wo, wi):
     return ok, refl, etap, d, dwo, dwi, f
 
 
-def eval_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, wi, mode=RADIANCE):
+def multiscatter_factor(eta, alpha, transmit_tint, wo, wi, mode=RADIANCE):
+    """Cycles' Multiscatter GGX factor ``(k, 3)`` of the rough dielectric
+    (:func:`.glass_albedo.compensation`, ``F_ss`` = the transmission tint): at ``wo`` with the
+    index seen from ``wo``'s side (radiance), at ``wi`` for the adjoint (importance)."""
+    from .glass_albedo import compensation
+    w = wo if mode == RADIANCE else wi
+    side_eta = np.where(w[:, 2] >= 0.0, eta, 1.0 / np.maximum(eta, 1e-12))
+    return compensation(w[:, 2], alpha, side_eta, transmit_tint)
+
+
+def eval_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, wi, mode=RADIANCE,
+                    multiscatter=False):
     """``f(wo, wi) |cos theta_i|`` of the rough dielectric (zero on smooth rows).
 
     Parameters
@@ -102,6 +113,8 @@ def eval_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, wi, mode=RADIAN
     wo, wi : (k, 3) float
         Unit directions in the local frame (+Z to the exterior).
     mode : {'radiance', 'importance'}
+    multiscatter : bool
+        Scale by the Multiscatter GGX factor (:func:`multiscatter_factor`).
 
     Returns
     -------
@@ -122,6 +135,8 @@ def eval_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, wi, mode=RADIAN
     if mode == RADIANCE:
         t = t / (etap * etap)
     out = np.where(refl[:, None], reflect_tint * r[:, None], transmit_tint * t[:, None])
+    if multiscatter:
+        out = out * multiscatter_factor(eta, alpha, transmit_tint, wo, wi, mode)
     return np.where(ok[:, None], out, 0.0)
 
 
@@ -175,7 +190,8 @@ def sample_smooth_dielectric(eta, reflect_tint, transmit_tint, wo, u_lobe, mode=
             np.where(ok, pdf, 0.0), np.ones(wo.shape[0], bool))
 
 
-def sample_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, u_lobe, u, mode=RADIANCE):
+def sample_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, u_lobe, u, mode=RADIANCE,
+                      multiscatter=False):
     """Sample reflection or refraction; smooth rows take the delta path.
 
     Parameters
@@ -189,6 +205,8 @@ def sample_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, u_lobe, u, mo
     u : (k, 2) float
         Picks the visible microfacet normal.
     mode : {'radiance', 'importance'}
+    multiscatter : bool
+        Scale rough samples' weights by :func:`multiscatter_factor`.
 
     Returns
     -------
@@ -216,6 +234,8 @@ def sample_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, u_lobe, u, mo
     g = mf.ggx_g2_over_g1(co, ci, alpha)
     scale = 1.0 / (etap * etap) if mode == RADIANCE else np.ones_like(etap)
     weight = np.where(choose_r[:, None], reflect_tint, transmit_tint * scale[:, None]) * g[:, None]
+    if multiscatter:
+        weight = weight * multiscatter_factor(eta, alpha, transmit_tint, wo, wi, mode)
     # Density from the sampled normal (no recomputed half vector): D_wo(m) times the Jacobian.
     d = mf.ggx_d(wm[:, 2], alpha)
     area = mf.ggx_projected_area(co, alpha)

@@ -3,39 +3,48 @@ lobe (Specular IOR Level over Base Color), and Blender's "plastic".
 
 Model (Cycles' *albedo scaling* layering, radiance mode)::
 
-    f(wo, wi) = tint * f_coat(wo, wi) + albedo / pi * (1 - max(tint) E(mu_o))
+    f(wo, wi) = F_t(wo.h) D G / (4 cos_o) + albedo / pi * (1 - max_c E_t(mu_o))
 
-- ``f_coat`` is single-scattering GGX reflection with the exact dielectric Fresnel
-  ``F(wo.h, eta)`` (as the reflection lobe of :mod:`.dielectric`), ``eta`` the coat's index
-  (Principled: the IOR adjusted by Specular IOR Level, see
-  :func:`.fresnel.adjust_ior_for_specular_level`), ``tint`` the Specular Tint in [0, 1].
-- ``E(mu_o) = int f_coat cos_i dwi`` is the coat's directional albedo: ``F(mu_o)`` exactly for a
-  smooth coat, and for a rough one a precomputed table (the data module
-  ``coat_albedo_table.py``) of the quadrature :func:`coat_albedo` over
-  ``(mu, roughness, eta)``, interpolated trilinearly.
-- The diffuse base is attenuated by the energy the coat reflects (``max(tint)``: the brightest
-  channel, as Cycles' closure layering), so the directional albedo is
-  ``tint E(mu_o) + albedo (1 - max(tint) E(mu_o)) <= 1``: **energy-bounded, and energy-conserving
-  for a white albedo and tint**, up to the table's error (for IOR 1 to 3: below 2e-3 for
-  ``mu_o >= 0.2``, and 1.1e-2 at worst, at grazing ``wo`` and roughness near 0.1; checked by the
-  tests).
+- The specular lobe is single-scattering GGX with Cycles' *generalized Schlick* Fresnel of the
+  Principled specular layer (:func:`tinted_fresnel`): ``F_t = f0 + (1 - f0) s``,
+  ``f0 = tint F0(eta)``, ``s = (F - F0) / (1 - F0)`` the exact dielectric Fresnel
+  ``F(wo.h, eta)`` remapped to [0, 1]; ``eta`` the layer's index (Principled: the IOR adjusted
+  by Specular IOR Level, see :func:`.fresnel.adjust_ior_for_specular_level`), ``tint`` the
+  Specular Tint in [0, 1]. A white tint gives the exact Fresnel; any tint turns white at
+  grazing angles, as in Cycles.
+- ``E_t(mu_o) = int f_spec cos_i dwi`` is the lobe's directional albedo per channel
+  (:func:`specular_albedo`): ``F(mu_o)``-based exactly for a smooth lobe; for a rough one it
+  combines a precomputed table of the exact-Fresnel albedo ``E`` (the data module
+  ``coat_albedo_table.py``, the quadrature :func:`coat_albedo` over ``(mu, roughness, eta)``,
+  interpolated trilinearly) with the ``F = 1`` albedo of :mod:`.multiscatter`, using that
+  ``F_t`` is linear in ``F``.
+- The diffuse base is attenuated by the energy the lobe reflects in its brightest channel (as
+  Cycles' ``closure_layering_weight``), so the directional albedo is
+  ``E_t(mu_o) + albedo (1 - max_c E_t(mu_o)) <= 1``: **energy-bounded, and
+  energy-conserving for a white albedo and tint**, up to the table's error (for IOR 1 to 3:
+  below 2e-3 for ``mu_o >= 0.2``, and 1.1e-2 at worst, at grazing ``wo`` and roughness near
+  0.1; checked by the tests).
 - Why this form: it is the structure of Cycles' Principled BSDF (a flat Lambert base scaled by
   ``1 - E(wo)``), so a white furnace and the base's angular response match Cycles; the
   reciprocal variant ``(1 - E(mu_o)) (1 - E(mu_i)) / (1 - E_avg)`` would brighten the base
   by ~5 % at normal incidence relative to Cycles.
-- Limits: the coat lobe is single scattering (Cycles' Principled default, Multiscatter GGX,
-  recovers its inter-reflection loss); the base's light is not refracted by the coat nor
+- Multiscatter GGX (``multiscatter=True``, Blender's Principled default): the specular lobe
+  is scaled by Cycles' compensation factor of ``wo`` (:func:`multiscatter_factor`, Kulla and
+  Conty 2017 as in :mod:`.multiscatter`, with the tinted Fresnel's hemispherical average) and
+  the base is attenuated by the compensated lobe's albedo, as Cycles' layering does; a white
+  layer over a white base then still conserves energy.
+- Limits: the base's light is not refracted by the layer nor
   internally reflected (no darkening and saturation of a real varnished surface); the diffuse
   attenuation depends on ``wo`` only, which makes the BSDF **non-reciprocal**. The adjoint
-  ``f*(wo, wi) = f(wi, wo)``, i.e. ``(1 - max(tint) E(mu_i))``, is what ``mode='importance'``
+  ``f*(wo, wi) = f(wi, wo)``, i.e. ``(1 - max_c E_t(mu_i))``, is what ``mode='importance'``
   evaluates: light paths (BDPT, photons) must use it.
 - Two-sided like every reflection-only BSDF: directions are mirrored to ``wo``'s side.
 
-Sampling picks the coat with probability ``p = s / (s + d)``, ``s = mean(tint) E(mu_o)``,
-``d = mean(albedo) (1 - max(tint) E(mu_o))`` (the lobes' albedos), then samples visible normals
-(rough coat) or reflects perfectly (smooth coat: a delta sample with ``pdf = p``), or the cosine
-hemisphere. For rough coats the pdf is the mixture ``p pdf_coat + (1 - p) cos / pi``; for smooth
-coats ``eval`` and ``pdf`` hold the diffuse part only (``(1 - p) cos / pi``), the delta coat
+Sampling picks the specular lobe with probability ``p = s / (s + d)``, ``s = mean_c E_t(mu_o)``,
+``d = mean(albedo) (1 - max_c E_t(mu_o))`` (the lobes' albedos), then samples visible normals
+(rough lobe) or reflects perfectly (smooth lobe: a delta sample with ``pdf = p``), or the cosine
+hemisphere. For rough lobes the pdf is the mixture ``p pdf_spec + (1 - p) cos / pi``; for smooth
+ones ``eval`` and ``pdf`` hold the diffuse part only (``(1 - p) cos / pi``), the delta lobe
 appears only through ``sample``.
 
 Regenerate the table with ``python -m sampling_lab.core.materials.layered``.
@@ -52,8 +61,8 @@ from ..sampling import warps
 from . import microfacet as mf
 from .dielectric import RADIANCE, _check_mode
 from .frame import dot, flip_to_upper, normalize, reflect, reflect_z, side_of
-from .fresnel import fresnel_dielectric
-from .multiscatter import ggx_albedo
+from .fresnel import f0_from_ior, fresnel_dielectric
+from .multiscatter import albedo_lookup, compensation, ggx_albedo
 
 # Table resolution: nodes uniform in sqrt(mu), in roughness = sqrt(alpha), and in
 # sqrt((eta - 1) / (eta + 1)) (= F0^(1/4)), which puts them where E changes fastest: at grazing
@@ -193,45 +202,102 @@ def coat_albedo_lookup(mu, alpha, eta):
 # --------------------------------------------------------------------------------------------
 
 
-def _lobe_albedos(albedo, tint, e_o):
+def tinted_fresnel(f, eta, tint):
+    """Cycles' generalized Schlick Fresnel of the Principled specular layer, ``(k, 3)``:
+    ``f0 + (1 - f0) s`` with ``f0 = tint F0(eta)`` and ``s = (F - F0) / (1 - F0)`` the exact
+    Fresnel ``f (k,)`` remapped to [0, 1] (white ``tint``: ``f`` itself; grazing: white)."""
+    f0 = f0_from_ior(eta)
+    s = np.clip((f - f0) / np.maximum(1.0 - f0, 1e-12), 0.0, 1.0)
+    f0t = tint * f0[:, None]
+    return f0t + (1.0 - f0t) * s[:, None]
+
+
+def fresnel_average(eta, n=32):
+    """Hemispherical average ``2 int_0^1 F(mu, eta) mu dmu`` of the exact dielectric Fresnel
+    (Gauss-Legendre in ``sqrt(mu)``, ``n`` nodes: ~1e-6 accurate). ``(k,)``."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    t = 0.5 * (x + 1.0)                       # sqrt(mu) in (0, 1)
+    mu = t * t
+    # A batch holds few distinct indices (one per material): integrate each once.
+    eta, inverse = np.unique(np.asarray(eta, np.float64), return_inverse=True)
+    f = fresnel_dielectric(mu[None, :], eta[:, None])
+    # 2 int F mu dmu = 2 int F t^2 2 t dt, dt = dx / 2.
+    return np.sum(f * (2.0 * mu * 2.0 * t * 0.5 * w)[None, :], axis=1)[inverse.reshape(-1)]
+
+
+def multiscatter_factor(mu, alpha, eta, tint):
+    """Cycles' Multiscatter GGX factor ``(k, 3)`` of the tinted specular lobe at ``|cos| = mu``
+    (:func:`.multiscatter.compensation`), with ``F_ss`` the hemispherical average of
+    :func:`tinted_fresnel`: ``f0 + (1 - f0) s_avg``, ``s_avg`` the remapped average of the
+    exact Fresnel (Cycles' ``bsdf_microfacet_setup_fresnel_generalized_schlick``)."""
+    f0 = f0_from_ior(eta)
+    s_avg = np.clip((fresnel_average(eta) - f0) / np.maximum(1.0 - f0, 1e-12), 0.0, 1.0)
+    f0t = tint * f0[:, None]
+    return compensation(f0t + (1.0 - f0t) * s_avg[:, None], mu, alpha)
+
+
+def specular_albedo(mu, alpha, eta, tint, multiscatter=False):
+    """Directional albedo ``(k, 3)`` of the tinted specular lobe: ``f0 E_1 + (1 - f0) E_s``
+    with ``E_1`` the GGX albedo for ``F = 1`` (:func:`.multiscatter.albedo_lookup`) and
+    ``E_s = (E(mu) - F0 E_1) / (1 - F0)`` the albedo of the remapped Fresnel (linear in
+    ``F``), ``E(mu)`` from :func:`coat_albedo_lookup`; exactly ``E(mu)`` for a white tint.
+    With ``multiscatter``, times :func:`multiscatter_factor` (Cycles' estimate of the
+    compensated lobe's albedo)."""
+    e = coat_albedo_lookup(mu, alpha, eta)
+    e1 = np.where(mf.is_smooth(alpha), 1.0, albedo_lookup(np.abs(mu), alpha)[0])
+    f0 = f0_from_ior(eta)
+    e_s = np.clip((e - f0 * e1) / np.maximum(1.0 - f0, 1e-12), 0.0, 1.0)
+    f0t = tint * f0[:, None]
+    e_t = f0t * e1[:, None] + (1.0 - f0t) * e_s[:, None]
+    if multiscatter:
+        e_t = e_t * multiscatter_factor(mu, alpha, eta, tint)
+    return np.clip(e_t, 0.0, 1.0)
+
+
+def _lobe_albedos(albedo, e_spec):
     """Coat and diffuse directional albedos (channel means) and the diffuse scale."""
-    tint_max = np.max(tint, axis=1)
-    diffuse_scale = np.maximum(0.0, 1.0 - tint_max * e_o)
-    s = np.mean(tint, axis=1) * e_o
+    diffuse_scale = np.maximum(0.0, 1.0 - np.max(e_spec, axis=1))
+    s = np.mean(e_spec, axis=1)
     d = np.mean(albedo, axis=1) * diffuse_scale
     return s, d, diffuse_scale
 
 
-def _coat_probability(albedo, tint, e_o):
-    s, d, _ = _lobe_albedos(albedo, tint, e_o)
+def _coat_probability(albedo, e_spec):
+    s, d, _ = _lobe_albedos(albedo, e_spec)
     total = s + d
     return np.where(total > 0.0, s / np.where(total > 0.0, total, 1.0), 0.5)
 
 
-def coat_probability(albedo, alpha, eta, tint, wo):
+def coat_probability(albedo, alpha, eta, tint, wo, multiscatter=False):
     """Probability ``p (k,)`` with which :func:`sample_layered` samples the coat: a sample with
     ``u_lobe < p`` is a coat (glossy or mirror) sample, the others diffuse."""
-    return _coat_probability(albedo, tint, coat_albedo_lookup(wo[:, 2], alpha, eta))
+    return _coat_probability(albedo, specular_albedo(wo[:, 2], alpha, eta, tint, multiscatter))
 
 
-def _coat_eval(eta, alpha, wo_, wi_):
-    """``f_coat cos_i`` (white tint) for directions already in the upper hemisphere."""
+def _lobe_parts(eta, alpha, wo_, wi_):
+    """``D G cos_i`` and the exact Fresnel ``F(wo.h)`` of the rough lobe, upper hemisphere."""
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
     ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(alpha)
-    val = (mf.ggx_d(h[:, 2], alpha) * mf.ggx_visibility(co, ci, alpha) * ci
-           * fresnel_dielectric(dot(wo_, h), eta))
-    return np.where(ok, val, 0.0)
+    dg = mf.ggx_d(h[:, 2], alpha) * mf.ggx_visibility(co, ci, alpha) * ci
+    return np.where(ok, dg, 0.0), fresnel_dielectric(dot(wo_, h), eta)
 
 
-def _coat_pdf(alpha, wo_, wi_):
+def coat_lobe_eval(eta, alpha, wo_, wi_):
+    """``f_coat cos_i`` (white tint) for directions already in the upper hemisphere."""
+    dg, f = _lobe_parts(eta, alpha, wo_, wi_)
+    return dg * f
+
+
+def coat_lobe_pdf(alpha, wo_, wi_):
+    """Visible-normal sampling density of the rough coat lobe (upper-hemisphere directions)."""
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
     ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(alpha)
     return np.where(ok, mf.ggx_d(h[:, 2], alpha) / (4.0 * mf.ggx_projected_area(co, alpha)), 0.0)
 
 
-def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE):
+def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE, multiscatter=False):
     """``f(wo, wi) |cos theta_i|`` (the non-delta part for smooth coats).
 
     Parameters
@@ -247,6 +313,9 @@ def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE):
     wo, wi : (k, 3) float
     mode : {'radiance', 'importance'}
         Importance mode evaluates the adjoint (diffuse attenuation by ``E(mu_i)``).
+    multiscatter : bool
+        Blender's Multiscatter GGX: the specular lobe scaled by :func:`multiscatter_factor` at
+        ``mu_o`` (``mu_i`` for the adjoint), the base attenuated by that lobe's albedo.
 
     Returns
     -------
@@ -258,29 +327,33 @@ def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE):
     co, ci = wo_[:, 2], wi_[:, 2]
     ok = (co > 0.0) & (ci > 0.0)
     mu = co if mode == RADIANCE else ci
-    diffuse_scale = np.maximum(0.0, 1.0 - np.max(tint, axis=1) * coat_albedo_lookup(mu, alpha, eta))
-    f = (tint * _coat_eval(eta, alpha, wo_, wi_)[:, None]
-         + albedo * (diffuse_scale * ci * warps.INV_PI)[:, None])
+    diffuse_scale = np.maximum(0.0, 1.0 - np.max(
+        specular_albedo(mu, alpha, eta, tint, multiscatter), axis=1))
+    dg, fresnel = _lobe_parts(eta, alpha, wo_, wi_)
+    spec = tinted_fresnel(fresnel, eta, tint) * dg[:, None]
+    if multiscatter:
+        spec = spec * multiscatter_factor(mu, alpha, eta, tint)
+    f = spec + albedo * (diffuse_scale * ci * warps.INV_PI)[:, None]
     return np.where(ok[:, None], f, 0.0)
 
 
-def pdf_layered(albedo, alpha, eta, tint, wo, wi):
+def pdf_layered(albedo, alpha, eta, tint, wo, wi, multiscatter=False):
     """Solid-angle density of :func:`sample_layered` (non-delta part). ``(k,)``."""
     side = side_of(wo)
     wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
     co, ci = wo_[:, 2], wi_[:, 2]
     ok = (co > 0.0) & (ci > 0.0)
-    p = _coat_probability(albedo, tint, coat_albedo_lookup(co, alpha, eta))
-    pdf = p * _coat_pdf(alpha, wo_, wi_) + (1.0 - p) * ci * warps.INV_PI
+    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
+    pdf = p * coat_lobe_pdf(alpha, wo_, wi_) + (1.0 - p) * ci * warps.INV_PI
     return np.where(ok, pdf, 0.0)
 
 
-def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE):
+def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE, multiscatter=False):
     """Sample the coat (visible normals or delta) or the diffuse base.
 
     Parameters
     ----------
-    albedo, alpha, eta, tint, wo, mode
+    albedo, alpha, eta, tint, wo, mode, multiscatter
         As :func:`eval_layered`.
     u_lobe : (k,) float
         Chooses the coat (``u_lobe < p``) or the base.
@@ -290,7 +363,7 @@ def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE):
     -------
     wi : (k, 3) float64
     weight : (k, 3) float64
-        ``f |cos| / pdf`` with the mixture pdf; for the delta coat ``tint F(mu_o) / p``.
+        ``f |cos| / pdf`` with the mixture pdf; for the delta lobe ``F_t(mu_o) / p``.
     pdf : (k,) float64
         Mixture solid-angle density; ``p`` for a delta coat sample; 0 if the sample failed.
     delta : (k,) bool
@@ -300,8 +373,7 @@ def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE):
     side = side_of(wo)
     wo_ = flip_to_upper(wo, side)
     co = wo_[:, 2]
-    e_o = coat_albedo_lookup(co, alpha, eta)
-    p = _coat_probability(albedo, tint, e_o)
+    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
     smooth = mf.is_smooth(alpha)
     choose_coat = u_lobe < p
 
@@ -315,13 +387,13 @@ def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE):
 
     # Non-delta samples: weight = f cos / (mixture pdf), evaluated at the sampled direction.
     wi = flip_to_upper(wi_, side)
-    f = eval_layered(albedo, alpha, eta, tint, wo, wi, mode)
-    pdf = pdf_layered(albedo, alpha, eta, tint, wo, wi)
+    f = eval_layered(albedo, alpha, eta, tint, wo, wi, mode, multiscatter)
+    pdf = pdf_layered(albedo, alpha, eta, tint, wo, wi, multiscatter)
     good = ok & (pdf > 0.0)
     weight = f / np.where(good, pdf, 1.0)[:, None]
 
-    # Delta coat samples: tint F(mu_o) / p.
-    f_delta = tint * fresnel_dielectric(co, eta)[:, None]
+    # Delta coat samples: the tinted F(mu_o) / p.
+    f_delta = tinted_fresnel(fresnel_dielectric(co, eta), eta, tint)
     weight = np.where(delta[:, None], f_delta / np.where(p > 0.0, p, 1.0)[:, None], weight)
     pdf = np.where(delta, p, pdf)
     good = np.where(delta, ok & (p > 0.0), good)

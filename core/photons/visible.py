@@ -211,7 +211,6 @@ def join_points(parts):
         cat([p.rows for p in parts]), cat([p.p for p in parts]), cat([p.ng for p in parts]),
         tuple(cat([p.frame[i] for p in parts]) for i in range(3)),
         cat([p.wo_local for p in parts]),
-        BSDFParams(*(cat([getattr(p.params, f) for p in parts])
-                     for f in ("kind", "color", "alpha", "eta", "tint"))),
+        BSDFParams.concat([p.params for p in parts]),
         cat([p.beta for p in parts]), cat([p.bounces for p in parts]),
         cat([p.prim for p in parts]))

@@ -1,8 +1,10 @@
-"""Rough metals left at Blender's default distribution, Multiscatter GGX, agree with Cycles.
+"""Rough metals, a plastic and glass left at Blender's default distribution, Multiscatter GGX,
+agree with Cycles.
 
 Three flat-shaded spheres of roughness 0.2, 0.6 and 1.0 on a grey floor under a uniform world
-and an area light, made of a Glossy BSDF (Blender's default grey) or of a Principled BSDF with
-Metallic 1 and a copper colour, with the node's distribution left as Blender creates it
+and an area light, made of a Glossy BSDF (Blender's default grey), of a Principled BSDF with
+Metallic 1 and a copper colour, of a dark Principled plastic (the compensated specular
+layer) or of a pale green Glass BSDF, with the node's distribution left as Blender creates it
 (``'MULTI_GGX'``, asserted). Method as in ``test_cycles_materials.py``: Cycles under unbiased
 settings renders several seeds, Sampling Lab reports its own variance pass, and
 ``tests.helpers.assert_images_agree`` compares the image mean per channel (0.5 % plus its
@@ -26,8 +28,11 @@ ROUGHNESS = (0.2, 0.6, 1.0)
 # Smallest errors each comparison detects with 99 % power (image mean, worst 8 x 8 block),
 # measured at these sample counts: glossy 1.0 % / 4.5 %, principled 1.1 % / 4.1 %; the checker
 # fails the test if its images fall below the default 2 % / 5 %. Without the compensation the
-# glossy image mean is 7.8 % below Cycles' and the test fails.
-STATED = {"glossy": DETECT, "principled": DETECT}
+# glossy image mean is 7.8 % below Cycles' and the test fails. The dark plastic's blocks are
+# noisier (0.84 % / 5.5 % measured), so its block error is stated at 6 %; rendered with the
+# specular layer single-scattering, three of its blocks fall outside their intervals.
+STATED = {"glossy": DETECT, "principled": DETECT, "plastic": (DETECT[0], 0.06),
+          "glass": DETECT}
 
 
 def _glossy(name, roughness):
@@ -48,17 +53,43 @@ def _principled(name, roughness):
     return mat, node
 
 
-MATERIALS = {"glossy": _glossy, "principled": _principled}
+def _plastic(name, roughness):
+    """A dark Principled plastic (Specular IOR Level 1, F0 = 0.08): the specular layer's
+    compensation shows above a base that adds little."""
+    mat, node = _principled(name, roughness)
+    node.inputs["Base Color"].default_value = (0.1, 0.05, 0.02, 1.0)
+    node.inputs["Metallic"].default_value = 0.0
+    node.inputs["Specular IOR Level"].default_value = 1.0
+    return mat, node
 
 
-def three_metal_spheres(scene, make):
-    """Three flat-shaded spheres of ``ROUGHNESS`` on a grey floor, under a pale blue uniform
+def _glass(name, roughness):
+    """A Glass BSDF of a pale green (the colour is Cycles' multiple-scattering Fresnel
+    average) as Blender creates it."""
+    mat = S.shader_material(name, "ShaderNodeBsdfGlass", color=(0.8, 1.0, 0.9))
+    node = mat.node_tree.nodes["Glass BSDF"]
+    node.inputs["Roughness"].default_value = roughness
+    return mat, node
+
+
+MATERIALS = {"glossy": _glossy, "principled": _principled, "plastic": _plastic,
+             "glass": _glass}
+# Glass at roughness 1 is left out: there our *single-scattering* glass sphere is already
+# 8-9 % darker than Cycles' single-scattering one (measured with both set to GGX), a
+# difference of the rough dielectric itself, not of the compensation (with it: 6-8 %).
+SPHERE_ROUGHNESS = {"glass": (0.2, 0.4, 0.6)}
+# Kind of the exported rows: conductor, layered (the specular layer over the base), dielectric.
+KINDS = {"glossy": 1, "principled": 1, "plastic": 3, "glass": 2}
+
+
+def three_metal_spheres(scene, make, roughnesses=ROUGHNESS):
+    """Three flat-shaded spheres of ``roughnesses`` on a grey floor, under a pale blue uniform
     world and a 1.5 m square area light above: the spheres mostly reflect the world, where
     the lost single-scattering energy shows most and the noise is low."""
     grey = S.diffuse_material("Floor", (0.3, 0.3, 0.3))
     S.add_quad(scene, "Floor", [(-4, -4, 0), (4, -4, 0), (4, 4, 0), (-4, 4, 0)], grey)
     nodes = []
-    for i, (x, roughness) in enumerate(zip((-0.65, 0.0, 0.65), ROUGHNESS)):
+    for i, (x, roughness) in enumerate(zip((-0.65, 0.0, 0.65), roughnesses)):
         mat, node = make(f"Metal{i}", roughness)
         nodes.append(node)
         S.add_uv_sphere(scene, f"Sphere{i}", (x, 0.0, 0.3), 0.3, mat)
@@ -87,7 +118,7 @@ def sphere_masks(scene):
     return np.stack(masks)
 
 
-def assert_spheres_agree(ours, cycles, masks, what):
+def assert_spheres_agree(ours, cycles, masks, what, roughnesses=ROUGHNESS):
     """Each sphere's mean colour: within 1 % of Cycles' plus the interval of the difference
     (4.4 standard errors of 0.35 % to 0.6 %): errors of 3.4 % (roughness 0.2) to 5 %
     (roughness 1) in one sphere are detected with 99 % power. Cycles' standard error comes from
@@ -100,7 +131,7 @@ def assert_spheres_agree(ours, cycles, masks, what):
     the colour, whose hemispherical average is ``0.8 + 0.2 / 21``, 1.2 % above 0.8.
     """
     mean_a, var_a = ours["Combined"][..., :3], ours["Variance"][..., :3]
-    for roughness, mask in zip(ROUGHNESS, masks):
+    for roughness, mask in zip(roughnesses, masks):
         n = mask.sum()
         a = mean_a[mask].mean(axis=0)
         se_a = np.sqrt(var_a[mask].sum(axis=0)) / n
@@ -116,17 +147,18 @@ def assert_spheres_agree(ours, cycles, masks, what):
 @pytest.mark.parametrize("name", list(MATERIALS))
 def test_default_multiscatter_metals_agree_with_cycles(empty_scene, export, tmp_path, name):
     scene = empty_scene
-    nodes = three_metal_spheres(scene, MATERIALS[name])
+    roughnesses = SPHERE_ROUGHNESS.get(name, ROUGHNESS)
+    nodes = three_metal_spheres(scene, MATERIALS[name], roughnesses)
     # Left at the default: Multiscatter GGX.
     assert {node.distribution for node in nodes} == {'MULTI_GGX'}
     exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
     assert not exported.messages, exported.messages
     m = exported.materials
     metals = [m.names.index(f"Metal{i}") for i in range(3)]
-    assert m.kind[metals].tolist() == [1, 1, 1] and m.multiscatter[metals].all()
+    assert m.kind[metals].tolist() == [KINDS[name]] * 3 and m.multiscatter[metals].all()
 
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
                                             BOUNCES, our_seed=5, cycles_seed=301)
     S.assert_ours_agree_with_cycles(ours, cycles, name, detect=STATED[name],
                                     spp=OUR_SPP)
-    assert_spheres_agree(ours, cycles, sphere_masks(scene), name)
+    assert_spheres_agree(ours, cycles, sphere_masks(scene), name, roughnesses)

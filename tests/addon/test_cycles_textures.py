@@ -1,5 +1,5 @@
-"""Image textures into the base colour: the exporter reads pixels and UVs, and a textured
-plane agrees with Cycles.
+"""Image textures into the base colour and the roughness: the exporter reads pixels (in their
+colour space) and UVs, and textured planes agree with Cycles.
 
 The image is made here (a small float image: an 8 x 8 checker of three colours, so that any
 flip of u or v shows). The Cycles comparison is the one of ``test_cycles_agreement.py``: image
@@ -188,3 +188,66 @@ def test_texture_interpolation_and_extension_agree_with_cycles(empty_scene, tmp_
     found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
                                 detect=detect, what=what)
     print(f"{what}: image mean ours / Cycles {found.ratio}")
+
+
+def roughness_image(name, colorspace='Non-Color'):
+    """An 8-bit 4 x 4 checker of roughness 0.15 / 0.45 / 0.8 (grey), in ``colorspace``."""
+    image = bpy.data.images.new(name, 4, 4, alpha=True, float_buffer=False)
+    image.colorspace_settings.name = colorspace
+    levels = np.array([0.15, 0.45, 0.8], np.float32)
+    i, j = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    values = np.ones((4, 4, 4), np.float32)
+    values[..., :3] = levels[(i + 2 * j) % 3][..., None]
+    image.pixels.foreach_set(values.ravel())
+    return image
+
+
+def rough_metal(image):
+    """A copper Principled metal (Blender's default distribution) whose Roughness is an Image
+    Texture of ``image``."""
+    mat, tex = textured_material("RoughMetal", image, "ShaderNodeBsdfPrincipled", "Roughness")
+    bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Base Color"].default_value = (0.95, 0.64, 0.54, 1.0)
+    bsdf.inputs["Metallic"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = 0.0
+    return mat, tex
+
+
+@pytest.mark.parametrize("colorspace", ['Non-Color', 'sRGB'])
+def test_roughness_texture_exports_in_its_colour_space(empty_scene, export, colorspace):
+    image = roughness_image("Rough", colorspace)
+    stored = np.empty(4 * 4 * 4, np.float32)
+    image.pixels.foreach_get(stored)
+    stored = stored.reshape(4, 4, 4)[..., :3]
+    mat, _ = rough_metal(image)
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert s.messages == [] and s.corner_uvs is not None
+    m = s.materials
+    row = m.names.index("RoughMetal")
+    assert m.texture[row] == -1 and m.roughness_texture[row] == 0
+    # Non-Color data is used as stored; 8-bit sRGB is decoded to linear, as Cycles does.
+    expect = stored if colorspace == 'Non-Color' else np.where(
+        stored <= 0.04045, stored / 12.92, ((stored + 0.055) / 1.055) ** 2.4)
+    np.testing.assert_allclose(s.textures[0], expect, rtol=1e-5, atol=1e-6)
+
+
+def test_roughness_textured_metal_agrees_with_cycles(empty_scene, tmp_path):
+    scene = empty_scene
+    mat, tex = rough_metal(roughness_image("Rough"))
+    tex.interpolation = 'Closest'
+    add_uv_quad(scene, "Plane", 1.0, mat)
+    # The camera sees the lamp's reflection across the plane: sharp in the smooth cells,
+    # spread in the rough ones.
+    S.add_light(scene, 'AREA', "Area", (0.0, 2.0, 1.6), (math.atan2(-2.0, 1.6), 0.0, 0.0),
+                energy=150.0, size=2.0)
+    S.set_world(scene, (0.15, 0.2, 0.3), 1.0)
+    S.add_camera(scene, (0.0, -2.4, 1.8), (math.atan2(2.4, 1.8), 0.0, 0.0), lens=35.0)
+    S.set_resolution(scene, 48, 48)
+
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 1024, 256, CYCLES_RUNS,
+                                            BOUNCES, our_seed=17, cycles_seed=601)
+    # Detects 1.1 % image-mean and 4.0 % block errors with 99 % power (measured); a uniform
+    # roughness of 0.45 instead of the texture renders 6-9 % brighter and fails.
+    S.assert_ours_agree_with_cycles(ours, cycles, "roughness texture")

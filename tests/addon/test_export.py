@@ -244,9 +244,33 @@ def test_fractional_principled_exports_a_mixture_with_cycles_weights(empty_scene
     assert m.mixed[row["Half"]]
     components = m.mix_rows[row["Half"]]
     np.testing.assert_allclose(m.emission[components], 0.0)
+    # The coat covers every component but the transparent one.
+    np.testing.assert_allclose(m.coat_weight[components], np.where(m.ior[components] == 1.0
+                                                                   , 0.0, 0.5), rtol=1e-6)
     # Alpha is no approximation any more (shadow rays pass it, core/integrators/shadows.py).
     assert len(s.messages) == 1, s.messages
-    assert any("coat" in msg and "ignored" in msg for msg in s.messages)
+    assert any("emission under the coat" in msg for msg in s.messages)
+
+
+def test_principled_coat_inputs_and_subsurface_as_diffuse(empty_scene, export):
+    coated = _principled("Coated", **{"Base Color": (0.5, 0.1, 0.1, 1.0), "Coat Weight": 0.8,
+                                      "Coat Roughness": 0.2, "Coat IOR": 1.7,
+                                      "Coat Tint": (0.9, 0.7, 0.5, 1.0)})
+    skin = _principled("Skin", **{"Base Color": (0.8, 0.5, 0.4, 1.0), "Subsurface Weight": 1.0})
+    plain = _principled("Plain", **{"Base Color": (0.8, 0.5, 0.4, 1.0)})
+    s, row = _export_materials(empty_scene, export, coated, skin, plain)
+    m = s.materials
+    c = row["Coated"]
+    np.testing.assert_allclose([m.coat_weight[c], m.coat_roughness[c], m.coat_ior[c]],
+                               [0.8, 0.2, 1.7], rtol=1e-6)
+    np.testing.assert_allclose(m.coat_tint[c], [0.9, 0.7, 0.5], rtol=1e-6)
+    assert m.coat_weight[row["Skin"]] == 0 and m.coat_weight[row["Plain"]] == 0
+    # Subsurface renders as the diffuse base: the same row as without it, and said once.
+    for column in ("kind", "base_color", "roughness", "ior", "specular_ior_level"):
+        np.testing.assert_array_equal(getattr(m, column)[row["Skin"]],
+                                      getattr(m, column)[row["Plain"]])
+    assert s.messages == ["Material 'Skin': subsurface scattering of node 'Principled BSDF' "
+                          "is approximated as diffuse reflection of the base colour"], s.messages
 
 
 def test_mix_of_diffuse_shaders_is_the_diffuse_of_the_blended_colour(empty_scene, export):
@@ -307,9 +331,9 @@ def test_glossy_glass_refraction_transparent_and_mix_nodes_map_to_core_kinds(emp
     np.testing.assert_allclose([mix[0], mix[1]], [0.2, 0.8], rtol=1e-6)
 
 
-def test_multiscatter_ggx_is_flagged_on_metals_and_reported_on_other_layers(empty_scene,
-                                                                            export):
-    from sampling_lab.core.materials.bsdf import KIND_CONDUCTOR_MS, BSDFParams
+def test_multiscatter_ggx_is_flagged_on_metals_specular_layers_and_glass(empty_scene, export):
+    from sampling_lab.core.materials.bsdf import (KIND_CONDUCTOR_MS, KIND_DIELECTRIC_MS,
+                                                  KIND_LAYERED_MS, BSDFParams)
 
     def glossy(name, distribution):
         return scenes.glossy_material(name, (0.9, 0.7, 0.5), 0.4, distribution)
@@ -329,19 +353,37 @@ def test_multiscatter_ggx_is_flagged_on_metals_and_reported_on_other_layers(empt
     m = s.materials
     assert [bool(m.multiscatter[row[k]]) for k in ("MultiGlossy", "Glossy", "Metal", "GGXMetal")] \
         == [True, False, True, False]
-    # The mixture: its metal component is compensated, its specular layer is not (reported).
+    # The mixture: its metal component and its specular layer are compensated.
     components = {int(m.kind[r]): bool(m.multiscatter[r])
                   for r, w in zip(m.mix_rows[row["HalfMetal"]], m.mix_weights[row["HalfMetal"]])
                   if w > 0}
-    assert components == {1: True, 3: False}
-    assert sorted(s.messages) == sorted([
-        "Material 'HalfMetal': Multiscatter GGX on the specular layer of node 'Principled BSDF' "
-        "is not supported yet; rendered as single-scattering GGX",
-        "Material 'RoughGlass': MULTI_GGX distribution of node 'Glass BSDF' is not supported "
-        "yet; rendered as GGX"]), s.messages
-    # The core shades the flagged conductor rows with the compensated BSDF.
-    kinds = BSDFParams.from_materials(m, np.array([row["MultiGlossy"], row["Glossy"]])).kind
-    assert kinds.tolist() == [KIND_CONDUCTOR_MS, 1]
+    assert components == {1: True, 3: True}
+    assert s.messages == [], s.messages
+    # The core shades the flagged rows with the compensated BSDFs.
+    layered = [r for r in m.mix_rows[row["HalfMetal"]] if m.kind[r] == 3][0]
+    kinds = BSDFParams.from_materials(m, np.array([row["MultiGlossy"], row["Glossy"],
+                                                   layered, row["RoughGlass"]])).kind
+    assert kinds.tolist() == [KIND_CONDUCTOR_MS, 1, KIND_LAYERED_MS, KIND_DIELECTRIC_MS]
+
+
+def test_principled_glass_tints_each_pass_by_the_square_root_of_its_base_colour(empty_scene,
+                                                                              export):
+    def glass(name, color):
+        mat = _principled(name, **{"Transmission Weight": 1.0, "Roughness": 0.4,
+                                   "Base Color": (*color, 1.0)})
+        next(n for n in mat.node_tree.nodes
+             if n.bl_idname == "ShaderNodeBsdfPrincipled").distribution = 'MULTI_GGX'
+        return mat
+
+    s, row = _export_materials(empty_scene, export, glass("White", (1.0, 1.0, 1.0)),
+                               glass("Green", (0.25, 0.64, 0.09)))
+    m = s.materials
+    np.testing.assert_allclose(m.base_color[row["Green"]], [0.5, 0.8, 0.3], rtol=1e-6)
+    # Multiscatter GGX is compensated on white glass only (Cycles' F_ss = 1 there).
+    assert m.multiscatter[row["White"]] and not m.multiscatter[row["Green"]]
+    assert s.messages == ["Material 'Green': Multiscatter GGX on the coloured transmission of "
+                          "node 'Principled BSDF' is not supported yet; rendered as "
+                          "single-scattering GGX"], s.messages
 
 
 def test_texture_driven_color_uses_socket_value_and_is_reported(empty_scene, export):

@@ -191,13 +191,18 @@ def test_multiscatter_pdf_is_the_single_scattering_pdf_and_eval_is_scaled():
 # --------------------------------------------------------------------------------------------
 
 
-def test_multiscatter_column_marks_conductor_rows_only():
-    mats = Materials.from_lists(["a", "b", "c", "d"], [(0.5,) * 3] * 4, [(0, 0, 0)] * 4,
-                                kinds=[MAT_CONDUCTOR, MAT_CONDUCTOR, MAT_DIFFUSE, MAT_DIELECTRIC],
-                                multiscatter=[True, False, True, True])
-    params = B.BSDFParams.from_materials(mats, np.array([0, 1, 2, 3, 0]))
+def test_multiscatter_column_marks_conductor_layered_and_glass_rows_only():
+    mats = Materials.from_lists(["a", "b", "c", "d", "e", "f"], [(0.5,) * 3] * 6,
+                                [(0, 0, 0)] * 6,
+                                kinds=[MAT_CONDUCTOR, MAT_CONDUCTOR, MAT_DIFFUSE, MAT_DIELECTRIC,
+                                       3, MAT_DIELECTRIC],
+                                ior=[1.5, 1.5, 1.5, 1.5, 1.5, 1.0],
+                                multiscatter=[True, False, True, True, True, True])
+    params = B.BSDFParams.from_materials(mats, np.array([0, 1, 2, 3, 0, 4, 5]))
+    # (An index-matched pass-through stays a plain dielectric.)
     assert params.kind.tolist() == [B.KIND_CONDUCTOR_MS, B.KIND_CONDUCTOR, B.KIND_DIFFUSE,
-                                    B.KIND_DIELECTRIC, B.KIND_CONDUCTOR_MS]
+                                    B.KIND_DIELECTRIC_MS, B.KIND_CONDUCTOR_MS,
+                                    B.KIND_LAYERED_MS, B.KIND_DIELECTRIC]
     # Default: single scattering, also for every built-in scene.
     plain = Materials.from_lists(["a"], [(0.5,) * 3], [(0, 0, 0)], kinds=[MAT_CONDUCTOR])
     assert plain.multiscatter.tolist() == [False]

@@ -158,3 +158,33 @@ def test_checker_plane_under_uniform_world_is_albedo_times_radiance():
             samples = img[rows.ravel(), cols.ravel()]
             assert_mean_within_ci(samples, CELLS[cy, cx] * world, comparisons=12,
                                   what=f"cell ({cy}, {cx})")
+
+
+def test_roughness_texture_replaces_the_roughness_and_the_delta_flag():
+    # A white conductor plane seen straight down under a uniform world: the left half's
+    # texel says roughness 0 (a mirror: it reflects the world, 1 x L), the right half's 1 (single
+    # scattering GGX reflects E(1, alpha = 1) x L). The material's own roughness, 0, would
+    # make both halves mirrors and its delta flag would skip light sampling on the rough half.
+    from sampling_lab.core.materials.multiscatter import ggx_albedo
+    from sampling_lab.core.scene import MAT_CONDUCTOR
+    n = 32
+    image = np.array([[(0.0, 0.0, 0.0), (1.0, 1.0, 1.0)]], np.float32)  # (1, 2, 3)
+    world = np.array([0.8, 1.0, 1.2])
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float64)
+    f = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
+    mats = Materials.from_lists(["Rough"], [(1.0, 1.0, 1.0)], [(0, 0, 0)], kinds=[MAT_CONDUCTOR],
+                                roughness=[0.0], roughness_texture=[0])
+    cam = Camera(scenes.look_at((0.5, 0.5, 1.0), (0.5, 0.5, 0.0), up=(0, 1, 0)), n, n,
+                 type="ORTHO", ortho_scale=1.0)
+    scene = Scene(v, f, np.zeros(2, np.int32), mats, Lights.empty(), cam, world_color=world,
+                  textures=[image], corner_uvs=v[f][..., :2], texture_interpolation=["Closest"])
+    res = render(scene, plain_settings(spp=16, max_bounces=1, seed=3))
+    img = res.combined()[..., :3].astype(np.float64)
+    assert np.all(np.isfinite(img))
+    rough = ggx_albedo(np.array([1.0]), np.array([1.0]))[0]
+    assert rough < 0.9
+    # Columns whose 3-pixel filter support stays on one half.
+    for cols, albedo in ((np.arange(2, n // 2 - 2), 1.0), (np.arange(n // 2 + 2, n - 2), rough)):
+        samples = img[2:n - 2][:, cols].reshape(-1, 3)
+        assert_mean_within_ci(samples, albedo * world, comparisons=6, rtol=1e-6,
+                              what=f"albedo {albedo}")

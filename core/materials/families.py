@@ -1,0 +1,157 @@
+"""The BSDF kinds: their codes, the lobe labels of sampled directions, and the adapters that put
+each family (:mod:`.lambert`, :mod:`.conductor`, :mod:`.dielectric`, :mod:`.layered`) in the
+common protocol :mod:`.bsdf` dispatches on: ``f(p, wo, wi, mode)``, ``pdf(p, wo, wi)``,
+``sample(p, wo, u_lobe, u, mode) -> (wi, weight, pdf, delta)`` and ``label(p, wo, u_lobe,
+delta)``, on the rows of one kind (see :mod:`.bsdf` for the contract)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import conductor, dielectric, layered
+from .lambert import eval_lambert, pdf_lambert, sample_lambert
+
+# Kind codes of the material table (scene.MAT_DIFFUSE == KIND_DIFFUSE == 0).
+KIND_DIFFUSE = 0
+KIND_CONDUCTOR = 1
+KIND_DIELECTRIC = 2
+KIND_LAYERED = 3
+# A BSDF kind only: material tables say "multiscatter" with a column (see the module docstring).
+KIND_CONDUCTOR_MS = 4
+KIND_LAYERED_MS = 5
+KIND_DIELECTRIC_MS = 6
+KINDS = (KIND_DIFFUSE, KIND_CONDUCTOR, KIND_DIELECTRIC, KIND_LAYERED, KIND_CONDUCTOR_MS,
+         KIND_LAYERED_MS, KIND_DIELECTRIC_MS)
+KIND_NAMES = {KIND_DIFFUSE: "diffuse", KIND_CONDUCTOR: "conductor",
+              KIND_DIELECTRIC: "dielectric", KIND_LAYERED: "layered",
+              KIND_CONDUCTOR_MS: "conductor_ms", KIND_LAYERED_MS: "layered_ms",
+              KIND_DIELECTRIC_MS: "dielectric_ms"}
+
+# Labels of sampled lobes (bits, as Cycles' LABEL_*).
+LOBE_REFLECT = 1
+LOBE_TRANSMIT = 2
+LOBE_DIFFUSE = 4
+LOBE_GLOSSY = 8
+LOBE_SINGULAR = 16
+
+
+# --------------------------------------------------------------------------------------------
+# Families in the common protocol: f(p, wo, wi, mode), pdf(p, wo, wi), sample(p, wo, u_lobe, u,
+# mode) -> (wi, weight, pdf, delta), on the rows of one kind.
+# --------------------------------------------------------------------------------------------
+
+
+def _diffuse_normal(wo):
+    """Two-sided Lambert: the local normal on ``wo``'s side, for :mod:`.lambert`'s functions."""
+    n = np.zeros_like(wo)
+    n[:, 2] = np.where(wo[:, 2] >= 0.0, 1.0, -1.0)
+    return n
+
+
+def _diffuse_eval(p, wo, wi, mode):
+    return eval_lambert(p.color, _diffuse_normal(wo), wi)
+
+
+def _diffuse_pdf(p, wo, wi):
+    return pdf_lambert(_diffuse_normal(wo), wi)
+
+
+def _diffuse_sample(p, wo, u_lobe, u, mode):
+    wi, weight, pdf = sample_lambert(p.color, _diffuse_normal(wo), u)
+    ok = pdf > 0.0
+    return (np.where(ok[:, None], wi, 0.0), weight, pdf, np.zeros(wo.shape[0], bool))
+
+
+def _diffuse_kind(p, wo, u_lobe, delta):
+    return np.full(wo.shape[0], LOBE_DIFFUSE, np.uint8)
+
+
+def _glossy_kind(p, wo, u_lobe, delta):
+    return np.where(delta, LOBE_SINGULAR, LOBE_GLOSSY).astype(np.uint8)
+
+
+def _layered_kind(p, wo, u_lobe, delta):
+    coat = u_lobe < layered.coat_probability(p.color, p.alpha, p.eta, p.tint, wo,
+                                             multiscatter=bool(np.any(p.kind == KIND_LAYERED_MS)))
+    return np.where(delta, LOBE_SINGULAR,
+                    np.where(coat, LOBE_GLOSSY, LOBE_DIFFUSE)).astype(np.uint8)
+
+
+def _conductor_eval(p, wo, wi, mode):
+    return conductor.eval_conductor(p.color, p.alpha, wo, wi)
+
+
+def _conductor_pdf(p, wo, wi):
+    return conductor.pdf_conductor(p.alpha, wo, wi)
+
+
+def _conductor_sample(p, wo, u_lobe, u, mode):
+    return conductor.sample_conductor(p.color, p.alpha, wo, u)
+
+
+def _conductor_ms_eval(p, wo, wi, mode):
+    return conductor.eval_conductor(p.color, p.alpha, wo, wi, multiscatter=True, mode=mode)
+
+
+def _conductor_ms_sample(p, wo, u_lobe, u, mode):
+    return conductor.sample_conductor(p.color, p.alpha, wo, u, multiscatter=True, mode=mode)
+
+
+def _dielectric_eval(p, wo, wi, mode):
+    return dielectric.eval_dielectric(p.eta, p.alpha, p.tint, p.color, wo, wi, mode)
+
+
+def _dielectric_pdf(p, wo, wi):
+    return dielectric.pdf_dielectric(p.eta, p.alpha, wo, wi)
+
+
+def _dielectric_sample(p, wo, u_lobe, u, mode):
+    return dielectric.sample_dielectric(p.eta, p.alpha, p.tint, p.color, wo, u_lobe, u, mode)
+
+
+def _layered_eval(p, wo, wi, mode):
+    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode)
+
+
+def _layered_pdf(p, wo, wi):
+    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi)
+
+
+def _layered_sample(p, wo, u_lobe, u, mode):
+    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode)
+
+
+def _dielectric_ms_eval(p, wo, wi, mode):
+    return dielectric.eval_dielectric(p.eta, p.alpha, p.tint, p.color, wo, wi, mode,
+                                      multiscatter=True)
+
+
+def _dielectric_ms_sample(p, wo, u_lobe, u, mode):
+    return dielectric.sample_dielectric(p.eta, p.alpha, p.tint, p.color, wo, u_lobe, u, mode,
+                                        multiscatter=True)
+
+
+def _layered_ms_eval(p, wo, wi, mode):
+    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode, multiscatter=True)
+
+
+def _layered_ms_pdf(p, wo, wi):
+    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, multiscatter=True)
+
+
+def _layered_ms_sample(p, wo, u_lobe, u, mode):
+    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode,
+                                  multiscatter=True)
+
+
+FAMILIES = {
+    KIND_DIFFUSE: (_diffuse_eval, _diffuse_pdf, _diffuse_sample, _diffuse_kind),
+    KIND_CONDUCTOR: (_conductor_eval, _conductor_pdf, _conductor_sample, _glossy_kind),
+    KIND_DIELECTRIC: (_dielectric_eval, _dielectric_pdf, _dielectric_sample, _glossy_kind),
+    KIND_LAYERED: (_layered_eval, _layered_pdf, _layered_sample, _layered_kind),
+    KIND_CONDUCTOR_MS: (_conductor_ms_eval, _conductor_pdf, _conductor_ms_sample, _glossy_kind),
+    KIND_LAYERED_MS: (_layered_ms_eval, _layered_ms_pdf, _layered_ms_sample, _layered_kind),
+    KIND_DIELECTRIC_MS: (_dielectric_ms_eval, _dielectric_pdf, _dielectric_ms_sample,
+                         _glossy_kind),
+}
+
