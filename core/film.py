@@ -267,5 +267,14 @@ class Film:
     def combined(self):
         """RGBA ``(h, w, 4)`` float32, alpha one (an opaque film, Blender's default)."""
         rgba = np.ones((self.height, self.width, 4), np.float32)
-        rgba[..., :3] = self.mean()
+        rgba[..., :3] = to_float32(self.mean())
         return rgba
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def to_float32(image):
+    """``image`` as float32 with finite float64 values beyond float32's range clipped to its
+    largest value: a sum that is finite in float64 must not become Inf in an output image."""
+    return np.clip(image, -FLOAT32_MAX, FLOAT32_MAX).astype(np.float32)
