@@ -260,14 +260,45 @@ def _radiosity_used(settings):
     }
 
 
+def unused_options(settings):
+    """The options a render with ``settings`` ignores, each with the value it uses instead
+    (``'n/a'``: nothing): :func:`used_settings`' strategy options, and the light-path options
+    the add-on greys out too (radiosity has no path bounces; photon mapping's paths use no
+    Russian roulette settings; the roulette threshold needs roulette; strategy views are
+    BDPT's alone and their path length needs them on).
+
+    Returns
+    -------
+    dict
+        Option name -> the value used instead, or ``'n/a'``; options that apply are absent.
+    """
+    unused = {name: value for name, value in used_settings(settings).items()
+              if value != getattr(settings, name)}
+    na = "n/a"
+    integrator = settings.integrator
+    if integrator == "radiosity":
+        unused.update(max_bounces=na, use_russian_roulette=na, rr_min_bounces=na)
+    if integrator in PHOTON_INTEGRATORS:
+        unused.update(use_russian_roulette=na, rr_min_bounces=na)
+    if not settings.use_russian_roulette:
+        unused["rr_min_bounces"] = na
+    views = integrator_class(integrator).strategy_views
+    if not views:
+        unused["strategy_views"] = na
+    if not (views and settings.strategy_views):
+        unused["strategy_max_length"] = na
+    return unused
+
+
 def check_settings(scene, settings):
     """Raise ``ValueError`` with a user-facing message for settings that cannot render."""
     if scene.camera is None:
         raise ValueError("the scene has no camera: add one and make it the scene camera")
     # Each option against its menu or range (core.options), then what options need together.
     validate(settings)
-    if settings.spp <= 0 and settings.time_limit <= 0:
-        raise ValueError("set a sample count or a time limit")
+    if settings.spp <= 0 and not 0 < settings.time_limit < float("inf"):
+        raise ValueError("set a sample count or a finite time limit: with neither the render "
+                         "would never end")
     if scene.camera.width <= 0 or scene.camera.height <= 0:
         raise ValueError("the resolution must be at least 1 x 1 pixel")
     if settings.region is not None:

@@ -60,12 +60,22 @@ EDITS = {
     "samples": (0, 1 << 24),
     "time_limit": (-1.0, NAN, INF, 0.3),
     "resolution": ((65536, 65536), (1, 1), (0, 0), (12000, 12000), (1, 4000)),
+    "nan_vertex": BAD,
+    "empty_mesh": ("no_faces", "one_point", "collapsed"),
+    "camera_type": ("PANO", "ORTHO"),
+    "render_region": ((0.9, 0.1, 0.2, 0.8), (0.5, 0.5, 0.5, 0.5), (0.0, 0.01, 0.0, 0.01)),
+    "frame": (-1000000, 1048574),
+    "mix_fac": BAD,
+    "volume_output": (None,),
+    "sampler": ("independent", "stratified", "multijitter", "halton", "hammersley", "sobol",
+                "pmj02", "poisson_disk", "lloyd", "cvt"),
+    "threads": (1, 3, 64),
     "photon_memory": (1.0,),
     "radiosity_patch_size": (1e-3, 1e4),
 }
 
 # Ways to damage a saved .blend before the command line reads it.
-DAMAGE = (None, None, "truncate", "garble", "empty", "magic_only")
+DAMAGE = ("truncate", "garble", "empty", "magic_only")
 
 # Command-line flags with absurd values: flag -> values (strings, as a user types them).
 FLAGS = {
@@ -112,8 +122,9 @@ def scene_case(rng, route):
             "light": rng.choice(("area", "point", "mesh")),
             "edits": _pick_edits(rng, rng.randint(1, 3))}
     if route == "blend":
-        case["damage"] = rng.choice(DAMAGE)
-        case["output"] = rng.choice(OUTPUTS)
+        # Mostly an intact file and a good output, so that the broken scene itself is read.
+        case["damage"] = rng.choice(DAMAGE) if rng.random() < 0.4 else None
+        case["output"] = rng.choice(OUTPUTS) if rng.random() < 0.3 else "out.exr"
     return case
 
 

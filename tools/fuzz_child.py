@@ -18,6 +18,7 @@ import json
 import os
 import random
 import sys
+import time
 import traceback
 
 
@@ -164,7 +165,21 @@ def run_blend(case, folder):
     return record
 
 
+def run_selftest(case):
+    """Fail on purpose (``case["fail"]``: ``'hang'``, ``'crash'`` or ``'traceback'``), so the
+    tests can show that the harness counts each failure."""
+    if case["fail"] == "hang":
+        time.sleep(3600)
+    if case["fail"] == "crash":
+        os.abort()
+    traceback.print_stack()
+    print("Traceback (most recent call last): (a self-test)", file=sys.stderr)
+    return {"code": 1, "exr": "none"}
+
+
 def run_case(case, folder):
+    if case["route"] == "selftest":
+        return run_selftest(case)
     make_fixtures(folder)
     if case["route"] == "cli":
         record = run_cli(case["argv"], folder)
@@ -194,7 +209,7 @@ def enable_addon(work):
 def main(cases_path, log_path, work):
     with open(cases_path) as f:
         cases = json.load(f)
-    if any(c["route"] != "cli" for c in cases):
+    if any(c["route"] not in ("cli", "selftest") for c in cases):
         os.environ.setdefault("BLENDER_USER_RESOURCES", os.path.join(work, "blender_user"))
         enable_addon(work)
     with open(log_path, "a") as log:

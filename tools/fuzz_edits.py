@@ -219,6 +219,61 @@ def resolution(scene, objs, v, folder):
     scene.render.resolution_percentage = 100
 
 
+def nan_vertex(scene, objs, v, folder):
+    mesh = (objs["blocks"] or objs["walls"])[0].data
+    mesh.vertices[0].co = (v, v, v)
+
+
+def empty_mesh(scene, objs, v, folder):
+    mesh = bpy.data.meshes.new("Broken Mesh")
+    if v == "one_point":
+        mesh.from_pydata([(0.0, 0.0, 1.0)], [], [])
+    elif v == "collapsed":
+        mesh.from_pydata([(0.0, 0.0, 1.0)] * 4, [], [(0, 1, 2), (0, 2, 3)])
+    obj = bpy.data.objects.new("Broken Mesh", mesh)
+    scene.collection.objects.link(obj)
+
+
+def camera_type(scene, objs, v, folder):
+    objs["camera"].data.type = v
+
+
+def render_region(scene, objs, v, folder):
+    r = scene.render
+    r.use_border = True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = v
+
+
+def frame(scene, objs, v, folder):
+    scene.frame_set(v)
+
+
+def mix_fac(scene, objs, v, folder):
+    tree = _white()
+    shader = next(n for n in tree.nodes if n.bl_idname != "ShaderNodeOutputMaterial")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    glossy = tree.nodes.new("ShaderNodeBsdfGlossy")
+    mix.inputs["Fac"].default_value = v
+    tree.links.new(shader.outputs[0], mix.inputs[1])
+    tree.links.new(glossy.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], _output(tree).inputs["Surface"])
+
+
+def volume_output(scene, objs, v, folder):
+    tree = _white()
+    volume = tree.nodes.new("ShaderNodeVolumePrincipled")
+    tree.links.new(volume.outputs[0], _output(tree).inputs["Volume"])
+
+
+def sampler(scene, objs, v, folder):
+    scene.sampling_lab.sampler = v.upper()
+
+
+def threads(scene, objs, v, folder):
+    scene.render.threads_mode = "FIXED"
+    scene.render.threads = v
+
+
 def _setting(name):
     def edit(scene, objs, v, folder):
         setattr(scene.sampling_lab, name, v)
@@ -260,6 +315,15 @@ EDITS = {
     "samples": samples,
     "time_limit": time_limit,
     "resolution": resolution,
+    "nan_vertex": nan_vertex,
+    "empty_mesh": empty_mesh,
+    "camera_type": camera_type,
+    "render_region": render_region,
+    "frame": frame,
+    "mix_fac": mix_fac,
+    "volume_output": volume_output,
+    "sampler": sampler,
+    "threads": threads,
     "photon_memory": _setting("photon_memory"),
     "radiosity_patch_size": _setting("radiosity_patch_size"),
 }

@@ -236,7 +236,4 @@ def form_factor_matrix(mesh, accel, samples=16, seed=0, check=None):
         F[rows] = form_factor_rows(mesh, accel, rows, samples, seed)
         if check is not None and check(min(a + step, p) / p):
             return None
-    # A patch's form factors sum to at most one (all it sees); the point-to-point estimate of
-    # adjacent patches can exceed that, and with an albedo of one the solve would then diverge.
-    F /= np.maximum(F.sum(axis=1, keepdims=True), 1.0)
     return F
