@@ -175,7 +175,8 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
                 f"Sampling Lab needs the Python module(s) {', '.join(missing)}, which are not "
                 f"installed; install the extension build that bundles them, or pip install "
                 f"{' '.join(missing)} into Blender's Python")
-        from ..core.render import check_film_memory, preparation_key
+        from ..core.film import check_film_memory
+        from ..core.render import preparation_key
         from ..core.render import render as core_render
 
         scene = depsgraph.scene

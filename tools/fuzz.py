@@ -184,6 +184,28 @@ def _last_line(record):
     return text.strip().replace("|", "/")[:200]
 
 
+# What the harness found in its first runs, and the fix of each (the table above is after them).
+FINDINGS = (
+    "Huge resolutions (`--resolution 60000x60000`, Blender's 65536 x 65536): a NumPy "
+    "MemoryError traceback while allocating the film. Now `core.render.check_film_memory` "
+    "refuses an image whose film needs more than half the machine's memory, before anything is "
+    "allocated (in the engine before Blender allocates its result); a MemoryError that still "
+    "happens is one line (CLI) or one report (Blender).",
+    "Photon Memory below what the photons need, in Blender: the core's refusal reached the "
+    "engine's catch-all and printed a traceback with *render failed: ValueError*. The engine now "
+    "reports core's ValueError refusals in one line, as the CLI does.",
+    "Radiosity with a white Glass block (treated as diffuse with albedo 1): Gauss-Seidel "
+    "diverged (residual 3e74) and the EXR held Inf. A diverged solve is now refused with its "
+    "cause; float64 sums beyond float32's range are clipped when the film's images are made.",
+    "Every `.blend` rendered by the CLI leaked Blender's `Read blend: ...` line onto stdout "
+    "(also before the no-camera error); the file now loads with file descriptors 1 and 2 "
+    "silenced.",
+    "Found by hand while writing the flag values, not by a run: `--time inf` (no sample "
+    "count) passed every check and rendered forever. It is refused now, in the CLI and in "
+    "`core.render.check_settings` (Blender's Time Limit too).",
+)
+
+
 def report(cases, results, seed, seconds, command):
     """``FUZZ.md``'s text: the table of outcomes, every failure, and some refusals."""
     counts = tally(cases, results)
@@ -207,6 +229,12 @@ def report(cases, results, seed, seconds, command):
               f" -> {_last_line(results[c['id']])}" for c in failed] or ["None."]
     refusals = Counter(_last_line(results[c["id"]]) for c in cases
                        if results[c["id"]]["outcome"] == "refused")
+    lines += ["", "## What the harness found, and the fixes", ""]
+    lines += [f"{i}. {text}" for i, text in enumerate(FINDINGS, 1)]
+    if hasattr(os, "geteuid") and os.geteuid() == 0:
+        lines += ["", "This run was as root, who may write into a folder without write "
+                  "permission: the `readonly/` outputs rendered; `/proc/sys/` stayed "
+                  "unwritable and was refused."]
     lines += ["", "## The most frequent refusals", ""]
     lines += [f"- {n} x {text}" for text, n in refusals.most_common(25)]
     return "\n".join(lines) + "\n"

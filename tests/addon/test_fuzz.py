@@ -11,7 +11,7 @@ from collections import Counter
 from sampling_lab.tools.fuzz import FAILURES, run_cases
 from sampling_lab.tools.fuzz_cases import ROUTES, make_cases
 
-COUNT, SEED = 30, 16
+COUNT, SEED = 45, 16
 
 
 def test_fixed_seed_fuzz_cases_render_or_are_refused_in_one_line():
