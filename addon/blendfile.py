@@ -54,11 +54,14 @@ def load_blend(path, frame=None, resolution=None):
     if resolution is not None:
         bl_scene.render.resolution_x, bl_scene.render.resolution_y = resolution
         bl_scene.render.resolution_percentage = 100
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    try:
-        scene = export_scene(depsgraph)
-    except ExportError as exc:
-        raise ValueError(str(exc)) from None
+    # Reading images logs Blender's own errors too ("imb_load_openexr: Unable to open"); the
+    # exporter says what it could not read in its messages, which the command line prints.
+    with _quiet_fds():
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        try:
+            scene = export_scene(depsgraph)
+        except ExportError as exc:
+            raise ValueError(str(exc)) from None
     return scene, render_settings(bl_scene.sampling_lab)
 
 

@@ -147,7 +147,7 @@ def run_cases(cases, timeout=60.0, batch=25, memory_gb=8, work=None, log=print):
     results, pending = {}, list(cases)
     try:
         while pending:
-            records = run_child(pending[:batch], work, timeout, memory_gb)
+            records = run_child(pending[:max(1, batch)], work, timeout, memory_gb)
             for case_id, record in records.items():
                 record["outcome"] = classify(record)
                 results[case_id] = record
@@ -198,8 +198,10 @@ FINDINGS = (
     "diverged (residual 3e74) and the EXR held Inf. A diverged solve is now refused with its "
     "cause; float64 sums beyond float32's range are clipped when the film's images are made.",
     "Every `.blend` rendered by the CLI leaked Blender's `Read blend: ...` line onto stdout "
-    "(also before the no-camera error); the file now loads with file descriptors 1 and 2 "
-    "silenced.",
+    "(also before the no-camera error), and a truncated EXR texture leaked Blender's own "
+    "`imb_load_openexr` error lines before our one-line refusal (an earlier 500-case run "
+    "counted it as unclear); the file now loads and exports with file descriptors 1 and 2 "
+    "silenced (the exporter's own notes say what it could not read).",
     "Found by hand while writing the flag values, not by a run: `--time inf` (no sample "
     "count) passed every check and rendered forever. It is refused now, in the CLI and in "
     "`core.render.check_settings` (Blender's Time Limit too).",
