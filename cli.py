@@ -219,6 +219,9 @@ def load_scene(args):
             raise UsageError(f"cannot render {name!r}: {str(exc).strip().splitlines()[-1]}")
         settings = file_settings
     else:
+        if os.path.splitext(name)[1]:
+            raise UsageError(f"{name!r} is not a scene: give a .blend file or one of the "
+                             f"built-in scenes {', '.join(builtin_scenes.BUILTIN)}")
         if name not in builtin_scenes.BUILTIN:
             raise UsageError(f"unknown scene {name!r}; built-in scenes: "
                              f"{', '.join(builtin_scenes.BUILTIN)} (or give a .blend path)")

@@ -208,8 +208,9 @@ FINDINGS = (
 )
 
 
-def report(cases, results, seed, seconds, command):
-    """``FUZZ.md``'s text: the table of outcomes, every failure, and some refusals."""
+def report(cases, results, seed, seconds, command, machine=""):
+    """``FUZZ.md``'s text: the table of outcomes, every failure, and some refusals
+    (``machine``: a sentence on where it ran)."""
     counts = tally(cases, results)
     head = "| route | cases | " + " | ".join(OUTCOMES) + " |"
     lines = ["# Fuzz harness: broken scenes and command lines", "",
@@ -217,7 +218,8 @@ def report(cases, results, seed, seconds, command):
              "(`tools/fuzz.py`; what each outcome means is in its docstring). Routes: "
              "`blender` renders a scene broken through the data API inside Blender, `blend` "
              "saves it (the file perhaps damaged) and renders it with the command line, `cli` "
-             "runs the command line on built-in scenes and broken files with absurd flags.", "",
+             "runs the command line on built-in scenes and broken files with absurd flags."
+             + (" " + machine if machine else ""), "",
              head, "|" + "---|" * (len(OUTCOMES) + 2)]
     for route in ROUTES:
         c = counts[route]
@@ -250,7 +252,10 @@ def run(count=500, seed=0, timeout=60.0, batch=25, memory_gb=8, output="out/fuzz
     cases = make_cases(count, seed)
     start = time.monotonic()
     results = run_cases(cases, timeout=timeout, batch=batch, memory_gb=memory_gb)
-    text = report(cases, results, seed, time.monotonic() - start, command)
+    seconds = time.monotonic() - start
+    machine = (f"Ran on {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f} at the "
+               f"end (the time depends on the load)." if hasattr(os, "getloadavg") else "")
+    text = report(cases, results, seed, seconds, command, machine)
     os.makedirs(output, exist_ok=True)
     with open(os.path.join(output, "FUZZ.md"), "w") as f:
         f.write(text)

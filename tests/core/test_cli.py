@@ -48,6 +48,7 @@ ERROR_CASES = {
     "NaN time": ["render", "cornell", "-o", "{tmp}/a.exr", "--time", "nan"],
     "negative seed": ["render", "cornell", "-o", "{tmp}/a.exr", "--seed", "-1"],
     "negative threads": ["render", "cornell", "-o", "{tmp}/a.exr", "--threads", "-2"],
+    "image as scene": ["render", "image.exr", "-o", "{tmp}/a.exr"],
     "huge resolution": ["render", "cornell", "-o", "{tmp}/a.exr", "--resolution",
                         "100000x100000"],
 }
@@ -63,6 +64,7 @@ ERROR_WORDS = {
     "negative seed": "seed: -1 is not an integer in [0, 2147483647] (it is negative)",
     "negative threads": "(it is negative)",
     "huge resolution": "a 100000 x 100000 image needs about",
+    "image as scene": "'image.exr' is not a scene: give a .blend file",
 }
 # Flags the light tracer does not use (each prints a note) beside one it uses (--max-depth).
 NOT_FOR_LIGHT = ["--integrator", "light", "--mis", "balance", "--mis-beta", "3",
