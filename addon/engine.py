@@ -156,8 +156,8 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
             if isinstance(ex, ExportError):
                 self.report({'ERROR'}, str(ex))
             elif isinstance(ex, MemoryError):
-                self.report({'ERROR'}, "Sampling Lab: out of memory: lower the resolution, "
-                                       "the samples per pass or the photon count")
+                self.report({'ERROR'}, "Sampling Lab: out of memory: lower the resolution or "
+                                       "the photon count")
             elif isinstance(ex, ValueError):
                 # core.render refuses settings it cannot render with a message for the user
                 # (as the command line prints it): one line, no traceback.

@@ -296,9 +296,8 @@ def check_settings(scene, settings):
         raise ValueError("the scene has no camera: add one and make it the scene camera")
     # Each option against its menu or range (core.options), then what options need together.
     validate(settings)
-    if settings.spp <= 0 and not 0 < settings.time_limit < float("inf"):
-        raise ValueError("set a sample count or a finite time limit: with neither the render "
-                         "would never end")
+    if settings.spp <= 0 and settings.time_limit <= 0:
+        raise ValueError("set a sample count or a time limit")
     if scene.camera.width <= 0 or scene.camera.height <= 0:
         raise ValueError("the resolution must be at least 1 x 1 pixel")
     if settings.region is not None:

@@ -203,8 +203,10 @@ FINDINGS = (
     "counted it as unclear); the file now loads and exports with file descriptors 1 and 2 "
     "silenced (the exporter's own notes say what it could not read).",
     "Found by hand while writing the flag values, not by a run: `--time inf` (no sample "
-    "count) passed every check and rendered forever. It is refused now, in the CLI and in "
-    "`core.render.check_settings` (Blender's Time Limit too).",
+    "count) passed every check and rendered forever. The CLI refuses it now. (Blender clamps an "
+    "infinite Time Limit to 3.4e38 s, and Esc ends such a render; the core still accepts "
+    "spp 0 with an infinite limit, which the rendered viewport uses to run until the view "
+    "changes.)",
 )
 
 
