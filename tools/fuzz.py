@@ -91,6 +91,28 @@ def _memory_limit(gigabytes):
     return limit if gigabytes else None
 
 
+def _watch(proc, log_path, cases, timeout):
+    """Follow the child's log until it exits or a case runs past ``timeout`` (then it is
+    recorded as a hang). Returns the records so far and the id of the case in progress."""
+    by_id = {c["id"]: c for c in cases}
+    records, current, since = {}, None, time.monotonic()
+    while True:
+        done = proc.poll() is not None
+        for entry in _read_log(log_path)[2 * len(records) + (current is not None):]:
+            if "start" in entry:
+                current, since = entry["start"], time.monotonic()
+            else:
+                records[entry["end"]] = {"route": by_id[entry["end"]]["route"], **entry}
+                current, since = None, time.monotonic()
+        if done:
+            return records, current
+        if time.monotonic() - since > timeout:
+            current = current if current is not None else cases[len(records)]["id"]
+            records[current] = {"status": "hang", "detail": f"no end after {timeout:g} s"}
+            return records, current
+        time.sleep(0.05)
+
+
 def run_child(cases, work, timeout, memory_gb=0):
     """Run ``cases`` in one child until they end, it dies or a case hangs.
 
@@ -104,30 +126,20 @@ def run_child(cases, work, timeout, memory_gb=0):
     cases_path, log_path = (os.path.join(work, f"batch{tag}.{ext}") for ext in ("json", "log"))
     with open(cases_path, "w") as f:
         json.dump(cases, f)
-    by_id = {c["id"]: c for c in cases}
     with open(os.path.join(work, f"batch{tag}.out"), "wb") as out:
         proc = subprocess.Popen(
             [sys.executable, "-m", f"{__package__}.fuzz_child", cases_path, log_path, work],
             stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
             preexec_fn=_memory_limit(memory_gb))
-        records, current, since = {}, None, time.monotonic()
-        while True:
-            done = proc.poll() is not None
-            for entry in _read_log(log_path)[2 * len(records) + (current is not None):]:
-                if "start" in entry:
-                    current, since = entry["start"], time.monotonic()
-                else:
-                    records[entry["end"]] = {"route": by_id[entry["end"]]["route"], **entry}
-                    current, since = None, time.monotonic()
-            if done:
-                break
-            if time.monotonic() - since > timeout:
+        try:
+            records, current = _watch(proc, log_path, cases, timeout)
+        finally:
+            # (The child has a session of its own: Ctrl-C here does not reach it.)
+            if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
-                victim = current if current is not None else cases[len(records)]["id"]
-                records[victim] = {"status": "hang", "detail": f"no end after {timeout:g} s"}
-                return records
-            time.sleep(0.05)
+    if current is not None and records.get(current, {}).get("status") == "hang":
+        return records
     if len(records) < len(cases):
         with open(os.path.join(work, f"batch{tag}.out"), "rb") as f:
             tail = f.read()[-1500:].decode(errors="replace")
