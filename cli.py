@@ -25,9 +25,8 @@ import sys
 import tempfile
 
 from .core import scenes as builtin_scenes
-from .core.integrators import integrator_class
 from .core.options import OPTIONS
-from .core.render import RenderSettings, render, used_settings
+from .core.render import RenderSettings, render, unused_options
 
 PROG = "sampling_lab"
 DESCRIPTION = ("Sampling Lab: render scenes with Monte Carlo estimators and samplers, and "
@@ -103,7 +102,7 @@ def _option_type(option):
         try:
             return option.parse(text)
         except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
+            raise argparse.ArgumentTypeError(f"{exc}{option.why_not(text)}") from None
 
     parse.__name__ = option.name
     return parse
@@ -220,6 +219,9 @@ def load_scene(args):
             raise UsageError(f"cannot render {name!r}: {str(exc).strip().splitlines()[-1]}")
         settings = file_settings
     else:
+        if os.path.splitext(name)[1]:
+            raise UsageError(f"{name!r} is not a scene: give a .blend file or one of the "
+                             f"built-in scenes {', '.join(builtin_scenes.BUILTIN)}")
         if name not in builtin_scenes.BUILTIN:
             raise UsageError(f"unknown scene {name!r}; built-in scenes: "
                              f"{', '.join(builtin_scenes.BUILTIN)} (or give a .blend path)")
@@ -245,18 +247,48 @@ def apply_flags(settings, args):
     return given
 
 
+def _flag_text(name, value):
+    option = OPTIONS[name]
+    if option.kind is bool:
+        return option.flag_name if value else f"--no-{option.flag_name[2:]}"
+    return f"{option.flag_name} {value}"
+
+
 def _notes(settings, given):
-    """Tell the user once about flags that the chosen integrator does not use."""
-    used = used_settings(settings)
-    for name in ("mis_heuristic", "mis_beta", "mis_alpha", "light_selection", "light_sampling",
-                 "distribution"):
-        if name in given and used[name] != getattr(settings, name):
-            print(f"note: {OPTIONS[name].flag_name} {getattr(settings, name)} does not apply to "
-                  f"{settings.integrator} with --mis {settings.mis_heuristic}: it uses "
-                  f"{used[name]}", file=sys.stderr)
-    if settings.strategy_views and not integrator_class(settings.integrator).strategy_views:
-        print(f"note: the {settings.integrator} integrator writes no strategy views "
-              f"(only bdpt does)", file=sys.stderr)
+    """Tell the user once about each flag the render ignores (:func:`core.render.unused_options`)
+    or replaces with another value."""
+    unused = unused_options(settings)
+    for name in given:
+        if name not in unused:
+            continue
+        flag = _flag_text(name, getattr(settings, name))
+        if name == "strategy_views":
+            print(f"note: the {settings.integrator} integrator writes no strategy views "
+                  f"(only bdpt does)", file=sys.stderr)
+        elif unused[name] == "n/a":
+            print(f"note: {flag} does not apply to {settings.integrator}"
+                  f"{_because(name, settings)}; it is ignored", file=sys.stderr)
+        else:
+            print(f"note: {flag} does not apply to {settings.integrator}"
+                  f"{_because(name, settings)}: it uses {unused[name]}", file=sys.stderr)
+
+
+def _because(name, settings):
+    """The other setting that makes option ``name`` not apply, as a clause (or '')."""
+    if name in ("mis_beta", "mis_alpha", "light_selection", "light_sampling") and \
+            settings.integrator in ("path", "bdpt"):
+        return f" with --mis {settings.mis_heuristic}"
+    if name in ("photon_k", "photon_radius") and settings.integrator == "photon":
+        return f" with --photon-lookup {settings.photon_lookup}"
+    if name == "radiosity_adaptive" and settings.integrator == "radiosity":
+        return f" with --radiosity-solver {settings.radiosity_solver}"
+    if name in ("light_selection", "light_sampling") and settings.integrator == "radiosity":
+        return f" with --radiosity-display {settings.radiosity_display}"
+    if name == "rr_min_bounces" and not settings.use_russian_roulette:
+        return " with --no-russian-roulette"
+    if name == "strategy_max_length" and settings.integrator == "bdpt":
+        return " without --strategy-views"
+    return ""
 
 
 def check_output(path):
@@ -278,6 +310,9 @@ def check_output(path):
 
 def check_halt(settings):
     """A render must stop by itself: refuse ``--spp 0`` without a time limit, naming both."""
+    if settings.spp == 0 and settings.time_limit == float("inf"):
+        raise UsageError("--time inf never stops: give a finite time limit in seconds, or a "
+                         "sample count with --spp N")
     if settings.spp == 0 and not settings.time_limit > 0:
         raise UsageError("--spp 0 renders no samples: give --spp N with N >= 1, or a time "
                          "limit with --time SECONDS")
@@ -370,6 +405,10 @@ def main(argv=None):
             raise UsageError(str(exc)) from None
     except UsageError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"{PROG}: error: out of memory: lower the resolution or the photon count",
+              file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)

@@ -155,6 +155,13 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
 
             if isinstance(ex, ExportError):
                 self.report({'ERROR'}, str(ex))
+            elif isinstance(ex, MemoryError):
+                self.report({'ERROR'}, "Sampling Lab: out of memory: lower the resolution or "
+                                       "the photon count")
+            elif isinstance(ex, ValueError):
+                # core.render refuses settings it cannot render with a message for the user
+                # (as the command line prints it): one line, no traceback.
+                self.report({'ERROR'}, f"Sampling Lab: {ex}")
             else:
                 traceback.print_exc()
                 self.report({'ERROR'}, f"Sampling Lab: render failed: {type(ex).__name__}: {ex}")
@@ -168,6 +175,7 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
                 f"Sampling Lab needs the Python module(s) {', '.join(missing)}, which are not "
                 f"installed; install the extension build that bundles them, or pip install "
                 f"{' '.join(missing)} into Blender's Python")
+        from ..core.film import check_film_memory
         from ..core.render import preparation_key
         from ..core.render import render as core_render
 
@@ -181,6 +189,8 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
         reported = set(sl_scene.messages)
 
         width, height = sl_scene.camera.width, sl_scene.camera.height
+        # Before Blender allocates the result: a huge image is refused, not half allocated.
+        check_film_memory(width, height)
         result = self.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
         layer = result.layers[0]
         settings = render_settings(scene.sampling_lab)

@@ -18,6 +18,8 @@ sample with :meth:`Film.add_layer`, splatted with :meth:`Film.splat_layer`.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 FILTER_TABLE_SIZE = 1024
@@ -294,6 +296,41 @@ class Film:
         """RGBA ``(h, w, 4)`` float32; RGB as Cycles writes it on a transparent film (the
         world seen by camera rays left out, not divided by alpha)."""
         rgba = np.ones((self.height, self.width, 4), np.float32)
-        rgba[..., :3] = self.mean()
+        rgba[..., :3] = to_float32(self.mean())
         rgba[..., 3] = self.alpha()
         return rgba
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def to_float32(image):
+    """``image`` as float32 with finite float64 values beyond float32's range clipped to its
+    largest value: a sum that is finite in float64 must not become Inf in an output image."""
+    return np.clip(image, -FLOAT32_MAX, FLOAT32_MAX).astype(np.float32)
+
+
+# Bytes per pixel of the film (five (n, 3) float64 sums and an int64 count), and as much again
+# for the images a render hands back.
+FILM_BYTES_PER_PIXEL = 2 * (5 * 3 * 8 + 8)
+
+
+def physical_memory():
+    """Bytes of physical memory, or None where the platform does not say."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def check_film_memory(width, height, region=None, memory=None):
+    """Refuse (``ValueError``) an image whose film would take more than half of the machine's
+    ``memory`` (default: :func:`physical_memory`), before anything is allocated: a huge
+    resolution then says so instead of failing deep inside NumPy or exhausting the machine."""
+    n = (region[2] - region[0]) * (region[3] - region[1]) if region else width * height
+    memory = physical_memory() if memory is None else memory
+    need = n * FILM_BYTES_PER_PIXEL
+    if memory and need > memory / 2:
+        raise ValueError(f"a {width} x {height} image needs about {need / 2 ** 30:.0f} GB for "
+                         f"its film, more than half of the {memory / 2 ** 30:.0f} GB of memory "
+                         f"here: lower the resolution or render a region")

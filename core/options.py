@@ -142,6 +142,28 @@ class Option:
             what = "an integer" if self.kind is int else "a number"
             raise ValueError(f"{self.name}: {value!r} is not {what} in {self.allowed()}")
 
+    def why_not(self, text):
+        """What is wrong with the number in ``text`` when it is out of range, as a clause for a
+        message (``' (it is negative)'``, ``' (it is NaN)'``); ``''`` for anything else."""
+        if self.choices or self.kind is bool:
+            return ""
+        try:
+            value = self.kind(text)
+        except ValueError:
+            return ""
+
+        def bound(b):
+            return str(int(b)) if self.kind is int else f"{b:g}"
+
+        if math.isnan(value):
+            return " (it is NaN)"
+        if self.minimum is not None and value < self.minimum:
+            return (" (it is negative)" if value < 0 <= self.minimum
+                    else f" (it is below the minimum {bound(self.minimum)})")
+        if self.maximum is not None and value > self.maximum:
+            return f" (it is above the maximum {bound(self.maximum)})"
+        return ""
+
     def parse(self, text):
         """A value from command-line text, checked (``ValueError`` names the option)."""
         if self.choices:

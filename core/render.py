@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .film import Film, PixelFilter
+from .film import Film, PixelFilter, check_film_memory, to_float32
 from .integrators import integrator_class
 from .integrators.base import UNIT_PATHS, Counters
 from .options import DEFAULTS, validate
@@ -149,7 +149,7 @@ class RenderResult:
 
     def variance(self):
         """``(h, w, 3)`` float32 variance of each pixel estimate."""
-        return self.film.variance().astype(np.float32)
+        return to_float32(self.film.variance())
 
     def sample_count(self):
         """``(h, w)`` float32 samples per pixel."""
@@ -158,7 +158,7 @@ class RenderResult:
     def layers(self):
         """Extra images by pass name, ``(h, w, 3)`` float32 each (BDPT's per-strategy views,
         in :func:`core.integrators.common.strategy_pass_names` order); empty if none."""
-        return {name: self.film.layer_mean(name).astype(np.float32)
+        return {name: to_float32(self.film.layer_mean(name))
                 for name in self.layer_names}
 
 
@@ -272,6 +272,36 @@ def _radiosity_used(settings):
     }
 
 
+def unused_options(settings):
+    """The options a render with ``settings`` ignores, each with the value it uses instead
+    (``'n/a'``: nothing): :func:`used_settings`' strategy options, and the light-path options
+    the add-on greys out too (radiosity has no path bounces; photon mapping's paths use no
+    Russian roulette settings; the roulette threshold needs roulette; strategy views are
+    BDPT's alone and their path length needs them on).
+
+    Returns
+    -------
+    dict
+        Option name -> the value used instead, or ``'n/a'``; options that apply are absent.
+    """
+    unused = {name: value for name, value in used_settings(settings).items()
+              if value != getattr(settings, name)}
+    na = "n/a"
+    integrator = settings.integrator
+    if integrator == "radiosity":
+        unused.update(max_bounces=na, use_russian_roulette=na, rr_min_bounces=na)
+    if integrator in PHOTON_INTEGRATORS:
+        unused.update(use_russian_roulette=na, rr_min_bounces=na)
+    if not settings.use_russian_roulette:
+        unused["rr_min_bounces"] = na
+    views = integrator_class(integrator).strategy_views
+    if not views:
+        unused["strategy_views"] = na
+    if not (views and settings.strategy_views):
+        unused["strategy_max_length"] = na
+    return unused
+
+
 def check_settings(scene, settings):
     """Raise ``ValueError`` with a user-facing message for settings that cannot render."""
     if scene.camera is None:
@@ -287,6 +317,7 @@ def check_settings(scene, settings):
         if not (0 <= x0 < x1 <= scene.camera.width and 0 <= y0 < y1 <= scene.camera.height):
             raise ValueError(f"the render region {tuple(settings.region)} is not a non-empty "
                              f"window of the {scene.camera.width} x {scene.camera.height} frame")
+    check_film_memory(scene.camera.width, scene.camera.height, settings.region)
     if settings.integrator == "bdpt" and settings.mis_heuristic not in HEURISTICS:
         raise ValueError(f"BDPT weighs all its strategies with one heuristic: choose from "
                          f"{', '.join(HEURISTICS)}, not {settings.mis_heuristic!r}")

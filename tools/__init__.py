@@ -19,6 +19,9 @@ repository's ``docs/`` only with ``--update-docs`` (:mod:`.outputs`).
   samplers``) over the measures of :mod:`core.sampling.lab`.
 - :mod:`.viewport_cancel`: how fast the rendered viewport answers a change
   (``python -m sampling_lab.tools.viewport_cancel``).
+- :mod:`.fuzz`: randomly broken scenes and command lines, each of which must render or be
+  refused in one line (``python -m sampling_lab fuzz``; :mod:`.fuzz_cases`,
+  :mod:`.fuzz_child`, :mod:`.fuzz_edits`).
 - :mod:`.blender_scene`: a :class:`core.scene.Scene` rebuilt as a ``bpy`` scene for Cycles.
 - :mod:`.bpy_scenes`: scenes built with Blender's data API, shared with the Cycles agreement
   tests.

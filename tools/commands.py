@@ -155,6 +155,28 @@ def _size(parser, default, flag="--size", text=None):
     parser.add_argument(flag, type=_resolution, default=default, metavar="WxH", help=text)
 
 
+def _fuzz(args):
+    from .fuzz import run
+
+    return run(count=args.count, seed=args.seed, timeout=args.timeout, batch=args.batch,
+               memory_gb=args.memory_gb, output=args.output, update_docs=args.update_docs,
+               command="python -m sampling_lab " + " ".join(args.argv))
+
+
+def _add_fuzz(sub, **kw):
+    f = _add(sub, "fuzz", "randomly broken scenes and command lines: each must render or be "
+             "refused in one line, never a traceback, crash, hang or NaN (FUZZ.md)", _fuzz, **kw)
+    f.add_argument("--count", type=_positive_int, default=500, help="cases to make and run")
+    f.add_argument("--seed", type=_positive_int, default=0, help="seed of the cases")
+    f.add_argument("--timeout", type=_positive_float, default=60.0,
+                   help="seconds after which a case counts as a hang")
+    f.add_argument("--batch", type=_positive_int, default=25,
+                   help="cases per child process (a crash or hang costs only its child)")
+    f.add_argument("--memory-gb", type=_positive_float, default=8.0,
+                   help="address-space cap of each child, so a runaway allocation fails there")
+    add_output_arguments(f, "fuzz", "FUZZ.md")
+
+
 def _add(sub, name, summary, run, **kw):
     p = sub.add_parser(name, help=summary, description=summary[0].upper() + summary[1:], **kw)
     p.set_defaults(run=run)
@@ -168,6 +190,7 @@ def add_parsers(sub, **kw):
     samplers_arguments(_add(sub, "samplers", "sampler lab: points, spectra, star discrepancy "
                             "and checkerboard variance of every sampler (CSV, PNG, markdown)",
                             _samplers, **kw))
+    _add_fuzz(sub, **kw)
     b = _add(sub, "bench", "speed against error of embreex, our path tracer and Cycles on the "
              "Cornell box (figures, not tests)", _bench, **kw)
     _size(b, (256, 256), "--resolution")

@@ -171,6 +171,7 @@ def _solve_mesh(prep, params, progress, cancel, mesh):
                         mesh.area, rho, E, params.tolerance,
                         check=progress_check(progress, cancel, 0.0, 1.0, "progressive refinement"))
         stats["radiosity_unshot_start"] = sol.unshot[0] if sol.unshot else 0.0
+    _check_converged(sol, E)
     t_end = time.perf_counter()
     stats.update({"radiosity_iterations": sol.iterations, "radiosity_residual": sol.residual,
                   "radiosity_mesh_s": t_mesh - t0, "radiosity_form_factor_s": t_ff - t_mesh,
@@ -178,6 +179,21 @@ def _solve_mesh(prep, params, progress, cancel, mesh):
                   if lamp_se.size else 0.0, "radiosity_bias": BIAS_NOTE})
     return RadiositySolution(mesh, sol.B, mesh.emission, mesh.corner_values(sol.B), stats,
                              sol.cancelled)
+
+
+# A residual this many times the largest source term means the iteration ran away.
+DIVERGED = 1e6
+
+
+def _check_converged(sol, E):
+    """Refuse a solve that diverged: with a patch that reflects all it receives (albedo one)
+    the sampled form factors, whose rows may sum past one, make ``rho F`` no contraction and
+    the iteration grows without bound (Inf, then NaN, in the image)."""
+    scale = max(float(np.abs(E).max()), 1e-30)
+    if not (np.isfinite(sol.B).all() and sol.residual <= DIVERGED * scale):
+        raise ValueError("radiosity: the solve diverged: a surface reflects all the light it "
+                         "receives (a Base Color of 1, e.g. a white Glass or Metal that "
+                         "radiosity treats as diffuse); lower its Base Color below 1")
 
 
 def source_term(mesh, prep, params, check=None):

@@ -257,6 +257,26 @@ def test_unexpected_exception_becomes_an_error_report(empty_scene, export, monke
         bpy.ops.render.render()
 
 
+def test_a_refused_setting_is_one_error_report_without_a_traceback(empty_scene, capfd):
+    """Core's refusals (here photons that need more than the Photon Memory cap) reach Blender
+    as one ERROR report naming the cause, not as the catch-all with a traceback."""
+    scenes.cornell_box_point_light(empty_scene, resolution=(8, 8))
+    props = empty_scene.sampling_lab
+    props.integrator, props.photons, props.photon_memory = 'SPPM', 1 << 26, 1.0
+    capfd.readouterr()
+    with pytest.raises(RuntimeError, match="Sampling Lab: photon storage") as err:
+        bpy.ops.render.render()
+    assert "render failed" not in str(err.value)
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_a_huge_resolution_is_refused_before_blender_allocates_it(empty_scene):
+    scenes.cornell_box_point_light(empty_scene, resolution=(8, 8))
+    scenes.set_resolution(empty_scene, 65536, 65536)
+    with pytest.raises(RuntimeError, match="a 65536 x 65536 image needs about"):
+        bpy.ops.render.render()
+
+
 # --------------------------------------------------------------------------- settings and UI
 
 

@@ -44,6 +44,13 @@ ERROR_CASES = {
     "zero samples": ["render", "cornell", "-o", "{tmp}/a.exr", "--spp", "0"],
     "negative resolution": ["render", "cornell", "-o", "{tmp}/a.exr", "--resolution", "-5x10"],
     "negative time": ["render", "cornell", "-o", "{tmp}/a.exr", "--time", "-1"],
+    "infinite time": ["render", "cornell", "-o", "{tmp}/a.exr", "--time", "inf"],
+    "NaN time": ["render", "cornell", "-o", "{tmp}/a.exr", "--time", "nan"],
+    "negative seed": ["render", "cornell", "-o", "{tmp}/a.exr", "--seed", "-1"],
+    "negative threads": ["render", "cornell", "-o", "{tmp}/a.exr", "--threads", "-2"],
+    "image as scene": ["render", "image.exr", "-o", "{tmp}/a.exr"],
+    "huge resolution": ["render", "cornell", "-o", "{tmp}/a.exr", "--resolution",
+                        "100000x100000"],
 }
 # What each of those errors must name (the cause, in the user's terms).
 ERROR_WORDS = {
@@ -51,14 +58,24 @@ ERROR_WORDS = {
     "output is a folder": "it is a folder",
     "zero samples": "--time SECONDS",
     "negative resolution": "'-5x10'",
-    "negative time": "-1.0 is not a number in [0, inf]",
+    "negative time": "-1.0 is not a number in [0, inf] (it is negative)",
+    "infinite time": "--time inf never stops",
+    "NaN time": "nan is not a number in [0, inf] (it is NaN)",
+    "negative seed": "seed: -1 is not an integer in [0, 2147483647] (it is negative)",
+    "negative threads": "(it is negative)",
+    "huge resolution": "a 100000 x 100000 image needs about",
+    "image as scene": "'image.exr' is not a scene: give a .blend file",
 }
+# Flags the light tracer does not use (each prints a note) beside one it uses (--max-depth).
+NOT_FOR_LIGHT = ["--integrator", "light", "--mis", "balance", "--mis-beta", "3",
+                 "--light-selection", "tree", "--strategy-max-length", "4", "--max-depth", "4"]
 RUNS = {
     "json": RENDER + ["-o", "{tmp}/out.exr", "--json", "--png"],
     "plain": RENDER + ["-o", "{tmp}/plain.exr"],
     "error: unknown scene": ERROR_CASES["unknown scene"],
     "error: corrupt .blend": ["render", "{tmp}/corrupt.blend", "-o", "{tmp}/a.exr"],
     "no bpy": RENDER + ["-o", "{tmp}/nobpy.exr", "--quiet"],
+    "notes": RENDER + ["-o", "{tmp}/notes.exr", "--quiet", *NOT_FOR_LIGHT],
 }
 
 # Runs main(argv) for each case with Python-level stdout and stderr captured.
@@ -279,3 +296,44 @@ def test_render_command_works_without_the_tools_folder(tmp_path):
                           timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "x.exr").exists()
+
+
+def test_flags_the_integrator_does_not_use_print_one_note_each(cli_runs):
+    _, runs = cli_runs
+    r = runs["notes"]
+    assert r.returncode == 0, r.stderr
+    notes = [line for line in r.stderr.splitlines() if line.startswith("note: --")]
+    assert notes == [
+        "note: --mis balance does not apply to light; it is ignored",
+        "note: --mis-beta 3.0 does not apply to light; it is ignored",
+        "note: --light-selection tree does not apply to light: it uses power",
+        "note: --strategy-max-length 4 does not apply to light; it is ignored",
+    ], r.stderr
+
+
+def test_unused_options_are_the_ones_the_panels_grey_out():
+    from sampling_lab.core.render import unused_options
+
+    def unused(**kw):
+        return unused_options(RenderSettings(**kw))
+
+    assert "mis_heuristic" not in unused() and "max_bounces" not in unused()
+    assert unused(integrator="light")["mis_heuristic"] == "n/a"
+    assert unused(mis_heuristic="balance")["mis_beta"] == "n/a"
+    radiosity = unused(integrator="radiosity")
+    assert radiosity["max_bounces"] == radiosity["use_russian_roulette"] == "n/a"
+    assert "rr_min_bounces" in unused(use_russian_roulette=False)
+    assert "rr_min_bounces" not in unused()
+    assert "strategy_max_length" in unused(integrator="bdpt")
+    assert not {"strategy_views", "strategy_max_length"} & set(
+        unused(integrator="bdpt", strategy_views=True))
+    assert "photons" in unused() and "photons" not in unused(integrator="sppm")
+
+
+def test_help_documents_threads_zero_and_the_seed_range():
+    from sampling_lab.cli import build_parser
+
+    render = build_parser()._subparsers._group_actions[0].choices["render"]
+    text = " ".join(render.format_help().split())
+    assert "0 is one per CPU core" in text
+    assert "--seed SEED" in text and "in [0, 2147483647]" in text

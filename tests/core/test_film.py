@@ -324,3 +324,25 @@ def test_splats_reach_every_pixel_the_filter_covers_and_no_other(kind, width):
     expected = np.einsum("kyx,kc->yxc", w, value).reshape(-1, 3)
     np.testing.assert_allclose(film.splat_sum, expected, rtol=1e-12, atol=1e-15)
     assert film.splat_sum.any()
+
+
+def test_a_film_larger_than_half_the_memory_is_refused_before_allocation():
+    from sampling_lab.core.film import FILM_BYTES_PER_PIXEL, check_film_memory
+
+    gb = 2 ** 30
+    fits = int((0.5 * gb / FILM_BYTES_PER_PIXEL) ** 0.5)  # the largest square that fits
+    check_film_memory(fits, fits, memory=gb)
+    with pytest.raises(ValueError, match=r"a 100000 x 100000 image needs about \d+ GB"):
+        check_film_memory(100_000, 100_000, memory=gb)
+    with pytest.raises(ValueError):
+        check_film_memory(fits + 1, fits + 1, memory=gb)
+    # Only a render region's pixels are kept.
+    check_film_memory(100_000, 100_000, region=(0, 0, 100, 100), memory=gb)
+
+
+def test_sums_beyond_float32_become_its_largest_value_not_inf():
+    from sampling_lab.core.film import FLOAT32_MAX, to_float32
+
+    out = to_float32(np.array([1e300, -1e300, 1.0]))
+    assert out.dtype == np.float32 and np.isfinite(out).all()
+    assert out[0] == np.float32(FLOAT32_MAX) and out[1] == -np.float32(FLOAT32_MAX)

@@ -198,3 +198,17 @@ def test_hierarchical_error_shrinks_with_epsilon_and_links_grow(quadtree_system)
         links.append(sol.stats["radiosity_links"])
     assert errors[0] > errors[1] > errors[2]
     assert links[0] < links[1] < links[2] < (mesh.n_patches ** 2) / 4
+
+
+def test_a_diverged_solve_is_refused_with_its_cause_not_rendered_as_inf():
+    """Gauss-Seidel on a 2-patch system whose rho F has row sums 1.2 (sampled form factors of an
+    albedo-one surface can sum past one) grows without bound: the solve is refused with a
+    message naming the cause; the same system at albedo 0.5 converges and passes."""
+    from sampling_lab.core.radiosity.system import _check_converged
+
+    F = np.array([[0.0, 1.2], [1.2, 0.0]])
+    E = np.ones((2, 3))
+    diverged = gauss_seidel(F, np.ones((2, 3)), E, tol=1e-4, max_iterations=200)
+    with pytest.raises(ValueError, match="the solve diverged: a surface reflects all"):
+        _check_converged(diverged, E)
+    _check_converged(gauss_seidel(F, np.full((2, 3), 0.5), E, tol=1e-4), E)
