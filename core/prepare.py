@@ -18,6 +18,40 @@ from .scene import Scene
 from .textures import material_base_color, textured_base_color
 
 
+def drop_nonfinite(scene: Scene):
+    """``scene`` without the triangles that have a NaN or infinite vertex coordinate.
+
+    Such triangles have no area, normal or place: Embree and the bounding box would take in
+    their coordinates and every later computation would turn to NaN. Vertices no remaining
+    triangle uses are moved onto a finite one, so that they leave the bounding box alone.
+
+    Returns
+    -------
+    scene : Scene
+        ``scene`` itself when every vertex is finite.
+    notes : list of str
+        One message naming how many triangles were dropped (empty when none).
+    """
+    bad_vertex = ~np.isfinite(scene.vertices).all(axis=1)
+    if not bad_vertex.any():
+        return scene, []
+    bad = bad_vertex[scene.triangles].any(axis=1)
+    keep = ~bad
+    vertices = scene.vertices.copy()
+    good = np.flatnonzero(~bad_vertex)
+    vertices[bad_vertex] = vertices[good[0]] if len(good) else 0.0
+
+    def rows(a):
+        return None if a is None else a[keep]
+
+    clean = dataclasses.replace(scene, vertices=vertices, triangles=scene.triangles[keep],
+                                material=scene.material[keep], visibility=scene.visibility[keep],
+                                corner_uvs=rows(scene.corner_uvs),
+                                corner_normals=rows(scene.corner_normals))
+    return clean, [f"{int(bad.sum()):,} triangle(s) with NaN or infinite vertex coordinates "
+                   f"were left out"]
+
+
 def recentred(scene: Scene):
     """A copy of ``scene`` translated so that its bounding box is centred on the origin.
 
@@ -87,6 +121,8 @@ class PreparedScene:
         Next-event estimation and the emitters rays find.
     emission : core.lights.Emission
         How light paths leave the same emitters (light tracing, BDPT).
+    notes : list of str
+        What preparing changed in the scene, for the user (:func:`drop_nonfinite`).
     shift : (3,) float64
         World position of the local frame's origin: everything above is in world space minus
         ``shift`` (see :func:`recentred`).
@@ -111,6 +147,7 @@ class PreparedScene:
     material_mix_count: np.ndarray = None
     lambert_only: bool = False
     emission: Emission = None
+    notes: list = dataclasses.field(default_factory=list)
 
     def bsdf(self, prim):
         """BSDF parameters of the hit triangles' own material rows ``(k,)`` and whether each
@@ -188,6 +225,7 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     draws mixed materials' components.
     Unknown values raise ``ValueError``.
     """
+    scene, notes = drop_nonfinite(scene)
     scene, shift = recentred(scene)
     v = scene.vertices.astype(np.float64)
     tri = v[scene.triangles] if scene.n_triangles else np.zeros((0, 3, 3))
@@ -215,7 +253,7 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
                          mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only,
-                         Emission(lights, scene.vertices))
+                         Emission(lights, scene.vertices), notes)
 
 
 def mixture_table(weights, rows):

@@ -366,9 +366,10 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
 
 
 def _scene_notes(scene, prep):
-    """What a scene lacks that leaves the image empty: geometry, or any light at all."""
-    notes = []
-    if scene.n_triangles == 0:
+    """What preparing left out of a scene (:func:`core.prepare.drop_nonfinite`) and what it
+    lacks that leaves the image empty: geometry, or any light at all."""
+    notes = list(prep.notes)
+    if prep.scene.n_triangles == 0:
         notes.append("the scene has no geometry: the camera sees only lights and the world")
     if prep.lights.n_emitters == 0:
         notes.append("the scene emits no light (no lamps, no emission shaders, a black "
