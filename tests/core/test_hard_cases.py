@@ -210,3 +210,31 @@ def test_a_light_inside_a_closed_mirror_is_never_seen(integrator):
     result = render(_scene("light_in_mirror_sphere"),
                     _settings(_scene("light_in_mirror_sphere"), integrator))
     assert result.combined()[..., :3].max() == 0.0
+
+
+@functools.lru_cache(maxsize=1)
+def _ten_million():
+    """The 10 M triangle plane and its prepared scene (built once for every integrator)."""
+    scene = H.many_triangles(10_000_000)
+    return scene, render(scene, _settings(scene, "path", spp=1)).prepared
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("integrator", list(INTEGRATORS))
+def test_ten_million_triangles_render_and_match_the_sunlit_plane(integrator):
+    """10 M triangles (peak RSS: ``bench-limits``). The sunlit plane's closed form, exact on
+    every camera sample for path tracing (checked to float32 rounding); finite for the others
+    (BDPT's light-tracing strategy makes it noisy); radiosity refuses so many patches before
+    any work."""
+    scene, prepared = _ten_million()
+    settings = _settings(scene, integrator, filter_type="box", filter_width=1.0, max_bounces=1)
+    if integrator == "radiosity":
+        with pytest.raises(ValueError, match="patches, more than"):
+            render(scene, settings, prepared=prepared)
+        return
+    result = render(scene, settings, prepared=prepared)
+    for name, image in _passes(result).items():
+        assert np.isfinite(image).all(), name
+    if integrator == "path":
+        rgb = result.combined()[..., :3]
+        np.testing.assert_allclose(rgb, H.grazing_plane_value(), rtol=1e-5)
