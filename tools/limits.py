@@ -66,7 +66,8 @@ def cancel_latency(integrator, size, delay, threads=2):
 
 
 def cli_latency(integrator, size, delay):
-    """Seconds from SIGINT ``delay`` s after the CLI started rendering to its exit, the exit
+    """SIGINT to the CLI ``delay`` s after it started rendering: seconds until it says it was
+    cancelled (the render has stopped), until it exits (the partial EXR written), the exit
     code and whether the EXR exists."""
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, "partial.exr")
@@ -79,22 +80,30 @@ def cli_latency(integrator, size, delay):
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=slave)
         os.close(slave)
         os.read(master, 1)
-        drain = threading.Thread(target=_drain, args=(master,), daemon=True)
+        said = {}
+        drain = threading.Thread(target=_drain, args=(master, said), daemon=True)
         drain.start()
         time.sleep(delay)
         asked = time.perf_counter()
         proc.send_signal(signal.SIGINT)
         proc.wait(600.0)
-        latency = time.perf_counter() - asked
+        exited = time.perf_counter() - asked
         drain.join(5.0)
-        return latency, proc.returncode, os.path.exists(path)
+        answered = said.get("cancelled", float("nan")) - asked
+        return answered, exited, proc.returncode, os.path.exists(path)
 
 
-def _drain(fd):
-    """Read a terminal's output until the child closes it."""
+def _drain(fd, said):
+    """Read a terminal's output until the child closes it; note when it says 'cancelled'."""
+    seen = b""
     try:
-        while os.read(fd, 4096):
-            pass
+        while True:
+            data = os.read(fd, 4096)
+            if not data:
+                break
+            seen = (seen + data)[-256:]
+            if b"cancelled" in seen and "cancelled" not in said:
+                said["cancelled"] = time.perf_counter()
     except OSError:
         pass
     finally:
@@ -123,6 +132,10 @@ def _child_rss(integrator, size):
             "photon_mb": result.stats.get("photon_memory_peak_mb")}
 
 
+def _ms(values):
+    return f"{1e3 * statistics.median(values):.0f} / {1e3 * max(values):.0f} ms"
+
+
 def _summary(values):
     values = sorted(values)
     return (f"median {1e3 * statistics.median(values):.0f} ms, "
@@ -146,9 +159,11 @@ def run(integrators=tuple(INTEGRATORS), repeats=5, cancel_size=(640, 360),
         if cli:
             runs = [cli_latency(name, cancel_size, rng.uniform(*CANCEL_DELAY))
                     for _ in range(max(1, repeats // 2))]
-            row["cli"] = [t for t, _, _ in runs]
-            row["cli_ok"] = all(code == 130 and exists for _, code, exists in runs)
-            progress(f"{name}: CLI SIGINT {_summary(row['cli'])}, exit 130 and EXR written: "
+            row["cli"] = [t for t, _, _, _ in runs]
+            row["cli_exit"] = [t for _, t, _, _ in runs]
+            row["cli_ok"] = all(code == 130 and exists for _, _, code, exists in runs)
+            progress(f"{name}: CLI SIGINT: stopped {_summary(row['cli'])}; exited (EXR "
+                     f"written) {_summary(row['cli_exit'])}; exit 130 and EXR: "
                      f"{row['cli_ok']}")
         if rss:
             row["rss"] = peak_rss(name, rss_size)
@@ -170,22 +185,23 @@ def _report(rows, repeats, cancel_size, rss_size, load0, load1):
         f"{time.strftime('%Y-%m-%d %H:%M')} UTC, {os.cpu_count()} cores, load average "
         f"{load0[0]:.2f} at the start and {load1[0]:.2f} at the end. Cancel: the Cornell box "
         f"at {cancel_size[0]}x{cancel_size[1]}, default settings, {repeats} cancels per "
-        f"integrator at a random 0.3-2 s; CLI: SIGINT to `render` (time to exit, partial EXR "
-        f"written). RSS: one pass at {rss_size[0]}x{rss_size[1]}, default settings, "
+        f"integrator at a random 0.3-2 s (median / max); CLI: SIGINT to `render`, time until it "
+        f"prints that it was cancelled (the render has stopped) and until it has exited (the "
+        f"partial EXR written, the interpreter closed). RSS: one pass at {rss_size[0]}x{rss_size[1]}, default settings, "
         f"each in a fresh process (`ru_maxrss`; the interpreter with NumPy and Embree "
         f"loaded is the 'before' column).",
         "",
-        "| integrator | cancel (median / max) | CLI SIGINT (median / max) | peak RSS | "
-        "RSS before render | render time |",
-        "|---|---|---|---|---|---|",
+        "| integrator | cancel (median / max) | CLI SIGINT: stopped | CLI: exited, EXR "
+        "written | peak RSS | RSS before render | render time |",
+        "|---|---|---|---|---|---|---|",
     ]
     for name, row in rows.items():
         cancel = row.get("cancel") or [float("nan")]
         cli = row.get("cli") or [float("nan")]
+        cli_exit = row.get("cli_exit") or [float("nan")]
         rss = row.get("rss") or {}
         lines.append(
-            f"| {name} | {1e3 * statistics.median(cancel):.0f} / {1e3 * max(cancel):.0f} ms | "
-            f"{1e3 * statistics.median(cli):.0f} / {1e3 * max(cli):.0f} ms | "
+            f"| {name} | {_ms(cancel)} | {_ms(cli)} | {_ms(cli_exit)} | "
             f"{rss.get('peak_mb', float('nan')):.0f} MB | "
             f"{rss.get('before_mb', float('nan')):.0f} MB | "
             f"{rss.get('seconds', float('nan')):.1f} s |")
