@@ -152,6 +152,24 @@ def _add_bench_limits(sub, **kw):
     add_output_arguments(p, "bench-limits")
 
 
+def _bench_soak(args):
+    from .soak import run
+
+    run(minutes=args.minutes, size=args.size, spp=args.spp, output=args.output)
+    return 0
+
+
+def _add_bench_soak(sub, **kw):
+    p = _add(sub, "bench-soak", "repeated renders of several scenes and integrators in one "
+             "Blender session: RSS and time per render over time (a table and a CSV; "
+             "docs/LIMITS.md quotes a run)", _bench_soak, **kw)
+    p.add_argument("--minutes", type=_positive_float, default=30.0,
+                   help="how long to keep rendering (whole rounds)")
+    _size(p, (96, 72))
+    p.add_argument("--spp", type=_positive_int, default=8, help="samples per pixel")
+    add_output_arguments(p, "bench-soak")
+
+
 def _samplers(args):
     from .sampler_lab import main
 
@@ -224,6 +242,7 @@ def add_parsers(sub, **kw):
     add_output_arguments(g, "bench-lights")
     _add_bench_gap(sub, **kw)
     _add_bench_limits(sub, **kw)
+    _add_bench_soak(sub, **kw)
     e = _add(sub, "bench-export", "triangles per second of the exporter on a large grid mesh "
              "(figures; docs/BENCHMARKS.md quotes a run)", _bench_export, **kw)
     e.add_argument("--triangles", type=_positive_int, default=1_000_000,
