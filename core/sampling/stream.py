@@ -78,9 +78,14 @@ class SampleStream:
         """Jump to ``dimension`` (integrators start each bounce at a fixed dimension). Raises
         :class:`Aborted` if ``abort()`` says the render was cancelled: so a work unit stops
         within one bounce of a cancel instead of running to its end."""
+        self.check_abort()
+        self.dimension = int(dimension)
+
+    def check_abort(self):
+        """Raise :class:`Aborted` if ``abort()`` says the render was cancelled (integrators
+        call it between long stages that draw no numbers, such as BDPT's connections)."""
         if self.abort is not None and self.abort():
             raise Aborted
-        self.dimension = int(dimension)
 
     def next_1d(self):
         """``(n,)`` float64 in [0, 1)."""
