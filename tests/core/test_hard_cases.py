@@ -238,3 +238,15 @@ def test_ten_million_triangles_render_and_match_the_sunlit_plane(integrator):
     if integrator == "path":
         rgb = result.combined()[..., :3]
         np.testing.assert_allclose(rgb, H.grazing_plane_value(), rtol=1e-5)
+
+
+@pytest.mark.parametrize("integrator", ["light", "bdpt"])
+def test_light_paths_do_not_depend_on_the_scene_scale(integrator):
+    """The same furnace at 1 m and 1 mm, the same seed: the same image. Russian roulette on
+    light paths once looked at their absolute throughput (Watts): at 1 mm it killed nearly
+    every path after the third bounce and weighted the survivors by hundreds, and the
+    estimate read 1.5 % low (4.6 standard errors in the closed-form test)."""
+    settings = _settings(_scene("tiny_scale"), integrator, spp=16, max_bounces=BOUNCES)
+    images = [render(s, settings).combined()[..., :3]
+              for s in (H._furnace(), _scene("tiny_scale"))]
+    np.testing.assert_allclose(images[1], images[0], rtol=1e-4)
