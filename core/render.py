@@ -514,12 +514,13 @@ class _Passes:
         pixels = np.arange(film.n_pixels, dtype=np.int64)
         frame_pixels = ((film.y0 + pixels // film.width) * self.frame_width + film.x0
                         + pixels % film.width)
+        sampler = _AbortingSampler(self.sampler, self.stop.is_set)
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
             while self.total_spp is None or self.done_spp < self.total_spp:
                 if self.out_of_time():
                     break
                 image = integrator.render_pass(
-                    self.done_spp, frame_pixels, self.sampler, self.pixel_filter,
+                    self.done_spp, frame_pixels, sampler, self.pixel_filter,
                     self.counters, lambda fn, items: self._map_chunks(pool, fn, items))
                 if image is None:
                     return True
@@ -544,8 +545,12 @@ class _Passes:
                 results.append(pending.pop(0).result())
                 cancelled = self.cancel is not None and self.cancel()
             if cancelled:
-                for f in pending:
-                    f.result()
+                self.stop.set()
+                for f in pending:  # they stop at their next bounce
+                    try:
+                        f.result()
+                    except Aborted:
+                        pass
                 return None
         return results
 
@@ -594,6 +599,22 @@ class _Passes:
             if out is not None:
                 self.accumulate(*out)
         return True
+
+
+class _AbortingSampler:
+    """``sampler`` whose streams stop at their next bounce once ``abort()`` says so (the
+    whole-pass integrators make their own streams from the sampler they are given)."""
+
+    def __init__(self, sampler, abort):
+        self.sampler, self.abort = sampler, abort
+
+    def stream(self, pixel, sample_index):
+        stream = self.sampler.stream(pixel, sample_index)
+        stream.abort = self.abort
+        return stream
+
+    def __getattr__(self, name):
+        return getattr(self.sampler, name)
 
 
 def show_estimate(film, image, passes):
