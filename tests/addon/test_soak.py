@@ -9,8 +9,6 @@ a few MB at this size) grows it by far more, which the second test shows by maki
 
 import importlib
 
-import pytest
-
 from scenes import ADDON_MODULE
 from sampling_lab.tools import soak
 
