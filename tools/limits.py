@@ -188,8 +188,9 @@ def _report(rows, repeats, cancel_size, rss_size, load0, load1):
         f"integrator at a random 0.3-2 s (median / max); CLI: SIGINT to `render`, time until it "
         f"prints that it was cancelled (the render has stopped) and until it has exited (the "
         f"partial EXR written, the interpreter closed). RSS: one pass at "
-        f"{rss_size[0]}x{rss_size[1]}, default settings, each in a fresh process (`ru_maxrss`; the interpreter with NumPy and Embree "
-        f"loaded is the 'before' column).",
+        f"{rss_size[0]}x{rss_size[1]}, default settings, each in a fresh process "
+        f"(`ru_maxrss`; the interpreter with NumPy and Embree loaded is the 'before' "
+        f"column).",
         "",
         "| integrator | cancel (median / max) | CLI SIGINT: stopped | CLI: exited, EXR "
         "written | peak RSS | RSS before render | render time |",
