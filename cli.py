@@ -318,17 +318,18 @@ def check_halt(settings):
                          "limit with --time SECONDS")
 
 
-def write_output(path, layers):
-    """Write the EXR; if that fails after all (disk full, folder removed meanwhile), write it to
-    the temporary folder instead so that the render is not lost. Returns the path written."""
+def write_output(path, layers, metadata=None):
+    """Write the EXR (with ``metadata`` in its header); if that fails after all (disk full,
+    folder removed meanwhile), write it to the temporary folder instead so that the render is
+    not lost. Returns the path written."""
     from .core.exr import write_multilayer
 
     try:
-        write_multilayer(path, layers)
+        write_multilayer(path, layers, metadata=metadata)
         return path
     except OSError as exc:
         fallback = os.path.join(tempfile.gettempdir(), f"sampling_lab-{os.path.basename(path)}")
-        write_multilayer(fallback, layers)
+        write_multilayer(fallback, layers, metadata=metadata)
         print(f"{PROG}: could not write {path!r} ({exc.strerror or exc}); the image is in "
               f"{fallback!r}", file=sys.stderr)
         return fallback
@@ -346,7 +347,7 @@ def cmd_render(args):
     for message in scene.messages:
         print(f"note: {message}", file=sys.stderr)
 
-    from .core.exr import write_png_preview
+    from .core.exr import render_metadata, write_png_preview
 
     bar = ProgressBar(quiet=args.quiet)
     interrupted = []
@@ -371,7 +372,7 @@ def cmd_render(args):
         "Sample Count": result.sample_count()[..., None],
         **result.layers(),
     }
-    output = write_output(args.output, layers)
+    output = write_output(args.output, layers, render_metadata(result))
     if args.png:
         write_png_preview(os.path.splitext(output)[0] + ".png", result.combined()[..., :3])
     stats = dict(result.stats)

@@ -30,6 +30,8 @@ __all__ = [
     "BLENDER_PASS_CHANNELS",
     "write_multilayer",
     "read_multilayer",
+    "read_metadata",
+    "render_metadata",
     "write_png_preview",
     "srgb_oetf",
 ]
@@ -215,6 +217,38 @@ def write_multilayer(path, layers, layer_name="ViewLayer", channel_ids=None, met
         parts.append(OpenEXR.Part(header, channels, part_name))
     exr_file = OpenEXR.File(parts)
     _atomic_write(path, exr_file.write)
+
+
+def render_metadata(result):
+    """Header attributes that say whether an image is the whole render.
+
+    ``samplingLab.partial`` is ``"true"`` for a render that was cancelled (Esc, Ctrl-C)
+    before its sample count or time limit, ``"false"`` for a complete one;
+    ``samplingLab.spp`` is the samples per pixel of every finished pass and
+    ``samplingLab.samples`` the camera samples taken (a cancelled render keeps the work units
+    it finished beyond its last pass, so pixels may hold more than ``spp``: the Sample Count
+    pass says how many).
+
+    Parameters
+    ----------
+    result : core.render.RenderResult
+
+    Returns
+    -------
+    dict of str to str
+        For :func:`write_multilayer`'s ``metadata``.
+    """
+    return {"samplingLab.partial": "true" if result.cancelled else "false",
+            "samplingLab.spp": str(int(result.stats.get("spp", 0))),
+            "samplingLab.samples": str(int(result.stats.get("samples", 0)))}
+
+
+def read_metadata(path):
+    """String attributes of the first part's header of the EXR at ``path`` (what
+    :func:`write_multilayer` wrote as ``metadata``, and Blender's own, e.g. ``RenderTime``)."""
+    OpenEXR = _openexr()
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        return {k: v for k, v in f.parts[0].header.items() if isinstance(v, str)}
 
 
 def _split_channel(full):

@@ -19,6 +19,40 @@ from .scene import Scene
 from .textures import material_base_color, material_roughness, textured_base_color
 
 
+def drop_nonfinite(scene: Scene):
+    """``scene`` without the triangles that have a NaN or infinite vertex coordinate.
+
+    Such triangles have no area, normal or place: Embree and the bounding box would take in
+    their coordinates and every later computation would turn to NaN. Vertices no remaining
+    triangle uses are moved onto a finite one, so that they leave the bounding box alone.
+
+    Returns
+    -------
+    scene : Scene
+        ``scene`` itself when every vertex is finite.
+    notes : list of str
+        One message naming how many triangles were dropped (empty when none).
+    """
+    bad_vertex = ~np.isfinite(scene.vertices).all(axis=1)
+    if not bad_vertex.any():
+        return scene, []
+    bad = bad_vertex[scene.triangles].any(axis=1)
+    keep = ~bad
+    vertices = scene.vertices.copy()
+    good = np.flatnonzero(~bad_vertex)
+    vertices[bad_vertex] = vertices[good[0]] if len(good) else 0.0
+
+    def rows(a):
+        return None if a is None else a[keep]
+
+    clean = dataclasses.replace(scene, vertices=vertices, triangles=scene.triangles[keep],
+                                material=scene.material[keep], visibility=scene.visibility[keep],
+                                corner_uvs=rows(scene.corner_uvs),
+                                corner_normals=rows(scene.corner_normals))
+    return clean, [f"{int(bad.sum()):,} triangle(s) with NaN or infinite vertex coordinates "
+                   f"were left out"]
+
+
 def recentred(scene: Scene):
     """A copy of ``scene`` translated so that its bounding box is centred on the origin.
 
@@ -92,6 +126,8 @@ class PreparedScene:
         What a shadow ray keeps when it crosses each material: the summed weight times colour
         of its transparent components (:func:`transparency_table`); None when no material a
         triangle uses has any (shadow rays are then plain occlusion queries).
+    notes : list of str
+        What preparing changed in the scene, for the user (:func:`drop_nonfinite`).
     shift : (3,) float64
         World position of the local frame's origin: everything above is in world space minus
         ``shift`` (see :func:`recentred`).
@@ -117,6 +153,7 @@ class PreparedScene:
     lambert_only: bool = False
     emission: Emission = None
     material_transparency: np.ndarray = None
+    notes: list = dataclasses.field(default_factory=list)
 
     def bsdf(self, prim):
         """BSDF parameters of the hit triangles' own material rows ``(k,)`` and whether each
@@ -201,6 +238,7 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     draws mixed materials' components.
     Unknown values raise ``ValueError``.
     """
+    scene, notes = drop_nonfinite(scene)
     scene, shift = recentred(scene)
     v = scene.vertices.astype(np.float64)
     tri = v[scene.triangles] if scene.n_triangles else np.zeros((0, 3, 3))
@@ -231,7 +269,7 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
                          mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only,
                          Emission(lights, scene.vertices),
-                         transparency if np.any(transparency[used] > 0) else None)
+                         transparency if np.any(transparency[used] > 0) else None, notes)
 
 
 def transparency_table(bsdf, mix_rows, mix_weights):

@@ -15,7 +15,12 @@ samples; light tracing and BDPT trace one light path per region camera sample, s
 
 Halting: after ``spp`` samples per pixel, or when ``time_limit`` seconds have passed (then the pass
 under way is finished unit by unit until the clock runs out), or when ``cancel()`` says so; a
-cancelled render keeps every sample it finished (pixels may then hold different sample counts).
+cancelled render keeps every work unit it finished (pixels may then hold different sample
+counts). ``cancel()`` is polled from the thread that called :func:`render` (Blender's
+``test_break`` must not be called from worker threads) every :data:`POLL_S` seconds while
+units run; once it says so, the units in flight stop at their next bounce
+(:class:`core.sampling.stream.Aborted`) and their unfinished paths are dropped, so a render
+answers a cancel within a bounce's time rather than a whole unit's.
 """
 
 from __future__ import annotations
@@ -24,8 +29,9 @@ import copy
 import dataclasses
 import hashlib
 import os
+import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,10 +43,14 @@ from .options import DEFAULTS, validate
 from .prepare import PreparedScene, prepare
 from .sampling.mis import HEURISTICS
 from .sampling.samplers import make_sampler
+from .sampling.stream import Aborted
 from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 # Integrators that estimate by photon density (biased, consistent): their own settings apply.
 PHOTON_INTEGRATORS = ("photon", "sppm")
+
+# Seconds between polls of ``cancel()`` while work units run.
+POLL_S = 0.05
 
 # Work units per pass when the image is small: a pass keeps several threads busy. The pass size
 # must not depend on the thread count, or the film's sums would be added in another order.
@@ -409,9 +419,10 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
 
 
 def _scene_notes(scene, prep):
-    """What a scene lacks that leaves the image empty: geometry, or any light at all."""
-    notes = []
-    if scene.n_triangles == 0:
+    """What preparing left out of a scene (:func:`core.prepare.drop_nonfinite`) and what it
+    lacks that leaves the image empty: geometry, or any light at all."""
+    notes = list(prep.notes)
+    if prep.scene.n_triangles == 0:
         notes.append("the scene has no geometry: the camera sees only lights and the world")
     if prep.lights.n_emitters == 0:
         notes.append("the scene emits no light (no lamps, no emission shaders, a black "
@@ -468,6 +479,8 @@ class _Passes:
         self.counters = Counters()
         self.done_spp = 0
         self.t_start = time.perf_counter()
+        # Set once cancel() says so: the units in flight stop at their next bounce.
+        self.stop = threading.Event()
 
     def elapsed(self):
         return time.perf_counter() - self.t_start
@@ -485,8 +498,12 @@ class _Passes:
         frame_pixels = ((film.y0 + pixels // film.width) * self.frame_width + film.x0
                         + pixels % film.width)
         local = Counters()
-        out = self.integrator.render_samples(self.sampler.stream(frame_pixels, samples),
-                                             self.pixel_filter, local)
+        stream = self.sampler.stream(frame_pixels, samples)
+        stream.abort = self.stop.is_set
+        try:
+            out = self.integrator.render_samples(stream, self.pixel_filter, local)
+        except Aborted:
+            return None
         # The filter taps of the light-path splats are made here, on the worker: the render
         # loop, whose thread the next unit waits for, only adds them up.
         taps = (film.splat_taps(out.splats.xy, out.splats.value, self.pixel_filter)
@@ -555,12 +572,13 @@ class _Passes:
         pixels = np.arange(film.n_pixels, dtype=np.int64)
         frame_pixels = ((film.y0 + pixels // film.width) * self.frame_width + film.x0
                         + pixels % film.width)
+        sampler = _AbortingSampler(self.sampler, self.stop.is_set)
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
             while self.total_spp is None or self.done_spp < self.total_spp:
                 if self.out_of_time():
                     break
                 image = integrator.render_pass(
-                    self.done_spp, frame_pixels, self.sampler, self.pixel_filter,
+                    self.done_spp, frame_pixels, sampler, self.pixel_filter,
                     self.counters, lambda fn, items: self._map_chunks(pool, fn, items))
                 if image is None:
                     return True
@@ -580,12 +598,27 @@ class _Passes:
             while i < len(items) and len(pending) < self.threads:
                 pending.append(pool.submit(fn, items[i]))
                 i += 1
-            results.append(pending.pop(0).result())
-            if self.cancel is not None and self.cancel():
-                for f in pending:
-                    f.result()
+            cancelled = self._cancelled_while_waiting(pending[0])
+            if not cancelled:
+                results.append(pending.pop(0).result())
+                cancelled = self.cancel is not None and self.cancel()
+            if cancelled:
+                self.stop.set()
+                for f in pending:  # they stop at their next bounce
+                    try:
+                        f.result()
+                    except Aborted:
+                        pass
                 return None
         return results
+
+    def _cancelled_while_waiting(self, future):
+        """Wait for ``future``, polling ``cancel()`` every :data:`POLL_S` s; True if it said so
+        first."""
+        while not wait([future], timeout=POLL_S, return_when=FIRST_COMPLETED)[0]:
+            if self.cancel is not None and self.cancel():
+                return True
+        return False
 
     def _run_pass(self, pool, units, k):
         """Run the ``units`` of one pass of ``k`` samples per pixel. Returns the number of
@@ -599,20 +632,47 @@ class _Passes:
             while i < len(units) and len(pending) < self.threads:
                 pending.append(pool.submit(self.run_unit, units[i]))
                 i += 1
+            if self._cancelled_while_waiting(pending[0]):
+                return finished, self._abort(pending)
             self.accumulate(*pending.pop(0).result())
             finished += 1
-            stop = (cancel is not None and cancel()) or self.out_of_time()
             if finished < len(units):  # the end of a pass is reported by run()
                 if total_spp:
                     self.report((self.done_spp + k * finished / len(units)) / total_spp)
                 else:
                     self.report(self.elapsed() / self.settings.time_limit)
-            if stop:
-                cancelled = cancel is not None and cancel()
+            if cancel is not None and cancel():
+                return finished, self._abort(pending)
+            if self.out_of_time():
                 for f in pending:  # finish what is running; its samples are kept
                     self.accumulate(*f.result())
-                return finished, cancelled
+                return finished, False
         return finished, False
+
+    def _abort(self, pending):
+        """Stop the units in flight at their next bounce; keep those that finished first."""
+        self.stop.set()
+        for f in pending:
+            out = f.result()
+            if out is not None:
+                self.accumulate(*out)
+        return True
+
+
+class _AbortingSampler:
+    """``sampler`` whose streams stop at their next bounce once ``abort()`` says so (the
+    whole-pass integrators make their own streams from the sampler they are given)."""
+
+    def __init__(self, sampler, abort):
+        self.sampler, self.abort = sampler, abort
+
+    def stream(self, pixel, sample_index):
+        stream = self.sampler.stream(pixel, sample_index)
+        stream.abort = self.abort
+        return stream
+
+    def __getattr__(self, name):
+        return getattr(self.sampler, name)
 
 
 def show_estimate(film, image, passes):

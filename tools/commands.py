@@ -143,6 +143,48 @@ def _bench_radiosity(args):
     return 0
 
 
+def _bench_limits(args):
+    from .limits import run
+
+    run(integrators=args.integrators, repeats=args.repeats, cancel_size=args.cancel_size,
+        rss_size=args.rss_size, cli=not args.no_cli, rss=not args.no_rss, output=args.output)
+    return 0
+
+
+def _add_bench_limits(sub, **kw):
+    p = _add(sub, "bench-limits", "cancel latency (core hook and Ctrl-C on the command line) "
+             "and peak RSS at 1920x1080 of every integrator (a table; docs/LIMITS.md quotes a "
+             "run)", _bench_limits, **kw)
+    p.add_argument("--integrators", nargs="+", default=list(INTEGRATORS),
+                   choices=list(INTEGRATORS), metavar="NAME",
+                   help=f"from: {', '.join(INTEGRATORS)} (default: all)")
+    p.add_argument("--repeats", type=_positive_int, default=5,
+                   help="cancels per integrator (half as many on the command line)")
+    _size(p, (640, 360), "--cancel-size", "image size of the cancelled renders")
+    _size(p, (1920, 1080), "--rss-size", "image size of the peak-memory renders")
+    p.add_argument("--no-cli", action="store_true", help="skip the command-line cancels")
+    p.add_argument("--no-rss", action="store_true", help="skip the peak-memory renders")
+    add_output_arguments(p, "bench-limits")
+
+
+def _bench_soak(args):
+    from .soak import run
+
+    run(minutes=args.minutes, size=args.size, spp=args.spp, output=args.output)
+    return 0
+
+
+def _add_bench_soak(sub, **kw):
+    p = _add(sub, "bench-soak", "repeated renders of several scenes and integrators in one "
+             "Blender session: RSS and time per render over time (a table and a CSV; "
+             "docs/LIMITS.md quotes a run)", _bench_soak, **kw)
+    p.add_argument("--minutes", type=_positive_float, default=30.0,
+                   help="how long to keep rendering (whole rounds)")
+    _size(p, (96, 72))
+    p.add_argument("--spp", type=_positive_int, default=8, help="samples per pixel")
+    add_output_arguments(p, "bench-soak")
+
+
 def _samplers(args):
     from .sampler_lab import main
 
@@ -237,6 +279,8 @@ def add_parsers(sub, **kw):
                    help="time of the light-tree reference render")
     add_output_arguments(g, "bench-lights")
     _add_bench_gap(sub, **kw)
+    _add_bench_limits(sub, **kw)
+    _add_bench_soak(sub, **kw)
     e = _add(sub, "bench-export", "triangles per second of the exporter on a large grid mesh "
              "(figures; docs/BENCHMARKS.md quotes a run)", _bench_export, **kw)
     e.add_argument("--triangles", type=_positive_int, default=1_000_000,

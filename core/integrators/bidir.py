@@ -200,9 +200,11 @@ class Bidirectional(Integrator):
             _light_subpath(ctx, stream, n, base, depth, camera_splatter(ctx, out))
             return out.output(n)
         L = _light_subpath(ctx, stream, n, base, depth)
+        stream.check_abort()  # the connections are most of BDPT's time
         self.connect(ctx, stream, C, L, out)
         for s in range(2, depth + 1):
             if not L.valid[s - 1].any():
                 break
+            stream.check_abort()
             connect_camera(ctx, L, s, out)
         return out.output(n)

@@ -58,9 +58,10 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
 
     After ``settings.rr_min_bounces`` bounces (if ``use_russian_roulette``) a path survives
     with probability ``q = min(1, max(beta) * eta_scale)`` and its throughput is divided by
-    ``q``; paths of zero throughput end. ``eta_scale (k,)`` (None: 1) undoes the ``1 / etap^2``
-    of refractions in radiance mode. Any ``q`` in (0, 1] keeps the estimate unbiased; this one
-    follows the throughput a path will have once it has left the glass. Returns the new
+    ``q``; paths of zero throughput end. ``eta_scale (k,)`` (None: 1) scales the throughput
+    looked at: the path tracer's undoes the ``1 / etap^2`` of refractions in radiance mode (the
+    throughput a path will have once it has left the glass); random walks' divide by the first
+    ray's throughput (:func:`.subpaths.walk`). Any ``q`` in (0, 1] keeps the estimate unbiased. Returns the new
     ``alive (k,)`` mask and ``beta (k, 3)``.
     """
     if roulette_at(settings, bounce):

@@ -64,6 +64,7 @@ class _GatherStream:
         self.dimension = 0
 
     def skip_to(self, dimension):
+        self.stream.check_abort()  # a cancelled render stops here (core.render)
         self.dimension = int(dimension)
 
     def _take(self, count):
@@ -188,6 +189,7 @@ class PhotonMapping(Integrator):
         # Paths within the bounce limit: camera + visible point + gather chain + photon hit.
         limit = (self.settings.max_bounces - points.bounces[vp] - hits.bounces)
         _, global_map = self.maps
+        stream.check_abort()  # the lookups below are most of a chunk's time
         found = hits.beta * global_map.radiance(hits, limit, **self._lookup())
         # Several gather rays per point: sum them per point first (add_rows needs unique rows).
         per_point = np.stack([np.bincount(vp, found[:, c], minlength=k) for c in range(3)],

@@ -16,8 +16,8 @@ import numpy as np
 
 from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
-from .common import (finite_rows, geometric_side_valid, intersect_by_class, next_1d_if,
-                     ray_class, roulette_at, russian_roulette, surface_hits,
+from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
+                     next_1d_if, ray_class, roulette_at, russian_roulette, surface_hits,
                      surface_interaction, take_rows)
 
 
@@ -216,9 +216,18 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     :class:`.common.Interaction`, shading frame, BSDF and throughput); with ``sub`` None
     nothing is stored (light tracing connects every vertex as it is made, so it keeps none).
     ``stream`` itself is not advanced: the walk draws from a copy.
+
+    Russian roulette weighs a path's throughput relative to its first ray's (``1`` for camera
+    rays; the emitted power over its density for light paths, in Watts): survival then
+    follows what the BSDFs have absorbed, whatever the scene's size and power. On absolute
+    throughput a light path of a small or dim scene (throughput << 1 at its start) would be
+    killed with probability near one and the few survivors weighted by hundreds: unbiased,
+    but so heavy-tailed that an estimate from thousands of paths reads low.
     """
     prep, settings = ctx.prep, ctx.settings
     path_stream = None
+    start = max_component(beta)
+    rr_scale = np.where(start > 0, 1.0 / np.where(start > 0, start, 1.0), 1.0)
     last = depth + int(on_segment is not None)
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
@@ -271,11 +280,13 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             sub.delta[j, r] = smp.delta
         beta = beta * weight
         alive = (smp.pdf > 0) & finite_rows(beta)
-        alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1)
+        rr_scale = rr_scale[live]
+        alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1, rr_scale)
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
             break
         rows = r[keep]
+        rr_scale = rr_scale[keep]
         path_stream.compact(keep)
         beta = take_rows(beta, keep)
         d = take_rows(wi, keep)

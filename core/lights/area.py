@@ -43,10 +43,12 @@ def area_light(matrix_world, shape, size_x, size_y, color, energy, name="Area",
         area *= np.pi / 4
         kind = LIGHT_DISK
     s = np.asarray(color, np.float64) * float(energy)
+    # A light of zero area emits nothing (its radiance would be infinite): zero power keeps
+    # light selection from choosing it.
     radiance = s / (np.pi * area) if area > 0 else np.zeros(3)
     return light_row(kind, name, visible_camera, position=m[:3, 3], axis_x=axis_x,
                      axis_y=axis_y, direction=-unit(normal), radiance=radiance,
-                     power=float(LUMINANCE @ s))
+                     power=float(LUMINANCE @ s) if area > 0 else 0.0)
 
 
 def area_point_pdf(m, p, q, normal, area, emitted, pmf, one_sided, out):

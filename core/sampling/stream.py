@@ -44,6 +44,11 @@ def u32_to_unit_float(x):
     return (np.asarray(x, np.uint32) >> np.uint32(8)).astype(np.float64) * (1.0 / (1 << 24))
 
 
+class Aborted(Exception):
+    """Raised by :meth:`SampleStream.skip_to` once the stream's ``abort()`` says so: the render
+    that owns the stream was cancelled, and the work unit's unfinished paths are dropped."""
+
+
 class SampleStream:
     """Base class: a batch of sample vectors, one per (pixel, sample index).
 
@@ -55,6 +60,10 @@ class SampleStream:
         Index of the sample within its pixel.
     seed : int
     """
+
+    # Set by the render loop to a callable that says whether the render was cancelled; checked
+    # where every integrator starts a bounce or a vertex (:meth:`skip_to`).
+    abort = None
 
     def __init__(self, pixel, sample_index, seed):
         self.pixel = np.asarray(pixel, np.int64)
@@ -75,8 +84,17 @@ class SampleStream:
         """Subclasses compact their own per-path arrays here."""
 
     def skip_to(self, dimension):
-        """Jump to ``dimension`` (integrators start each bounce at a fixed dimension)."""
+        """Jump to ``dimension`` (integrators start each bounce at a fixed dimension). Raises
+        :class:`Aborted` if ``abort()`` says the render was cancelled: so a work unit stops
+        within one bounce of a cancel instead of running to its end."""
+        self.check_abort()
         self.dimension = int(dimension)
+
+    def check_abort(self):
+        """Raise :class:`Aborted` if ``abort()`` says the render was cancelled (integrators
+        call it between long stages that draw no numbers, such as BDPT's connections)."""
+        if self.abort is not None and self.abort():
+            raise Aborted
 
     def next_1d(self):
         """``(n,)`` float64 in [0, 1)."""

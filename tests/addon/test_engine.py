@@ -158,13 +158,13 @@ def test_cancelled_render_keeps_the_samples_taken(empty_scene, tmp_path, monkeyp
     scenes.cornell_box_point_light(empty_scene, resolution=(64, 64))
     # The time limit only bounds the test if cancelling were broken.
     scenes.set_sampling_lab(empty_scene, samples=1 << 20, time_limit=20.0)
-    polls = []
+    units = []  # Esc once two work units have reported their progress
 
-    def cancel_requested(self):
-        polls.append(1)
-        return len(polls) > 3
+    def update_progress(self, fraction):
+        units.append(fraction)
 
-    monkeypatch.setattr(_engine_class(), "cancel_requested", cancel_requested)
+    monkeypatch.setattr(_engine_class(), "update_progress", update_progress, raising=False)
+    monkeypatch.setattr(_engine_class(), "cancel_requested", lambda self: len(units) >= 2)
     passes = scenes.render_to_exr(empty_scene, tmp_path / "cancel.exr")
     count = passes["Sample Count"]
     assert count.max() >= 1 and count.max() < 1 << 20

@@ -52,11 +52,11 @@ CASES = {
 }
 
 PINNED = {
-    "bdpt cornell area power views": "4f21b032143d631eccc1ab0d2b40d7f1cec8800bdb215d363b2924fbc67520f8",
-    "bdpt cornell point balance": "4160f1b13ddd231611f6440e7a560c249469801c75b18eb6d439d7819cbead5d",
-    "bdpt glass sphere light maximum": "bc7aa57e60827aa840e302d42400da05f17354e03b9723bc48d9260ae3e50f17",
-    "light cornell mesh": "ae56cc941e5e06a4bcc62a4b31357243ffa0aa444da068c3df708027106cc788",
-    "light glass point": "f7994cd8e4549c89494d9a05264421bdb32ef433b3c37fe349eace6903a95b18",
+    "bdpt cornell area power views": "b783e6d8d33ba87a085756761f6371ee54c6651e546f0a9b8dcf8ae83ddfdcfe",
+    "bdpt cornell point balance": "c14a376d6405969258ff0fe61d392018271d5a34b9dd49249749998dbcc2a621",
+    "bdpt glass sphere light maximum": "4c3aba75e66caefbbc7469f0dd16d616402c03957ac9ca553d0a3f6213690cc9",
+    "light cornell mesh": "336841007cc43b73ad8543a1581b6fbd453d26f1c124e658be4646100f15a83e",
+    "light glass point": "4dce5ed3dcd1d0a5021284b0e9a9bc7346021ee9f3a9715316dcc3088dc913fd",
     "path cornell area solid angle sobol": "1f8724ec64ddb022426641a4abb5a283ab1ac11eb4ac546da930a60fed1020f2",
     "path cornell mesh power": "ccc104eb8778757a5b1fa5b2eb1759b3a9682cae9899cd8fce4660db98ec7a08",
     "path glass sphere light alias uniform": "f3df55af663f530a7d9e048f312f1a376aeb689ea68c11e382061a905a4ec61a",

@@ -66,13 +66,11 @@ def test_sample_count_and_variance_passes_are_consistent():
 
 
 def test_cancel_keeps_the_samples_already_taken():
-    calls = []
+    units = []  # cancel once two work units have reported
 
-    def cancel():
-        calls.append(1)
-        return len(calls) > 2
-
-    res = render(scenes.cornell_box(64, 64), plain_settings(spp=1000), cancel=cancel)
+    res = render(scenes.cornell_box(64, 64), plain_settings(spp=1000),
+                 progress=lambda fraction, text: units.append(fraction),
+                 cancel=lambda: len(units) >= 2)
     assert res.cancelled
     counts = res.sample_count()
     assert counts.max() > 0 and counts.max() < 1000

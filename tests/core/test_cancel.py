@@ -1,0 +1,94 @@
+"""Cancel (Esc in Blender, Ctrl-C on the command line) through the core's ``cancel`` hook, for
+every integrator: the render stops, says it was cancelled and keeps the samples it finished.
+
+No wall-clock time is asserted but a bound only a hang would break (:data:`HANG_S`); the
+latency itself is measured by ``python -m sampling_lab bench-limits`` (docs/LIMITS.md).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from sampling_lab.core import scenes
+from sampling_lab.core.film import PixelFilter
+from sampling_lab.core.integrators import INTEGRATORS, integrator_class
+from sampling_lab.core.integrators.base import Counters
+from sampling_lab.core.prepare import prepare
+from sampling_lab.core.render import render
+from sampling_lab.core.sampling.samplers import make_sampler
+from sampling_lab.core.sampling.stream import Aborted
+from tests.helpers import plain_settings
+
+HANG_S = 60.0
+SPP = 100_000  # far more than a test renders: only cancel stops it
+
+
+def _settings(integrator):
+    return plain_settings(integrator=integrator, spp=SPP, photons=2000, threads=2,
+                          radiosity_patch_size=1.0, radiosity_samples=1)
+
+
+@pytest.mark.parametrize("integrator", list(INTEGRATORS))
+def test_cancel_after_a_pass_keeps_the_finished_samples(integrator):
+    scene = scenes.cornell_box(16, 12, "point")
+    asked = []
+
+    def on_update(result):
+        if not asked:
+            asked.append(time.perf_counter())
+
+    result = render(scene, _settings(integrator), cancel=lambda: bool(asked),
+                    on_update=on_update)
+    waited = time.perf_counter() - asked[0]
+    assert result.cancelled
+    assert waited < HANG_S
+    done = result.stats["spp"]
+    assert 0 < done < SPP
+    count = result.sample_count()
+    # Every pixel holds the finished passes (units in flight when cancel came are kept too).
+    assert count.min() >= done and np.isfinite(result.combined()).all()
+    rgb = result.combined()[..., :3]
+    assert rgb.max() > 0
+
+
+@pytest.mark.parametrize("integrator", list(INTEGRATORS))
+def test_cancel_at_once_renders_no_pass(integrator):
+    """Cancel already set when the render starts: no pass completes (the units in flight stop
+    at their next bounce, photon mapping and SPPM drop their pass, radiosity stops inside its
+    solve) and the image is finite."""
+    scene = scenes.cornell_box(64, 48, "point")
+    t0 = time.perf_counter()
+    result = render(scene, _settings(integrator), cancel=lambda: True)
+    assert time.perf_counter() - t0 < HANG_S
+    assert result.cancelled
+    assert result.stats["spp"] == 0
+    assert np.isfinite(result.combined()).all()
+
+
+@pytest.mark.parametrize("integrator", ["path", "light", "bdpt", "radiosity"])
+def test_a_work_unit_stops_at_its_first_bounce_once_aborted(integrator):
+    """The render loop's cancel reaches work units in flight: every integrator that renders
+    units starts each bounce (or subpath vertex) with ``skip_to``, which raises ``Aborted``
+    once the stream's ``abort()`` says so (radiosity's final gather; its other displays trace
+    one camera ray per sample and no bounce)."""
+    scene = scenes.cornell_box(8, 8, "point")
+    settings = _settings(integrator)
+    settings.radiosity_display = "final_gather"
+    prep = prepare(scene)
+    integrator_obj = integrator_class(integrator)(prep, settings)
+    integrator_obj.prepare_render()
+    pixels = np.repeat(np.arange(64), 4)
+    stream = make_sampler("independent", seed=1).stream(pixels, np.tile(np.arange(4), 64))
+    asked = []
+
+    def abort():
+        asked.append(1)
+        return True
+
+    stream.abort = abort
+    with pytest.raises(Aborted):
+        integrator_obj.render_samples(stream, PixelFilter("box", 1.0), Counters())
+    assert len(asked) == 1
