@@ -262,5 +262,9 @@ def _concat_uvs(uv_chunks, tri_counts):
 
 
 def _to_world(verts, matrix):
+    """Object-space ``verts (n, 3)`` to world space ``(n, 3)`` float32; NaN or infinite
+    vertices stay non-finite without a warning (preparing the scene drops their triangles and
+    says so)."""
     m = np.asarray(matrix, np.float64)
-    return (verts.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+    with np.errstate(invalid="ignore", over="ignore"):
+        return (verts.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
