@@ -147,9 +147,6 @@ def main(argv=None):
         print(f"  {100 * sec / total:5.1f} %  {name}")
 
 
-if __name__ == "__main__":
-    main()
-
 
 def _bounces(settings_class, total):
     """Every bounce limit the measured tree's ``RenderSettings`` has, set to ``total`` (older
@@ -157,3 +154,7 @@ def _bounces(settings_class, total):
     names = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
              "transparent_max_bounces")
     return {name: total for name in names if name in settings_class.__dataclass_fields__}
+
+
+if __name__ == "__main__":
+    main()
