@@ -363,7 +363,10 @@ def cmd_render(args):
     for message in result.messages:
         if message not in scene.messages:  # those were printed before rendering
             print(f"note: {message}", file=sys.stderr)
-    if result.cancelled:
+    if result.error:
+        print(f"{PROG}: error: the render failed ({result.error}); writing the samples taken",
+              file=sys.stderr)
+    elif result.cancelled:
         print(f"{PROG}: cancelled; writing the samples taken", file=sys.stderr)
     # BDPT's strategy views (empty unless asked for) go into the same file as extra layers.
     layers = {
@@ -389,7 +392,10 @@ def cmd_render(args):
               f"{stats['samples_per_s'] / 1e6:.3f} M samples/s, "
               f"{stats['rays_per_s'] / 1e6:.2f} M rays/s", file=sys.stderr)
     # Ctrl-C: the samples are written, and the exit code says the render was interrupted.
-    return 130 if interrupted else (0 if output == args.output else 1)
+    # A failed render's samples are written too, and the exit code says it failed.
+    if interrupted:
+        return 130
+    return 0 if output == args.output and not result.error else 1
 
 
 def main(argv=None):

@@ -229,6 +229,13 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
         for message in out.messages:
             if message not in reported:
                 self.report({'WARNING'}, f"Sampling Lab: {message}")
+        if out.error and out.stats.get("samples", 0):
+            # A warning, not an error: Blender then still saves the samples taken (an error
+            # report stops an animation or write_still from writing the frame).
+            self.report({'WARNING'}, f"Sampling Lab: render failed part-way: {out.error}; "
+                        f"the {out.stats['samples']:,} samples taken before it are kept")
+        elif out.error:
+            self.report({'ERROR'}, f"Sampling Lab: render failed: {out.error}")
         stats = out.stats
         region = settings.region
         summary = (f"frame {scene.frame_current}: {stats.get('spp', 0)} spp "
@@ -247,7 +254,7 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
                    f"{1e3 * stats.get('distribution_build_s', 0.0):.2f} ms, sampling "
                    f"{1e3 * stats.get('distribution_sample_s', 0.0):.1f} ms"
                    + estimator_text(stats)
-                   + (", cancelled" if out.cancelled else ""))
+                   + (", failed" if out.error else ", cancelled" if out.cancelled else ""))
         self.update_stats("", f"Sampling Lab | {summary}")
         self.report({'INFO'}, f"Sampling Lab: {summary}")
 

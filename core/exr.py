@@ -222,8 +222,9 @@ def write_multilayer(path, layers, layer_name="ViewLayer", channel_ids=None, met
 def render_metadata(result):
     """Header attributes that say whether an image is the whole render.
 
-    ``samplingLab.partial`` is ``"true"`` for a render that was cancelled (Esc, Ctrl-C)
-    before its sample count or time limit, ``"false"`` for a complete one;
+    ``samplingLab.partial`` is ``"true"`` for a render that was cancelled (Esc, Ctrl-C) or
+    failed before its sample count or time limit, ``"false"`` for a complete one (a failed
+    one also has ``samplingLab.error``, the error);
     ``samplingLab.spp`` is the samples per pixel of every finished pass and
     ``samplingLab.samples`` the camera samples taken (a cancelled render keeps the work units
     it finished beyond its last pass, so pixels may hold more than ``spp``: the Sample Count
@@ -238,9 +239,12 @@ def render_metadata(result):
     dict of str to str
         For :func:`write_multilayer`'s ``metadata``.
     """
-    return {"samplingLab.partial": "true" if result.cancelled else "false",
-            "samplingLab.spp": str(int(result.stats.get("spp", 0))),
-            "samplingLab.samples": str(int(result.stats.get("samples", 0)))}
+    metadata = {"samplingLab.partial": "true" if result.cancelled else "false",
+                "samplingLab.spp": str(int(result.stats.get("spp", 0))),
+                "samplingLab.samples": str(int(result.stats.get("samples", 0)))}
+    if result.error:
+        metadata["samplingLab.error"] = result.error
+    return metadata
 
 
 def read_metadata(path):

@@ -140,6 +140,11 @@ class RenderResult:
         ``distribution_sample_s`` (drawing from them, summed over batches and threads),
         ``distribution_samples`` (draws) and ``distribution_ns_per_sample``.
     cancelled : bool
+        Whether the render stopped before its sample count or time limit (cancel, or an
+        error).
+    error : str or None
+        Why a render failed part-way (``"TypeName: message"``); the film keeps every work
+        unit finished before it.
     messages : list of str
     prepared : core.prepare.PreparedScene or None
         What the render derived from the scene (acceleration structure, light tables), to
@@ -149,6 +154,7 @@ class RenderResult:
     film: Film
     stats: dict = field(default_factory=dict)
     cancelled: bool = False
+    error: str = None
     messages: list = field(default_factory=list)
     layer_names: list = field(default_factory=list)
     prepared: PreparedScene = None
@@ -389,8 +395,12 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                           layer_names=list(integrator.layers), prepared=prep)
     keep_freed_memory()
     passes = _Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths)
-    result.cancelled = solve_cancelled or passes.run(
-        lambda: on_update is not None and on_update(result))
+    try:
+        result.cancelled = solve_cancelled or passes.run(
+            lambda: on_update is not None and on_update(result))
+    except Exception as exc:  # noqa: BLE001 - a failed unit must not lose the finished ones
+        result.cancelled = True
+        result.error = f"{type(exc).__name__}: {exc}"
     t = passes.elapsed()
     counters = passes.counters
     result.stats = {
@@ -543,8 +553,13 @@ class _Passes:
         after every pass. Returns whether the render was cancelled."""
         if self.integrator.whole_passes:
             return self.run_whole_passes(on_pass)
+        return self._run_unit_passes(on_pass)
+
+    def _run_unit_passes(self, on_pass):
+        """:meth:`run` for integrators that render work units."""
         cancelled = False
-        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+        pool = ThreadPoolExecutor(max_workers=self.threads)
+        try:
             while not cancelled:
                 if self.total_spp is not None and self.done_spp >= self.total_spp:
                     break
@@ -561,6 +576,11 @@ class _Passes:
                 on_pass()
                 if finished < len(units):
                     break
+        except BaseException:
+            self.stop.set()  # a unit failed: the others stop at their next bounce
+            raise
+        finally:
+            pool.shutdown(wait=True)
         return cancelled
 
     def run_whole_passes(self, on_pass):

@@ -246,6 +246,29 @@ def test_missing_embreex_is_reported_by_name(empty_scene, engine_module, monkeyp
         bpy.ops.render.render()
 
 
+def test_a_render_failing_half_way_keeps_its_samples_and_says_so(empty_scene, tmp_path,
+                                                                 monkeypatch, capfd):
+    scenes.cornell_box_point_light(empty_scene, resolution=(160, 120))
+    scenes.set_sampling_lab(empty_scene, samples=4)
+    path = importlib.import_module(f"{ADDON_MODULE}.core.integrators.path")
+    original, calls = path.PathTracer.render_samples, []
+
+    def render_samples(self, *args):  # the second work unit breaks
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("unit broke")
+        return original(self, *args)
+
+    monkeypatch.setattr(path.PathTracer, "render_samples", render_samples)
+    # The render goes on to write its file, with a warning that says what failed.
+    passes = scenes.render_to_exr(empty_scene, tmp_path / "failed.exr")
+    # The file holds the first unit's samples (half the frame's), finite.
+    assert passes["Sample Count"].sum() == 160 * 120 * 4 / 2
+    assert np.isfinite(passes["Combined"]).all()
+    assert passes["Combined"][..., :3].mean() > 0
+    assert "render failed part-way: RuntimeError: unit broke" in capfd.readouterr().out
+
+
 def test_unexpected_exception_becomes_an_error_report(empty_scene, export, monkeypatch):
     scenes.cornell_box_point_light(empty_scene, resolution=(8, 8))
 

@@ -57,3 +57,56 @@ def test_render_metadata_says_cancelled_renders_are_partial():
                                      "samplingLab.samples": "96"}
     assert render_metadata(cut)["samplingLab.partial"] == "true"
     assert np.isfinite(cut.combined()).all()
+
+
+class _Failing:
+    """Wraps an integrator's ``render_samples``: the ``fail_at``-th call raises."""
+
+    def __init__(self, original, fail_at):
+        self.original, self.fail_at, self.calls = original, fail_at, 0
+
+    def __call__(self, integrator, *args):
+        self.calls += 1
+        if self.calls == self.fail_at:
+            raise RuntimeError("unit broke")
+        return self.original(integrator, *args)
+
+
+def _fail_path_tracer(monkeypatch, fail_at):
+    from sampling_lab.core.integrators.path import PathTracer
+
+    failing = _Failing(PathTracer.render_samples, fail_at)
+    monkeypatch.setattr(PathTracer, "render_samples",
+                        lambda self, *args: failing(self, *args))
+    return failing
+
+
+def test_a_render_that_fails_half_way_keeps_the_units_finished_before(monkeypatch):
+    scene = scenes.cornell_box(16, 12)
+    settings = plain_settings(spp=8, threads=1)
+    full = render(scene, settings, unit_paths=96)  # 16 units of 96 paths
+    _fail_path_tracer(monkeypatch, fail_at=3)
+    cut = render(scene, settings, unit_paths=96)
+    assert cut.error == "RuntimeError: unit broke" and cut.cancelled
+    count = cut.sample_count()
+    # The two units before the failure are kept, and the image is finite.
+    assert count.sum() == 2 * 96 < full.sample_count().sum()
+    assert np.isfinite(cut.combined()).all()
+    assert render_metadata(cut)["samplingLab.partial"] == "true"
+    assert render_metadata(cut)["samplingLab.error"] == "RuntimeError: unit broke"
+
+
+def test_the_cli_writes_a_failed_render_marked_partial_and_exits_1(monkeypatch, tmp_path,
+                                                                    capsys):
+    from sampling_lab import cli
+
+    _fail_path_tracer(monkeypatch, fail_at=2)
+    out = tmp_path / "failed.exr"
+    code = cli.main(["render", "cornell", "--resolution", "160x120", "--spp", "4",
+                     "--threads", "1", "--sampler", "independent", "-o", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert "render failed (RuntimeError: unit broke)" in err and "Traceback" not in err
+    header = read_metadata(out)
+    assert header["samplingLab.partial"] == "true"
+    assert int(header["samplingLab.samples"]) == int(read_multilayer(str(out))["Sample Count"].sum()) > 0
