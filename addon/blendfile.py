@@ -66,20 +66,27 @@ def load_blend(path, frame=None, resolution=None):
 
 
 @contextlib.contextmanager
-def _quiet_fds():
-    """Discard what is written to file descriptors 1 and 2 (C code included) meanwhile."""
+def fds_into(file):
+    """Python's streams and file descriptors 1 and 2 (C code included) into the open binary
+    ``file`` meanwhile."""
     sys.stdout.flush()
     sys.stderr.flush()
     saved = os.dup(1), os.dup(2)
-    with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 1)
-        os.dup2(sink.fileno(), 2)
-        try:
-            yield
-        finally:
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os.dup2(saved[0], 1)
-            os.dup2(saved[1], 2)
-            os.close(saved[0])
-            os.close(saved[1])
+    os.dup2(file.fileno(), 1)
+    os.dup2(file.fileno(), 2)
+    try:
+        yield
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        os.close(saved[0])
+        os.close(saved[1])
+
+
+@contextlib.contextmanager
+def _quiet_fds():
+    """Discard what is written to file descriptors 1 and 2 (C code included) meanwhile."""
+    with tempfile.TemporaryFile() as sink, fds_into(sink):
+        yield

@@ -28,21 +28,10 @@ RESOLUTION = (12, 10)
 @contextlib.contextmanager
 def captured(path):
     """File descriptors 1 and 2 (and Python's streams) into the file ``path``."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = os.dup(1), os.dup(2)
-    with open(path, "wb") as out:
-        os.dup2(out.fileno(), 1)
-        os.dup2(out.fileno(), 2)
-        try:
-            yield
-        finally:
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os.dup2(saved[0], 1)
-            os.dup2(saved[1], 2)
-            os.close(saved[0])
-            os.close(saved[1])
+    from ..addon.blendfile import fds_into
+
+    with open(path, "wb") as out, fds_into(out):
+        yield
 
 
 def make_fixtures(folder):

@@ -19,44 +19,13 @@ It imports the package by its absolute name, so the same file profiles an older 
 from __future__ import annotations
 
 import argparse
-import functools
 import importlib
 import os
-import threading
 import time
-from collections import defaultdict
 
-_LOCAL = threading.local()
-_TOTALS = defaultdict(float)
-_LOCK = threading.Lock()
-
-
-def _timed(name, fn):
-    """``fn`` with its exclusive CPU time (of the calling thread: other processes' load on a
-    shared machine does not count) added to ``_TOTALS[name]``; nested stages subtracted."""
-
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        stack = getattr(_LOCAL, "stack", None)
-        if stack is None:
-            stack = _LOCAL.stack = []
-        stack.append(0.0)
-        t0 = time.thread_time()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            dt = time.thread_time() - t0
-            children = stack.pop()
-            if stack:
-                stack[-1] += dt
-            with _LOCK:
-                _TOTALS[name] += dt - children
-
-    return wrapper
-
-
-def _patch(owner, attr, name):
-    setattr(owner, attr, _timed(name, getattr(owner, attr)))
+# From the script's own folder (tools/), whichever tree PYTHONPATH puts first.
+from stage_timer import TOTALS as _TOTALS, patch as _patch, timed as _timed
+from stage_timer import uniform_bounces as _bounces
 
 INTERSECT = "subpaths: intersect (Embree closest hit)"
 SHADOW = "shadow rays (offsets + Embree occluded)"
@@ -238,11 +207,3 @@ def main(argv=None):
 
 if __name__ == "__main__":
     main()
-
-
-def _bounces(settings_class, total):
-    """Every bounce limit the measured tree's ``RenderSettings`` has, set to ``total`` (older
-    trees have ``max_bounces`` only), so that trees are profiled on the same paths."""
-    names = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
-             "transparent_max_bounces")
-    return {name: total for name in names if name in settings_class.__dataclass_fields__}
