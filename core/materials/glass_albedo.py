@@ -38,6 +38,7 @@ import numpy as np
 from . import microfacet as mf
 from .frame import dot
 from .fresnel import fresnel_dielectric
+from .multiscatter import energy_factor
 
 N_MU = 16
 N_ROUGHNESS = 16
@@ -210,11 +211,8 @@ def compensation(mu, alpha, eta, f_ss):
     z = np.sqrt(np.clip((n - 1.0) / (n + 1.0), 0.0, 1.0))
     enter, leave = average_tables()
     r = np.sqrt(np.clip(alpha, 0.0, 1.0))
-    e_avg = np.where(eta < 1.0, _bilinear(leave, r, z), _bilinear(enter, r, z))[:, None]
-    f_ss = np.clip(np.asarray(f_ss, np.float64), 0.0, 1.0)
-    f_ms = f_ss * e_avg / np.maximum(1.0 - f_ss * (1.0 - e_avg), 1e-12)
-    factor = 1.0 + f_ms * ((1.0 - e) / e)[:, None]
-    return np.where(mf.is_smooth(alpha)[:, None], 1.0, factor)
+    e_avg = np.where(eta < 1.0, _bilinear(leave, r, z), _bilinear(enter, r, z))
+    return energy_factor(f_ss, e, e_avg, alpha)
 
 
 if __name__ == "__main__":

@@ -230,8 +230,17 @@ def compensation(f_ss, mu, alpha):
     (k, 3) float64, >= 1 and finite.
     """
     e, e_avg = albedo_lookup(mu, alpha)
+    return energy_factor(f_ss, e, e_avg, alpha)
+
+
+def energy_factor(f_ss, e, e_avg, alpha):
+    """``1 + F_ms (1 - E) / E`` with ``F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg))`` from a
+    lobe's albedo ``e (k,)`` at the view angle and its average ``e_avg (k,)`` (conductors here,
+    glass in :mod:`core.materials.glass_albedo`); ``f_ss (k, 3)`` is clipped to [0, 1].
+    Returns ``(k, 3)``; 1 on smooth rows."""
     f_ss = np.clip(np.asarray(f_ss, np.float64), 0.0, 1.0)
-    f_ms = f_ss * e_avg[:, None] / (1.0 - f_ss * (1.0 - e_avg[:, None]))
+    e_avg = np.asarray(e_avg, np.float64)[:, None]
+    f_ms = f_ss * e_avg / np.maximum(1.0 - f_ss * (1.0 - e_avg), 1e-12)
     missing = (1.0 - e) / np.maximum(e, 1e-6)
     factor = 1.0 + f_ms * missing[:, None]
     return np.where(mf.is_smooth(alpha)[:, None], 1.0, factor)

@@ -23,8 +23,8 @@ import bpy
 import numpy as np
 
 import scenes as S
-from test_cycles_multiscatter import sphere_masks, three_metal_spheres
-from tests.helpers import DETECT, assert_estimates_agree
+from test_cycles_multiscatter import assert_regions_agree, sphere_masks, three_metal_spheres
+from tests.helpers import DETECT
 
 OUR_SPP = 1024
 CYCLES_SPP = 256
@@ -77,17 +77,7 @@ def _specular(name, _roughness):
 def assert_spheres_agree(scene, ours, cycles, names):
     """Each sphere's mean within 1 % of Cycles' plus the interval of the difference (Cycles'
     standard error taken no smaller than ours, as in ``test_cycles_multiscatter.py``)."""
-    mean_a, var_a = ours["Combined"][..., :3], ours["Variance"][..., :3]
-    for name, mask in zip(names, sphere_masks(scene)):
-        n = mask.sum()
-        a = mean_a[mask].mean(axis=0)
-        se_a = np.sqrt(var_a[mask].sum(axis=0)) / n
-        reps = cycles[:, mask].mean(axis=1)
-        b, se_b = reps.mean(axis=0), reps.std(axis=0, ddof=1) / np.sqrt(len(reps))
-        se_b = np.maximum(se_b, se_a)
-        print(f"{name}: {n} pixels, ours / Cycles {a / b}, standard error "
-              f"{np.hypot(se_a, se_b) / b}")
-        assert_estimates_agree(a, se_a, b, se_b, comparisons=9, atol=0.01 * b, what=name)
+    assert_regions_agree(ours, cycles, sphere_masks(scene), names)
 
 
 def test_principled_coat_agrees_with_cycles(empty_scene, export, tmp_path):
