@@ -251,13 +251,14 @@ def test_a_render_failing_half_way_keeps_its_samples_and_says_so(empty_scene, tm
     scenes.cornell_box_point_light(empty_scene, resolution=(160, 120))
     scenes.set_sampling_lab(empty_scene, samples=4)
     path = importlib.import_module(f"{ADDON_MODULE}.core.integrators.path")
-    original, calls = path.PathTracer.render_samples, []
+    original = path.PathTracer.render_samples
 
-    def render_samples(self, *args):  # the second work unit breaks
-        calls.append(1)
-        if len(calls) == 2:
+    def render_samples(self, stream, *args):
+        # Every unit but the first (pixel 0, sample 0) breaks. Chosen by what the unit holds,
+        # not by call order: two workers may start their units in either order.
+        if stream.pixel.min() > 0 or stream.sample_index.min() > 0:
             raise RuntimeError("unit broke")
-        return original(self, *args)
+        return original(self, stream, *args)
 
     monkeypatch.setattr(path.PathTracer, "render_samples", render_samples)
     # The render goes on to write its file, with a warning that says what failed.
