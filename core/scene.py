@@ -146,6 +146,13 @@ class Materials:
         The coat's roughness and IOR; defaults 0.03 and 1.5, Blender's.
     coat_tint : (m, 3) float32
         Coat Tint (transmittance of the coat at normal incidence); default white.
+    sheen_weight : (m,) float32
+        Principled Sheen Weight (>= 0): a microfiber sheen over the row's BSDF and coat
+        (:mod:`core.materials.sheen`); default 0 (none).
+    sheen_roughness : (m,) float32
+        Sheen Roughness in [0, 1]; default 0.5, Blender's.
+    sheen_tint : (m, 3) float32
+        Sheen Tint; default white.
     texture : (m,) int32
         Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
         (an Image Texture into the base colour); -1 (the default) for none.
@@ -181,6 +188,9 @@ class Materials:
     coat_roughness: np.ndarray = None
     coat_ior: np.ndarray = None
     coat_tint: np.ndarray = None
+    sheen_weight: np.ndarray = None
+    sheen_roughness: np.ndarray = None
+    sheen_tint: np.ndarray = None
     texture: np.ndarray = None
     roughness_texture: np.ndarray = None
     mix_rows: np.ndarray = None
@@ -207,6 +217,9 @@ class Materials:
         self.coat_roughness = column(self.coat_roughness, DEFAULT_COAT_ROUGHNESS)
         self.coat_ior = column(self.coat_ior, DEFAULT_COAT_IOR)
         self.coat_tint = column(self.coat_tint, 1.0, (3,))
+        self.sheen_weight = np.maximum(column(self.sheen_weight, 0.0), 0.0)
+        self.sheen_roughness = np.clip(column(self.sheen_roughness, 0.5), 0.0, 1.0)
+        self.sheen_tint = np.maximum(column(self.sheen_tint, 1.0, (3,)), 0.0)
         self.texture = texture_column(self.texture, m)
         self.roughness_texture = texture_column(self.roughness_texture, m)
         self._check_mix(m)
@@ -246,7 +259,8 @@ class Materials:
                    specular_tint=None, texture=None, mix_rows=None,
                    mix_weights=None, multiscatter=None, coat_weight=None,
                    coat_roughness=None, coat_ior=None, coat_tint=None,
-                   roughness_texture=None) -> "Materials":
+                   roughness_texture=None, sheen_weight=None, sheen_roughness=None,
+                   sheen_tint=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -263,6 +277,9 @@ class Materials:
             coat_ior=coat_ior, roughness_texture=roughness_texture,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
+            sheen_weight=sheen_weight, sheen_roughness=sheen_roughness,
+            sheen_tint=None if sheen_tint is None
+            else np.asarray(sheen_tint, np.float32).reshape(-1, 3),
         )
 
 

@@ -26,9 +26,10 @@ def dot(a, b):
 
 
 def _empty_params(n):
-    # With coat columns (weight zero), so that views of one table can take coated rows.
+    # With coat and sheen columns (weight zero), so that views of one table can take coated
+    # rows and rows with a sheen.
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
-                      np.zeros((n, 3))).with_no_coat()
+                      np.zeros((n, 3))).with_no_coat().with_no_sheen()
 
 
 def take_params(params, rows):
@@ -106,7 +107,8 @@ class Subpath:
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
                               (table.eta, 1.0), (table.tint, 0.0), (table.coat_weight, 0.0),
                               (table.coat_alpha, 1.0), (table.coat_eta, 1.0),
-                              (table.coat_tint, 1.0)):
+                              (table.coat_tint, 1.0), (table.sheen_color, 0.0),
+                              (table.sheen_roughness, 1.0)):
             column.fill(value)
         return self
 

@@ -69,6 +69,8 @@ Kinds and parameters (:class:`BSDFParams`, one row per shading point)
     from the ``multiscatter`` column of a dielectric row).
     Coat: any row may carry a Principled Coat (``coat_*`` columns, :mod:`.coat`), layered
     over its kind by :func:`eval_bsdf`, :func:`pdf_bsdf` and :func:`sample_bsdf`.
+    Sheen: any row may carry a microfiber sheen (``sheen_*`` columns, :mod:`.sheen`), layered
+    over the coat and the kind (the Principled BSDF's Sheen, the Sheen BSDF node).
     Emission is not a BSDF: it stays a column of the material table.
 In an integrator (one bounce, world-space arrays of the live paths)::
 
@@ -89,7 +91,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import coat, dielectric
+from . import coat, dielectric, sheen
 from .coat import DEFAULT_COAT_IOR, DEFAULT_COAT_ROUGHNESS, coat_rows
 from .dielectric import IMPORTANCE, RADIANCE, TRANSPORT_MODES, _check_mode, is_smooth_dielectric
 from .families import (FAMILIES, KIND_CONDUCTOR, KIND_CONDUCTOR_MS, KIND_DIELECTRIC,
@@ -139,6 +141,11 @@ class BSDFParams:
         alpha, IOR (>= 1). None (all four) when no row has a coat.
     coat_tint : (k, 3) float64 or None
         Coat Tint (>= 0).
+    sheen_color : (k, 3) float64 or None
+        Sheen Weight x Sheen Tint (>= 0; 0: no sheen, :mod:`.sheen`). None (with
+        ``sheen_roughness``) when no row has a sheen.
+    sheen_roughness : (k,) float64 or None
+        Sheen Roughness in [0, 1].
     """
 
     kind: np.ndarray
@@ -150,6 +157,8 @@ class BSDFParams:
     coat_alpha: np.ndarray = None
     coat_eta: np.ndarray = None
     coat_tint: np.ndarray = None
+    sheen_color: np.ndarray = None
+    sheen_roughness: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
@@ -159,14 +168,20 @@ class BSDFParams:
         """Whether the coat columns are present (they are None when no row has a coat)."""
         return self.coat_weight is not None
 
+    @property
+    def has_sheen(self):
+        """Whether the sheen columns are present (None when no row has a sheen)."""
+        return self.sheen_color is not None
+
     def map_columns(self, fn):
         """A new :class:`BSDFParams` of ``fn(column)`` for every column present."""
         return BSDFParams(*(None if c is None else fn(c) for c in self.columns()))
 
     def columns(self):
-        """The columns in field order (the coat's are None when absent)."""
+        """The columns in field order (the coat's and the sheen's are None when absent)."""
         return (self.kind, self.color, self.alpha, self.eta, self.tint, self.coat_weight,
-                self.coat_alpha, self.coat_eta, self.coat_tint)
+                self.coat_alpha, self.coat_eta, self.coat_tint, self.sheen_color,
+                self.sheen_roughness)
 
     def take(self, rows):
         """The rows ``rows`` (index array or mask) as a new :class:`BSDFParams`."""
@@ -181,6 +196,10 @@ class BSDFParams:
             self.coat_eta, self.coat_tint = np.ones(n), np.ones((n, 3))
         if self.has_coat and not src.has_coat:
             self.coat_weight[rows] = 0.0
+        if src.has_sheen and not self.has_sheen:
+            self.sheen_color, self.sheen_roughness = np.zeros((len(self), 3)), np.ones(len(self))
+        if self.has_sheen and not src.has_sheen:
+            self.sheen_color[rows] = 0.0
         for name, value in zip(_FIELDS, src.columns()):
             column = getattr(self, name)
             if value is not None and column is not None:
@@ -191,6 +210,8 @@ class BSDFParams:
         """The rows of ``parts`` (a non-empty list of :class:`BSDFParams`) in order."""
         if any(p.has_coat for p in parts):
             parts = [p if p.has_coat else p.with_no_coat() for p in parts]
+        if any(p.has_sheen for p in parts):
+            parts = [p if p.has_sheen else p.with_no_sheen() for p in parts]
         return BSDFParams(*(None if cols[0] is None else np.concatenate(cols)
                             for cols in zip(*(p.columns() for p in parts))))
 
@@ -198,7 +219,13 @@ class BSDFParams:
         """These rows with explicit coat columns of weight zero."""
         n = len(self)
         return BSDFParams(self.kind, self.color, self.alpha, self.eta, self.tint, np.zeros(n),
-                          np.ones(n), np.ones(n), np.ones((n, 3)))
+                          np.ones(n), np.ones(n), np.ones((n, 3)), self.sheen_color,
+                          self.sheen_roughness)
+
+    def with_no_sheen(self):
+        """These rows with explicit sheen columns of colour zero (no sheen)."""
+        n = len(self)
+        return BSDFParams(*self.columns()[:9], np.zeros((n, 3)), np.ones(n))
 
     @staticmethod
     def from_materials(materials, mat_ids):
@@ -207,10 +234,11 @@ class BSDFParams:
         Reads the table's ``kind`` and ``base_color`` and, when present, ``roughness (m,)``,
         ``ior (m,)``, ``specular_ior_level (m,)``, ``specular_tint (m, 3)`` and
         ``multiscatter (m,)`` and the coat's ``coat_weight``, ``coat_roughness``, ``coat_ior``
-        ``(m,)`` and ``coat_tint (m, 3)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5, white,
-        single scattering, no coat). Layered rows fold Specular IOR Level into the coat
-        index; dielectric rows use the IOR as is; conductor, layered and (not index-matched)
-        dielectric rows marked ``multiscatter`` become ``KIND_*_MS``.
+        ``(m,)`` and ``coat_tint (m, 3)``, the sheen's ``sheen_weight``, ``sheen_roughness``
+        ``(m,)`` and ``sheen_tint (m, 3)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5,
+        white, single scattering, no coat, no sheen). Layered rows fold Specular IOR Level
+        into the coat index; dielectric rows use the IOR as is; conductor, layered and (not
+        index-matched) dielectric rows marked ``multiscatter`` become ``KIND_*_MS``.
         """
         ids = np.asarray(mat_ids, np.int64)
         kind = np.asarray(materials.kind, np.int32)[ids]
@@ -239,13 +267,18 @@ class BSDFParams:
                            coat_weight=column("coat_weight", 0.0),
                            coat_roughness=column("coat_roughness", DEFAULT_COAT_ROUGHNESS),
                            coat_ior=column("coat_ior", DEFAULT_COAT_IOR),
-                           coat_tint=column("coat_tint", 1.0, (3,)))
+                           coat_tint=column("coat_tint", 1.0, (3,)),
+                           sheen_weight=column("sheen_weight", 0.0),
+                           sheen_roughness=column("sheen_roughness",
+                                                  sheen.DEFAULT_SHEEN_ROUGHNESS),
+                           sheen_tint=column("sheen_tint", 1.0, (3,)))
 
 
 def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
                 specular_ior_level=DEFAULT_SPECULAR_IOR_LEVEL, tint=1.0, k=None,
                 coat_weight=0.0, coat_roughness=DEFAULT_COAT_ROUGHNESS,
-                coat_ior=DEFAULT_COAT_IOR, coat_tint=1.0):
+                coat_ior=DEFAULT_COAT_IOR, coat_tint=1.0, sheen_weight=0.0,
+                sheen_roughness=sheen.DEFAULT_SHEEN_ROUGHNESS, sheen_tint=1.0):
     """Build :class:`BSDFParams` from Blender-style inputs, broadcasting scalars to ``k`` rows.
 
     Parameters
@@ -263,6 +296,11 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
         one, as Cycles). The coat columns are left None when every weight is zero.
     coat_tint : float, (3,) or (k, 3) float
         Coat Tint, clipped to >= 0.
+    sheen_weight, sheen_roughness : float or (k,) float
+        Sheen (:mod:`.sheen`): weight clipped to >= 0, roughness to [0, 1]. The sheen
+        columns are left None when no row has a sheen.
+    sheen_tint : float, (3,) or (k, 3) float
+        Sheen Tint, clipped to >= 0.
     """
     if k is None:
         k = max(np.size(kind), np.size(roughness), np.size(ior), np.size(specular_ior_level),
@@ -291,6 +329,18 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
         params.coat_eta = np.clip(coat_eta, 1.0, ETA_RANGE[1])
         params.coat_tint = np.maximum(
             np.nan_to_num(np.broadcast_to(np.asarray(coat_tint, np.float64), (k, 3))), 0.0)
+    return _with_sheen(params, k, sheen_weight, sheen_roughness, sheen_tint)
+
+
+def _with_sheen(params, k, weight, roughness, tint):
+    """``params`` with the sheen columns of ``weight x tint`` when any row has a sheen."""
+    def rows(value, shape):
+        return np.nan_to_num(np.broadcast_to(np.asarray(value, np.float64), (k,) + shape))
+
+    color = np.maximum(rows(weight, ())[:, None], 0.0) * np.maximum(rows(tint, (3,)), 0.0)
+    if np.any(color > 0.0):
+        params.sheen_color = color
+        params.sheen_roughness = np.clip(rows(roughness, ()), 0.0, 1.0).copy()
     return params
 
 
@@ -345,6 +395,15 @@ def eval_bsdf(params, wo, wi, mode=RADIANCE):
     """
     wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
     _check(params, wo, mode)
+    out = _eval_below_sheen(params, wo, wi, mode)
+    rows = sheen.sheen_rows(params)
+    if rows.size:
+        out[rows] = sheen.eval_sheened(params.take(rows), wo[rows], wi[rows], out[rows], mode)
+    return out
+
+
+def _eval_below_sheen(params, wo, wi, mode):
+    """:func:`eval_bsdf` of the coat over the kinds, without any sheen."""
     out = np.zeros((len(params), 3))
     for kind, rows in _groups(params):
         fn = FAMILIES[kind][0]
@@ -363,6 +422,15 @@ def pdf_bsdf(params, wo, wi):
     """Solid-angle density of :func:`sample_bsdf`'s non-delta samples at ``wi``. ``(k,)``."""
     wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
     _check(params, wo)
+    out = _pdf_below_sheen(params, wo, wi)
+    rows = sheen.sheen_rows(params)
+    if rows.size:
+        out[rows] = sheen.pdf_sheened(params.take(rows), wo[rows], wi[rows], out[rows])
+    return out
+
+
+def _pdf_below_sheen(params, wo, wi):
+    """:func:`pdf_bsdf` of the coat over the kinds, without any sheen."""
     out = np.zeros(len(params))
     for kind, rows in _groups(params):
         fn = FAMILIES[kind][1]
@@ -396,10 +464,20 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
     _check(params, wo, mode)
     u_lobe = np.asarray(u_lobe, np.float64).reshape(-1)
     u = np.asarray(u, np.float64)
+    rows = sheen.sheen_rows(params)
+    if rows.size:
+        return BSDFSample(*sheen.sample_sheened(params, rows, wo, u_lobe, u, mode,
+                                                _sample_below_sheen, eval_bsdf, pdf_bsdf))
+    return _sample_below_sheen(params, wo, u_lobe, u, mode)
+
+
+def _sample_below_sheen(params, wo, u_lobe, u, mode):
+    """:func:`sample_bsdf` of the coat over the kinds, ignoring any sheen."""
     coated = coat_rows(params)
     if coated.size:
         return BSDFSample(*coat.sample_coated(params, coated, wo, u_lobe, u, mode,
-                                              _sample_bases, eval_bsdf, pdf_bsdf))
+                                              _sample_bases, _eval_below_sheen,
+                                              _pdf_below_sheen))
     return _sample_bases(params, wo, u_lobe, u, mode)
 
 
@@ -436,4 +514,5 @@ def is_delta_only(params):
     coated = coat_rows(params)
     if coated.size:
         delta_only[coated] &= is_smooth(params.coat_alpha[coated])
+    delta_only[sheen.sheen_rows(params)] = False
     return delta_only
