@@ -153,6 +153,12 @@ class Materials:
         Sheen Roughness in [0, 1]; default 0.5, Blender's.
     sheen_tint : (m, 3) float32
         Sheen Tint; default white.
+    aniso_scale : (m,) float32
+        Anisotropic GGX of conductor rows (:mod:`core.materials.anisotropic`): ``alpha_x =
+        alpha k``, ``alpha_y = alpha / k`` along the tangent (:attr:`Scene.corner_tangents`)
+        and the bitangent; default 1 (isotropic).
+    aniso_rotation : (m,) float32
+        Anisotropic Rotation, in turns about the normal (Blender's); default 0.
     texture : (m,) int32
         Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
         (an Image Texture into the base colour); -1 (the default) for none.
@@ -191,6 +197,8 @@ class Materials:
     sheen_weight: np.ndarray = None
     sheen_roughness: np.ndarray = None
     sheen_tint: np.ndarray = None
+    aniso_scale: np.ndarray = None
+    aniso_rotation: np.ndarray = None
     texture: np.ndarray = None
     roughness_texture: np.ndarray = None
     mix_rows: np.ndarray = None
@@ -220,6 +228,8 @@ class Materials:
         self.sheen_weight = np.maximum(column(self.sheen_weight, 0.0), 0.0)
         self.sheen_roughness = np.clip(column(self.sheen_roughness, 0.5), 0.0, 1.0)
         self.sheen_tint = np.maximum(column(self.sheen_tint, 1.0, (3,)), 0.0)
+        self.aniso_scale = column(self.aniso_scale, 1.0)
+        self.aniso_rotation = column(self.aniso_rotation, 0.0)
         self.texture = texture_column(self.texture, m)
         self.roughness_texture = texture_column(self.roughness_texture, m)
         self._check_mix(m)
@@ -260,7 +270,7 @@ class Materials:
                    mix_weights=None, multiscatter=None, coat_weight=None,
                    coat_roughness=None, coat_ior=None, coat_tint=None,
                    roughness_texture=None, sheen_weight=None, sheen_roughness=None,
-                   sheen_tint=None) -> "Materials":
+                   sheen_tint=None, aniso_scale=None, aniso_rotation=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -278,6 +288,7 @@ class Materials:
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
             sheen_weight=sheen_weight, sheen_roughness=sheen_roughness,
+            aniso_scale=aniso_scale, aniso_rotation=aniso_rotation,
             sheen_tint=None if sheen_tint is None
             else np.asarray(sheen_tint, np.float32).reshape(-1, 3),
         )

@@ -26,10 +26,10 @@ def dot(a, b):
 
 
 def _empty_params(n):
-    # With coat and sheen columns (weight zero), so that views of one table can take coated
-    # rows and rows with a sheen.
+    # With every optional column group (coat, sheen, anisotropy; neutral), so that views of
+    # one table can take rows that use them.
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
-                      np.zeros((n, 3))).with_no_coat().with_no_sheen()
+                      np.zeros((n, 3))).with_all_groups()
 
 
 def take_params(params, rows):
@@ -105,11 +105,9 @@ class Subpath:
             getattr(self, name).fill(0.0)
         table = self.all_params
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
-                              (table.eta, 1.0), (table.tint, 0.0), (table.coat_weight, 0.0),
-                              (table.coat_alpha, 1.0), (table.coat_eta, 1.0),
-                              (table.coat_tint, 1.0), (table.sheen_color, 0.0),
-                              (table.sheen_roughness, 1.0)):
+                              (table.eta, 1.0), (table.tint, 0.0)):
             column.fill(value)
+        table.fill_neutral()
         return self
 
     def flat(self, name):

@@ -146,6 +146,11 @@ class BSDFParams:
         ``sheen_roughness``) when no row has a sheen.
     sheen_roughness : (k,) float64 or None
         Sheen Roughness in [0, 1].
+    aniso_scale, aniso_rotation : (k,) float64 or None
+        Anisotropic GGX of conductor rows (:mod:`.anisotropic`): ``alpha_x = alpha k``,
+        ``alpha_y = alpha / k`` for the scale ``k > 0`` (1: isotropic), in the shading frame's
+        tangent turned by ``aniso_rotation`` radians about the normal. None when every row is
+        isotropic.
     """
 
     kind: np.ndarray
@@ -159,47 +164,48 @@ class BSDFParams:
     coat_tint: np.ndarray = None
     sheen_color: np.ndarray = None
     sheen_roughness: np.ndarray = None
+    aniso_scale: np.ndarray = None
+    aniso_rotation: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
 
+    def has(self, group):
+        """Whether the columns of ``group`` (``'coat'``, ``'sheen'``, ``'aniso'``) are present
+        (they are None when no row uses the layer)."""
+        return getattr(self, _GROUPS[group][0][0]) is not None
+
     @property
     def has_coat(self):
         """Whether the coat columns are present (they are None when no row has a coat)."""
-        return self.coat_weight is not None
+        return self.has("coat")
 
     @property
     def has_sheen(self):
         """Whether the sheen columns are present (None when no row has a sheen)."""
-        return self.sheen_color is not None
+        return self.has("sheen")
 
     def map_columns(self, fn):
         """A new :class:`BSDFParams` of ``fn(column)`` for every column present."""
         return BSDFParams(*(None if c is None else fn(c) for c in self.columns()))
 
     def columns(self):
-        """The columns in field order (the coat's and the sheen's are None when absent)."""
-        return (self.kind, self.color, self.alpha, self.eta, self.tint, self.coat_weight,
-                self.coat_alpha, self.coat_eta, self.coat_tint, self.sheen_color,
-                self.sheen_roughness)
+        """The columns in field order (an absent group's are None)."""
+        return tuple(getattr(self, name) for name in _FIELDS)
 
     def take(self, rows):
         """The rows ``rows`` (index array or mask) as a new :class:`BSDFParams`."""
         return self.map_columns(lambda c: c[rows])
 
     def scatter(self, rows, src):
-        """Store the rows of ``src`` at ``rows`` of this table (adding coat columns, zero,
-        when ``src`` has them and this table does not)."""
-        if src.has_coat and not self.has_coat:
-            n = len(self)
-            self.coat_weight, self.coat_alpha = np.zeros(n), np.ones(n)
-            self.coat_eta, self.coat_tint = np.ones(n), np.ones((n, 3))
-        if self.has_coat and not src.has_coat:
-            self.coat_weight[rows] = 0.0
-        if src.has_sheen and not self.has_sheen:
-            self.sheen_color, self.sheen_roughness = np.zeros((len(self), 3)), np.ones(len(self))
-        if self.has_sheen and not src.has_sheen:
-            self.sheen_color[rows] = 0.0
+        """Store the rows of ``src`` at ``rows`` of this table (adding a group's columns, at
+        their neutral values, when ``src`` has them and this table does not)."""
+        for group, cols in _GROUPS.items():
+            if src.has(group) and not self.has(group):
+                self._set_neutral(group)
+            elif self.has(group) and not src.has(group):
+                for name, value, _ in cols:
+                    getattr(self, name)[rows] = value
         for name, value in zip(_FIELDS, src.columns()):
             column = getattr(self, name)
             if value is not None and column is not None:
@@ -208,24 +214,43 @@ class BSDFParams:
     @staticmethod
     def concat(parts):
         """The rows of ``parts`` (a non-empty list of :class:`BSDFParams`) in order."""
-        if any(p.has_coat for p in parts):
-            parts = [p if p.has_coat else p.with_no_coat() for p in parts]
-        if any(p.has_sheen for p in parts):
-            parts = [p if p.has_sheen else p.with_no_sheen() for p in parts]
+        for group in _GROUPS:
+            if any(p.has(group) for p in parts):
+                parts = [p if p.has(group) else p.with_neutral(group) for p in parts]
         return BSDFParams(*(None if cols[0] is None else np.concatenate(cols)
                             for cols in zip(*(p.columns() for p in parts))))
 
+    def _set_neutral(self, group):
+        for name, value, shape in _GROUPS[group]:
+            setattr(self, name, np.full((len(self),) + shape, value, np.float64))
+
+    def with_neutral(self, group):
+        """These rows with explicit columns of ``group`` at values that change nothing."""
+        out = BSDFParams(*self.columns())
+        out._set_neutral(group)
+        return out
+
+    def with_all_groups(self):
+        """These rows with every optional group present (absent ones neutral)."""
+        out = self
+        for group in _GROUPS:
+            out = out if out.has(group) else out.with_neutral(group)
+        return out
+
+    def fill_neutral(self):
+        """Set every present optional group's columns to their neutral values, in place."""
+        for group, cols in _GROUPS.items():
+            if self.has(group):
+                for name, value, _ in cols:
+                    getattr(self, name).fill(value)
+
     def with_no_coat(self):
         """These rows with explicit coat columns of weight zero."""
-        n = len(self)
-        return BSDFParams(self.kind, self.color, self.alpha, self.eta, self.tint, np.zeros(n),
-                          np.ones(n), np.ones(n), np.ones((n, 3)), self.sheen_color,
-                          self.sheen_roughness)
+        return self.with_neutral("coat")
 
     def with_no_sheen(self):
         """These rows with explicit sheen columns of colour zero (no sheen)."""
-        n = len(self)
-        return BSDFParams(*self.columns()[:9], np.zeros((n, 3)), np.ones(n))
+        return self.with_neutral("sheen")
 
     @staticmethod
     def from_materials(materials, mat_ids):
@@ -235,8 +260,10 @@ class BSDFParams:
         ``ior (m,)``, ``specular_ior_level (m,)``, ``specular_tint (m, 3)`` and
         ``multiscatter (m,)`` and the coat's ``coat_weight``, ``coat_roughness``, ``coat_ior``
         ``(m,)`` and ``coat_tint (m, 3)``, the sheen's ``sheen_weight``, ``sheen_roughness``
-        ``(m,)`` and ``sheen_tint (m, 3)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5,
-        white, single scattering, no coat, no sheen). Layered rows fold Specular IOR Level
+        ``(m,)`` and ``sheen_tint (m, 3)``, the anisotropy's ``aniso_scale`` and
+        ``aniso_rotation`` ``(m,)`` (in turns, as Blender's Anisotropic Rotation) (Blender's
+        defaults otherwise: 0.5, 1.5, 0.5, white, single scattering, no coat, no sheen,
+        isotropic). Layered rows fold Specular IOR Level
         into the coat index; dielectric rows use the IOR as is; conductor, layered and (not
         index-matched) dielectric rows marked ``multiscatter`` become ``KIND_*_MS``.
         """
@@ -271,14 +298,17 @@ class BSDFParams:
                            sheen_weight=column("sheen_weight", 0.0),
                            sheen_roughness=column("sheen_roughness",
                                                   sheen.DEFAULT_SHEEN_ROUGHNESS),
-                           sheen_tint=column("sheen_tint", 1.0, (3,)))
+                           sheen_tint=column("sheen_tint", 1.0, (3,)),
+                           aniso_scale=column("aniso_scale", 1.0),
+                           aniso_rotation=2.0 * np.pi * column("aniso_rotation", 0.0))
 
 
 def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
                 specular_ior_level=DEFAULT_SPECULAR_IOR_LEVEL, tint=1.0, k=None,
                 coat_weight=0.0, coat_roughness=DEFAULT_COAT_ROUGHNESS,
                 coat_ior=DEFAULT_COAT_IOR, coat_tint=1.0, sheen_weight=0.0,
-                sheen_roughness=sheen.DEFAULT_SHEEN_ROUGHNESS, sheen_tint=1.0):
+                sheen_roughness=sheen.DEFAULT_SHEEN_ROUGHNESS, sheen_tint=1.0, aniso_scale=1.0,
+                aniso_rotation=0.0):
     """Build :class:`BSDFParams` from Blender-style inputs, broadcasting scalars to ``k`` rows.
 
     Parameters
@@ -301,6 +331,10 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
         columns are left None when no row has a sheen.
     sheen_tint : float, (3,) or (k, 3) float
         Sheen Tint, clipped to >= 0.
+    aniso_scale, aniso_rotation : float or (k,) float
+        Anisotropic GGX of conductor rows (:mod:`.anisotropic`): ``alpha_x = alpha k``,
+        ``alpha_y = alpha / k`` (``k`` clipped to [1e-3, 1e3]; 1 on other kinds), the
+        tangent turned by ``aniso_rotation`` radians. Columns left None when all isotropic.
     """
     if k is None:
         k = max(np.size(kind), np.size(roughness), np.size(ior), np.size(specular_ior_level),
@@ -329,7 +363,21 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
         params.coat_eta = np.clip(coat_eta, 1.0, ETA_RANGE[1])
         params.coat_tint = np.maximum(
             np.nan_to_num(np.broadcast_to(np.asarray(coat_tint, np.float64), (k, 3))), 0.0)
-    return _with_sheen(params, k, sheen_weight, sheen_roughness, sheen_tint)
+    params = _with_sheen(params, k, sheen_weight, sheen_roughness, sheen_tint)
+    return _with_aniso(params, k, aniso_scale, aniso_rotation)
+
+
+def _with_aniso(params, k, scale, rotation):
+    """``params`` with the anisotropy columns when any conductor row is anisotropic."""
+    conductor_rows = (params.kind == KIND_CONDUCTOR) | (params.kind == KIND_CONDUCTOR_MS)
+    scale = np.clip(np.nan_to_num(np.broadcast_to(np.asarray(scale, np.float64), (k,)), nan=1.0),
+                    1e-3, 1e3)
+    rotation = np.nan_to_num(np.broadcast_to(np.asarray(rotation, np.float64), (k,)))
+    scale = np.where(conductor_rows, scale, 1.0)
+    rotation = np.where(conductor_rows & (scale != 1.0), rotation, 0.0)
+    if np.any(scale != 1.0):
+        params.aniso_scale, params.aniso_rotation = scale, rotation
+    return params
 
 
 def _with_sheen(params, k, weight, roughness, tint):
@@ -345,6 +393,14 @@ def _with_sheen(params, k, weight, roughness, tint):
 
 
 _FIELDS = tuple(f.name for f in fields(BSDFParams))
+# Optional column groups: (name, neutral value, trailing shape) per column; the first column
+# says whether the group is present.
+_GROUPS = {
+    "coat": (("coat_weight", 0.0, ()), ("coat_alpha", 1.0, ()), ("coat_eta", 1.0, ()),
+             ("coat_tint", 1.0, (3,))),
+    "sheen": (("sheen_color", 0.0, (3,)), ("sheen_roughness", 1.0, ())),
+    "aniso": (("aniso_scale", 1.0, ()), ("aniso_rotation", 0.0, ())),
+}
 
 
 class BSDFSample(NamedTuple):

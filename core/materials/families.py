@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import conductor, dielectric, layered
+from . import anisotropic, dielectric, layered
 from .lambert import eval_lambert, pdf_lambert, sample_lambert
 
 # Kind codes of the material table (scene.MAT_DIFFUSE == KIND_DIFFUSE == 0).
@@ -77,24 +77,25 @@ def _layered_kind(p, wo, u_lobe, delta):
                     np.where(coat, LOBE_GLOSSY, LOBE_DIFFUSE)).astype(np.uint8)
 
 
+# Conductors, anisotropic rows included (:mod:`.anisotropic`).
 def _conductor_eval(p, wo, wi, mode):
-    return conductor.eval_conductor(p.color, p.alpha, wo, wi)
+    return anisotropic.conductor_eval(p, wo, wi, mode, multiscatter=False)
 
 
 def _conductor_pdf(p, wo, wi):
-    return conductor.pdf_conductor(p.alpha, wo, wi)
+    return anisotropic.conductor_pdf(p, wo, wi)
 
 
 def _conductor_sample(p, wo, u_lobe, u, mode):
-    return conductor.sample_conductor(p.color, p.alpha, wo, u)
+    return anisotropic.conductor_sample(p, wo, u, mode, multiscatter=False)
 
 
 def _conductor_ms_eval(p, wo, wi, mode):
-    return conductor.eval_conductor(p.color, p.alpha, wo, wi, multiscatter=True, mode=mode)
+    return anisotropic.conductor_eval(p, wo, wi, mode, multiscatter=True)
 
 
 def _conductor_ms_sample(p, wo, u_lobe, u, mode):
-    return conductor.sample_conductor(p.color, p.alpha, wo, u, multiscatter=True, mode=mode)
+    return anisotropic.conductor_sample(p, wo, u, mode, multiscatter=True)
 
 
 def _dielectric_eval(p, wo, wi, mode):
