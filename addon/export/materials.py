@@ -20,6 +20,7 @@ from ...core.scene import (
     MAT_LAYERED,
     Materials,
 )
+from .anisotropy import AXES, glossy_anisotropy, principled_anisotropy
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
 from .textures import roughness_texture, surface_texture
 
@@ -61,6 +62,12 @@ class Surface(NamedTuple):
     sheen_weight: float = 0.0
     sheen_roughness: float = 0.5
     sheen_tint: np.ndarray = np.ones(3)
+    # Anisotropic GGX of a conductor (core.materials.anisotropic; addon.export.anisotropy):
+    # alpha_x = alpha k, alpha_y = alpha / k, the tangent turned by the rotation (turns) and
+    # taken radial about this axis of the object ('X', 'Y', 'Z'; None: isotropic).
+    aniso_scale: float = 1.0
+    aniso_rotation: float = 0.0
+    tangent_axis: str = None
 
 
 def _diffuse(color, emission=None):
@@ -157,12 +164,10 @@ def _node_surface(node, read, owner, messages):
     if kind in {'ShaderNodeBsdfGlossy', 'ShaderNodeBsdfAnisotropic'}:
         # Multiscatter GGX: Cycles' energy compensation, modelled for conductors.
         _distribution_note(node, read, owner, handled=('GGX', 'SHARP', 'MULTI_GGX'))
-        if read.value(node, "Anisotropy") != 0:
-            messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
-                         f"rendered isotropic")
         return Surface(MAT_CONDUCTOR, read.color(node, "Color", (1.0, 1.0, 1.0)), np.zeros(3),
                        roughness=read.value(node, "Roughness", 0.5),
-                       multiscatter=getattr(node, "distribution", 'GGX') == 'MULTI_GGX')
+                       multiscatter=getattr(node, "distribution", 'GGX') == 'MULTI_GGX',
+                       **glossy_anisotropy(node, read, owner))
 
     if kind in {'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction'}:
         # Multiscatter GGX: Cycles' compensation of glass (the Glass BSDF's rule).
@@ -217,7 +222,8 @@ def _surface_key(surface):
             surface.coat_weight, surface.coat_roughness, surface.coat_ior,
             tuple(np.round(surface.coat_tint, 9)), id(surface.roughness_texture),
             surface.roughness_texture_mode, surface.sheen_weight, surface.sheen_roughness,
-            tuple(np.round(surface.sheen_tint, 9)))
+            tuple(np.round(surface.sheen_tint, 9)), surface.aniso_scale,
+            surface.aniso_rotation, surface.tangent_axis)
 
 
 def mix_surfaces(parts, owner, messages):
@@ -293,9 +299,7 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
         messages.add(f"{owner}: emission under the coat of node '{name}' is not attenuated "
                      f"by the coat yet")
     alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
-    if read.value(node, "Anisotropic") != 0:
-        messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
-                     f"rendered isotropic")
+    aniso = principled_anisotropy(node, read, owner)
     weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
                MAT_LAYERED: (1 - metallic) * (1 - transmission)}
     distribution = getattr(node, "distribution", 'GGX')
@@ -324,7 +328,8 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
                          tint, multiscatter and compensated[kind], pixels, mode))
              for kind, w in weights.items() if w > 0]
-    parts = [(alpha * w, surface._replace(**coat, **sheen, **(rough or {})))
+    parts = [(alpha * w, surface._replace(**coat, **sheen, **(rough or {}),
+                                          **(aniso if surface.kind == MAT_CONDUCTOR else {})))
              for w, surface in parts]
     if alpha < 1.0:
         parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
@@ -429,7 +434,8 @@ class MaterialTable:
             coat_weight=col["coat_weight"], coat_roughness=col["coat_roughness"],
             coat_ior=col["coat_ior"], coat_tint=col["coat_tint"],
             sheen_weight=col["sheen_weight"], sheen_roughness=col["sheen_roughness"],
-            sheen_tint=col["sheen_tint"],
+            sheen_tint=col["sheen_tint"], aniso_scale=col["aniso_scale"],
+            aniso_rotation=col["aniso_rotation"],
             texture=self._texture_index()[0], roughness_texture=self._texture_index()[1],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
@@ -466,6 +472,16 @@ class MaterialTable:
     def texture_rows(self):
         """``(m,) int32`` index into :attr:`textures` per row, -1 for untextured rows."""
         return self._texture_index()[0]
+
+    def tangent_axes(self, rows):
+        """``(t,) int8`` axis code (:data:`.anisotropy.AXES`) of the radial tangent each
+        triangle of material rows ``rows (t,)`` needs: its first anisotropic component's."""
+        codes = np.zeros(len(self.names), np.int8)
+        for r, mix in enumerate(self.mixes):
+            axes = [self.surfaces[c].tangent_axis for c, _ in mix
+                    if self.surfaces[c].tangent_axis is not None]
+            codes[r] = AXES[axes[0]] if axes else 0
+        return codes[np.asarray(rows, np.int64)]
 
     def textured(self, rows):
         """Whether any of the material rows ``rows`` (or their components) has a texture."""

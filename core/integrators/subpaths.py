@@ -17,8 +17,8 @@ import numpy as np
 from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
-                     next_1d_if, ray_class, roulette_at, russian_roulette, surface_hits,
-                     surface_interaction, take_rows)
+                     next_1d_if, ray_class, roulette_at, russian_roulette, shading_tangents,
+                     surface_hits, surface_interaction, take_rows)
 
 
 def dot(a, b):
@@ -253,11 +253,12 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         u_rr = next_1d_if(path_stream, roulette_at(settings, j - 1))
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
+        tangent = shading_tangents(prep, si)
         if ctx.smooth:
             front = np.where(dot(si.ns, si.ng) < 0, -1.0, 1.0)
-            fs, ft, fn = shading_frame(si.ns * front[:, None])
+            fs, ft, fn = shading_frame(si.ns * front[:, None], tangent)
         else:
-            fs, ft, fn = shading_frame(si.ng)
+            fs, ft, fn = shading_frame(si.ng, tangent)
         wo_l = to_local(si.wo, fs, ft, fn)
         beta = take_rows(beta, live)
         if on_vertex is not None:
