@@ -4,11 +4,13 @@ Glossy BSDF's Anisotropy, Rotation, and the tangents they need.
 Materials get :class:`.materials.Surface` fields ``aniso_scale`` (``alpha_x = alpha k``,
 ``alpha_y = alpha / k``, :mod:`core.materials.anisotropic`), ``aniso_rotation`` (turns) and
 ``tangent_axis``. Meshes using such materials get per-corner tangents
-(:attr:`core.scene.Scene.corner_tangents`): Cycles' default for an unlinked Tangent input,
-and a Tangent node in Radial mode, is the radial tangent about an axis of the object's texture
-space (Cycles' ``svm_node_tangent``: ``(-(g_y - 1/2), g_x - 1/2, 0)`` about Z for generated
-coordinates ``g``, moved to the world by the object's normal matrix, projected on the shading
-normal's plane at the hit). A Tangent node in UV Map mode is approximated by the radial Z
+(:attr:`core.scene.Scene.corner_tangents`): Cycles connects an unlinked Tangent input to the
+Geometry node's Tangent (``ShaderGraph::default_inputs``, ``primitive_tangent``), the radial
+tangent ``(-(g_y - 1/2), g_x - 1/2, 0)`` about Z of the generated coordinates ``g`` (the
+object's texture space), moved to the world by the object's normal matrix and projected on the
+shading normal's plane at the hit; a Tangent node in Radial mode is the same about its X, Y or
+Z axis (``svm_node_tangent``). Generated coordinates are read from the evaluated mesh (Cycles
+takes them before deforming modifiers). A Tangent node in UV Map mode is approximated by the radial Z
 tangent and reported.
 """
 
