@@ -154,9 +154,9 @@ class Materials:
     sheen_tint : (m, 3) float32
         Sheen Tint; default white.
     aniso_scale : (m,) float32
-        Anisotropic GGX of conductor rows (:mod:`core.materials.anisotropic`): ``alpha_x =
-        alpha k``, ``alpha_y = alpha / k`` along the tangent (:attr:`Scene.corner_tangents`)
-        and the bitangent; default 1 (isotropic).
+        Anisotropic GGX of conductor and layered rows (:mod:`core.materials.anisotropic`):
+        ``alpha_x = alpha k``, ``alpha_y = alpha / k`` along the tangent
+        (:attr:`Scene.corner_tangents`) and the bitangent; default 1 (isotropic).
     aniso_rotation : (m,) float32
         Anisotropic Rotation, in turns about the normal (Blender's); default 0.
     texture : (m,) int32

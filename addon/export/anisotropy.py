@@ -42,15 +42,12 @@ def tangent_axis(node, owner, messages):
 
 
 def principled_anisotropy(node, read, owner):
-    """:class:`.materials.Surface` fields of the Principled BSDF's metallic anisotropy (empty
-    when isotropic). Cycles' specular layer is anisotropic too: reported, rendered isotropic."""
+    """:class:`.materials.Surface` fields of the Principled BSDF's anisotropy (empty when
+    isotropic), for its metallic lobe and specular layer (its transmission is isotropic, as in
+    Cycles)."""
     amount = min(max(read.value(node, "Anisotropic"), 0.0), 1.0)
     if amount <= 0:
         return {}
-    if read.value(node, "Metallic") < 1 and read.value(node, "Transmission Weight") < 1:
-        read.messages.add(f"{owner}: anisotropy of the specular layer of node "
-                          f"'{node_name(node)}' is not supported yet; rendered isotropic "
-                          f"(the metallic part is anisotropic)")
     return {"aniso_scale": float(principled_scale(amount)),
             "aniso_rotation": read.value(node, "Anisotropic Rotation"),
             "tangent_axis": tangent_axis(node, owner, read.messages)}

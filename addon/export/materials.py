@@ -329,7 +329,7 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
                          tint, multiscatter and compensated[kind], pixels, mode))
              for kind, w in weights.items() if w > 0]
     parts = [(alpha * w, surface._replace(**coat, **sheen, **(rough or {}),
-                                          **(aniso if surface.kind == MAT_CONDUCTOR else {})))
+                                          **(aniso if surface.kind != MAT_DIELECTRIC else {})))
              for w, surface in parts]
     if alpha < 1.0:
         parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))

@@ -1,5 +1,5 @@
-"""Anisotropic GGX for conductors: the Glossy BSDF's Anisotropy and the Principled BSDF's
-Anisotropic and Anisotropic Rotation on its metallic lobe.
+"""Anisotropic GGX: the Glossy BSDF's Anisotropy and the Principled BSDF's Anisotropic and
+Anisotropic Rotation on its metallic lobe and its specular layer.
 
 The GGX of :mod:`.microfacet` with two roughnesses, ``alpha_x`` along the tangent and
 ``alpha_y`` along the bitangent (Heitz 2014, "Understanding the Masking-Shadowing Function in
@@ -25,9 +25,10 @@ as Cycles' ``bsdf_microfacet_ggx_setup`` clamps them:
 
 Multiscatter GGX: as Cycles (``microfacet_ggx_preserve_energy`` reads its albedo tables at
 ``sqrt(sqrt(ax ay))``), the isotropic compensation of :mod:`.conductor` at the geometric mean
-``alpha = sqrt(ax ay)``; smooth (a perfect mirror) when ``ax ay <= 1e-7``, Cycles' test.
-Only rows whose ``aniso_scale`` differs from 1 or whose rotation is non-zero pay for any of
-this (:func:`aniso_rows`).
+``alpha = sqrt(ax ay)``; smooth (a perfect mirror) when ``ax ay <= 1e-7``, Cycles' test. The
+Principled specular layer (:mod:`.layered` with ``alpha_y``) reads its albedo tables at the
+same mean. Only rows whose ``aniso_scale`` differs from 1 or whose rotation is non-zero pay
+for any of this (:func:`aniso_rows`); :mod:`.families` routes them here.
 """
 
 from __future__ import annotations
@@ -42,8 +43,9 @@ from .fresnel import fresnel_schlick
 from .mirror import sample_mirror
 
 __all__ = ["principled_scale", "glossy_scale", "alphas", "aniso_rows", "ggx_d_aniso",
-           "ggx_a_aniso", "aniso_visible_pdf", "eval_conductor_aniso", "pdf_conductor_aniso",
-           "sample_conductor_aniso", "conductor_eval", "conductor_pdf", "conductor_sample"]
+           "ggx_a_aniso", "projected_area", "visibility", "aniso_visible_pdf",
+           "eval_conductor_aniso", "pdf_conductor_aniso", "sample_conductor_aniso", "rotate",
+           "anisotropic_part", "mean_alpha"]
 
 
 def principled_scale(anisotropic):
@@ -79,19 +81,22 @@ def ggx_a_aniso(w, ax, ay):
 def ggx_d_aniso(m, ax, ay):
     """``D(m)`` ``(k,)``, zero for ``m.z <= 0``."""
     t = (m[:, 0] / ax) ** 2 + (m[:, 1] / ay) ** 2 + m[:, 2] ** 2
-    return np.where(m[:, 2] > 0.0, 1.0 / (np.pi * ax * ay * t * t), 0.0)
+    up = m[:, 2] > 0.0
+    return np.where(up, 1.0 / (np.pi * ax * ay * np.where(up, t * t, 1.0)), 0.0)
 
 
-def _projected_area(w, ax, ay):
-    return 0.5 * (np.abs(w[:, 2]) + ggx_a_aniso(w, ax, ay))
+def projected_area(w, ax, ay):
+    """``(|w.z| + a(w)) / 2``, positive for unit ``w``; 1 for a zero vector (a failed row)."""
+    area = 0.5 * (np.abs(w[:, 2]) + ggx_a_aniso(w, ax, ay))
+    return np.where(area > 0.0, area, 1.0)
 
 
 def aniso_visible_pdf(wo, wm, ax, ay):
     """Density of visible normals ``max(0, wo.m) D(m) / A(wo)`` (``wo.z >= 0``). ``(k,)``."""
-    return np.maximum(0.0, dot(wo, wm)) * ggx_d_aniso(wm, ax, ay) / _projected_area(wo, ax, ay)
+    return np.maximum(0.0, dot(wo, wm)) * ggx_d_aniso(wm, ax, ay) / projected_area(wo, ax, ay)
 
 
-def _visibility(wo, wi, ax, ay):
+def visibility(wo, wi, ax, ay):
     """``G2 / (4 |cos_o| |cos_i|) = 1 / (2 (a_o |cos_i| + a_i |cos_o|))``."""
     den = ggx_a_aniso(wo, ax, ay) * np.abs(wi[:, 2]) + ggx_a_aniso(wi, ax, ay) * np.abs(wo[:, 2])
     return np.where(den > 0.0, 0.5 / np.where(den > 0.0, den, 1.0), 0.0)
@@ -109,7 +114,7 @@ def eval_conductor_aniso(f0, ax, ay, wo, wi, multiscatter=False, mode=RADIANCE):
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
     ok &= (co > 0.0) & (ci > 0.0) & ~_smooth(ax, ay)
-    val = ggx_d_aniso(h, ax, ay) * _visibility(wo_, wi_, ax, ay) * ci
+    val = ggx_d_aniso(h, ax, ay) * visibility(wo_, wi_, ax, ay) * ci
     f = fresnel_schlick(f0, dot(wo_, h)) * val[:, None]
     if multiscatter:
         f = f * conductor.multiscatter_factor(f0, np.sqrt(ax * ay), wo_, wi_, mode)
@@ -122,7 +127,7 @@ def pdf_conductor_aniso(ax, ay, wo, wi):
     wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
     h, ok = normalize(wo_ + wi_)
     ok &= (wo_[:, 2] > 0.0) & (wi_[:, 2] > 0.0) & ~_smooth(ax, ay)
-    pdf = ggx_d_aniso(h, ax, ay) / (4.0 * _projected_area(wo_, ax, ay))
+    pdf = ggx_d_aniso(h, ax, ay) / (4.0 * projected_area(wo_, ax, ay))
     return np.where(ok, pdf, 0.0)
 
 
@@ -145,7 +150,7 @@ def sample_conductor_aniso(f0, ax, ay, wo, u, multiscatter=False, mode=RADIANCE)
     weight = fresnel_schlick(f0, dot(wo_, wm)) * g2_g1[:, None]
     if multiscatter:
         weight = weight * conductor.multiscatter_factor(f0, np.sqrt(ax * ay), wo_, wi_, mode)
-    pdf = ggx_d_aniso(wm, ax, ay) / (4.0 * _projected_area(wo_, ax, ay))
+    pdf = ggx_d_aniso(wm, ax, ay) / (4.0 * projected_area(wo_, ax, ay))
     wi = flip_to_upper(wi_, side)
 
     delta = _smooth(ax, ay)
@@ -156,21 +161,15 @@ def sample_conductor_aniso(f0, ax, ay, wo, u, multiscatter=False, mode=RADIANCE)
     return wi, weight, pdf, delta
 
 
-# --------------------------------------------------------------------------------------------
-# Conductor rows of a BSDFParams batch: the anisotropic rows in their rotated tangent frame,
-# the others as before (:mod:`.families` dispatches here).
-# --------------------------------------------------------------------------------------------
-
-
-def _rotate(w, angle):
-    """``w`` in the frame turned by ``angle (k,)`` about +Z (``angle`` < 0: back)."""
+def rotate(w, angle):
+    """``w (k, 3)`` in the frame turned by ``angle (k,)`` about +Z (``-angle``: back)."""
     c, s = np.cos(angle), np.sin(angle)
     return np.stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]], axis=-1)
 
 
-def _rows(p):
-    """Anisotropic rows of ``p``, their parameters, ``ax``, ``ay`` and rotation (None but the
-    rows when there are none)."""
+def anisotropic_part(p):
+    """``(rows, q, ax, ay, angle)``: the anisotropic rows of ``p`` (:func:`aniso_rows`), their
+    parameters, alphas and rotation; all but ``rows`` None when there are none."""
     rows = aniso_rows(p)
     if not rows.size:
         return rows, None, None, None, None
@@ -179,34 +178,11 @@ def _rows(p):
     return rows, q, ax, ay, q.aniso_rotation
 
 
-def conductor_eval(p, wo, wi, mode, multiscatter):
-    """``f cos`` of conductor rows ``p``, anisotropic ones included. ``(k, 3)``."""
-    out = conductor.eval_conductor(p.color, p.alpha, wo, wi, multiscatter=multiscatter,
-                                   mode=mode)
-    rows, q, ax, ay, angle = _rows(p)
-    if q is not None:
-        out[rows] = eval_conductor_aniso(q.color, ax, ay, _rotate(wo[rows], angle),
-                                         _rotate(wi[rows], angle), multiscatter, mode)
+def mean_alpha(p):
+    """``(k,)`` the alpha of each row's albedo tables: ``sqrt(ax ay)`` on anisotropic rows."""
+    rows, q, ax, ay, _ = anisotropic_part(p)
+    if q is None:
+        return p.alpha
+    out = p.alpha.copy()
+    out[rows] = np.sqrt(ax * ay)
     return out
-
-
-def conductor_pdf(p, wo, wi):
-    """Pdf of conductor rows ``p``, anisotropic ones included. ``(k,)``."""
-    out = conductor.pdf_conductor(p.alpha, wo, wi)
-    rows, q, ax, ay, angle = _rows(p)
-    if q is not None:
-        out[rows] = pdf_conductor_aniso(ax, ay, _rotate(wo[rows], angle),
-                                        _rotate(wi[rows], angle))
-    return out
-
-
-def conductor_sample(p, wo, u, mode, multiscatter):
-    """Samples ``(wi, weight, pdf, delta)`` of conductor rows ``p``, anisotropic included."""
-    wi, weight, pdf, delta = conductor.sample_conductor(p.color, p.alpha, wo, u,
-                                                        multiscatter=multiscatter, mode=mode)
-    rows, q, ax, ay, angle = _rows(p)
-    if q is not None:
-        wi_r, weight[rows], pdf[rows], delta[rows] = sample_conductor_aniso(
-            q.color, ax, ay, _rotate(wo[rows], angle), u[rows], multiscatter, mode)
-        wi[rows] = _rotate(wi_r, -angle)
-    return wi, weight, pdf, delta

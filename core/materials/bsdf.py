@@ -147,7 +147,7 @@ class BSDFParams:
     sheen_roughness : (k,) float64 or None
         Sheen Roughness in [0, 1].
     aniso_scale, aniso_rotation : (k,) float64 or None
-        Anisotropic GGX of conductor rows (:mod:`.anisotropic`): ``alpha_x = alpha k``,
+        Anisotropic GGX of conductor and specular-layer rows (:mod:`.anisotropic`): ``alpha_x = alpha k``,
         ``alpha_y = alpha / k`` for the scale ``k > 0`` (1: isotropic), in the shading frame's
         tangent turned by ``aniso_rotation`` radians about the normal. None when every row is
         isotropic.
@@ -332,9 +332,10 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
     sheen_tint : float, (3,) or (k, 3) float
         Sheen Tint, clipped to >= 0.
     aniso_scale, aniso_rotation : float or (k,) float
-        Anisotropic GGX of conductor rows (:mod:`.anisotropic`): ``alpha_x = alpha k``,
-        ``alpha_y = alpha / k`` (``k`` clipped to [1e-3, 1e3]; 1 on other kinds), the
-        tangent turned by ``aniso_rotation`` radians. Columns left None when all isotropic.
+        Anisotropic GGX of conductor and specular-layer rows (:mod:`.anisotropic`):
+        ``alpha_x = alpha k``, ``alpha_y = alpha / k`` (``k`` clipped to [1e-3, 1e3]; 1 on
+        other kinds), the tangent turned by ``aniso_rotation`` radians. Columns left None
+        when all isotropic.
     """
     if k is None:
         k = max(np.size(kind), np.size(roughness), np.size(ior), np.size(specular_ior_level),
@@ -368,13 +369,15 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
 
 
 def _with_aniso(params, k, scale, rotation):
-    """``params`` with the anisotropy columns when any conductor row is anisotropic."""
-    conductor_rows = (params.kind == KIND_CONDUCTOR) | (params.kind == KIND_CONDUCTOR_MS)
+    """``params`` with the anisotropy columns when any conductor or specular-layer row is
+    anisotropic."""
+    glossy = np.isin(params.kind, (KIND_CONDUCTOR, KIND_CONDUCTOR_MS, KIND_LAYERED,
+                                   KIND_LAYERED_MS))
     scale = np.clip(np.nan_to_num(np.broadcast_to(np.asarray(scale, np.float64), (k,)), nan=1.0),
                     1e-3, 1e3)
     rotation = np.nan_to_num(np.broadcast_to(np.asarray(rotation, np.float64), (k,)))
-    scale = np.where(conductor_rows, scale, 1.0)
-    rotation = np.where(conductor_rows & (scale != 1.0), rotation, 0.0)
+    scale = np.where(glossy, scale, 1.0)
+    rotation = np.where(glossy & (scale != 1.0), rotation, 0.0)
     if np.any(scale != 1.0):
         params.aniso_scale, params.aniso_rotation = scale, rotation
     return params

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import anisotropic, dielectric, layered
+from . import anisotropic, conductor, dielectric, layered
+from .anisotropic import anisotropic_part, rotate
 from .lambert import eval_lambert, pdf_lambert, sample_lambert
 
 # Kind codes of the material table (scene.MAT_DIFFUSE == KIND_DIFFUSE == 0).
@@ -71,31 +72,56 @@ def _glossy_kind(p, wo, u_lobe, delta):
 
 
 def _layered_kind(p, wo, u_lobe, delta):
-    coat = u_lobe < layered.coat_probability(p.color, p.alpha, p.eta, p.tint, wo,
+    coat = u_lobe < layered.coat_probability(p.color, anisotropic.mean_alpha(p), p.eta, p.tint,
+                                             wo,
                                              multiscatter=bool(np.any(p.kind == KIND_LAYERED_MS)))
     return np.where(delta, LOBE_SINGULAR,
                     np.where(coat, LOBE_GLOSSY, LOBE_DIFFUSE)).astype(np.uint8)
 
 
-# Conductors, anisotropic rows included (:mod:`.anisotropic`).
-def _conductor_eval(p, wo, wi, mode):
-    return anisotropic.conductor_eval(p, wo, wi, mode, multiscatter=False)
+# Anisotropic rows (:mod:`.anisotropic`) of conductors and specular layers: evaluated in the
+# tangent frame turned by their rotation, the other rows as isotropic lobes.
+def _with_aniso_eval(p, wo, wi, out, fn):
+    rows, q, ax, ay, angle = anisotropic_part(p)
+    if q is not None:
+        out[rows] = fn(q, ax, ay, rotate(wo[rows], angle), rotate(wi[rows], angle))
+    return out
+
+
+def _with_aniso_sample(p, wo, u_lobe, u, out, fn):
+    rows, q, ax, ay, angle = anisotropic_part(p)
+    if q is not None:
+        wi, weight, pdf, delta = out
+        wi_r, weight[rows], pdf[rows], delta[rows] = fn(q, ax, ay, rotate(wo[rows], angle),
+                                                        u_lobe[rows], u[rows])
+        wi[rows] = rotate(wi_r, -angle)
+    return out
+
+
+def _conductor_eval(p, wo, wi, mode, ms=False):
+    out = conductor.eval_conductor(p.color, p.alpha, wo, wi, multiscatter=ms, mode=mode)
+    return _with_aniso_eval(p, wo, wi, out, lambda q, ax, ay, a, b: (
+        anisotropic.eval_conductor_aniso(q.color, ax, ay, a, b, ms, mode)))
 
 
 def _conductor_pdf(p, wo, wi):
-    return anisotropic.conductor_pdf(p, wo, wi)
+    out = conductor.pdf_conductor(p.alpha, wo, wi)
+    return _with_aniso_eval(p, wo, wi, out, lambda q, ax, ay, a, b: (
+        anisotropic.pdf_conductor_aniso(ax, ay, a, b)))
 
 
-def _conductor_sample(p, wo, u_lobe, u, mode):
-    return anisotropic.conductor_sample(p, wo, u, mode, multiscatter=False)
+def _conductor_sample(p, wo, u_lobe, u, mode, ms=False):
+    out = conductor.sample_conductor(p.color, p.alpha, wo, u, multiscatter=ms, mode=mode)
+    return _with_aniso_sample(p, wo, u_lobe, u, out, lambda q, ax, ay, a, ul, uu: (
+        anisotropic.sample_conductor_aniso(q.color, ax, ay, a, uu, ms, mode)))
 
 
 def _conductor_ms_eval(p, wo, wi, mode):
-    return anisotropic.conductor_eval(p, wo, wi, mode, multiscatter=True)
+    return _conductor_eval(p, wo, wi, mode, ms=True)
 
 
 def _conductor_ms_sample(p, wo, u_lobe, u, mode):
-    return anisotropic.conductor_sample(p, wo, u, mode, multiscatter=True)
+    return _conductor_sample(p, wo, u_lobe, u, mode, ms=True)
 
 
 def _dielectric_eval(p, wo, wi, mode):
@@ -110,16 +136,24 @@ def _dielectric_sample(p, wo, u_lobe, u, mode):
     return dielectric.sample_dielectric(p.eta, p.alpha, p.tint, p.color, wo, u_lobe, u, mode)
 
 
-def _layered_eval(p, wo, wi, mode):
-    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode)
+def _layered_eval(p, wo, wi, mode, ms=False):
+    out = layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode, multiscatter=ms)
+    return _with_aniso_eval(p, wo, wi, out, lambda q, ax, ay, a, b: layered.eval_layered(
+        q.color, ax, q.eta, q.tint, a, b, mode, multiscatter=ms, alpha_y=ay))
 
 
-def _layered_pdf(p, wo, wi):
-    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi)
+def _layered_pdf(p, wo, wi, ms=False):
+    out = layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, multiscatter=ms)
+    return _with_aniso_eval(p, wo, wi, out, lambda q, ax, ay, a, b: layered.pdf_layered(
+        q.color, ax, q.eta, q.tint, a, b, multiscatter=ms, alpha_y=ay))
 
 
-def _layered_sample(p, wo, u_lobe, u, mode):
-    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode)
+def _layered_sample(p, wo, u_lobe, u, mode, ms=False):
+    out = layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode,
+                                 multiscatter=ms)
+    return _with_aniso_sample(p, wo, u_lobe, u, out, lambda q, ax, ay, a, ul, uu: (
+        layered.sample_layered(q.color, ax, q.eta, q.tint, a, ul, uu, mode, multiscatter=ms,
+                               alpha_y=ay)))
 
 
 def _dielectric_ms_eval(p, wo, wi, mode):
@@ -133,16 +167,15 @@ def _dielectric_ms_sample(p, wo, u_lobe, u, mode):
 
 
 def _layered_ms_eval(p, wo, wi, mode):
-    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode, multiscatter=True)
+    return _layered_eval(p, wo, wi, mode, ms=True)
 
 
 def _layered_ms_pdf(p, wo, wi):
-    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, multiscatter=True)
+    return _layered_pdf(p, wo, wi, ms=True)
 
 
 def _layered_ms_sample(p, wo, u_lobe, u, mode):
-    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode,
-                                  multiscatter=True)
+    return _layered_sample(p, wo, u_lobe, u, mode, ms=True)
 
 
 FAMILIES = {

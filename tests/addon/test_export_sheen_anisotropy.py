@@ -84,13 +84,13 @@ def test_anisotropic_metals_get_cycles_scales_and_only_approximations_are_report
                                [1 / math.sqrt(1 - 0.45), 0.25], rtol=1e-6)
     np.testing.assert_allclose([m.aniso_scale[g], m.aniso_rotation[g]], [0.7, 0.1], rtol=1e-6)
     np.testing.assert_allclose(m.aniso_scale[row["UV"]], 1 / 0.7, rtol=1e-6)
-    # The non-metallic Principled has no conductor row: its specular layer stays isotropic.
-    assert m.aniso_scale[row["Plastic"]] == 1.0
-    assert sorted(s.messages) == sorted([
-        "Material 'Plastic': anisotropy of the specular layer of node 'Principled BSDF' is not "
-        "supported yet; rendered isotropic (the metallic part is anisotropic)",
+    # The non-metallic Principled: its specular layer is anisotropic too, as in Cycles.
+    np.testing.assert_allclose(m.aniso_scale[row["Plastic"]], 1 / math.sqrt(1 - 0.45),
+                               rtol=1e-6)
+    assert m.kind[row["Plastic"]] == 3
+    assert s.messages == [
         "Material 'UV': the tangent of node 'Glossy BSDF' from a UV map tangent is not "
-        "supported yet; approximated by the radial tangent about Z"]), s.messages
+        "supported yet; approximated by the radial tangent about Z"], s.messages
     assert s.corner_tangents is not None
 
 

@@ -1,7 +1,7 @@
-"""Anisotropic GGX conductors (core/materials/anisotropic.py): the isotropic limit is the
-existing GGX, sampling follows the pdf, the pdf integrates to the valid-sample mass, weights
-are eval / pdf, single scattering is reciprocal, the rotation turns the lobe, Cycles' roughness
-mappings, and the tangent frame (core/materials/frame.py)."""
+"""Anisotropic GGX conductors and specular layers (core/materials/anisotropic.py): the
+isotropic limit is the existing GGX, sampling follows the pdf, the pdf integrates to the
+valid-sample mass, weights are eval / pdf, single scattering is reciprocal, the rotation turns
+the lobe, Cycles' roughness mappings, and the tangent frame (core/materials/frame.py)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 
 from sampling_lab.core.materials import anisotropic as A
 from sampling_lab.core.materials import bsdf as B
-from sampling_lab.core.materials import conductor
+from sampling_lab.core.materials import conductor, layered
 from sampling_lab.core.materials import microfacet as mf
 from sampling_lab.core.materials.frame import shading_frame
 from sampling_lab.core.scene import Materials
@@ -60,6 +60,18 @@ def test_isotropic_limit_is_the_existing_ggx():
         np.testing.assert_allclose(x, y, rtol=1e-8, atol=1e-14)
     # A scale of one (any rotation) adds no columns: the very same code path.
     assert not metal(4, scale=1.0, rotation=1.0).has("aniso")
+    # The specular layer with alpha_y = alpha is the isotropic layer.
+    albedo, eta, tint = rng.random((k, 3)), rng.uniform(1.0, 2.5, k), rng.random((k, 3))
+    for ms in (False, True):
+        np.testing.assert_allclose(
+            layered.eval_layered(albedo, alpha, eta, tint, wo, wi, multiscatter=ms,
+                                 alpha_y=alpha),
+            layered.eval_layered(albedo, alpha, eta, tint, wo, wi, multiscatter=ms),
+            rtol=1e-12, atol=1e-300)
+        np.testing.assert_allclose(
+            layered.pdf_layered(albedo, alpha, eta, tint, wo, wi, ms, alpha_y=alpha),
+            layered.pdf_layered(albedo, alpha, eta, tint, wo, wi, ms), rtol=1e-12,
+            atol=1e-300)
 
 
 def test_anisotropic_ndf_is_normalised():
@@ -73,7 +85,8 @@ def test_anisotropic_ndf_is_normalised():
 
 # (roughness, scale, rotation in radians, cos theta_o, kind)
 CASES = [(0.5, 2.0, 0.0, 0.8, 1), (0.4, 0.3, 0.7, 0.5, 1), (0.7, 3.0, 2.0, 0.2, 4),
-         (0.3, 1.9, -0.4, -0.6, 1), (1.0, 1.5, 0.3, 0.9, 4)]
+         (0.3, 1.9, -0.4, -0.6, 1), (1.0, 1.5, 0.3, 0.9, 4), (0.4, 2.5, 0.5, 0.7, 3),
+         (0.6, 0.4, 1.0, 0.3, 5)]
 
 
 @pytest.mark.parametrize("roughness,scale,rotation,z,kind", CASES)
@@ -116,7 +129,8 @@ def test_anisotropic_pdf_integrates_to_the_probability_of_a_valid_sample(roughne
 def test_anisotropic_sample_weight_equals_eval_over_pdf(mode):
     rng = np.random.default_rng(11)
     k = 40_000
-    kind = rng.choice([B.KIND_CONDUCTOR, B.KIND_CONDUCTOR_MS, B.KIND_DIFFUSE], k)
+    kind = rng.choice([B.KIND_CONDUCTOR, B.KIND_CONDUCTOR_MS, B.KIND_LAYERED, B.KIND_LAYERED_MS,
+                       B.KIND_DIFFUSE], k)
     p = B.make_params(kind, rng.random((k, 3)), rng.uniform(0, 1, k), k=k,
                       aniso_scale=rng.choice([1.0, 0.2, 3.0, 10.0], k),
                       aniso_rotation=rng.uniform(-7, 7, k))
@@ -185,13 +199,13 @@ def test_roughness_mappings_are_cycles():
     np.testing.assert_allclose(ay, [0.125, 0.405])
 
 
-def test_material_table_anisotropy_reaches_conductor_rows_only():
-    mats = Materials.from_lists(["a", "b", "c"], [(0.5,) * 3] * 3, [(0,) * 3] * 3,
-                                kinds=[1, 3, 1], aniso_scale=[2.0, 2.0, 1.0],
-                                aniso_rotation=[0.25, 0.25, 0.25])
-    p = B.BSDFParams.from_materials(mats, np.array([0, 1, 2]))
-    np.testing.assert_allclose(p.aniso_scale, [2.0, 1.0, 1.0])
-    np.testing.assert_allclose(p.aniso_rotation, [np.pi / 2, 0.0, 0.0])
+def test_material_table_anisotropy_reaches_conductor_and_specular_layer_rows_only():
+    mats = Materials.from_lists(["a", "b", "c", "d"], [(0.5,) * 3] * 4, [(0,) * 3] * 4,
+                                kinds=[1, 3, 1, 2], aniso_scale=[2.0, 2.0, 1.0, 2.0],
+                                aniso_rotation=[0.25, 0.25, 0.25, 0.25])
+    p = B.BSDFParams.from_materials(mats, np.array([0, 1, 2, 3]))
+    np.testing.assert_allclose(p.aniso_scale, [2.0, 2.0, 1.0, 1.0])
+    np.testing.assert_allclose(p.aniso_rotation, [np.pi / 2, np.pi / 2, 0.0, 0.0])
 
 
 def test_tangent_frame_follows_the_projected_tangent():

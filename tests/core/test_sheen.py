@@ -287,3 +287,42 @@ def test_sheened_outputs_are_finite_and_non_negative_on_hard_inputs():
             f = B.eval_bsdf(p, wo, wo[::-1].copy(), mode)
             for x in (s.weight, s.pdf, f, B.pdf_bsdf(p, wo, wo[::-1].copy())):
                 assert np.all(np.isfinite(x)) and np.all(x >= 0)
+
+
+def test_light_paths_agree_with_path_tracing_on_a_sheen_over_an_anisotropic_metal():
+    # Light tracing and BDPT reach the camera through the ball with importance-mode
+    # evaluations (the sheen's adjoint) in frames built from the scene's corner tangents
+    # (radial about the ball's vertical axis), as the path tracer does in radiance mode.
+    # The ball's mean colour over 16 independent replicates a side (Welch intervals, P_FALSE
+    # per call); the relative standard errors are printed (about 2 % each): errors of 12 %
+    # are detected with 99 % power.
+    import dataclasses
+
+    from sampling_lab.core import scenes
+    from sampling_lab.core.render import render
+    from tests.core.test_multiscatter import _ball_pixels
+    from tests.helpers import assert_samples_agree, plain_settings
+
+    scene = scenes.cornell_sphere(32, 32, "mirror", "area", light_radius=0.15, roughness=0.5)
+    m = scene.materials
+    m.base_color[3] = (0.9, 0.6, 0.3)
+    m.sheen_weight[3], m.sheen_roughness[3], m.sheen_tint[3] = 0.8, 0.4, (0.3, 0.6, 1.0)
+    m.aniso_scale[3], m.aniso_rotation[3] = 2.5, 0.1
+    corners = scene.vertices[scene.triangles].astype(np.float64) - (0.0, 0.0, 0.75)
+    tangents = np.cross(np.array([0.0, 0.0, 1.0]), corners)
+    tangents[scene.material != 3] = 0.0
+    scene = dataclasses.replace(scene, corner_tangents=tangents)
+    ball = _ball_pixels(scene)
+
+    def replicates(integrator, spp, seed0):
+        return np.stack([render(scene, plain_settings(integrator=integrator, spp=spp,
+                                                      max_bounces=3, seed=seed0 + 1000 * i))
+                         .film.mean()[ball].mean(axis=0) for i in range(16)])
+
+    path = replicates("path", 16, 1)
+    for integrator, spp in (("light", 16), ("bdpt", 8)):
+        imgs = replicates(integrator, spp, 7)
+        assert_samples_agree(imgs, path, P_FALSE, what=f"{integrator} vs path on the ball")
+        se = np.sqrt(imgs.var(0, ddof=1) / len(imgs) + path.var(0, ddof=1) / len(path))
+        print(f"{integrator}/path: {imgs.mean(0) / path.mean(0)}, relative standard error "
+              f"{se / path.mean(0)}")
