@@ -49,7 +49,7 @@ def drop_nonfinite(scene: Scene):
                                 material=scene.material[keep], visibility=scene.visibility[keep],
                                 corner_uvs=rows(scene.corner_uvs),
                                 corner_normals=rows(scene.corner_normals),
-                                corner_tangents=rows(scene.corner_tangents))
+                                aniso_tangents=rows(scene.aniso_tangents))
     return clean, [f"{int(bad.sum()):,} triangle(s) with NaN or infinite vertex coordinates "
                    f"were left out"]
 

@@ -156,7 +156,7 @@ class Materials:
     aniso_scale : (m,) float32
         Anisotropic GGX of conductor and layered rows (:mod:`core.materials.anisotropic`):
         ``alpha_x = alpha k``, ``alpha_y = alpha / k`` along the tangent
-        (:attr:`Scene.corner_tangents`) and the bitangent; default 1 (isotropic).
+        (:attr:`Scene.aniso_tangents`) and the bitangent; default 1 (isotropic).
     aniso_rotation : (m,) float32
         Anisotropic Rotation, in turns about the normal (Blender's); default 0.
     texture : (m,) int32
@@ -418,7 +418,7 @@ class Scene:
         Unit world-space shading normals at each triangle's three corners (Blender's corner
         normals, smooth shading), or None when every face is flat (shading normal = geometric
         normal). See :func:`core.integrators.common.shading_normals`.
-    corner_tangents : (t, 3, 3) float32 or None
+    aniso_tangents : (t, 3, 3) float32 or None
         World-space tangents (any length) at each triangle's corners for anisotropic BSDFs
         (Cycles' Tangent input: by default a radial tangent around the object's Z axis),
         interpolated with the hit's barycentrics and projected on the shading normal's plane
@@ -442,19 +442,19 @@ class Scene:
     textures: list = field(default_factory=list)
     corner_uvs: np.ndarray | None = None
     corner_normals: np.ndarray | None = None
-    corner_tangents: np.ndarray | None = None
+    aniso_tangents: np.ndarray | None = None
     texture_interpolation: list = None
     texture_extension: list = None
     film_transparent: bool = False
 
     def __post_init__(self):
         self._check_corner_normals()
-        if self.corner_tangents is not None:
-            self.corner_tangents = np.ascontiguousarray(np.nan_to_num(
-                np.asarray(self.corner_tangents, np.float32), nan=0.0, posinf=0.0,
+        if self.aniso_tangents is not None:
+            self.aniso_tangents = np.ascontiguousarray(np.nan_to_num(
+                np.asarray(self.aniso_tangents, np.float32), nan=0.0, posinf=0.0,
                 neginf=0.0).reshape(-1, 3, 3))
-            if self.corner_tangents.shape[0] != np.shape(self.triangles)[0]:
-                raise ValueError("corner_tangents must have one (3, 3) row per triangle")
+            if self.aniso_tangents.shape[0] != np.shape(self.triangles)[0]:
+                raise ValueError("aniso_tangents must have one (3, 3) row per triangle")
         self.vertices = np.ascontiguousarray(self.vertices, np.float32).reshape(-1, 3)
         self.triangles = np.ascontiguousarray(self.triangles, np.int32).reshape(-1, 3)
         self.material = np.ascontiguousarray(self.material, np.int32).reshape(-1)

@@ -4,7 +4,7 @@ Glossy BSDF's Anisotropy, Rotation, and the tangents they need.
 Materials get :class:`.materials.Surface` fields ``aniso_scale`` (``alpha_x = alpha k``,
 ``alpha_y = alpha / k``, :mod:`core.materials.anisotropic`), ``aniso_rotation`` (turns) and
 ``tangent_axis``. Meshes using such materials get per-corner tangents
-(:attr:`core.scene.Scene.corner_tangents`): Cycles connects an unlinked Tangent input to the
+(:attr:`core.scene.Scene.aniso_tangents`): Cycles connects an unlinked Tangent input to the
 Geometry node's Tangent (``ShaderGraph::default_inputs``, ``primitive_tangent``), the radial
 tangent ``(-(g_y - 1/2), g_x - 1/2, 0)`` about Z of the generated coordinates ``g`` (the
 object's texture space), moved to the world by the object's normal matrix and projected on the

@@ -104,7 +104,7 @@ class Geometry:
     def arrays(self):
         """The triangle fields of :class:`core.scene.Scene`: ``vertices``, ``triangles``,
         ``material``, ``visibility``, ``corner_uvs``, ``corner_normals`` and
-        ``corner_tangents``."""
+        ``aniso_tangents``."""
         if self._vertices:
             vertices = np.concatenate(self._vertices)
             triangles = np.concatenate(self._triangles)
@@ -122,7 +122,7 @@ class Geometry:
             visibility=visibility,
             corner_uvs=_concat_uvs(self._uvs, [t.shape[0] for t in self._triangles]),
             corner_normals=_concat_corner_normals(self._normals, vertices, triangles),
-            corner_tangents=_concat_corner_tangents(self._tangents),
+            aniso_tangents=_concat_aniso_tangents(self._tangents),
         )
 
 
@@ -240,7 +240,7 @@ def _concat_corner_normals(chunks, vertices, triangles):
     return out
 
 
-def _concat_corner_tangents(chunks):
+def _concat_aniso_tangents(chunks):
     """One ``(t, 3, 3)`` corner-tangent table (zero for isotropic objects), or None."""
     if all(c is None for c, _ in chunks):
         return None

@@ -261,10 +261,10 @@ def surface_interaction(prep, hits, d, rows):
 
 def shading_tangents(prep, si):
     """Tangents ``(k, 3)`` at the hits of ``si`` for anisotropic BSDFs, or None when the
-    scene has none (``prep.scene.corner_tangents``): the corner tangents interpolated with the
+    scene has none (``prep.scene.aniso_tangents``): the corner tangents interpolated with the
     barycentrics of ``si.p`` in its triangle (exact for Cycles' radial tangent, which is
     affine in the position); :func:`core.materials.frame.shading_frame` projects them."""
-    corner = prep.scene.corner_tangents
+    corner = prep.scene.aniso_tangents
     if corner is None:
         return None
     prim = si.prim

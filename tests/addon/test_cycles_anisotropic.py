@@ -86,7 +86,7 @@ def test_anisotropic_metals_agree_with_cycles(empty_scene, export, tmp_path):
     np.testing.assert_allclose(m.aniso_scale[rows],
                                [1 / np.sqrt(1 - 0.72), 1 / np.sqrt(1 - 0.54), 1 / 0.4],
                                rtol=1e-6)
-    assert exported.corner_tangents is not None
+    assert exported.aniso_tangents is not None
 
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, OUR_SPP, CYCLES_SPP, CYCLES_RUNS,
                                             BOUNCES, our_seed=13, cycles_seed=701)

@@ -91,7 +91,7 @@ def test_anisotropic_metals_get_cycles_scales_and_only_approximations_are_report
     assert s.messages == [
         "Material 'UV': the tangent of node 'Glossy BSDF' from a UV map tangent is not "
         "supported yet; approximated by the radial tangent about Z"], s.messages
-    assert s.corner_tangents is not None
+    assert s.aniso_tangents is not None
 
 
 def test_default_tangent_is_radial_about_the_objects_z_axis_in_world_space(empty_scene, export):
@@ -104,10 +104,10 @@ def test_default_tangent_is_radial_about_the_objects_z_axis_in_world_space(empty
     ball_tris = np.flatnonzero(s.material == row["Brushed"])
     other = np.flatnonzero(s.material == row["Plain"])
     assert ball_tris.size and other.size
-    np.testing.assert_array_equal(s.corner_tangents[other], 0.0)
+    np.testing.assert_array_equal(s.aniso_tangents[other], 0.0)
     axis = np.array(ball.matrix_world)[:3, :3] @ np.array([0.0, 0.0, 1.0])
     p = s.vertices[s.triangles[ball_tris]].reshape(-1, 3) - np.array([1.0, 2.0, 3.0])
-    t = s.corner_tangents[ball_tris].reshape(-1, 3).astype(np.float64)
+    t = s.aniso_tangents[ball_tris].reshape(-1, 3).astype(np.float64)
     expect = np.cross(axis, p)
     off_axis = np.linalg.norm(expect, axis=1) > 1e-3
     assert off_axis.mean() > 0.9

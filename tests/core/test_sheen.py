@@ -311,7 +311,7 @@ def test_light_paths_agree_with_path_tracing_on_a_sheen_over_an_anisotropic_meta
     corners = scene.vertices[scene.triangles].astype(np.float64) - (0.0, 0.0, 0.75)
     tangents = np.cross(np.array([0.0, 0.0, 1.0]), corners)
     tangents[scene.material != 3] = 0.0
-    scene = dataclasses.replace(scene, corner_tangents=tangents)
+    scene = dataclasses.replace(scene, aniso_tangents=tangents)
     ball = _ball_pixels(scene)
 
     def replicates(integrator, spp, seed0):
