@@ -79,41 +79,74 @@ def _layered_kind(p, wo, u_lobe, delta):
                     np.where(coat, LOBE_GLOSSY, LOBE_DIFFUSE)).astype(np.uint8)
 
 
-# Anisotropic rows (:mod:`.anisotropic`) of conductors and specular layers: evaluated in the
-# tangent frame turned by their rotation, the other rows as isotropic lobes.
-def _with_aniso_eval(p, wo, wi, out, fn):
+# Anisotropic rows (:mod:`.anisotropic`) of conductors and specular layers: evaluated by
+# ``aniso(q, ax, ay, wo, wi)`` in the tangent frame turned by their rotation, the other rows by
+# ``iso(p, wo, wi)``; batches without anisotropic rows go straight to ``iso``. When most rows
+# are isotropic, ``iso`` runs on all of them (cheaper than gathering the rest).
+def _rest(k, rows):
+    """Rows of ``range(k)`` not in ``rows``, or None when ``iso`` should run on all rows."""
+    return np.setdiff1d(np.arange(k), rows) if 2 * rows.size >= k else None
+
+
+def _split_eval(p, wo, wi, iso, aniso):
     rows, q, ax, ay, angle = anisotropic_part(p)
-    if q is not None:
-        out[rows] = fn(q, ax, ay, rotate(wo[rows], angle), rotate(wi[rows], angle))
+    if q is None:
+        return iso(p, wo, wi)
+    part = aniso(q, ax, ay, rotate(wo[rows], angle), rotate(wi[rows], angle))
+    rest = _rest(len(p), rows)
+    if rest is None:
+        out = iso(p, wo, wi)
+    else:
+        out = np.zeros((len(p),) + part.shape[1:])
+        if rest.size:
+            out[rest] = iso(p.take(rest), wo[rest], wi[rest])
+    out[rows] = part
     return out
 
 
-def _with_aniso_sample(p, wo, u_lobe, u, out, fn):
+def _split_sample(p, wo, u_lobe, u, iso, aniso):
+    """As :func:`_split_eval` for samplers ``(p, wo, u_lobe, u) -> (wi, weight, pdf, delta)``."""
     rows, q, ax, ay, angle = anisotropic_part(p)
-    if q is not None:
-        wi, weight, pdf, delta = out
-        wi_r, weight[rows], pdf[rows], delta[rows] = fn(q, ax, ay, rotate(wo[rows], angle),
-                                                        u_lobe[rows], u[rows])
-        wi[rows] = rotate(wi_r, -angle)
+    if q is None:
+        return iso(p, wo, u_lobe, u)
+    k = len(p)
+    rest = _rest(k, rows)
+    if rest is None:
+        out = iso(p, wo, u_lobe, u)
+    else:
+        out = (np.zeros((k, 3)), np.zeros((k, 3)), np.zeros(k), np.zeros(k, bool))
+        if rest.size:
+            parts = iso(p.take(rest), wo[rest], u_lobe[rest], u[rest])
+            for column, value in zip(out, parts):
+                column[rest] = value
+    wi, weight, pdf, delta = out
+    wi_r, weight[rows], pdf[rows], delta[rows] = aniso(q, ax, ay, rotate(wo[rows], angle),
+                                                       u_lobe[rows], u[rows])
+    wi[rows] = rotate(wi_r, -angle)
     return out
 
 
 def _conductor_eval(p, wo, wi, mode, ms=False):
-    out = conductor.eval_conductor(p.color, p.alpha, wo, wi, multiscatter=ms, mode=mode)
-    return _with_aniso_eval(p, wo, wi, out, lambda q, ax, ay, a, b: (
-        anisotropic.eval_conductor_aniso(q.color, ax, ay, a, b, ms, mode)))
+    return _split_eval(
+        p, wo, wi,
+        lambda q, a, b: conductor.eval_conductor(q.color, q.alpha, a, b, multiscatter=ms,
+                                                 mode=mode),
+        lambda q, ax, ay, a, b: anisotropic.eval_conductor_aniso(q.color, ax, ay, a, b, ms,
+                                                                 mode))
 
 
 def _conductor_pdf(p, wo, wi):
-    out = conductor.pdf_conductor(p.alpha, wo, wi)
-    return _with_aniso_eval(p, wo, wi, out, lambda q, ax, ay, a, b: (
-        anisotropic.pdf_conductor_aniso(ax, ay, a, b)))
+    return _split_eval(p, wo, wi, lambda q, a, b: conductor.pdf_conductor(q.alpha, a, b),
+                       lambda q, ax, ay, a, b: anisotropic.pdf_conductor_aniso(ax, ay, a, b))
 
 
 def _conductor_sample(p, wo, u_lobe, u, mode, ms=False):
-    out = conductor.sample_conductor(p.color, p.alpha, wo, u, multiscatter=ms, mode=mode)
-    return _with_aniso_sample(p, wo, u_lobe, u, out, lambda q, ax, ay, a, ul, uu: (
-        anisotropic.sample_conductor_aniso(q.color, ax, ay, a, uu, ms, mode)))
+    return _split_sample(
+        p, wo, u_lobe, u,
+        lambda q, a, ul, uu: conductor.sample_conductor(q.color, q.alpha, a, uu,
+                                                        multiscatter=ms, mode=mode),
+        lambda q, ax, ay, a, ul, uu: anisotropic.sample_conductor_aniso(q.color, ax, ay, a,
+                                                                        uu, ms, mode))
 
 
 def _conductor_ms_eval(p, wo, wi, mode):
@@ -137,23 +170,30 @@ def _dielectric_sample(p, wo, u_lobe, u, mode):
 
 
 def _layered_eval(p, wo, wi, mode, ms=False):
-    out = layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode, multiscatter=ms)
-    return _with_aniso_eval(p, wo, wi, out, lambda q, ax, ay, a, b: layered.eval_layered(
-        q.color, ax, q.eta, q.tint, a, b, mode, multiscatter=ms, alpha_y=ay))
+    return _split_eval(
+        p, wo, wi,
+        lambda q, a, b: layered.eval_layered(q.color, q.alpha, q.eta, q.tint, a, b, mode,
+                                             multiscatter=ms),
+        lambda q, ax, ay, a, b: layered.eval_layered(q.color, ax, q.eta, q.tint, a, b, mode,
+                                                     multiscatter=ms, alpha_y=ay))
 
 
 def _layered_pdf(p, wo, wi, ms=False):
-    out = layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, multiscatter=ms)
-    return _with_aniso_eval(p, wo, wi, out, lambda q, ax, ay, a, b: layered.pdf_layered(
-        q.color, ax, q.eta, q.tint, a, b, multiscatter=ms, alpha_y=ay))
+    return _split_eval(
+        p, wo, wi,
+        lambda q, a, b: layered.pdf_layered(q.color, q.alpha, q.eta, q.tint, a, b,
+                                            multiscatter=ms),
+        lambda q, ax, ay, a, b: layered.pdf_layered(q.color, ax, q.eta, q.tint, a, b,
+                                                    multiscatter=ms, alpha_y=ay))
 
 
 def _layered_sample(p, wo, u_lobe, u, mode, ms=False):
-    out = layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode,
-                                 multiscatter=ms)
-    return _with_aniso_sample(p, wo, u_lobe, u, out, lambda q, ax, ay, a, ul, uu: (
-        layered.sample_layered(q.color, ax, q.eta, q.tint, a, ul, uu, mode, multiscatter=ms,
-                               alpha_y=ay)))
+    return _split_sample(
+        p, wo, u_lobe, u,
+        lambda q, a, ul, uu: layered.sample_layered(q.color, q.alpha, q.eta, q.tint, a, ul, uu,
+                                                    mode, multiscatter=ms),
+        lambda q, ax, ay, a, ul, uu: layered.sample_layered(
+            q.color, ax, q.eta, q.tint, a, ul, uu, mode, multiscatter=ms, alpha_y=ay))
 
 
 def _dielectric_ms_eval(p, wo, wi, mode):
