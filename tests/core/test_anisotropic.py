@@ -224,3 +224,31 @@ def test_tangent_frame_follows_the_projected_tangent():
     np.testing.assert_allclose(s[4:], proj, atol=1e-12)
     s0, t0, _ = shading_frame(n[:4])
     np.testing.assert_allclose(s[:4], s0, atol=1e-12)
+
+
+def test_hit_tangents_interpolate_the_corner_tangents_at_the_hit_point():
+    # shading_tangents recovers the hit's barycentrics from its position (after the prepared
+    # scene's recentring) and interpolates the scene's corner tangents with them.
+    import dataclasses
+    from types import SimpleNamespace
+
+    from sampling_lab.core import scenes
+    from sampling_lab.core.integrators.common import shading_tangents
+    from sampling_lab.core.prepare import prepare
+
+    scene = scenes.cornell_sphere(8, 8, "mirror", "area", light_radius=0.15, roughness=0.5)
+    rng = np.random.default_rng(9)
+    corners = rng.normal(size=(scene.triangles.shape[0], 3, 3)).astype(np.float32)
+    prep = prepare(dataclasses.replace(scene, aniso_tangents=corners))
+    k = 2000
+    prim = rng.integers(0, scene.triangles.shape[0], k)
+    u = rng.random(k)
+    v = rng.random(k) * (1.0 - u)
+    p = (prep.tri_v0[prim] + u[:, None] * prep.tri_e1[prim]
+         + v[:, None] * prep.tri_e2[prim]).astype(np.float64)
+    t = shading_tangents(prep, SimpleNamespace(p=p, prim=prim))
+    c = corners[prim].astype(np.float64)
+    expect = (1 - u - v)[:, None] * c[:, 0] + u[:, None] * c[:, 1] + v[:, None] * c[:, 2]
+    # Float32 vertices: the recovered barycentrics are exact to about 1e-6.
+    np.testing.assert_allclose(t, expect, atol=2e-5)
+    assert shading_tangents(prepare(scene), SimpleNamespace(p=p, prim=prim)) is None
