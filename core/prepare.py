@@ -48,7 +48,8 @@ def drop_nonfinite(scene: Scene):
     clean = dataclasses.replace(scene, vertices=vertices, triangles=scene.triangles[keep],
                                 material=scene.material[keep], visibility=scene.visibility[keep],
                                 corner_uvs=rows(scene.corner_uvs),
-                                corner_normals=rows(scene.corner_normals))
+                                corner_normals=rows(scene.corner_normals),
+                                aniso_tangents=rows(scene.aniso_tangents))
     return clean, [f"{int(bad.sum()):,} triangle(s) with NaN or infinite vertex coordinates "
                    f"were left out"]
 
@@ -263,7 +264,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
            if width > 1 else None)
     used = np.unique(scene.material)
     lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used])
-                        and not np.any(mats.coat_weight[used] > 0))
+                        and not np.any(mats.coat_weight[used] > 0)
+                        and not np.any(mats.sheen_weight[used] > 0))
     transparency = transparency_table(bsdf, mix_rows, mix_weights)
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),

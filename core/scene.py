@@ -146,6 +146,19 @@ class Materials:
         The coat's roughness and IOR; defaults 0.03 and 1.5, Blender's.
     coat_tint : (m, 3) float32
         Coat Tint (transmittance of the coat at normal incidence); default white.
+    sheen_weight : (m,) float32
+        Principled Sheen Weight (>= 0): a microfiber sheen over the row's BSDF and coat
+        (:mod:`core.materials.sheen`); default 0 (none).
+    sheen_roughness : (m,) float32
+        Sheen Roughness in [0, 1]; default 0.5, Blender's.
+    sheen_tint : (m, 3) float32
+        Sheen Tint; default white.
+    aniso_scale : (m,) float32
+        Anisotropic GGX of conductor and layered rows (:mod:`core.materials.anisotropic`):
+        ``alpha_x = alpha k``, ``alpha_y = alpha / k`` along the tangent
+        (:attr:`Scene.aniso_tangents`) and the bitangent; default 1 (isotropic).
+    aniso_rotation : (m,) float32
+        Anisotropic Rotation, in turns about the normal (Blender's); default 0.
     texture : (m,) int32
         Row of :attr:`Scene.textures` whose lookup replaces ``base_color`` at shading time
         (an Image Texture into the base colour); -1 (the default) for none.
@@ -181,6 +194,11 @@ class Materials:
     coat_roughness: np.ndarray = None
     coat_ior: np.ndarray = None
     coat_tint: np.ndarray = None
+    sheen_weight: np.ndarray = None
+    sheen_roughness: np.ndarray = None
+    sheen_tint: np.ndarray = None
+    aniso_scale: np.ndarray = None
+    aniso_rotation: np.ndarray = None
     texture: np.ndarray = None
     roughness_texture: np.ndarray = None
     mix_rows: np.ndarray = None
@@ -207,6 +225,11 @@ class Materials:
         self.coat_roughness = column(self.coat_roughness, DEFAULT_COAT_ROUGHNESS)
         self.coat_ior = column(self.coat_ior, DEFAULT_COAT_IOR)
         self.coat_tint = column(self.coat_tint, 1.0, (3,))
+        self.sheen_weight = np.maximum(column(self.sheen_weight, 0.0), 0.0)
+        self.sheen_roughness = np.clip(column(self.sheen_roughness, 0.5), 0.0, 1.0)
+        self.sheen_tint = np.maximum(column(self.sheen_tint, 1.0, (3,)), 0.0)
+        self.aniso_scale = column(self.aniso_scale, 1.0)
+        self.aniso_rotation = column(self.aniso_rotation, 0.0)
         self.texture = texture_column(self.texture, m)
         self.roughness_texture = texture_column(self.roughness_texture, m)
         self._check_mix(m)
@@ -246,7 +269,8 @@ class Materials:
                    specular_tint=None, texture=None, mix_rows=None,
                    mix_weights=None, multiscatter=None, coat_weight=None,
                    coat_roughness=None, coat_ior=None, coat_tint=None,
-                   roughness_texture=None) -> "Materials":
+                   roughness_texture=None, sheen_weight=None, sheen_roughness=None,
+                   sheen_tint=None, aniso_scale=None, aniso_rotation=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -263,6 +287,10 @@ class Materials:
             coat_ior=coat_ior, roughness_texture=roughness_texture,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
+            sheen_weight=sheen_weight, sheen_roughness=sheen_roughness,
+            aniso_scale=aniso_scale, aniso_rotation=aniso_rotation,
+            sheen_tint=None if sheen_tint is None
+            else np.asarray(sheen_tint, np.float32).reshape(-1, 3),
         )
 
 
@@ -390,6 +418,12 @@ class Scene:
         Unit world-space shading normals at each triangle's three corners (Blender's corner
         normals, smooth shading), or None when every face is flat (shading normal = geometric
         normal). See :func:`core.integrators.common.shading_normals`.
+    aniso_tangents : (t, 3, 3) float32 or None
+        World-space tangents (any length) at each triangle's corners for anisotropic BSDFs
+        (Cycles' Tangent input: by default a radial tangent around the object's Z axis),
+        interpolated with the hit's barycentrics and projected on the shading normal's plane
+        (:func:`core.integrators.common.shading_tangents`); zero rows, or None, give the
+        default frame. Non-finite values become zero.
     film_transparent : bool
         Blender's Film > Transparent: camera rays that escape to the world (also through
         transparent surfaces) show alpha 0 instead of the world, which still lights the scene.
@@ -408,12 +442,19 @@ class Scene:
     textures: list = field(default_factory=list)
     corner_uvs: np.ndarray | None = None
     corner_normals: np.ndarray | None = None
+    aniso_tangents: np.ndarray | None = None
     texture_interpolation: list = None
     texture_extension: list = None
     film_transparent: bool = False
 
     def __post_init__(self):
         self._check_corner_normals()
+        if self.aniso_tangents is not None:
+            self.aniso_tangents = np.ascontiguousarray(np.nan_to_num(
+                np.asarray(self.aniso_tangents, np.float32), nan=0.0, posinf=0.0,
+                neginf=0.0).reshape(-1, 3, 3))
+            if self.aniso_tangents.shape[0] != np.shape(self.triangles)[0]:
+                raise ValueError("aniso_tangents must have one (3, 3) row per triangle")
         self.vertices = np.ascontiguousarray(self.vertices, np.float32).reshape(-1, 3)
         self.triangles = np.ascontiguousarray(self.triangles, np.int32).reshape(-1, 3)
         self.material = np.ascontiguousarray(self.material, np.int32).reshape(-1)

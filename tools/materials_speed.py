@@ -2,11 +2,11 @@
 
 ``python -m sampling_lab bench-materials`` calls :func:`run`: for each model (diffuse, the
 Principled specular layer single- and multiple-scattering, with a coat, with Specular Tint,
-rough metal, rough glass single- and multiple-scattering, ...) it times ``repeats`` rounds of
+with a sheen, rough metal, anisotropic metal, rough glass single- and multiple-scattering, ...) it times ``repeats`` rounds of
 :func:`core.materials.bsdf.sample_bsdf`, ``eval_bsdf`` and ``pdf_bsdf`` on ``rows`` random
 directions and prints the best rate and its ratio to plain diffuse, measured side by side so
-that the ratios hold on a loaded machine. A batch where only some rows are coated shows that
-uncoated rows do not pay for the coat. Figures only, never asserted.
+that the ratios hold on a loaded machine. Batches where only some rows are coated, have a
+sheen or are anisotropic show that the other rows do not pay for the layer. Figures only, never asserted.
 """
 
 from __future__ import annotations
@@ -33,7 +33,15 @@ def models(k):
         "specular layer + coat": B.make_params(B.KIND_LAYERED, 0.5, 0.4, 1.5, k=k, **coat),
         "specular layer, coat on 10 % of rows": B.make_params(
             B.KIND_LAYERED, 0.5, 0.4, 1.5, k=k, **{**coat, "coat_weight": tenth}),
+        "specular layer + sheen": B.make_params(B.KIND_LAYERED, 0.5, 0.4, 1.5, k=k,
+                                                sheen_weight=1.0, sheen_roughness=0.3),
+        "specular layer, sheen on 10 % of rows": B.make_params(
+            B.KIND_LAYERED, 0.5, 0.4, 1.5, k=k, sheen_weight=tenth, sheen_roughness=0.3),
         "metal (Multiscatter)": B.make_params(B.KIND_CONDUCTOR_MS, 0.9, 0.4, k=k),
+        "metal (Multiscatter), anisotropic": B.make_params(
+            B.KIND_CONDUCTOR_MS, 0.9, 0.4, k=k, aniso_scale=2.0, aniso_rotation=0.3),
+        "metal, anisotropic on 10 % of rows": B.make_params(
+            B.KIND_CONDUCTOR_MS, 0.9, 0.4, k=k, aniso_scale=np.where(tenth > 0, 2.0, 1.0)),
         "metal + coat": B.make_params(B.KIND_CONDUCTOR_MS, 0.9, 0.4, k=k, **coat),
         "glass (GGX)": B.make_params(B.KIND_DIELECTRIC, 1.0, 0.4, 1.5, k=k),
         "glass (Multiscatter)": B.make_params(B.KIND_DIELECTRIC_MS, 1.0, 0.4, 1.5, k=k),

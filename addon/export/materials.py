@@ -20,17 +20,13 @@ from ...core.scene import (
     MAT_LAYERED,
     Materials,
 )
+from .anisotropy import AXES, glossy_anisotropy, principled_anisotropy
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
 from .textures import roughness_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
 DEFAULT_SURFACE_NAME = "Default Surface"
 DEFAULT_SURFACE_COLOR = (0.8, 0.8, 0.8)
-
-# Principled BSDF inputs whose non-zero value adds a lobe the core materials do not have.
-_PRINCIPLED_LOBES = (
-    ("Sheen Weight", "sheen"),
-)
 
 # Most components a mixture keeps (the largest weights, renormalised; reported beyond).
 MAX_COMPONENTS = 8
@@ -62,6 +58,16 @@ class Surface(NamedTuple):
     # (h, w, 3) float32 image whose luminance is the roughness (None: the roughness field).
     roughness_texture: np.ndarray = None
     roughness_texture_mode: tuple = ("Linear", "REPEAT")
+    # Microfiber sheen over this surface and its coat (core.materials.sheen); weight 0: none.
+    sheen_weight: float = 0.0
+    sheen_roughness: float = 0.5
+    sheen_tint: np.ndarray = np.ones(3)
+    # Anisotropic GGX of a conductor (core.materials.anisotropic; addon.export.anisotropy):
+    # alpha_x = alpha k, alpha_y = alpha / k, the tangent turned by the rotation (turns) and
+    # taken radial about this axis of the object ('X', 'Y', 'Z'; None: isotropic).
+    aniso_scale: float = 1.0
+    aniso_rotation: float = 0.0
+    tangent_axis: str = None
 
 
 def _diffuse(color, emission=None):
@@ -158,12 +164,10 @@ def _node_surface(node, read, owner, messages):
     if kind in {'ShaderNodeBsdfGlossy', 'ShaderNodeBsdfAnisotropic'}:
         # Multiscatter GGX: Cycles' energy compensation, modelled for conductors.
         _distribution_note(node, read, owner, handled=('GGX', 'SHARP', 'MULTI_GGX'))
-        if read.value(node, "Anisotropy") != 0:
-            messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
-                         f"rendered isotropic")
         return Surface(MAT_CONDUCTOR, read.color(node, "Color", (1.0, 1.0, 1.0)), np.zeros(3),
                        roughness=read.value(node, "Roughness", 0.5),
-                       multiscatter=getattr(node, "distribution", 'GGX') == 'MULTI_GGX')
+                       multiscatter=getattr(node, "distribution", 'GGX') == 'MULTI_GGX',
+                       **glossy_anisotropy(node, read, owner))
 
     if kind in {'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction'}:
         # Multiscatter GGX: Cycles' compensation of glass (the Glass BSDF's rule).
@@ -182,10 +186,25 @@ def _node_surface(node, read, owner, messages):
     if kind == 'ShaderNodeBsdfTransparent':
         return _transparent(read.color(node, "Color", (1.0, 1.0, 1.0)))
 
+    if kind == 'ShaderNodeBsdfSheen':
+        return _sheen_node(node, read, owner)
+
     messages.add(f"{owner}: node '{name}' is not supported yet; rendered as diffuse")
     if node.inputs.get("Color") is not None and node.inputs["Color"].type == 'RGBA':
         return _diffuse(read.color(node, "Color"))
     return _diffuse(DEFAULT_SURFACE_COLOR)
+
+
+def _sheen_node(node, read, owner):
+    """Sheen BSDF node: the microfiber sheen over nothing (a black base); its Ashikhmin
+    distribution is reported and rendered as Microfiber."""
+    distribution = getattr(node, "distribution", 'MICROFIBER')
+    if distribution != 'MICROFIBER':
+        read.messages.add(f"{owner}: {distribution} distribution of node '{node_name(node)}' "
+                          f"is not supported yet; rendered as Microfiber")
+    return Surface(MAT_DIFFUSE, np.zeros(3), np.zeros(3), sheen_weight=1.0,
+                   sheen_roughness=min(max(read.value(node, "Roughness", 0.5), 0.0), 1.0),
+                   sheen_tint=np.maximum(read.color(node, "Color", (0.8, 0.8, 0.8)), 0.0))
 
 
 def _transparent(color):
@@ -202,7 +221,9 @@ def _surface_key(surface):
             surface.multiscatter, id(surface.texture), surface.texture_mode,
             surface.coat_weight, surface.coat_roughness, surface.coat_ior,
             tuple(np.round(surface.coat_tint, 9)), id(surface.roughness_texture),
-            surface.roughness_texture_mode)
+            surface.roughness_texture_mode, surface.sheen_weight, surface.sheen_roughness,
+            tuple(np.round(surface.sheen_tint, 9)), surface.aniso_scale,
+            surface.aniso_rotation, surface.tangent_axis)
 
 
 def mix_surfaces(parts, owner, messages):
@@ -231,7 +252,7 @@ def mix_surfaces(parts, owner, messages):
     if not flat:
         return _BLACK._replace(emission=emission)
     if all(c.kind == MAT_DIFFUSE and c.texture is None and c.coat_weight == 0
-           and c.roughness_texture is None for _, c in flat):
+           and c.sheen_weight == 0 and c.roughness_texture is None for _, c in flat):
         color = sum(w * np.asarray(c.base_color, np.float64) for w, c in flat)
         return _diffuse(color / sum(w for w, _ in flat), emission)
     if len(flat) == 1:
@@ -266,21 +287,19 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
     ior = read.value(node, "IOR", 1.5)
     level = min(max(read.value(node, "Specular IOR Level", 0.5), 0.0), 1.0)
     tint = read.color(node, "Specular Tint", (1.0, 1.0, 1.0))
-    lobes = [label for socket, label in _PRINCIPLED_LOBES if read.value(node, socket) > 0]
-    if lobes:
-        messages.add(f"{owner}: {', '.join(lobes)} of node '{name}' "
-                     f"{'is' if len(lobes) == 1 else 'are'} not supported yet; ignored")
     if read.value(node, "Subsurface Weight") > 0:
         messages.add(f"{owner}: subsurface scattering of node '{name}' is approximated as "
                      f"diffuse reflection of the base colour")
     coat = _principled_coat(node, read, owner)
+    sheen = _principled_sheen(node, read)
+    if sheen["sheen_weight"] > 0 and np.any(emission > 0):
+        messages.add(f"{owner}: emission under the sheen of node '{name}' is not attenuated "
+                     f"by the sheen yet")
     if coat["coat_weight"] > 0 and np.any(emission > 0):
         messages.add(f"{owner}: emission under the coat of node '{name}' is not attenuated "
                      f"by the coat yet")
     alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
-    if read.value(node, "Anisotropic") != 0:
-        messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "
-                     f"rendered isotropic")
+    aniso = principled_anisotropy(node, read, owner)
     weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
                MAT_LAYERED: (1 - metallic) * (1 - transmission)}
     distribution = getattr(node, "distribution", 'GGX')
@@ -309,7 +328,9 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
                          tint, multiscatter and compensated[kind], pixels, mode))
              for kind, w in weights.items() if w > 0]
-    parts = [(alpha * w, surface._replace(**coat, **(rough or {}))) for w, surface in parts]
+    parts = [(alpha * w, surface._replace(**coat, **sheen, **(rough or {}),
+                                          **(aniso if surface.kind != MAT_DIELECTRIC else {})))
+             for w, surface in parts]
     if alpha < 1.0:
         parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
     surface = mix_surfaces(parts, owner, messages)
@@ -328,6 +349,16 @@ def _principled_coat(node, read, owner):
             "coat_roughness": min(max(read.value(node, "Coat Roughness", 0.03), 0.0), 1.0),
             "coat_ior": max(read.value(node, "Coat IOR", 1.5), 1.0),
             "coat_tint": np.maximum(read.color(node, "Coat Tint", (1.0, 1.0, 1.0)), 0.0)}
+
+
+def _principled_sheen(node, read):
+    """The Sheen inputs of Principled ``node`` as :class:`Surface` fields (weight 0: none)."""
+    weight = max(read.value(node, "Sheen Weight"), 0.0)
+    if weight <= 0:
+        return {"sheen_weight": 0.0}
+    return {"sheen_weight": weight,
+            "sheen_roughness": min(max(read.value(node, "Sheen Roughness", 0.5), 0.0), 1.0),
+            "sheen_tint": np.maximum(read.color(node, "Sheen Tint", (1.0, 1.0, 1.0)), 0.0)}
 
 
 def _principled_distribution_note(distribution, weights, roughness, owner, name, messages,
@@ -402,6 +433,9 @@ class MaterialTable:
             specular_tint=col["specular_tint"], multiscatter=col["multiscatter"],
             coat_weight=col["coat_weight"], coat_roughness=col["coat_roughness"],
             coat_ior=col["coat_ior"], coat_tint=col["coat_tint"],
+            sheen_weight=col["sheen_weight"], sheen_roughness=col["sheen_roughness"],
+            sheen_tint=col["sheen_tint"], aniso_scale=col["aniso_scale"],
+            aniso_rotation=col["aniso_rotation"],
             texture=self._texture_index()[0], roughness_texture=self._texture_index()[1],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
@@ -438,6 +472,16 @@ class MaterialTable:
     def texture_rows(self):
         """``(m,) int32`` index into :attr:`textures` per row, -1 for untextured rows."""
         return self._texture_index()[0]
+
+    def tangent_axes(self, rows):
+        """``(t,) int8`` axis code (:data:`.anisotropy.AXES`) of the radial tangent each
+        triangle of material rows ``rows (t,)`` needs: its first anisotropic component's."""
+        codes = np.zeros(len(self.names), np.int8)
+        for r, mix in enumerate(self.mixes):
+            axes = [self.surfaces[c].tangent_axis for c, _ in mix
+                    if self.surfaces[c].tangent_axis is not None]
+            codes[r] = AXES[axes[0]] if axes else 0
+        return codes[np.asarray(rows, np.int64)]
 
     def textured(self, rows):
         """Whether any of the material rows ``rows`` (or their components) has a texture."""

@@ -1,5 +1,6 @@
 """Mesh-like objects -> the scene's world-space triangles, with per-triangle material rows and
-ray visibility, corner shading normals and corner UVs.
+ray visibility, corner shading normals, corner UVs and the corner tangents of anisotropic
+materials (:mod:`.anisotropy`).
 
 Every array is copied with ``foreach_get`` and moved to world space with one matrix product per
 instance; there is no Python loop over vertices or triangles. :class:`Geometry` gathers the
@@ -19,6 +20,7 @@ from ...core.scene import (
     VIS_SHADOW,
     VIS_TRANSMISSION,
 )
+from .anisotropy import radial_tangents, tangents_to_world, texture_space
 
 # Object types Blender can turn into a triangle mesh.
 MESH_TYPES = {'MESH', 'CURVE', 'SURFACE', 'FONT', 'META'}
@@ -44,6 +46,8 @@ class Geometry:
         self._vertices, self._triangles, self._material, self._visibility = [], [], [], []
         # Per instance: corner UVs, and world corner normals with the triangle count.
         self._uvs, self._normals = [], []
+        # Per instance: world corner tangents (None when isotropic) with the triangle count.
+        self._tangents = []
         self._n_verts = 0
 
     def add(self, ob, matrix):
@@ -59,7 +63,7 @@ class Geometry:
             self._shared[key] = self._evaluate(ob)
         if self._shared[key] is None:
             return
-        verts, tris, tri_mat, corner, uvs = self._shared[key]
+        verts, tris, tri_mat, corner, uvs, tangents = self._shared[key]
         self._vertices.append(_to_world(verts, matrix))
         self._triangles.append(tris + self._n_verts)
         self._material.append(tri_mat)
@@ -68,10 +72,13 @@ class Geometry:
         self._n_verts += verts.shape[0]
         self._normals.append((None if corner is None else _normals_to_world(corner, matrix),
                               tris.shape[0]))
+        self._tangents.append((None if tangents is None else tangents_to_world(tangents, matrix),
+                               tris.shape[0]))
 
     def _evaluate(self, ob):
-        """``(vertices, triangles, material rows, corner normals, corner UVs)`` of the
-        evaluated mesh of ``ob`` in object space, or None when it has no triangles."""
+        """``(vertices, triangles, material rows, corner normals, corner UVs, corner
+        tangents)`` of the evaluated mesh of ``ob`` in object space, or None when it has no
+        triangles."""
         with evaluated_mesh(ob) as mesh:
             arrays = None if mesh is None else mesh_arrays(mesh)
             if arrays is None:
@@ -80,7 +87,10 @@ class Geometry:
             tri_mat = self._triangle_materials(ob, slot)
             uvs = (mesh_corner_uvs(mesh, ob.name, self.messages)
                    if self.materials.textured(tri_mat) else None)
-            return verts, tris, tri_mat, mesh_corner_normals(mesh), uvs
+            axes = self.materials.tangent_axes(tri_mat)
+            tangents = (radial_tangents(verts, tris, axes, texture_space(mesh, verts))
+                        if axes.any() else None)
+            return verts, tris, tri_mat, mesh_corner_normals(mesh), uvs, tangents
 
     def _triangle_materials(self, ob, slot):
         """``(t,) int32`` material rows of triangles with material slot indices ``slot``."""
@@ -93,7 +103,8 @@ class Geometry:
 
     def arrays(self):
         """The triangle fields of :class:`core.scene.Scene`: ``vertices``, ``triangles``,
-        ``material``, ``visibility``, ``corner_uvs`` and ``corner_normals``."""
+        ``material``, ``visibility``, ``corner_uvs``, ``corner_normals`` and
+        ``aniso_tangents``."""
         if self._vertices:
             vertices = np.concatenate(self._vertices)
             triangles = np.concatenate(self._triangles)
@@ -111,6 +122,7 @@ class Geometry:
             visibility=visibility,
             corner_uvs=_concat_uvs(self._uvs, [t.shape[0] for t in self._triangles]),
             corner_normals=_concat_corner_normals(self._normals, vertices, triangles),
+            aniso_tangents=_concat_aniso_tangents(self._tangents),
         )
 
 
@@ -220,6 +232,19 @@ def _concat_corner_normals(chunks, vertices, triangles):
     tri = vertices.astype(np.float64)[triangles]
     face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float32)
     out = np.repeat(face[:, None, :], 3, axis=1)
+    start = 0
+    for c, count in chunks:
+        if c is not None:
+            out[start:start + count] = c
+        start += count
+    return out
+
+
+def _concat_aniso_tangents(chunks):
+    """One ``(t, 3, 3)`` corner-tangent table (zero for isotropic objects), or None."""
+    if all(c is None for c, _ in chunks):
+        return None
+    out = np.zeros((sum(count for _, count in chunks), 3, 3), np.float32)
     start = 0
     for c, count in chunks:
         if c is not None:

@@ -259,6 +259,27 @@ def surface_interaction(prep, hits, d, rows):
     return Interaction(p, ng, ns * side[:, None], wo, prim)
 
 
+def shading_tangents(prep, si):
+    """Tangents ``(k, 3)`` at the hits of ``si`` for anisotropic BSDFs, or None when the
+    scene has none (``prep.scene.aniso_tangents``): the corner tangents interpolated with the
+    barycentrics of ``si.p`` in its triangle (exact for Cycles' radial tangent, which is
+    affine in the position); :func:`core.materials.frame.shading_frame` projects them."""
+    corner = prep.scene.aniso_tangents
+    if corner is None:
+        return None
+    prim = si.prim
+    e1, e2 = take_rows(prep.tri_e1, prim), take_rows(prep.tri_e2, prim)
+    d = si.p - take_rows(prep.tri_v0, prim)
+    a, b, c = (np.einsum("ij,ij->i", x, y) for x, y in ((e1, e1), (e1, e2), (e2, e2)))
+    p1, p2 = np.einsum("ij,ij->i", d, e1), np.einsum("ij,ij->i", d, e2)
+    det = a * c - b * b
+    ok = det > 0.0
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    u, v = (c * p1 - b * p2) * inv, (a * p2 - b * p1) * inv
+    t = corner[prim].astype(np.float64)
+    return (1.0 - u - v)[:, None] * t[:, 0] + u[:, None] * t[:, 1] + v[:, None] * t[:, 2]
+
+
 def shading_normals(prep, prim, u, v, ng, wo):
     """Smooth-shading normals at hits, on the front side of the stored geometric normal.
 

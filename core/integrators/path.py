@@ -63,8 +63,9 @@ from .bounces import BounceCounts, BounceLimits
 from .shadows import shadow_transmittance
 from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows,
                      geometric_side_valid, intersect_by_class, max_component, next_1d_if,
-                     ray_class, roulette_at, russian_roulette, surface_hits,
-                     surface_interaction, take_rows, valid_reflection_normals)
+                     ray_class, roulette_at, russian_roulette, shading_tangents,
+                     surface_hits, surface_interaction, take_rows,
+                     valid_reflection_normals)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -117,8 +118,9 @@ class _BSDFShading:
         # One component of mixed materials per vertex, used for NEE and BSDF sampling alike.
         self.params, delta_only, self.u_lobe = prep.choose_bsdf(si.prim, u_lobe, u, v)
         self.ng = None
+        tangent = shading_tangents(prep, si)
         if prep.scene.corner_normals is None:
-            self.s, self.t, self.n = shading_frame(si.ng)
+            self.s, self.t, self.n = shading_frame(si.ng, tangent)
         else:
             # Smooth shading: the frame's +Z is the shading normal on the stored front side
             # (si.ns is flipped toward wo exactly when ng is), plus the geometric-side test.
@@ -129,7 +131,7 @@ class _BSDFShading:
             if glossy.any():
                 ns = np.where(glossy[:, None], valid_reflection_normals(si.ng, si.wo, ns), ns)
             front = np.where(np.einsum("ij,ij->i", ns, si.ng) < 0, -1.0, 1.0)
-            self.s, self.t, self.n = shading_frame(ns * front[:, None])
+            self.s, self.t, self.n = shading_frame(ns * front[:, None], tangent)
             self.ng, self.wo_world = si.ng, si.wo
         self.wo = to_local(si.wo, self.s, self.t, self.n)
         # Next-event estimation cannot contribute through smooth mirrors and glass.

@@ -17,8 +17,8 @@ import numpy as np
 from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
-                     next_1d_if, ray_class, roulette_at, russian_roulette, surface_hits,
-                     surface_interaction, take_rows)
+                     next_1d_if, ray_class, roulette_at, russian_roulette, shading_tangents,
+                     surface_hits, surface_interaction, take_rows)
 
 
 def dot(a, b):
@@ -26,9 +26,10 @@ def dot(a, b):
 
 
 def _empty_params(n):
-    # With coat columns (weight zero), so that views of one table can take coated rows.
+    # With every optional column group (coat, sheen, anisotropy; neutral), so that views of
+    # one table can take rows that use them.
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
-                      np.zeros((n, 3))).with_no_coat()
+                      np.zeros((n, 3))).with_all_groups()
 
 
 def take_params(params, rows):
@@ -104,10 +105,9 @@ class Subpath:
             getattr(self, name).fill(0.0)
         table = self.all_params
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
-                              (table.eta, 1.0), (table.tint, 0.0), (table.coat_weight, 0.0),
-                              (table.coat_alpha, 1.0), (table.coat_eta, 1.0),
-                              (table.coat_tint, 1.0)):
+                              (table.eta, 1.0), (table.tint, 0.0)):
             column.fill(value)
+        table.fill_neutral()
         return self
 
     def flat(self, name):
@@ -253,11 +253,12 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         u_rr = next_1d_if(path_stream, roulette_at(settings, j - 1))
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
+        tangent = shading_tangents(prep, si)
         if ctx.smooth:
             front = np.where(dot(si.ns, si.ng) < 0, -1.0, 1.0)
-            fs, ft, fn = shading_frame(si.ns * front[:, None])
+            fs, ft, fn = shading_frame(si.ns * front[:, None], tangent)
         else:
-            fs, ft, fn = shading_frame(si.ng)
+            fs, ft, fn = shading_frame(si.ng, tangent)
         wo_l = to_local(si.wo, fs, ft, fn)
         beta = take_rows(beta, live)
         if on_vertex is not None:

@@ -69,6 +69,8 @@ Kinds and parameters (:class:`BSDFParams`, one row per shading point)
     from the ``multiscatter`` column of a dielectric row).
     Coat: any row may carry a Principled Coat (``coat_*`` columns, :mod:`.coat`), layered
     over its kind by :func:`eval_bsdf`, :func:`pdf_bsdf` and :func:`sample_bsdf`.
+    Sheen: any row may carry a microfiber sheen (``sheen_*`` columns, :mod:`.sheen`), layered
+    over the coat and the kind (the Principled BSDF's Sheen, the Sheen BSDF node).
     Emission is not a BSDF: it stays a column of the material table.
 In an integrator (one bounce, world-space arrays of the live paths)::
 
@@ -89,7 +91,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import coat, dielectric
+from . import coat, dielectric, sheen
 from .coat import DEFAULT_COAT_IOR, DEFAULT_COAT_ROUGHNESS, coat_rows
 from .dielectric import IMPORTANCE, RADIANCE, TRANSPORT_MODES, _check_mode, is_smooth_dielectric
 from .families import (FAMILIES, KIND_CONDUCTOR, KIND_CONDUCTOR_MS, KIND_DIELECTRIC,
@@ -139,6 +141,16 @@ class BSDFParams:
         alpha, IOR (>= 1). None (all four) when no row has a coat.
     coat_tint : (k, 3) float64 or None
         Coat Tint (>= 0).
+    sheen_color : (k, 3) float64 or None
+        Sheen Weight x Sheen Tint (>= 0; 0: no sheen, :mod:`.sheen`). None (with
+        ``sheen_roughness``) when no row has a sheen.
+    sheen_roughness : (k,) float64 or None
+        Sheen Roughness in [0, 1].
+    aniso_scale, aniso_rotation : (k,) float64 or None
+        Anisotropic GGX of conductor and specular-layer rows (:mod:`.anisotropic`): ``alpha_x = alpha k``,
+        ``alpha_y = alpha / k`` for the scale ``k > 0`` (1: isotropic), in the shading frame's
+        tangent turned by ``aniso_rotation`` radians about the normal. None when every row is
+        isotropic.
     """
 
     kind: np.ndarray
@@ -150,37 +162,50 @@ class BSDFParams:
     coat_alpha: np.ndarray = None
     coat_eta: np.ndarray = None
     coat_tint: np.ndarray = None
+    sheen_color: np.ndarray = None
+    sheen_roughness: np.ndarray = None
+    aniso_scale: np.ndarray = None
+    aniso_rotation: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
 
+    def has(self, group):
+        """Whether the columns of ``group`` (``'coat'``, ``'sheen'``, ``'aniso'``) are present
+        (they are None when no row uses the layer)."""
+        return getattr(self, _GROUPS[group][0][0]) is not None
+
     @property
     def has_coat(self):
         """Whether the coat columns are present (they are None when no row has a coat)."""
-        return self.coat_weight is not None
+        return self.has("coat")
+
+    @property
+    def has_sheen(self):
+        """Whether the sheen columns are present (None when no row has a sheen)."""
+        return self.has("sheen")
 
     def map_columns(self, fn):
         """A new :class:`BSDFParams` of ``fn(column)`` for every column present."""
         return BSDFParams(*(None if c is None else fn(c) for c in self.columns()))
 
     def columns(self):
-        """The columns in field order (the coat's are None when absent)."""
-        return (self.kind, self.color, self.alpha, self.eta, self.tint, self.coat_weight,
-                self.coat_alpha, self.coat_eta, self.coat_tint)
+        """The columns in field order (an absent group's are None)."""
+        return tuple(getattr(self, name) for name in _FIELDS)
 
     def take(self, rows):
         """The rows ``rows`` (index array or mask) as a new :class:`BSDFParams`."""
         return self.map_columns(lambda c: c[rows])
 
     def scatter(self, rows, src):
-        """Store the rows of ``src`` at ``rows`` of this table (adding coat columns, zero,
-        when ``src`` has them and this table does not)."""
-        if src.has_coat and not self.has_coat:
-            n = len(self)
-            self.coat_weight, self.coat_alpha = np.zeros(n), np.ones(n)
-            self.coat_eta, self.coat_tint = np.ones(n), np.ones((n, 3))
-        if self.has_coat and not src.has_coat:
-            self.coat_weight[rows] = 0.0
+        """Store the rows of ``src`` at ``rows`` of this table (adding a group's columns, at
+        their neutral values, when ``src`` has them and this table does not)."""
+        for group, cols in _GROUPS.items():
+            if src.has(group) and not self.has(group):
+                self._set_neutral(group)
+            elif self.has(group) and not src.has(group):
+                for name, value, _ in cols:
+                    getattr(self, name)[rows] = value
         for name, value in zip(_FIELDS, src.columns()):
             column = getattr(self, name)
             if value is not None and column is not None:
@@ -189,16 +214,43 @@ class BSDFParams:
     @staticmethod
     def concat(parts):
         """The rows of ``parts`` (a non-empty list of :class:`BSDFParams`) in order."""
-        if any(p.has_coat for p in parts):
-            parts = [p if p.has_coat else p.with_no_coat() for p in parts]
+        for group in _GROUPS:
+            if any(p.has(group) for p in parts):
+                parts = [p if p.has(group) else p.with_neutral(group) for p in parts]
         return BSDFParams(*(None if cols[0] is None else np.concatenate(cols)
                             for cols in zip(*(p.columns() for p in parts))))
 
+    def _set_neutral(self, group):
+        for name, value, shape in _GROUPS[group]:
+            setattr(self, name, np.full((len(self),) + shape, value, np.float64))
+
+    def with_neutral(self, group):
+        """These rows with explicit columns of ``group`` at values that change nothing."""
+        out = BSDFParams(*self.columns())
+        out._set_neutral(group)
+        return out
+
+    def with_all_groups(self):
+        """These rows with every optional group present (absent ones neutral)."""
+        out = self
+        for group in _GROUPS:
+            out = out if out.has(group) else out.with_neutral(group)
+        return out
+
+    def fill_neutral(self):
+        """Set every present optional group's columns to their neutral values, in place."""
+        for group, cols in _GROUPS.items():
+            if self.has(group):
+                for name, value, _ in cols:
+                    getattr(self, name).fill(value)
+
     def with_no_coat(self):
         """These rows with explicit coat columns of weight zero."""
-        n = len(self)
-        return BSDFParams(self.kind, self.color, self.alpha, self.eta, self.tint, np.zeros(n),
-                          np.ones(n), np.ones(n), np.ones((n, 3)))
+        return self.with_neutral("coat")
+
+    def with_no_sheen(self):
+        """These rows with explicit sheen columns of colour zero (no sheen)."""
+        return self.with_neutral("sheen")
 
     @staticmethod
     def from_materials(materials, mat_ids):
@@ -207,10 +259,13 @@ class BSDFParams:
         Reads the table's ``kind`` and ``base_color`` and, when present, ``roughness (m,)``,
         ``ior (m,)``, ``specular_ior_level (m,)``, ``specular_tint (m, 3)`` and
         ``multiscatter (m,)`` and the coat's ``coat_weight``, ``coat_roughness``, ``coat_ior``
-        ``(m,)`` and ``coat_tint (m, 3)`` (Blender's defaults otherwise: 0.5, 1.5, 0.5, white,
-        single scattering, no coat). Layered rows fold Specular IOR Level into the coat
-        index; dielectric rows use the IOR as is; conductor, layered and (not index-matched)
-        dielectric rows marked ``multiscatter`` become ``KIND_*_MS``.
+        ``(m,)`` and ``coat_tint (m, 3)``, the sheen's ``sheen_weight``, ``sheen_roughness``
+        ``(m,)`` and ``sheen_tint (m, 3)``, the anisotropy's ``aniso_scale`` and
+        ``aniso_rotation`` ``(m,)`` (in turns, as Blender's Anisotropic Rotation) (Blender's
+        defaults otherwise: 0.5, 1.5, 0.5, white, single scattering, no coat, no sheen,
+        isotropic). Layered rows fold Specular IOR Level
+        into the coat index; dielectric rows use the IOR as is; conductor, layered and (not
+        index-matched) dielectric rows marked ``multiscatter`` become ``KIND_*_MS``.
         """
         ids = np.asarray(mat_ids, np.int64)
         kind = np.asarray(materials.kind, np.int32)[ids]
@@ -239,13 +294,21 @@ class BSDFParams:
                            coat_weight=column("coat_weight", 0.0),
                            coat_roughness=column("coat_roughness", DEFAULT_COAT_ROUGHNESS),
                            coat_ior=column("coat_ior", DEFAULT_COAT_IOR),
-                           coat_tint=column("coat_tint", 1.0, (3,)))
+                           coat_tint=column("coat_tint", 1.0, (3,)),
+                           sheen_weight=column("sheen_weight", 0.0),
+                           sheen_roughness=column("sheen_roughness",
+                                                  sheen.DEFAULT_SHEEN_ROUGHNESS),
+                           sheen_tint=column("sheen_tint", 1.0, (3,)),
+                           aniso_scale=column("aniso_scale", 1.0),
+                           aniso_rotation=2.0 * np.pi * column("aniso_rotation", 0.0))
 
 
 def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
                 specular_ior_level=DEFAULT_SPECULAR_IOR_LEVEL, tint=1.0, k=None,
                 coat_weight=0.0, coat_roughness=DEFAULT_COAT_ROUGHNESS,
-                coat_ior=DEFAULT_COAT_IOR, coat_tint=1.0):
+                coat_ior=DEFAULT_COAT_IOR, coat_tint=1.0, sheen_weight=0.0,
+                sheen_roughness=sheen.DEFAULT_SHEEN_ROUGHNESS, sheen_tint=1.0, aniso_scale=1.0,
+                aniso_rotation=0.0):
     """Build :class:`BSDFParams` from Blender-style inputs, broadcasting scalars to ``k`` rows.
 
     Parameters
@@ -263,6 +326,16 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
         one, as Cycles). The coat columns are left None when every weight is zero.
     coat_tint : float, (3,) or (k, 3) float
         Coat Tint, clipped to >= 0.
+    sheen_weight, sheen_roughness : float or (k,) float
+        Sheen (:mod:`.sheen`): weight clipped to >= 0, roughness to [0, 1]. The sheen
+        columns are left None when no row has a sheen.
+    sheen_tint : float, (3,) or (k, 3) float
+        Sheen Tint, clipped to >= 0.
+    aniso_scale, aniso_rotation : float or (k,) float
+        Anisotropic GGX of conductor and specular-layer rows (:mod:`.anisotropic`):
+        ``alpha_x = alpha k``, ``alpha_y = alpha / k`` (``k`` clipped to [1e-3, 1e3]; 1 on
+        other kinds), the tangent turned by ``aniso_rotation`` radians. Columns left None
+        when all isotropic.
     """
     if k is None:
         k = max(np.size(kind), np.size(roughness), np.size(ior), np.size(specular_ior_level),
@@ -291,10 +364,46 @@ def make_params(kind, color=1.0, roughness=DEFAULT_ROUGHNESS, ior=DEFAULT_IOR,
         params.coat_eta = np.clip(coat_eta, 1.0, ETA_RANGE[1])
         params.coat_tint = np.maximum(
             np.nan_to_num(np.broadcast_to(np.asarray(coat_tint, np.float64), (k, 3))), 0.0)
+    params = _with_sheen(params, k, sheen_weight, sheen_roughness, sheen_tint)
+    return _with_aniso(params, k, aniso_scale, aniso_rotation)
+
+
+def _with_aniso(params, k, scale, rotation):
+    """``params`` with the anisotropy columns when any conductor or specular-layer row is
+    anisotropic."""
+    glossy = np.isin(params.kind, (KIND_CONDUCTOR, KIND_CONDUCTOR_MS, KIND_LAYERED,
+                                   KIND_LAYERED_MS))
+    scale = np.clip(np.nan_to_num(np.broadcast_to(np.asarray(scale, np.float64), (k,)), nan=1.0),
+                    1e-3, 1e3)
+    rotation = np.nan_to_num(np.broadcast_to(np.asarray(rotation, np.float64), (k,)))
+    scale = np.where(glossy, scale, 1.0)
+    rotation = np.where(glossy & (scale != 1.0), rotation, 0.0)
+    if np.any(scale != 1.0):
+        params.aniso_scale, params.aniso_rotation = scale, rotation
+    return params
+
+
+def _with_sheen(params, k, weight, roughness, tint):
+    """``params`` with the sheen columns of ``weight x tint`` when any row has a sheen."""
+    def rows(value, shape):
+        return np.nan_to_num(np.broadcast_to(np.asarray(value, np.float64), (k,) + shape))
+
+    color = np.maximum(rows(weight, ())[:, None], 0.0) * np.maximum(rows(tint, (3,)), 0.0)
+    if np.any(color > 0.0):
+        params.sheen_color = color
+        params.sheen_roughness = np.clip(rows(roughness, ()), 0.0, 1.0).copy()
     return params
 
 
 _FIELDS = tuple(f.name for f in fields(BSDFParams))
+# Optional column groups: (name, neutral value, trailing shape) per column; the first column
+# says whether the group is present.
+_GROUPS = {
+    "coat": (("coat_weight", 0.0, ()), ("coat_alpha", 1.0, ()), ("coat_eta", 1.0, ()),
+             ("coat_tint", 1.0, (3,))),
+    "sheen": (("sheen_color", 0.0, (3,)), ("sheen_roughness", 1.0, ())),
+    "aniso": (("aniso_scale", 1.0, ()), ("aniso_rotation", 0.0, ())),
+}
 
 
 class BSDFSample(NamedTuple):
@@ -345,6 +454,15 @@ def eval_bsdf(params, wo, wi, mode=RADIANCE):
     """
     wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
     _check(params, wo, mode)
+    out = _eval_below_sheen(params, wo, wi, mode)
+    rows = sheen.sheen_rows(params)
+    if rows.size:
+        out[rows] = sheen.eval_sheened(params.take(rows), wo[rows], wi[rows], out[rows], mode)
+    return out
+
+
+def _eval_below_sheen(params, wo, wi, mode):
+    """:func:`eval_bsdf` of the coat over the kinds, without any sheen."""
     out = np.zeros((len(params), 3))
     for kind, rows in _groups(params):
         fn = FAMILIES[kind][0]
@@ -363,6 +481,15 @@ def pdf_bsdf(params, wo, wi):
     """Solid-angle density of :func:`sample_bsdf`'s non-delta samples at ``wi``. ``(k,)``."""
     wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
     _check(params, wo)
+    out = _pdf_below_sheen(params, wo, wi)
+    rows = sheen.sheen_rows(params)
+    if rows.size:
+        out[rows] = sheen.pdf_sheened(params.take(rows), wo[rows], wi[rows], out[rows])
+    return out
+
+
+def _pdf_below_sheen(params, wo, wi):
+    """:func:`pdf_bsdf` of the coat over the kinds, without any sheen."""
     out = np.zeros(len(params))
     for kind, rows in _groups(params):
         fn = FAMILIES[kind][1]
@@ -396,10 +523,20 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
     _check(params, wo, mode)
     u_lobe = np.asarray(u_lobe, np.float64).reshape(-1)
     u = np.asarray(u, np.float64)
+    rows = sheen.sheen_rows(params)
+    if rows.size:
+        return BSDFSample(*sheen.sample_sheened(params, rows, wo, u_lobe, u, mode,
+                                                _sample_below_sheen, eval_bsdf, pdf_bsdf))
+    return _sample_below_sheen(params, wo, u_lobe, u, mode)
+
+
+def _sample_below_sheen(params, wo, u_lobe, u, mode):
+    """:func:`sample_bsdf` of the coat over the kinds, ignoring any sheen."""
     coated = coat_rows(params)
     if coated.size:
         return BSDFSample(*coat.sample_coated(params, coated, wo, u_lobe, u, mode,
-                                              _sample_bases, eval_bsdf, pdf_bsdf))
+                                              _sample_bases, _eval_below_sheen,
+                                              _pdf_below_sheen))
     return _sample_bases(params, wo, u_lobe, u, mode)
 
 
@@ -436,4 +573,5 @@ def is_delta_only(params):
     coated = coat_rows(params)
     if coated.size:
         delta_only[coated] &= is_smooth(params.coat_alpha[coated])
+    delta_only[sheen.sheen_rows(params)] = False
     return delta_only

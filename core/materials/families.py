@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import conductor, dielectric, layered
+from . import anisotropic, conductor, dielectric, layered
+from .anisotropic import anisotropic_part, rotate
 from .lambert import eval_lambert, pdf_lambert, sample_lambert
 
 # Kind codes of the material table (scene.MAT_DIFFUSE == KIND_DIFFUSE == 0).
@@ -71,30 +72,89 @@ def _glossy_kind(p, wo, u_lobe, delta):
 
 
 def _layered_kind(p, wo, u_lobe, delta):
-    coat = u_lobe < layered.coat_probability(p.color, p.alpha, p.eta, p.tint, wo,
+    coat = u_lobe < layered.coat_probability(p.color, anisotropic.mean_alpha(p), p.eta, p.tint,
+                                             wo,
                                              multiscatter=bool(np.any(p.kind == KIND_LAYERED_MS)))
     return np.where(delta, LOBE_SINGULAR,
                     np.where(coat, LOBE_GLOSSY, LOBE_DIFFUSE)).astype(np.uint8)
 
 
-def _conductor_eval(p, wo, wi, mode):
-    return conductor.eval_conductor(p.color, p.alpha, wo, wi)
+# Anisotropic rows (:mod:`.anisotropic`) of conductors and specular layers: evaluated by
+# ``aniso(q, ax, ay, wo, wi)`` in the tangent frame turned by their rotation, the other rows by
+# ``iso(p, wo, wi)``; batches without anisotropic rows go straight to ``iso``. When most rows
+# are isotropic, ``iso`` runs on all of them (cheaper than gathering the rest).
+def _rest(k, rows):
+    """Rows of ``range(k)`` not in ``rows``, or None when ``iso`` should run on all rows."""
+    return np.setdiff1d(np.arange(k), rows) if 2 * rows.size >= k else None
+
+
+def _split_eval(p, wo, wi, iso, aniso):
+    rows, q, ax, ay, angle = anisotropic_part(p)
+    if q is None:
+        return iso(p, wo, wi)
+    part = aniso(q, ax, ay, rotate(wo[rows], angle), rotate(wi[rows], angle))
+    rest = _rest(len(p), rows)
+    if rest is None:
+        out = iso(p, wo, wi)
+    else:
+        out = np.zeros((len(p),) + part.shape[1:])
+        if rest.size:
+            out[rest] = iso(p.take(rest), wo[rest], wi[rest])
+    out[rows] = part
+    return out
+
+
+def _split_sample(p, wo, u_lobe, u, iso, aniso):
+    """As :func:`_split_eval` for samplers ``(p, wo, u_lobe, u) -> (wi, weight, pdf, delta)``."""
+    rows, q, ax, ay, angle = anisotropic_part(p)
+    if q is None:
+        return iso(p, wo, u_lobe, u)
+    k = len(p)
+    rest = _rest(k, rows)
+    if rest is None:
+        out = iso(p, wo, u_lobe, u)
+    else:
+        out = (np.zeros((k, 3)), np.zeros((k, 3)), np.zeros(k), np.zeros(k, bool))
+        if rest.size:
+            parts = iso(p.take(rest), wo[rest], u_lobe[rest], u[rest])
+            for column, value in zip(out, parts):
+                column[rest] = value
+    wi, weight, pdf, delta = out
+    wi_r, weight[rows], pdf[rows], delta[rows] = aniso(q, ax, ay, rotate(wo[rows], angle),
+                                                       u_lobe[rows], u[rows])
+    wi[rows] = rotate(wi_r, -angle)
+    return out
+
+
+def _conductor_eval(p, wo, wi, mode, ms=False):
+    return _split_eval(
+        p, wo, wi,
+        lambda q, a, b: conductor.eval_conductor(q.color, q.alpha, a, b, multiscatter=ms,
+                                                 mode=mode),
+        lambda q, ax, ay, a, b: anisotropic.eval_conductor_aniso(q.color, ax, ay, a, b, ms,
+                                                                 mode))
 
 
 def _conductor_pdf(p, wo, wi):
-    return conductor.pdf_conductor(p.alpha, wo, wi)
+    return _split_eval(p, wo, wi, lambda q, a, b: conductor.pdf_conductor(q.alpha, a, b),
+                       lambda q, ax, ay, a, b: anisotropic.pdf_conductor_aniso(ax, ay, a, b))
 
 
-def _conductor_sample(p, wo, u_lobe, u, mode):
-    return conductor.sample_conductor(p.color, p.alpha, wo, u)
+def _conductor_sample(p, wo, u_lobe, u, mode, ms=False):
+    return _split_sample(
+        p, wo, u_lobe, u,
+        lambda q, a, ul, uu: conductor.sample_conductor(q.color, q.alpha, a, uu,
+                                                        multiscatter=ms, mode=mode),
+        lambda q, ax, ay, a, ul, uu: anisotropic.sample_conductor_aniso(q.color, ax, ay, a,
+                                                                        uu, ms, mode))
 
 
 def _conductor_ms_eval(p, wo, wi, mode):
-    return conductor.eval_conductor(p.color, p.alpha, wo, wi, multiscatter=True, mode=mode)
+    return _conductor_eval(p, wo, wi, mode, ms=True)
 
 
 def _conductor_ms_sample(p, wo, u_lobe, u, mode):
-    return conductor.sample_conductor(p.color, p.alpha, wo, u, multiscatter=True, mode=mode)
+    return _conductor_sample(p, wo, u_lobe, u, mode, ms=True)
 
 
 def _dielectric_eval(p, wo, wi, mode):
@@ -109,16 +169,31 @@ def _dielectric_sample(p, wo, u_lobe, u, mode):
     return dielectric.sample_dielectric(p.eta, p.alpha, p.tint, p.color, wo, u_lobe, u, mode)
 
 
-def _layered_eval(p, wo, wi, mode):
-    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode)
+def _layered_eval(p, wo, wi, mode, ms=False):
+    return _split_eval(
+        p, wo, wi,
+        lambda q, a, b: layered.eval_layered(q.color, q.alpha, q.eta, q.tint, a, b, mode,
+                                             multiscatter=ms),
+        lambda q, ax, ay, a, b: layered.eval_layered(q.color, ax, q.eta, q.tint, a, b, mode,
+                                                     multiscatter=ms, alpha_y=ay))
 
 
-def _layered_pdf(p, wo, wi):
-    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi)
+def _layered_pdf(p, wo, wi, ms=False):
+    return _split_eval(
+        p, wo, wi,
+        lambda q, a, b: layered.pdf_layered(q.color, q.alpha, q.eta, q.tint, a, b,
+                                            multiscatter=ms),
+        lambda q, ax, ay, a, b: layered.pdf_layered(q.color, ax, q.eta, q.tint, a, b,
+                                                    multiscatter=ms, alpha_y=ay))
 
 
-def _layered_sample(p, wo, u_lobe, u, mode):
-    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode)
+def _layered_sample(p, wo, u_lobe, u, mode, ms=False):
+    return _split_sample(
+        p, wo, u_lobe, u,
+        lambda q, a, ul, uu: layered.sample_layered(q.color, q.alpha, q.eta, q.tint, a, ul, uu,
+                                                    mode, multiscatter=ms),
+        lambda q, ax, ay, a, ul, uu: layered.sample_layered(
+            q.color, ax, q.eta, q.tint, a, ul, uu, mode, multiscatter=ms, alpha_y=ay))
 
 
 def _dielectric_ms_eval(p, wo, wi, mode):
@@ -132,16 +207,15 @@ def _dielectric_ms_sample(p, wo, u_lobe, u, mode):
 
 
 def _layered_ms_eval(p, wo, wi, mode):
-    return layered.eval_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, mode, multiscatter=True)
+    return _layered_eval(p, wo, wi, mode, ms=True)
 
 
 def _layered_ms_pdf(p, wo, wi):
-    return layered.pdf_layered(p.color, p.alpha, p.eta, p.tint, wo, wi, multiscatter=True)
+    return _layered_pdf(p, wo, wi, ms=True)
 
 
 def _layered_ms_sample(p, wo, u_lobe, u, mode):
-    return layered.sample_layered(p.color, p.alpha, p.eta, p.tint, wo, u_lobe, u, mode,
-                                  multiscatter=True)
+    return _layered_sample(p, wo, u_lobe, u, mode, ms=True)
 
 
 FAMILIES = {

@@ -22,8 +22,16 @@ def dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
-def shading_frame(n):
+def shading_frame(n, tangent=None):
     """Orthonormal frames ``(s, t, n)`` around unit normals ``n : (k, 3)``.
+
+    Parameters
+    ----------
+    n : (k, 3) float
+    tangent : (k, 3) float, optional
+        Tangents (any length) for anisotropic BSDFs: ``s`` is the tangent projected on the
+        plane of ``n`` and normalised, ``t = n x s`` (Cycles' ``make_orthonormals_tangent``).
+        Rows whose tangent is (nearly) parallel to ``n`` or zero get the default frame.
 
     Returns
     -------
@@ -32,6 +40,13 @@ def shading_frame(n):
     """
     n = np.asarray(n, np.float64)
     s, t = warps.frame_from_normal(n)
+    if tangent is not None:
+        tangent = np.asarray(tangent, np.float64)
+        proj = tangent - dot(tangent, n)[:, None] * n
+        length = np.sqrt(dot(proj, proj))
+        ok = (length > 1e-9 * np.sqrt(dot(tangent, tangent))) & (length > 1e-30)
+        s = np.where(ok[:, None], proj / np.where(ok, length, 1.0)[:, None], s)
+        t = np.where(ok[:, None], np.cross(n, s), t)
     return s, t, n
 
 

@@ -58,6 +58,7 @@ import sys
 import numpy as np
 
 from ..sampling import warps
+from . import anisotropic as aniso
 from . import microfacet as mf
 from .dielectric import RADIANCE, _check_mode
 from .frame import dot, flip_to_upper, normalize, reflect, reflect_z, side_of
@@ -274,12 +275,22 @@ def coat_probability(albedo, alpha, eta, tint, wo, multiscatter=False):
     return _coat_probability(albedo, specular_albedo(wo[:, 2], alpha, eta, tint, multiscatter))
 
 
-def _lobe_parts(eta, alpha, wo_, wi_):
-    """``D G cos_i`` and the exact Fresnel ``F(wo.h)`` of the rough lobe, upper hemisphere."""
+def _mean_alpha(alpha, alpha_y):
+    """The alpha the albedo tables and the smooth test read: ``sqrt(ax ay)`` (Cycles)."""
+    return alpha if alpha_y is None else np.sqrt(alpha * alpha_y)
+
+
+def _lobe_parts(eta, alpha, wo_, wi_, alpha_y=None):
+    """``D G cos_i`` and the exact Fresnel ``F(wo.h)`` of the rough lobe, upper hemisphere;
+    anisotropic (:mod:`.anisotropic`, ``alpha`` along x) when ``alpha_y`` is given."""
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
-    ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(alpha)
-    dg = mf.ggx_d(h[:, 2], alpha) * mf.ggx_visibility(co, ci, alpha) * ci
+    ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(_mean_alpha(alpha, alpha_y))
+    if alpha_y is None:
+        dg = mf.ggx_d(h[:, 2], alpha) * mf.ggx_visibility(co, ci, alpha) * ci
+    else:
+        dg = aniso.ggx_d_aniso(h, alpha, alpha_y) * aniso.visibility(wo_, wi_, alpha,
+                                                                      alpha_y) * ci
     return np.where(ok, dg, 0.0), fresnel_dielectric(dot(wo_, h), eta)
 
 
@@ -289,15 +300,20 @@ def coat_lobe_eval(eta, alpha, wo_, wi_):
     return dg * f
 
 
-def coat_lobe_pdf(alpha, wo_, wi_):
-    """Visible-normal sampling density of the rough coat lobe (upper-hemisphere directions)."""
+def coat_lobe_pdf(alpha, wo_, wi_, alpha_y=None):
+    """Visible-normal sampling density of the rough coat lobe (upper-hemisphere directions);
+    anisotropic when ``alpha_y`` is given."""
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
-    ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(alpha)
+    ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(_mean_alpha(alpha, alpha_y))
+    if alpha_y is not None:
+        return np.where(ok, aniso.ggx_d_aniso(h, alpha, alpha_y)
+                        / (4.0 * aniso.projected_area(wo_, alpha, alpha_y)), 0.0)
     return np.where(ok, mf.ggx_d(h[:, 2], alpha) / (4.0 * mf.ggx_projected_area(co, alpha)), 0.0)
 
 
-def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE, multiscatter=False):
+def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE, multiscatter=False,
+                 alpha_y=None):
     """``f(wo, wi) |cos theta_i|`` (the non-delta part for smooth coats).
 
     Parameters
@@ -316,6 +332,9 @@ def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE, multiscatter=F
     multiscatter : bool
         Blender's Multiscatter GGX: the specular lobe scaled by :func:`multiscatter_factor` at
         ``mu_o`` (``mu_i`` for the adjoint), the base attenuated by that lobe's albedo.
+    alpha_y : (k,) float, optional
+        An anisotropic specular lobe (``alpha`` along x, :mod:`.anisotropic`); its albedo and
+        compensation are read at ``sqrt(alpha alpha_y)``, as Cycles reads them.
 
     Returns
     -------
@@ -327,33 +346,36 @@ def eval_layered(albedo, alpha, eta, tint, wo, wi, mode=RADIANCE, multiscatter=F
     co, ci = wo_[:, 2], wi_[:, 2]
     ok = (co > 0.0) & (ci > 0.0)
     mu = co if mode == RADIANCE else ci
+    mean = _mean_alpha(alpha, alpha_y)
     diffuse_scale = np.maximum(0.0, 1.0 - np.max(
-        specular_albedo(mu, alpha, eta, tint, multiscatter), axis=1))
-    dg, fresnel = _lobe_parts(eta, alpha, wo_, wi_)
+        specular_albedo(mu, mean, eta, tint, multiscatter), axis=1))
+    dg, fresnel = _lobe_parts(eta, alpha, wo_, wi_, alpha_y)
     spec = tinted_fresnel(fresnel, eta, tint) * dg[:, None]
     if multiscatter:
-        spec = spec * multiscatter_factor(mu, alpha, eta, tint)
+        spec = spec * multiscatter_factor(mu, mean, eta, tint)
     f = spec + albedo * (diffuse_scale * ci * warps.INV_PI)[:, None]
     return np.where(ok[:, None], f, 0.0)
 
 
-def pdf_layered(albedo, alpha, eta, tint, wo, wi, multiscatter=False):
+def pdf_layered(albedo, alpha, eta, tint, wo, wi, multiscatter=False, alpha_y=None):
     """Solid-angle density of :func:`sample_layered` (non-delta part). ``(k,)``."""
     side = side_of(wo)
     wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
     co, ci = wo_[:, 2], wi_[:, 2]
     ok = (co > 0.0) & (ci > 0.0)
-    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
-    pdf = p * coat_lobe_pdf(alpha, wo_, wi_) + (1.0 - p) * ci * warps.INV_PI
+    p = _coat_probability(albedo, specular_albedo(co, _mean_alpha(alpha, alpha_y), eta, tint,
+                                                  multiscatter))
+    pdf = p * coat_lobe_pdf(alpha, wo_, wi_, alpha_y) + (1.0 - p) * ci * warps.INV_PI
     return np.where(ok, pdf, 0.0)
 
 
-def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE, multiscatter=False):
+def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE, multiscatter=False,
+                   alpha_y=None):
     """Sample the coat (visible normals or delta) or the diffuse base.
 
     Parameters
     ----------
-    albedo, alpha, eta, tint, wo, mode, multiscatter
+    albedo, alpha, eta, tint, wo, mode, multiscatter, alpha_y
         As :func:`eval_layered`.
     u_lobe : (k,) float
         Chooses the coat (``u_lobe < p``) or the base.
@@ -373,11 +395,12 @@ def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE, multi
     side = side_of(wo)
     wo_ = flip_to_upper(wo, side)
     co = wo_[:, 2]
-    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
-    smooth = mf.is_smooth(alpha)
+    mean = _mean_alpha(alpha, alpha_y)
+    p = _coat_probability(albedo, specular_albedo(co, mean, eta, tint, multiscatter))
+    smooth = mf.is_smooth(mean)
     choose_coat = u_lobe < p
 
-    wm = mf.sample_ggx_visible(wo_, alpha, u)
+    wm = mf.sample_ggx_visible(wo_, alpha, u, alpha_y)
     wi_coat = np.where(smooth[:, None], reflect_z(wo_), reflect(wo_, wm))
     wi_diff = warps.sample_cosine_hemisphere(u)
     wi_ = np.where(choose_coat[:, None], wi_coat, wi_diff)
@@ -387,8 +410,8 @@ def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE, multi
 
     # Non-delta samples: weight = f cos / (mixture pdf), evaluated at the sampled direction.
     wi = flip_to_upper(wi_, side)
-    f = eval_layered(albedo, alpha, eta, tint, wo, wi, mode, multiscatter)
-    pdf = pdf_layered(albedo, alpha, eta, tint, wo, wi, multiscatter)
+    f = eval_layered(albedo, alpha, eta, tint, wo, wi, mode, multiscatter, alpha_y)
+    pdf = pdf_layered(albedo, alpha, eta, tint, wo, wi, multiscatter, alpha_y)
     good = ok & (pdf > 0.0)
     weight = f / np.where(good, pdf, 1.0)[:, None]
 

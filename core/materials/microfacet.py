@@ -127,7 +127,7 @@ def ggx_visible_pdf(wo, wm, alpha):
     return cos_om * ggx_d(wm[:, 2], alpha) / ggx_projected_area(wo[:, 2], alpha)
 
 
-def sample_ggx_visible(wo, alpha, u):
+def sample_ggx_visible(wo, alpha, u, alpha_y=None):
     """Sample microfacet normals visible from ``wo`` (Heitz 2018).
 
     Parameters
@@ -135,17 +135,21 @@ def sample_ggx_visible(wo, alpha, u):
     wo : (k, 3) float
         Unit directions on either side; below the surface ``-wo`` is used.
     alpha : (k,) float
+        Alpha along x (both axes unless ``alpha_y`` is given).
     u : (k, 2) float
+    alpha_y : (k,) float, optional
+        Alpha along y of an anisotropic GGX (:mod:`.anisotropic`).
 
     Returns
     -------
     (k, 3) float64
         Unit normals with ``m.z >= 0``; density :func:`ggx_visible_pdf`.
     """
+    ay = alpha if alpha_y is None else alpha_y
     side = np.where(wo[:, 2] >= 0.0, 1.0, -1.0)
     w = wo * side[:, None]
     # Stretch the view direction into the configuration where GGX is the hemisphere.
-    vh = np.stack([alpha * w[:, 0], alpha * w[:, 1], w[:, 2]], axis=-1)
+    vh = np.stack([alpha * w[:, 0], ay * w[:, 1], w[:, 2]], axis=-1)
     vh /= np.linalg.norm(vh, axis=1, keepdims=True)
     lensq = vh[:, 0] ** 2 + vh[:, 1] ** 2
     has_t = lensq > 1e-14
@@ -162,5 +166,5 @@ def sample_ggx_visible(wo, alpha, u):
     pz = np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))
     nh = p1[:, None] * t1 + p2[:, None] * t2 + pz[:, None] * vh
     # Unstretch back to the ellipsoid configuration.
-    m = np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(0.0, nh[:, 2])], axis=-1)
+    m = np.stack([alpha * nh[:, 0], ay * nh[:, 1], np.maximum(0.0, nh[:, 2])], axis=-1)
     return m / np.maximum(np.linalg.norm(m, axis=1, keepdims=True), 1e-300)

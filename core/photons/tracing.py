@@ -24,7 +24,7 @@ import numpy as np
 
 from ..integrators.base import Counters
 from ..integrators.common import (intersect_by_class, max_component, ray_class,
-                                  surface_hits, surface_interaction)
+                                  shading_tangents, surface_hits, surface_interaction)
 from ..integrators.subpaths import smooth_factor
 from ..materials.bsdf import IMPORTANCE, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
@@ -182,11 +182,12 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
         if hit == max_bounces + 1:
             break
         # Importance-mode BSDF sampling in the shading frame, then roulette by albedo.
+        tangent = shading_tangents(prep, si)
         if smooth:
             front = np.where(np.einsum("ij,ij->i", si.ns, si.ng) < 0, -1.0, 1.0)
-            fs, ft, fn = shading_frame(si.ns * front[:, None])
+            fs, ft, fn = shading_frame(si.ns * front[:, None], tangent)
         else:
-            fs, ft, fn = shading_frame(si.ng)
+            fs, ft, fn = shading_frame(si.ng, tangent)
         wo_l = to_local(si.wo, fs, ft, fn)
         smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, IMPORTANCE)
         wi = to_world(smp.wi, fs, ft, fn)

@@ -20,7 +20,8 @@ import numpy as np
 
 from ..integrators.common import (add_emitters_along_rays, add_rows, camera_rays,
                                   intersect_by_class, max_component, ray_class,
-                                  surface_hits, surface_interaction, take_rows)
+                                  shading_tangents, surface_hits, surface_interaction,
+                                  take_rows)
 from ..materials.bsdf import RADIANCE, BSDFParams, eval_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..sampling.mis import MIS
@@ -88,10 +89,11 @@ class VisiblePoints:
 
 
 def _frame(prep, si):
+    tangent = shading_tangents(prep, si)
     if prep.scene.corner_normals is None:
-        return shading_frame(si.ng)
+        return shading_frame(si.ng, tangent)
     front = np.where(np.einsum("ij,ij->i", si.ns, si.ng) < 0, -1.0, 1.0)
-    return shading_frame(si.ns * front[:, None])
+    return shading_frame(si.ns * front[:, None], tangent)
 
 
 def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, direct):
