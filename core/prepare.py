@@ -48,7 +48,8 @@ def drop_nonfinite(scene: Scene):
     clean = dataclasses.replace(scene, vertices=vertices, triangles=scene.triangles[keep],
                                 material=scene.material[keep], visibility=scene.visibility[keep],
                                 corner_uvs=rows(scene.corner_uvs),
-                                corner_normals=rows(scene.corner_normals))
+                                corner_normals=rows(scene.corner_normals),
+                                corner_tangents=rows(scene.corner_tangents))
     return clean, [f"{int(bad.sum()):,} triangle(s) with NaN or infinite vertex coordinates "
                    f"were left out"]
 

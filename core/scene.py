@@ -153,6 +153,13 @@ class Materials:
         Row of :attr:`Scene.textures` whose lookup (its luminance, as Blender converts a
         colour to a float socket) replaces ``roughness`` at shading time (an Image Texture
         into the Roughness input); -1 (the default) for none.
+    normal_texture : (m,) int32
+        Row of :attr:`Scene.textures` of a tangent-space Normal Map node feeding the row's
+        Normal input (Non-Color data; :mod:`core.normal_maps`); -1 (the default) for none.
+        It perturbs the shading normal of the triangles whose own row this is (a mixture's
+        normal map applies to all its components).
+    normal_strength : (m,) float32
+        The Normal Map node's Strength; default 1.
     mix_rows : (m, c) int32
         Component rows of each material: a row whose ``mix_rows`` is more than itself is a
         *mixture* (a Principled BSDF with fractional Metallic, Transmission or Alpha, a Mix
@@ -183,6 +190,8 @@ class Materials:
     coat_tint: np.ndarray = None
     texture: np.ndarray = None
     roughness_texture: np.ndarray = None
+    normal_texture: np.ndarray = None
+    normal_strength: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
 
@@ -209,6 +218,8 @@ class Materials:
         self.coat_tint = column(self.coat_tint, 1.0, (3,))
         self.texture = texture_column(self.texture, m)
         self.roughness_texture = texture_column(self.roughness_texture, m)
+        self.normal_texture = texture_column(self.normal_texture, m)
+        self.normal_strength = column(self.normal_strength, 1.0)
         self._check_mix(m)
 
     def _check_mix(self, m):
@@ -246,7 +257,8 @@ class Materials:
                    specular_tint=None, texture=None, mix_rows=None,
                    mix_weights=None, multiscatter=None, coat_weight=None,
                    coat_roughness=None, coat_ior=None, coat_tint=None,
-                   roughness_texture=None) -> "Materials":
+                   roughness_texture=None, normal_texture=None,
+                   normal_strength=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -261,6 +273,7 @@ class Materials:
             multiscatter=multiscatter, texture=texture, mix_rows=mix_rows,
             mix_weights=mix_weights, coat_weight=coat_weight, coat_roughness=coat_roughness,
             coat_ior=coat_ior, roughness_texture=roughness_texture,
+            normal_texture=normal_texture, normal_strength=normal_strength,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
         )
@@ -389,7 +402,13 @@ class Scene:
     corner_normals : (t, 3, 3) float32 or None
         Unit world-space shading normals at each triangle's three corners (Blender's corner
         normals, smooth shading), or None when every face is flat (shading normal = geometric
-        normal). See :func:`core.integrators.common.shading_normals`.
+        normal). See :func:`core.integrators.common.shading_normals`. Filled with the face
+        normals when a material has a normal map and every face is flat.
+    corner_tangents : (t, 3, 4) float32 or None
+        World-space UV tangent (xyz, MikkTSpace, of the active UV map) and bitangent sign (w)
+        at each triangle corner, for tangent-space normal maps (:mod:`core.normal_maps`);
+        None when no material has one (scenes without normal maps pay nothing). Rows of
+        meshes without normal maps are zero.
     film_transparent : bool
         Blender's Film > Transparent: camera rays that escape to the world (also through
         transparent surfaces) show alpha 0 instead of the world, which still lights the scene.
@@ -408,6 +427,7 @@ class Scene:
     textures: list = field(default_factory=list)
     corner_uvs: np.ndarray | None = None
     corner_normals: np.ndarray | None = None
+    corner_tangents: np.ndarray | None = None
     texture_interpolation: list = None
     texture_extension: list = None
     film_transparent: bool = False
@@ -442,10 +462,30 @@ class Scene:
                                                     TEXTURE_INTERPOLATIONS)
         self.texture_extension = _texture_modes(self.texture_extension, n, "REPEAT",
                                                 TEXTURE_EXTENSIONS)
-        if np.any(self.materials.texture >= n) or np.any(self.materials.roughness_texture >= n):
+        m = self.materials
+        if max(m.texture.max(initial=-1), m.roughness_texture.max(initial=-1),
+               m.normal_texture.max(initial=-1)) >= n:
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:
             raise ValueError("textured scenes need corner_uvs")
+        self._check_corner_tangents()
+
+    def _check_corner_tangents(self):
+        """Normalise ``corner_tangents`` to (t, 3, 4) float32; normal-mapped scenes need them,
+        and corner normals (the face normals where every face is flat)."""
+        if not np.any(self.materials.normal_texture >= 0):
+            return
+        if self.corner_tangents is None:
+            raise ValueError("normal-mapped scenes need corner_tangents")
+        t = self.triangles.shape[0]
+        self.corner_tangents = np.ascontiguousarray(
+            np.nan_to_num(np.asarray(self.corner_tangents, np.float32)), np.float32).reshape(
+            t, 3, 4)
+        if self.corner_normals is None:
+            tri = self.vertices.astype(np.float64)[self.triangles]
+            face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            self.corner_normals = np.repeat(face[:, None, :], 3, axis=1)
+            self._check_corner_normals()
 
     def _check_corner_normals(self):
         """Normalise ``corner_normals`` to unit (t, 3, 3) float32 (zero stays zero)."""

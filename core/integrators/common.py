@@ -9,6 +9,7 @@ import numpy as np
 from ..accel import Hits
 from ..camera import generate_rays
 from ..materials.bsdf import LOBE_DIFFUSE, LOBE_TRANSMIT
+from ..normal_maps import normal_mapped
 from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 
@@ -269,7 +270,10 @@ def shading_normals(prep, prim, u, v, ng, wo):
     or the interpolation vanishes, the geometric normal is used instead: BSDFs then never see an
     incoming direction from the "wrong" side of their frame, and the geometric-side test of the
     integrators (see :mod:`.path`) keeps shading normals from leaking light through surfaces.
-    Returns ``ng`` itself when the scene has no corner normals (every face flat).
+    Materials with a Normal Map node perturb the normal first
+    (:func:`core.normal_maps.normal_mapped`); a perturbed normal behind ``ng`` also falls back
+    to ``ng`` (Cycles would keep it). Returns ``ng`` itself when the scene has no corner
+    normals (every face flat; a scene with normal maps always has them).
 
     Parameters
     ----------
@@ -290,14 +294,15 @@ def shading_normals(prep, prim, u, v, ng, wo):
     c = corner[prim].astype(np.float64)
     u = np.asarray(u, np.float64)[:, None]
     v = np.asarray(v, np.float64)[:, None]
-    n = (1.0 - u - v) * c[:, 0] + u * c[:, 1] + v * c[:, 2]
-    length = np.linalg.norm(n, axis=1)
+    raw = (1.0 - u - v) * c[:, 0] + u * c[:, 1] + v * c[:, 2]
+    raw *= np.where(np.einsum("ij,ij->i", raw, ng) < 0, -1.0, 1.0)[:, None]
+    length = np.linalg.norm(raw, axis=1)
     good = length > 1e-12
-    n = n / np.where(good, length, 1.0)[:, None]
-    n *= np.where(np.einsum("ij,ij->i", n, ng) < 0, -1.0, 1.0)[:, None]
+    n = raw / np.where(good, length, 1.0)[:, None]
+    n = normal_mapped(prep.scene, prim, u[:, 0], v[:, 0], raw, n)
     cos_g = np.einsum("ij,ij->i", ng, wo)
     cos_s = np.einsum("ij,ij->i", n, wo)
-    good &= cos_g * cos_s > 0
+    good &= (cos_g * cos_s > 0) & (np.einsum("ij,ij->i", n, ng) >= 0)
     return np.where(good[:, None], n, ng)
 
 
