@@ -471,13 +471,14 @@ class Scene:
         self._check_corner_tangents()
 
     def _check_corner_tangents(self):
-        """Normalise ``corner_tangents`` to (t, 3, 4) float32; normal-mapped scenes need them,
-        and corner normals (the face normals where every face is flat)."""
+        """Normalise ``corner_tangents`` to (t, 3, 4) float32 in normal-mapped scenes (zero
+        when not given: maps then keep the normal's direction, as Cycles without tangents), and
+        give them corner normals (the face normals where every face is flat)."""
         if not np.any(self.materials.normal_texture >= 0):
             return
-        if self.corner_tangents is None:
-            raise ValueError("normal-mapped scenes need corner_tangents")
         t = self.triangles.shape[0]
+        if self.corner_tangents is None:
+            self.corner_tangents = np.zeros((t, 3, 4), np.float32)
         self.corner_tangents = np.ascontiguousarray(
             np.nan_to_num(np.asarray(self.corner_tangents, np.float32)), np.float32).reshape(
             t, 3, 4)

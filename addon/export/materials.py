@@ -21,6 +21,7 @@ from ...core.scene import (
     Materials,
 )
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
+from .normal_maps import mixed_normal_map, normal_map_input, report_bump_map_correction
 from .textures import roughness_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
@@ -62,6 +63,9 @@ class Surface(NamedTuple):
     # (h, w, 3) float32 image whose luminance is the roughness (None: the roughness field).
     roughness_texture: np.ndarray = None
     roughness_texture_mode: tuple = ("Linear", "REPEAT")
+    # The Normal Map feeding the Normal input (normal_maps.NormalMap), or None; a mixture
+    # row's applies to all its components.
+    normal_map: tuple = None
 
 
 def _diffuse(color, emission=None):
@@ -99,7 +103,9 @@ def material_surface(material, messages):
         socket = output.inputs.get(name)
         if socket is not None and follow_link(socket) is not None:
             messages.add(f"{owner}: {name.lower()} is not supported yet; ignored")
-    return _shader_surface(follow_link(output.inputs["Surface"]), owner, messages)
+    surface = _shader_surface(follow_link(output.inputs["Surface"]), owner, messages)
+    report_bump_map_correction(material, surface, owner, messages)
+    return surface
 
 
 def _distribution_note(node, read, owner, what="GGX", handled=('GGX', 'SHARP')):
@@ -124,26 +130,27 @@ def _shader_surface(source, owner, messages, depth=0):
                                              depth + 1)),
                  (fac, _shader_surface(follow_link(node.inputs[2]), owner, messages,
                                        depth + 1))]
-        return mix_surfaces(parts, owner, messages)
+        return mix_surfaces(parts, owner, messages)._replace(
+            normal_map=mixed_normal_map(parts, owner, messages))
+    normal = (normal_map_input(node, owner, messages)
+              if kind != 'ShaderNodeEmission' else None)
     texture = surface_texture(node, owner, messages)
     rough = roughness_texture(node, owner, messages)
     rough = {} if rough is None else {"roughness_texture": rough[0],
                                       "roughness_texture_mode": rough[1]}
     if kind == 'ShaderNodeBsdfPrincipled':
-        read.ignored_if_linked(node, "Normal", "the normal input")
-        return _principled_surface(node, read, owner, texture, rough)
+        surface = _principled_surface(node, read, owner, texture, rough)
+        return surface._replace(normal_map=normal)
     surface = _node_surface(node, read, owner, messages)
     if texture is not None:
         surface = surface._replace(texture=texture[0], texture_mode=texture[1])
-    return surface._replace(**rough)
+    return surface._replace(normal_map=normal, **rough)
 
 
 def _node_surface(node, read, owner, messages):
     """Translate one shader node other than a Mix Shader or a Principled BSDF."""
     kind = node.bl_idname
     name = node_name(node)
-    if kind not in {'ShaderNodeMixShader', 'ShaderNodeEmission'}:
-        read.ignored_if_linked(node, "Normal", "the normal input")
 
     if kind == 'ShaderNodeBsdfDiffuse':
         if read.value(node, "Roughness") > 0:
@@ -221,7 +228,7 @@ def mix_surfaces(parts, owner, messages):
         for w, component in inner:
             if weight * w > 0:
                 flat.append((weight * w, component._replace(emission=np.zeros(3),
-                                                            components=())))
+                                                            components=(), normal_map=None)))
     merged = {}
     for w, component in flat:
         key = _surface_key(component)
@@ -403,17 +410,22 @@ class MaterialTable:
             coat_weight=col["coat_weight"], coat_roughness=col["coat_roughness"],
             coat_ior=col["coat_ior"], coat_tint=col["coat_tint"],
             texture=self._texture_index()[0], roughness_texture=self._texture_index()[1],
+            normal_texture=self._texture_index()[3],
+            normal_strength=[1.0 if s.normal_map is None else s.normal_map.strength
+                             for s in self.surfaces],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):
         """``(m,) int32`` indices into the distinct textures per row for the base colour and
-        for the roughness (-1 for none), and those textures as
-        ``[(pixels, (interpolation, extension)), ...]``."""
-        columns, distinct, found = ([], []), [], {}
+        for the roughness (-1 for none), those textures as
+        ``[(pixels, (interpolation, extension)), ...]``, and the indices for the normal map."""
+        columns, distinct, found = ([], [], []), [], {}
         for s in self.surfaces:
+            normal = s.normal_map or (None, None, None)
             for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
                                          (columns[1], s.roughness_texture,
-                                          s.roughness_texture_mode)):
+                                          s.roughness_texture_mode),
+                                         (columns[2], normal[0], normal[1])):
                 if pixels is None:
                     column.append(-1)
                     continue
@@ -422,7 +434,8 @@ class MaterialTable:
                     found[key] = len(distinct)
                     distinct.append((pixels, mode))
                 column.append(found[key])
-        return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct)
+        return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct,
+                np.asarray(columns[2], np.int32))
 
     @property
     def textures(self):
@@ -441,6 +454,10 @@ class MaterialTable:
 
     def textured(self, rows):
         """Whether any of the material rows ``rows`` (or their components) has a texture."""
-        return any(self.surfaces[c].texture is not None
-                   or self.surfaces[c].roughness_texture is not None
-                   for r in np.unique(rows) for c, _ in self.mixes[int(r)])
+        return self.normal_mapped(rows) or any(
+            self.surfaces[c].texture is not None or self.surfaces[c].roughness_texture is not None
+            for r in np.unique(rows) for c, _ in self.mixes[int(r)])
+
+    def normal_mapped(self, rows):
+        """Whether any of the material rows ``rows`` has a normal map."""
+        return any(self.surfaces[int(r)].normal_map is not None for r in np.unique(rows))

@@ -19,6 +19,8 @@ from ...core.scene import (
     VIS_SHADOW,
     VIS_TRANSMISSION,
 )
+from .normal_maps import (concat_tangents, mesh_corner_tangents, report_smooth_normal_maps,
+                          tangents_to_world)
 
 # Object types Blender can turn into a triangle mesh.
 MESH_TYPES = {'MESH', 'CURVE', 'SURFACE', 'FONT', 'META'}
@@ -44,6 +46,7 @@ class Geometry:
         self._vertices, self._triangles, self._material, self._visibility = [], [], [], []
         # Per instance: corner UVs, and world corner normals with the triangle count.
         self._uvs, self._normals = [], []
+        self._tangents = []  # per instance: world corner tangents, or None without normal maps
         self._n_verts = 0
 
     def add(self, ob, matrix):
@@ -59,19 +62,21 @@ class Geometry:
             self._shared[key] = self._evaluate(ob)
         if self._shared[key] is None:
             return
-        verts, tris, tri_mat, corner, uvs = self._shared[key]
+        verts, tris, tri_mat, corner, uvs, tangents = self._shared[key]
         self._vertices.append(_to_world(verts, matrix))
         self._triangles.append(tris + self._n_verts)
         self._material.append(tri_mat)
         self._visibility.append(np.full(tris.shape[0], _visibility_bits(ob), np.int32))
         self._uvs.append(_instance_uvs(tri_mat, self.materials, uvs))
+        self._tangents.append(None if tangents is None else tangents_to_world(tangents, matrix))
         self._n_verts += verts.shape[0]
         self._normals.append((None if corner is None else _normals_to_world(corner, matrix),
                               tris.shape[0]))
 
     def _evaluate(self, ob):
-        """``(vertices, triangles, material rows, corner normals, corner UVs)`` of the
-        evaluated mesh of ``ob`` in object space, or None when it has no triangles."""
+        """``(vertices, triangles, material rows, corner normals, corner UVs, corner
+        tangents)`` of the evaluated mesh of ``ob`` in object space, or None when it has no
+        triangles."""
         with evaluated_mesh(ob) as mesh:
             arrays = None if mesh is None else mesh_arrays(mesh)
             if arrays is None:
@@ -80,7 +85,12 @@ class Geometry:
             tri_mat = self._triangle_materials(ob, slot)
             uvs = (mesh_corner_uvs(mesh, ob.name, self.messages)
                    if self.materials.textured(tri_mat) else None)
-            return verts, tris, tri_mat, mesh_corner_normals(mesh), uvs
+            tangents = (mesh_corner_tangents(mesh, ob.name, self.messages)
+                        if self.materials.normal_mapped(tri_mat) else None)
+            corner = mesh_corner_normals(mesh)
+            if tangents is not None and corner is not None:
+                report_smooth_normal_maps(ob.name, self.messages)
+            return verts, tris, tri_mat, corner, uvs, tangents
 
     def _triangle_materials(self, ob, slot):
         """``(t,) int32`` material rows of triangles with material slot indices ``slot``."""
@@ -93,7 +103,8 @@ class Geometry:
 
     def arrays(self):
         """The triangle fields of :class:`core.scene.Scene`: ``vertices``, ``triangles``,
-        ``material``, ``visibility``, ``corner_uvs`` and ``corner_normals``."""
+        ``material``, ``visibility``, ``corner_uvs``, ``corner_normals`` and
+        ``corner_tangents``."""
         if self._vertices:
             vertices = np.concatenate(self._vertices)
             triangles = np.concatenate(self._triangles)
@@ -111,6 +122,8 @@ class Geometry:
             visibility=visibility,
             corner_uvs=_concat_uvs(self._uvs, [t.shape[0] for t in self._triangles]),
             corner_normals=_concat_corner_normals(self._normals, vertices, triangles),
+            corner_tangents=concat_tangents(self._tangents,
+                                            [t.shape[0] for t in self._triangles]),
         )
 
 
