@@ -100,10 +100,10 @@ def report_bump_map_correction(material, surface, owner, messages):
 
 
 def report_smooth_normal_maps(name, messages):
-    """Report the one rule of Cycles not modelled on smooth-shaded normal-mapped meshes."""
-    messages.add(f"Object '{name}': Cycles' cut-off of light below the smooth, unmapped normal "
-                 f"of normal-mapped smooth faces is not supported yet; only the facet cuts it "
-                 f"(terminator and silhouettes may be brighter)")
+    """Report what differs from Cycles on smooth-shaded normal-mapped meshes."""
+    messages.add(f"Object '{name}': where the view falls below a mapped normal (near the "
+                 f"silhouettes of smooth faces) the facet normal is used, not the mapped one as "
+                 f"in Cycles")
 
 
 def _pass_through(surface):
