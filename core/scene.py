@@ -160,6 +160,12 @@ class Materials:
         normal map applies to all its components).
     normal_strength : (m,) float32
         The Normal Map node's Strength; default 1.
+    bump_texture : (m,) int32
+        Row of :attr:`Scene.textures` whose luminance is the Height of a Bump node feeding the
+        row's Normal input (after its normal map, if the Bump node's own Normal is one;
+        :mod:`core.bump`); -1 (the default) for none. Applies like ``normal_texture``.
+    bump_distance, bump_strength : (m,) float32
+        The Bump node's Distance (negated when Invert is on) and Strength; defaults 1, 1.
     mix_rows : (m, c) int32
         Component rows of each material: a row whose ``mix_rows`` is more than itself is a
         *mixture* (a Principled BSDF with fractional Metallic, Transmission or Alpha, a Mix
@@ -192,6 +198,9 @@ class Materials:
     roughness_texture: np.ndarray = None
     normal_texture: np.ndarray = None
     normal_strength: np.ndarray = None
+    bump_texture: np.ndarray = None
+    bump_distance: np.ndarray = None
+    bump_strength: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
 
@@ -220,6 +229,9 @@ class Materials:
         self.roughness_texture = texture_column(self.roughness_texture, m)
         self.normal_texture = texture_column(self.normal_texture, m)
         self.normal_strength = column(self.normal_strength, 1.0)
+        self.bump_texture = texture_column(self.bump_texture, m)
+        self.bump_distance = column(self.bump_distance, 1.0)
+        self.bump_strength = column(self.bump_strength, 1.0)
         self._check_mix(m)
 
     def _check_mix(self, m):
@@ -258,7 +270,8 @@ class Materials:
                    mix_weights=None, multiscatter=None, coat_weight=None,
                    coat_roughness=None, coat_ior=None, coat_tint=None,
                    roughness_texture=None, normal_texture=None,
-                   normal_strength=None) -> "Materials":
+                   normal_strength=None, bump_texture=None, bump_distance=None,
+                   bump_strength=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -274,6 +287,7 @@ class Materials:
             mix_weights=mix_weights, coat_weight=coat_weight, coat_roughness=coat_roughness,
             coat_ior=coat_ior, roughness_texture=roughness_texture,
             normal_texture=normal_texture, normal_strength=normal_strength,
+            bump_texture=bump_texture, bump_distance=bump_distance, bump_strength=bump_strength,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
         )
@@ -464,7 +478,7 @@ class Scene:
                                                 TEXTURE_EXTENSIONS)
         m = self.materials
         if max(m.texture.max(initial=-1), m.roughness_texture.max(initial=-1),
-               m.normal_texture.max(initial=-1)) >= n:
+               m.normal_texture.max(initial=-1), m.bump_texture.max(initial=-1)) >= n:
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:
             raise ValueError("textured scenes need corner_uvs")
@@ -474,14 +488,16 @@ class Scene:
         """Normalise ``corner_tangents`` to (t, 3, 4) float32 in normal-mapped scenes (zero
         when not given: maps then keep the normal's direction, as Cycles without tangents), and
         give them corner normals (the face normals where every face is flat)."""
-        if not np.any(self.materials.normal_texture >= 0):
+        m = self.materials
+        if not (np.any(m.normal_texture >= 0) or np.any(m.bump_texture >= 0)):
             return
         t = self.triangles.shape[0]
-        if self.corner_tangents is None:
+        if self.corner_tangents is None and np.any(m.normal_texture >= 0):
             self.corner_tangents = np.zeros((t, 3, 4), np.float32)
-        self.corner_tangents = np.ascontiguousarray(
-            np.nan_to_num(np.asarray(self.corner_tangents, np.float32)), np.float32).reshape(
-            t, 3, 4)
+        if self.corner_tangents is not None:
+            self.corner_tangents = np.ascontiguousarray(
+                np.nan_to_num(np.asarray(self.corner_tangents, np.float32)),
+                np.float32).reshape(t, 3, 4)
         if self.corner_normals is None:
             tri = self.vertices.astype(np.float64)[self.triangles]
             face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])

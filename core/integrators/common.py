@@ -9,6 +9,7 @@ import numpy as np
 from ..accel import Hits
 from ..camera import generate_rays
 from ..materials.bsdf import LOBE_DIFFUSE, LOBE_TRANSMIT
+from ..bump import bump_mapped
 from ..normal_maps import normal_mapped
 from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
@@ -270,8 +271,8 @@ def shading_normals(prep, prim, u, v, ng, wo):
     or the interpolation vanishes, the geometric normal is used instead: BSDFs then never see an
     incoming direction from the "wrong" side of their frame, and the geometric-side test of the
     integrators (see :mod:`.path`) keeps shading normals from leaking light through surfaces.
-    Materials with a Normal Map node perturb the normal first
-    (:func:`core.normal_maps.normal_mapped`); a perturbed normal behind ``ng`` also falls back
+    Materials with a Normal Map or Bump node perturb the normal first
+    (:func:`core.normal_maps.normal_mapped`, then :func:`core.bump.bump_mapped`); a perturbed normal behind ``ng`` also falls back
     to ``ng`` (Cycles would keep it). Returns ``ng`` itself when the scene has no corner
     normals (every face flat; a scene with normal maps always has them).
 
@@ -300,6 +301,7 @@ def shading_normals(prep, prim, u, v, ng, wo):
     good = length > 1e-12
     n = raw / np.where(good, length, 1.0)[:, None]
     n = normal_mapped(prep.scene, prim, u[:, 0], v[:, 0], raw, n)
+    n = bump_mapped(prep.scene, prim, u[:, 0], v[:, 0], n)
     cos_g = np.einsum("ij,ij->i", ng, wo)
     cos_s = np.einsum("ij,ij->i", n, wo)
     good &= (cos_g * cos_s > 0) & (np.einsum("ij,ij->i", n, ng) >= 0)

@@ -107,3 +107,41 @@ def test_normal_maps_without_tangents_keep_the_normal():
     assert bare.corner_tangents.shape == (2, 3, 4) and not bare.corner_tangents.any()
     img = render(bare, plain_settings(spp=2, max_bounces=1, seed=3)).combined()[..., :3]
     np.testing.assert_allclose(img, 0.8 * 3.0 * toward_sun[2] / np.pi, rtol=1e-4)
+
+
+def ramp_height(slope, size=8):
+    """A grey image whose bilinear lookup is ``slope * u`` between the outer texel centres."""
+    h = slope * (np.arange(size) + 0.5) / size
+    return np.repeat(np.tile(h[None, :, None], (size, 1, 1)), 3, axis=2).astype(np.float32)
+
+
+def bumped_sun_plane(height, distance=1.0, strength=1.0):
+    """:func:`sun_plane` (u = (x + 9) / 18) with a Bump node of ``height`` (Extend)."""
+    scene, toward_sun = sun_plane(None)
+    uv = (scene.vertices[scene.triangles][..., :2] + 9.0) / 18.0
+    materials = dataclasses.replace(scene.materials, bump_texture=[0], bump_distance=[distance],
+                                    bump_strength=[strength])
+    scene = dataclasses.replace(scene, materials=materials, textures=[height], corner_uvs=uv,
+                                texture_interpolation=None, texture_extension=["EXTEND"])
+    return scene, toward_sun
+
+
+@pytest.mark.parametrize("distance,strength,normal", [
+    # h = 7.2 u with u = (x + 9) / 18: dh/dx = 0.4, N = normalize(n - d grad h) (Invert: d < 0).
+    (1.0, 1.0, (-0.4, 0.0, 1.0)),
+    (-1.0, 1.0, (0.4, 0.0, 1.0)),
+    (2.5, 1.0, (-1.0, 0.0, 1.0)),
+    (2.5, 0.5, (-0.5 ** 0.5 / 2, 0.0, 0.5 + 0.5 ** 0.5 / 2)),
+])
+def test_bumped_plane_follows_the_cosine_law(distance, strength, normal):
+    scene, toward_sun = bumped_sun_plane(ramp_height(7.2), distance, strength)
+    img = render(scene, plain_settings(spp=4, max_bounces=1, seed=3)).combined()[..., :3]
+    n = np.asarray(normal) / np.linalg.norm(normal)
+    # The delta sun makes the image exact (see test_tilted_normal_follows_the_cosine_law).
+    np.testing.assert_allclose(img, 0.8 * 3.0 * (n @ toward_sun) / np.pi, rtol=1e-4)
+
+
+def test_constant_height_leaves_the_normal():
+    scene, toward_sun = bumped_sun_plane(np.full((4, 4, 3), 0.7, np.float32), 3.0)
+    img = render(scene, plain_settings(spp=2, max_bounces=1, seed=3)).combined()[..., :3]
+    np.testing.assert_allclose(img, 0.8 * 3.0 * toward_sun[2] / np.pi, rtol=1e-5)
