@@ -21,7 +21,7 @@ from ...core.scene import (
     Materials,
 )
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
-from .normal_maps import mixed_normal_map, normal_map_input, report_bump_map_correction
+from .normal_maps import mixed_normal_input, normal_input, report_bump_map_correction
 from .textures import roughness_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
@@ -66,6 +66,7 @@ class Surface(NamedTuple):
     # The Normal Map feeding the Normal input (normal_maps.NormalMap), or None; a mixture
     # row's applies to all its components.
     normal_map: tuple = None
+    bump: tuple = None  # the Bump node (normal_maps.Bump) after the normal map, or None
 
 
 def _diffuse(color, emission=None):
@@ -131,20 +132,20 @@ def _shader_surface(source, owner, messages, depth=0):
                  (fac, _shader_surface(follow_link(node.inputs[2]), owner, messages,
                                        depth + 1))]
         return mix_surfaces(parts, owner, messages)._replace(
-            normal_map=mixed_normal_map(parts, owner, messages))
-    normal = (normal_map_input(node, owner, messages)
-              if kind != 'ShaderNodeEmission' else None)
+            **mixed_normal_input(parts, owner, messages))
+    normal, bump = (normal_input(node, owner, messages)
+                    if kind != 'ShaderNodeEmission' else (None, None))
     texture = surface_texture(node, owner, messages)
     rough = roughness_texture(node, owner, messages)
     rough = {} if rough is None else {"roughness_texture": rough[0],
                                       "roughness_texture_mode": rough[1]}
     if kind == 'ShaderNodeBsdfPrincipled':
         surface = _principled_surface(node, read, owner, texture, rough)
-        return surface._replace(normal_map=normal)
+        return surface._replace(normal_map=normal, bump=bump)
     surface = _node_surface(node, read, owner, messages)
     if texture is not None:
         surface = surface._replace(texture=texture[0], texture_mode=texture[1])
-    return surface._replace(normal_map=normal, **rough)
+    return surface._replace(normal_map=normal, bump=bump, **rough)
 
 
 def _node_surface(node, read, owner, messages):
@@ -228,7 +229,8 @@ def mix_surfaces(parts, owner, messages):
         for w, component in inner:
             if weight * w > 0:
                 flat.append((weight * w, component._replace(emission=np.zeros(3),
-                                                            components=(), normal_map=None)))
+                                                            components=(), normal_map=None,
+                                                            bump=None)))
     merged = {}
     for w, component in flat:
         key = _surface_key(component)
@@ -413,19 +415,25 @@ class MaterialTable:
             normal_texture=self._texture_index()[3],
             normal_strength=[1.0 if s.normal_map is None else s.normal_map.strength
                              for s in self.surfaces],
+            bump_texture=self._texture_index()[4],
+            bump_distance=[1.0 if s.bump is None else s.bump.distance for s in self.surfaces],
+            bump_strength=[1.0 if s.bump is None else s.bump.strength for s in self.surfaces],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):
         """``(m,) int32`` indices into the distinct textures per row for the base colour and
         for the roughness (-1 for none), those textures as
-        ``[(pixels, (interpolation, extension)), ...]``, and the indices for the normal map."""
-        columns, distinct, found = ([], [], []), [], {}
+        ``[(pixels, (interpolation, extension)), ...]``, and the indices for the normal map and
+        the bump height."""
+        columns, distinct, found = ([], [], [], []), [], {}
         for s in self.surfaces:
             normal = s.normal_map or (None, None, None)
+            bump = s.bump or (None, None)
             for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
                                          (columns[1], s.roughness_texture,
                                           s.roughness_texture_mode),
-                                         (columns[2], normal[0], normal[1])):
+                                         (columns[2], normal[0], normal[1]),
+                                         (columns[3], bump[0], bump[1])):
                 if pixels is None:
                     column.append(-1)
                     continue
@@ -435,7 +443,7 @@ class MaterialTable:
                     distinct.append((pixels, mode))
                 column.append(found[key])
         return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct,
-                np.asarray(columns[2], np.int32))
+                np.asarray(columns[2], np.int32), np.asarray(columns[3], np.int32))
 
     @property
     def textures(self):
@@ -454,10 +462,14 @@ class MaterialTable:
 
     def textured(self, rows):
         """Whether any of the material rows ``rows`` (or their components) has a texture."""
-        return self.normal_mapped(rows) or any(
+        return self.normal_mapped(rows) or self._bumped(rows) or any(
             self.surfaces[c].texture is not None or self.surfaces[c].roughness_texture is not None
             for r in np.unique(rows) for c, _ in self.mixes[int(r)])
 
     def normal_mapped(self, rows):
         """Whether any of the material rows ``rows`` has a normal map."""
         return any(self.surfaces[int(r)].normal_map is not None for r in np.unique(rows))
+
+    def _bumped(self, rows):
+        """Whether any of the material rows ``rows`` has a Bump node on an image."""
+        return any(self.surfaces[int(r)].bump is not None for r in np.unique(rows))

@@ -1,9 +1,12 @@
-"""Normal Map nodes into a BSDF's Normal input -> a normal-map image and Strength per material
-(:mod:`core.normal_maps` perturbs the shading normal), and the UV tangents of meshes.
+"""Normal Map and Bump nodes into a BSDF's Normal input -> a normal-map image and Strength, and
+a height image with Distance and Strength, per material (:mod:`core.normal_maps` and
+:mod:`core.bump` perturb the shading normal), and the UV tangents of meshes.
 
 Modelled: a Normal Map node in Tangent Space on the active UV map, its Color from an Image
 Texture (Non-Color data as stored; another colour space is decoded as Cycles does) or a
-constant colour, its Strength. Anything else linked to a Normal input is reported and ignored.
+constant colour, its Strength; a Bump node whose Height is an Image Texture (its luminance),
+with Strength, Distance, Invert, and a Normal Map (as above) or nothing in its own Normal.
+Anything else linked to a Normal input is reported and ignored.
 """
 
 from __future__ import annotations
@@ -28,9 +31,50 @@ class NormalMap(NamedTuple):
     strength: float
 
 
+class Bump(NamedTuple):
+    """A Bump node: its height image's pixels and lookup modes, Distance (negated by Invert)
+    and Strength."""
+
+    pixels: np.ndarray
+    mode: tuple
+    distance: float
+    strength: float
+
+
+def normal_input(node, owner, messages):
+    """``(NormalMap or None, Bump or None)`` feeding the Normal input of BSDF ``node`` (None
+    for what is not linked or is reported as not supported)."""
+    socket = node.inputs.get("Normal")
+    link = follow_link(socket) if socket is not None else None
+    if link is None:
+        return None, None
+    src = link[0]
+    if src.bl_idname == 'ShaderNodeBump':
+        return normal_map_input(src, owner, messages), _bump(src, owner, messages)
+    return normal_map_input(node, owner, messages), None
+
+
+def _bump(src, owner, messages):
+    """The :class:`Bump` of Bump node ``src``, or None (no height image; reported)."""
+    height = src.inputs.get("Height")
+    link = follow_link(height) if height is not None else None
+    if link is None:
+        return None  # a constant height: no bump
+    if link[0].bl_idname != 'ShaderNodeTexImage':
+        messages.add(f"{owner}: the height of bump node '{node_name(src)}' (node "
+                     f"'{node_name(link[0])}') is not supported yet; ignored")
+        return None
+    pixels = _image_texture_pixels(link[0], link[1], owner, messages)
+    if pixels is None:
+        return None
+    read = NodeReader(owner, messages)
+    distance = read.value(src, "Distance", 1.0) * (-1.0 if getattr(src, "invert", False) else 1.0)
+    return Bump(pixels[0], pixels[1], distance, read.value(src, "Strength", 1.0))
+
+
 def normal_map_input(node, owner, messages):
-    """The :class:`NormalMap` feeding the Normal input of BSDF ``node``, or None (nothing
-    linked, or reported as not supported)."""
+    """The :class:`NormalMap` feeding the Normal input of ``node`` (a BSDF or a Bump node), or
+    None (nothing linked, or reported as not supported)."""
     socket = node.inputs.get("Normal")
     link = follow_link(socket) if socket is not None else None
     if link is None:
@@ -70,31 +114,32 @@ def _map_color(src, owner, messages, read):
     return np.asarray(value, np.float32).reshape(1, 1, 3), ("Closest", 'REPEAT')
 
 
-def mixed_normal_map(parts, owner, messages):
-    """The normal map of a mixture of ``parts = [(weight, Surface), ...]``: the core applies
-    one per material, that of the heaviest part with one; reported when the parts differ (the
-    transparent pass-through, which no normal changes, does not count)."""
-    maps = [(w, s.normal_map) for w, s in parts if w > 0 and not _pass_through(s)]
-    if not maps:
-        return None
-    chosen = max(maps, key=lambda wm: (wm[1] is not None, wm[0]))[1]
-    if any(m is not chosen for _, m in maps):
+def mixed_normal_input(parts, owner, messages):
+    """The ``normal_map`` and ``bump`` :class:`Surface` fields of a mixture of ``parts =
+    [(weight, Surface), ...]``: the core applies one per material, that of the heaviest part
+    with one; reported when the parts differ (the transparent pass-through, which no normal
+    changes, does not count)."""
+    inputs = [(w, (s.normal_map, s.bump)) for w, s in parts if w > 0 and not _pass_through(s)]
+    if not inputs:
+        return {"normal_map": None, "bump": None}
+    chosen = max(inputs, key=lambda wm: (wm[1] != (None, None), wm[0]))[1]
+    if any(m[0] is not chosen[0] or m[1] is not chosen[1] for _, m in inputs):
         messages.add(f"{owner}: the shaders of a mix have different normal inputs; all are "
                      f"rendered with one of them")
-    return chosen
+    return {"normal_map": chosen[0], "bump": chosen[1]}
 
 
 def report_bump_map_correction(material, surface, owner, messages):
     """Report Cycles' Bump Map Correction (a material setting, on by default) on a normal-mapped
     surface with a diffuse lobe: Cycles then darkens diffuse light near the terminator of the
     bumps (Conty Estevez et al. 2019's shadowing term); we render as with it off."""
-    if surface.normal_map is None:
+    if surface.normal_map is None and surface.bump is None:
         return
     if not getattr(getattr(material, "cycles", None), "use_bump_map_correction", False):
         return
     parts = [c for _, c in surface.components] or [surface]
     if any(c.kind in (MAT_DIFFUSE, MAT_LAYERED) for c in parts):
-        messages.add(f"{owner}: Bump Map Correction of its normal map is not supported yet; "
+        messages.add(f"{owner}: Bump Map Correction of its normal input is not supported yet; "
                      f"rendered as with it off (diffuse light near the bumps' terminator is "
                      f"brighter than in Cycles)")
 
