@@ -164,6 +164,10 @@ class Materials:
         Row of :attr:`Scene.textures` whose luminance is the Height of a Bump node feeding the
         row's Normal input (after its normal map, if the Bump node's own Normal is one;
         :mod:`core.bump`); -1 (the default) for none. Applies like ``normal_texture``.
+    metallic_texture : (m,) int32
+        Row of :attr:`Scene.textures` whose luminance is a Principled mixture row's Metallic
+        (:mod:`core.metallic`: the row's components are re-weighted at each hit from the
+        ``metallic`` the mixture was laid out for); -1 (the default) for none.
     bump_distance, bump_strength : (m,) float32
         The Bump node's Distance (negated when Invert is on) and Strength; defaults 1, 1.
     mix_rows : (m, c) int32
@@ -199,6 +203,7 @@ class Materials:
     normal_texture: np.ndarray = None
     normal_strength: np.ndarray = None
     bump_texture: np.ndarray = None
+    metallic_texture: np.ndarray = None
     bump_distance: np.ndarray = None
     bump_strength: np.ndarray = None
     mix_rows: np.ndarray = None
@@ -230,6 +235,7 @@ class Materials:
         self.normal_texture = texture_column(self.normal_texture, m)
         self.normal_strength = column(self.normal_strength, 1.0)
         self.bump_texture = texture_column(self.bump_texture, m)
+        self.metallic_texture = texture_column(self.metallic_texture, m)
         self.bump_distance = column(self.bump_distance, 1.0)
         self.bump_strength = column(self.bump_strength, 1.0)
         self._check_mix(m)
@@ -271,7 +277,7 @@ class Materials:
                    coat_roughness=None, coat_ior=None, coat_tint=None,
                    roughness_texture=None, normal_texture=None,
                    normal_strength=None, bump_texture=None, bump_distance=None,
-                   bump_strength=None) -> "Materials":
+                   bump_strength=None, metallic_texture=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -288,6 +294,7 @@ class Materials:
             coat_ior=coat_ior, roughness_texture=roughness_texture,
             normal_texture=normal_texture, normal_strength=normal_strength,
             bump_texture=bump_texture, bump_distance=bump_distance, bump_strength=bump_strength,
+            metallic_texture=metallic_texture,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
         )
@@ -478,7 +485,8 @@ class Scene:
                                                 TEXTURE_EXTENSIONS)
         m = self.materials
         if max(m.texture.max(initial=-1), m.roughness_texture.max(initial=-1),
-               m.normal_texture.max(initial=-1), m.bump_texture.max(initial=-1)) >= n:
+               m.normal_texture.max(initial=-1), m.bump_texture.max(initial=-1),
+               m.metallic_texture.max(initial=-1)) >= n:
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:
             raise ValueError("textured scenes need corner_uvs")
