@@ -22,7 +22,7 @@ from ...core.scene import (
 )
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
 from .normal_maps import mixed_normal_input, normal_input, report_bump_map_correction
-from .textures import roughness_texture, surface_texture
+from .textures import roughness_texture, scalar_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
 DEFAULT_SURFACE_NAME = "Default Surface"
@@ -67,6 +67,9 @@ class Surface(NamedTuple):
     # row's applies to all its components.
     normal_map: tuple = None
     bump: tuple = None  # the Bump node (normal_maps.Bump) after the normal map, or None
+    # (pixels, mode) of a Principled's Metallic texture (its mixture laid out for metallic
+    # 0.5, see core.metallic), or None.
+    metallic_texture: tuple = None
 
 
 def _diffuse(color, emission=None):
@@ -140,12 +143,25 @@ def _shader_surface(source, owner, messages, depth=0):
     rough = {} if rough is None else {"roughness_texture": rough[0],
                                       "roughness_texture_mode": rough[1]}
     if kind == 'ShaderNodeBsdfPrincipled':
-        surface = _principled_surface(node, read, owner, texture, rough)
-        return surface._replace(normal_map=normal, bump=bump)
+        metal = _metallic_texture(node, owner, messages, depth)
+        surface = _principled_surface(node, read, owner, texture, rough, metal)
+        return surface._replace(normal_map=normal, bump=bump, metallic_texture=metal)
     surface = _node_surface(node, read, owner, messages)
     if texture is not None:
         surface = surface._replace(texture=texture[0], texture_mode=texture[1])
     return surface._replace(normal_map=normal, bump=bump, **rough)
+
+
+def _metallic_texture(node, owner, messages, depth):
+    """``(pixels, mode)`` of an Image Texture into the Metallic of Principled ``node``, or
+    None; only a material's own Principled (not one inside a Mix Shader) is re-weighted per
+    hit, others are reported and use the socket's value."""
+    metal = scalar_texture(node, "Metallic", owner, messages)
+    if metal is not None and depth > 0:
+        messages.add(f"{owner}: the metallic texture of node '{node_name(node)}' inside a mix "
+                     f"is not supported yet; using the input's own value")
+        return None
+    return metal
 
 
 def _node_surface(node, read, owner, messages):
@@ -230,7 +246,7 @@ def mix_surfaces(parts, owner, messages):
             if weight * w > 0:
                 flat.append((weight * w, component._replace(emission=np.zeros(3),
                                                             components=(), normal_map=None,
-                                                            bump=None)))
+                                                            bump=None, metallic_texture=None)))
     merged = {}
     for w, component in flat:
         key = _surface_key(component)
@@ -255,7 +271,7 @@ def mix_surfaces(parts, owner, messages):
     return main._replace(emission=emission, texture=None, components=components)
 
 
-def _principled_surface(node, read, owner, texture=None, rough=None):
+def _principled_surface(node, read, owner, texture=None, rough=None, metal=None):
     """Principled BSDF -> a mixture of conductor (metallic), dielectric (transmission), coat
     over diffuse and, for Alpha < 1, a transparent pass-through.
 
@@ -263,13 +279,14 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
     glass ``(1 - m) t`` and the opaque dielectric ``(1 - m)(1 - t)``; emission is scaled by
     ``a`` too. ``texture`` (pixels, modes) drives the base colour of every component but the
     transparent one, ``rough`` (the :class:`Surface` fields of a roughness texture) their
-    roughness.
+    roughness. With ``metal`` (a metallic texture) the mixture is laid out for Metallic 0.5
+    and re-weighted at every hit (:mod:`core.metallic`).
     """
     messages = read.messages
     name = node_name(node)
     base = read.color(node, "Base Color", DEFAULT_SURFACE_COLOR)
     emission = read.color(node, "Emission Color") * read.value(node, "Emission Strength")
-    metallic = min(max(read.value(node, "Metallic"), 0.0), 1.0)
+    metallic = 0.5 if metal is not None else min(max(read.value(node, "Metallic"), 0.0), 1.0)
     transmission = min(max(read.value(node, "Transmission Weight"), 0.0), 1.0)
     roughness = min(max(read.value(node, "Roughness", 0.5), 0.0), 1.0)
     ior = read.value(node, "IOR", 1.5)
@@ -418,6 +435,7 @@ class MaterialTable:
             bump_texture=self._texture_index()[4],
             bump_distance=[1.0 if s.bump is None else s.bump.distance for s in self.surfaces],
             bump_strength=[1.0 if s.bump is None else s.bump.strength for s in self.surfaces],
+            metallic_texture=self._texture_index()[5],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):
@@ -425,15 +443,17 @@ class MaterialTable:
         for the roughness (-1 for none), those textures as
         ``[(pixels, (interpolation, extension)), ...]``, and the indices for the normal map and
         the bump height."""
-        columns, distinct, found = ([], [], [], []), [], {}
+        columns, distinct, found = ([], [], [], [], []), [], {}
         for s in self.surfaces:
             normal = s.normal_map or (None, None, None)
             bump = s.bump or (None, None)
+            metal = s.metallic_texture or (None, None)
             for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
                                          (columns[1], s.roughness_texture,
                                           s.roughness_texture_mode),
                                          (columns[2], normal[0], normal[1]),
-                                         (columns[3], bump[0], bump[1])):
+                                         (columns[3], bump[0], bump[1]),
+                                         (columns[4], metal[0], metal[1])):
                 if pixels is None:
                     column.append(-1)
                     continue
@@ -443,7 +463,8 @@ class MaterialTable:
                     distinct.append((pixels, mode))
                 column.append(found[key])
         return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct,
-                np.asarray(columns[2], np.int32), np.asarray(columns[3], np.int32))
+                np.asarray(columns[2], np.int32), np.asarray(columns[3], np.int32),
+                np.asarray(columns[4], np.int32))
 
     @property
     def textures(self):
@@ -471,5 +492,7 @@ class MaterialTable:
         return any(self.surfaces[int(r)].normal_map is not None for r in np.unique(rows))
 
     def _bumped(self, rows):
-        """Whether any of the material rows ``rows`` has a Bump node on an image."""
-        return any(self.surfaces[int(r)].bump is not None for r in np.unique(rows))
+        """Whether any of the material rows ``rows`` has a Bump node or a Metallic on an
+        image (textures of the row itself, not of its components)."""
+        return any(self.surfaces[int(r)].bump is not None
+                   or self.surfaces[int(r)].metallic_texture is not None for r in np.unique(rows))
