@@ -301,8 +301,9 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None)
                      f"diffuse reflection of the base colour")
     coat = _principled_coat(node, read, owner)
     if coat["coat_weight"] > 0 and np.any(emission > 0):
-        messages.add(f"{owner}: emission under the coat of node '{name}' is not attenuated "
-                     f"by the coat yet")
+        messages.add(f"{owner}: emission under the coat of node '{name}' is attenuated by the "
+                     f"coat everywhere; Cycles' light sampling leaves out the coat's reflection, "
+                     f"so what it lights is darker than in Cycles")
     alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
     if read.value(node, "Anisotropic") != 0:
         messages.add(f"{owner}: anisotropy of node '{name}' is not supported yet; "

@@ -368,5 +368,5 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
             cos_l = np.einsum("ij,ij->i", take_rows(d, rows), take_rows(prep.tri_normal, prim))
             pdf_l = lights.triangle_pdf(prim, take_rows(o, rows), hits.t[rows], cos_l,
                                         None if n_prev is None else take_rows(n_prev, rows))
-            le = take_rows(prep.tri_emission, prim)
+            le = lights.triangles.hit_emission(prim, cos_l)
             add_rows(L, rows_of[rows], take_rows(beta, rows) * le * weight(rows, pdf_l)[:, None])
