@@ -272,9 +272,10 @@ def shading_normals(prep, prim, u, v, ng, wo):
     incoming direction from the "wrong" side of their frame, and the geometric-side test of the
     integrators (see :mod:`.path`) keeps shading normals from leaking light through surfaces.
     Materials with a Normal Map or Bump node perturb the normal first
-    (:func:`core.normal_maps.normal_mapped`, then :func:`core.bump.bump_mapped`); a perturbed normal behind ``ng`` also falls back
-    to ``ng`` (Cycles would keep it). Returns ``ng`` itself when the scene has no corner
-    normals (every face flat; a scene with normal maps always has them).
+    (:func:`core.normal_maps.normal_mapped`, then :func:`core.bump.bump_mapped`), and the
+    same fallbacks apply to the perturbed normal (where the view falls below it, or it points
+    behind ``ng``; Cycles keeps it there). Returns ``ng`` itself when the scene has no corner
+    normals (every face flat; a scene with normal maps or bumps always has them).
 
     Parameters
     ----------
