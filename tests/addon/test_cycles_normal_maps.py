@@ -226,3 +226,19 @@ def test_bumped_plane_agrees_with_cycles(empty_scene, tmp_path):
     # 0.9997 image mean ours / Cycles; without the bump (Distance 0) ours differs from this
     # Cycles image by up to 18 % per block (measured) and fails.
     S.assert_ours_agree_with_cycles(ours, cycles, "bumped plane")
+
+
+def test_bump_over_a_normal_map_exports_both(empty_scene, export):
+    mat, _, bump = bumped_material("Bumpy", wave_height("Height"))
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = wave_normal_map("Waves")
+    normal_map = tree.nodes.new("ShaderNodeNormalMap")
+    tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
+    tree.links.new(normal_map.outputs["Normal"], bump.inputs["Normal"])
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert s.messages == [] and s.corner_tangents is not None
+    m = s.materials
+    assert {int(m.bump_texture[0]), int(m.normal_texture[0])} == {0, 1}
