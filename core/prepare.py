@@ -14,6 +14,7 @@ from .accel import Accel
 from .lights import Emission, LightSampler
 from .materials.bsdf import KIND_DIELECTRIC, BSDFParams, is_delta_only
 from .materials.microfacet import alpha_from_roughness
+from .metallic import MetallicTextures, choose_metallic, metallic_textures
 from .sampling.distributions import Segmented1D
 from .scene import Scene
 from .textures import material_base_color, material_roughness, textured_base_color
@@ -49,7 +50,8 @@ def drop_nonfinite(scene: Scene):
                                 material=scene.material[keep], visibility=scene.visibility[keep],
                                 corner_uvs=rows(scene.corner_uvs),
                                 corner_normals=rows(scene.corner_normals),
-                                aniso_tangents=rows(scene.aniso_tangents))
+                                aniso_tangents=rows(scene.aniso_tangents),
+                                corner_tangents=rows(scene.corner_tangents))
     return clean, [f"{int(bad.sum()):,} triangle(s) with NaN or infinite vertex coordinates "
                    f"were left out"]
 
@@ -123,6 +125,8 @@ class PreparedScene:
         Next-event estimation and the emitters rays find.
     emission : core.lights.Emission
         How light paths leave the same emitters (light tracing, BDPT).
+    metallic : core.metallic.MetallicTextures or None
+        Re-weighting of the mixtures whose Metallic is a texture; None when none is.
     material_transparency : (m, 3) float64 or None
         What a shadow ray keeps when it crosses each material: the summed weight times colour
         of its transparent components (:func:`transparency_table`); None when no material a
@@ -155,6 +159,7 @@ class PreparedScene:
     emission: Emission = None
     material_transparency: np.ndarray = None
     notes: list = dataclasses.field(default_factory=list)
+    metallic: MetallicTextures = None
 
     def bsdf(self, prim):
         """BSDF parameters of the hit triangles' own material rows ``(k,)`` and whether each
@@ -163,9 +168,10 @@ class PreparedScene:
         rows = self.tri_material[prim]
         return self.material_bsdf.take(rows), self.material_delta_only[rows]
 
-    def choose_material(self, prim, u_lobe):
+    def choose_material(self, prim, u_lobe, u=None, v=None):
         """Material row shading each hit ``prim (k,)``: a mixture's component, chosen with
-        probability its weight by ``u_lobe (k,)`` in [0, 1).
+        probability its weight by ``u_lobe (k,)`` in [0, 1) (weights re-computed from the
+        metallic texture at barycentrics ``u, v (k,)`` where a row has one).
 
         Returns
         -------
@@ -176,16 +182,19 @@ class PreparedScene:
             single-component rows.
         """
         rows = self.tri_material[prim]
-        u = np.asarray(u_lobe, np.float64).reshape(-1)
+        u_in = np.asarray(u_lobe, np.float64).reshape(-1)
         material = self.material_mix_rows[rows, 0]
         if self.material_mix is None:
-            return material, u
+            return material, u_in
         mixed = np.nonzero(self.material_mix_count[rows] > 1)[0]
-        u = u.copy()
+        out = u_in.copy()
         # Zero-weight components (and the padding) are never chosen, by either method.
-        index, _, u[mixed] = self.material_mix.sample(rows[mixed], u[mixed])
+        index, _, out[mixed] = self.material_mix.sample(rows[mixed], out[mixed])
         material[mixed] = self.material_mix_rows.reshape(-1)[index]
-        return material, u
+        if self.metallic is not None and u is not None:
+            choose_metallic(self.metallic, self.scene, self.material_mix_rows, rows, prim, u, v,
+                            u_in, material, out)
+        return material, out
 
     def choose_bsdf(self, prim, u_lobe, u=None, v=None):
         """BSDF of the hit triangles ``prim (k,)`` for one path vertex each.
@@ -208,7 +217,7 @@ class PreparedScene:
             Whether the chosen BSDF is a pure delta distribution.
         u_lobe : (k,) float64
         """
-        material, u_lobe = self.choose_material(prim, u_lobe)
+        material, u_lobe = self.choose_material(prim, u_lobe, u, v)
         params = self.material_bsdf.take(material)
         delta_only = self.material_delta_only[material]
         if u is not None and self.scene.textures:
@@ -271,7 +280,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
                          mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only,
                          Emission(lights, scene.vertices),
-                         transparency if np.any(transparency[used] > 0) else None, notes)
+                         transparency if np.any(transparency[used] > 0) else None, notes,
+                         metallic_textures(mats, bsdf, mix_rows, mix_weights))
 
 
 def transparency_table(bsdf, mix_rows, mix_weights):

@@ -166,6 +166,23 @@ class Materials:
         Row of :attr:`Scene.textures` whose lookup (its luminance, as Blender converts a
         colour to a float socket) replaces ``roughness`` at shading time (an Image Texture
         into the Roughness input); -1 (the default) for none.
+    normal_texture : (m,) int32
+        Row of :attr:`Scene.textures` of a tangent-space Normal Map node feeding the row's
+        Normal input (Non-Color data; :mod:`core.normal_maps`); -1 (the default) for none.
+        It perturbs the shading normal of the triangles whose own row this is (a mixture's
+        normal map applies to all its components).
+    normal_strength : (m,) float32
+        The Normal Map node's Strength; default 1.
+    bump_texture : (m,) int32
+        Row of :attr:`Scene.textures` whose luminance is the Height of a Bump node feeding the
+        row's Normal input (after its normal map, if the Bump node's own Normal is one;
+        :mod:`core.bump`); -1 (the default) for none. Applies like ``normal_texture``.
+    metallic_texture : (m,) int32
+        Row of :attr:`Scene.textures` whose luminance is a Principled mixture row's Metallic
+        (:mod:`core.metallic`: the row's components are re-weighted at each hit from the
+        ``metallic`` the mixture was laid out for); -1 (the default) for none.
+    bump_distance, bump_strength : (m,) float32
+        The Bump node's Distance (negated when Invert is on) and Strength; defaults 1, 1.
     mix_rows : (m, c) int32
         Component rows of each material: a row whose ``mix_rows`` is more than itself is a
         *mixture* (a Principled BSDF with fractional Metallic, Transmission or Alpha, a Mix
@@ -201,6 +218,12 @@ class Materials:
     aniso_rotation: np.ndarray = None
     texture: np.ndarray = None
     roughness_texture: np.ndarray = None
+    normal_texture: np.ndarray = None
+    normal_strength: np.ndarray = None
+    bump_texture: np.ndarray = None
+    metallic_texture: np.ndarray = None
+    bump_distance: np.ndarray = None
+    bump_strength: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
 
@@ -232,6 +255,12 @@ class Materials:
         self.aniso_rotation = column(self.aniso_rotation, 0.0)
         self.texture = texture_column(self.texture, m)
         self.roughness_texture = texture_column(self.roughness_texture, m)
+        self.normal_texture = texture_column(self.normal_texture, m)
+        self.normal_strength = column(self.normal_strength, 1.0)
+        self.bump_texture = texture_column(self.bump_texture, m)
+        self.metallic_texture = texture_column(self.metallic_texture, m)
+        self.bump_distance = column(self.bump_distance, 1.0)
+        self.bump_strength = column(self.bump_strength, 1.0)
         self._check_mix(m)
 
     def _check_mix(self, m):
@@ -270,7 +299,10 @@ class Materials:
                    mix_weights=None, multiscatter=None, coat_weight=None,
                    coat_roughness=None, coat_ior=None, coat_tint=None,
                    roughness_texture=None, sheen_weight=None, sheen_roughness=None,
-                   sheen_tint=None, aniso_scale=None, aniso_rotation=None) -> "Materials":
+                   sheen_tint=None, aniso_scale=None, aniso_rotation=None,
+                   normal_texture=None, normal_strength=None, bump_texture=None,
+                   bump_distance=None, bump_strength=None,
+                   metallic_texture=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -285,6 +317,9 @@ class Materials:
             multiscatter=multiscatter, texture=texture, mix_rows=mix_rows,
             mix_weights=mix_weights, coat_weight=coat_weight, coat_roughness=coat_roughness,
             coat_ior=coat_ior, roughness_texture=roughness_texture,
+            normal_texture=normal_texture, normal_strength=normal_strength,
+            bump_texture=bump_texture, bump_distance=bump_distance, bump_strength=bump_strength,
+            metallic_texture=metallic_texture,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
             sheen_weight=sheen_weight, sheen_roughness=sheen_roughness,
@@ -417,13 +452,19 @@ class Scene:
     corner_normals : (t, 3, 3) float32 or None
         Unit world-space shading normals at each triangle's three corners (Blender's corner
         normals, smooth shading), or None when every face is flat (shading normal = geometric
-        normal). See :func:`core.integrators.common.shading_normals`.
+        normal). See :func:`core.integrators.common.shading_normals`. Filled with the face
+        normals when a material has a normal map and every face is flat.
     aniso_tangents : (t, 3, 3) float32 or None
         World-space tangents (any length) at each triangle's corners for anisotropic BSDFs
         (Cycles' Tangent input: by default a radial tangent around the object's Z axis),
         interpolated with the hit's barycentrics and projected on the shading normal's plane
         (:func:`core.integrators.common.shading_tangents`); zero rows, or None, give the
         default frame. Non-finite values become zero.
+    corner_tangents : (t, 3, 4) float32 or None
+        World-space UV tangent (xyz, MikkTSpace, of the active UV map) and bitangent sign (w)
+        at each triangle corner, for tangent-space normal maps (:mod:`core.normal_maps`);
+        None when no material has one (scenes without normal maps pay nothing). Rows of
+        meshes without normal maps are zero.
     film_transparent : bool
         Blender's Film > Transparent: camera rays that escape to the world (also through
         transparent surfaces) show alpha 0 instead of the world, which still lights the scene.
@@ -443,6 +484,7 @@ class Scene:
     corner_uvs: np.ndarray | None = None
     corner_normals: np.ndarray | None = None
     aniso_tangents: np.ndarray | None = None
+    corner_tangents: np.ndarray | None = None
     texture_interpolation: list = None
     texture_extension: list = None
     film_transparent: bool = False
@@ -483,10 +525,34 @@ class Scene:
                                                     TEXTURE_INTERPOLATIONS)
         self.texture_extension = _texture_modes(self.texture_extension, n, "REPEAT",
                                                 TEXTURE_EXTENSIONS)
-        if np.any(self.materials.texture >= n) or np.any(self.materials.roughness_texture >= n):
+        m = self.materials
+        if max(m.texture.max(initial=-1), m.roughness_texture.max(initial=-1),
+               m.normal_texture.max(initial=-1), m.bump_texture.max(initial=-1),
+               m.metallic_texture.max(initial=-1)) >= n:
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:
             raise ValueError("textured scenes need corner_uvs")
+        self._check_corner_tangents()
+
+    def _check_corner_tangents(self):
+        """Normalise ``corner_tangents`` to (t, 3, 4) float32 in normal-mapped scenes (zero
+        when not given: maps then keep the normal's direction, as Cycles without tangents), and
+        give them corner normals (the face normals where every face is flat)."""
+        m = self.materials
+        if not (np.any(m.normal_texture >= 0) or np.any(m.bump_texture >= 0)):
+            return
+        t = self.triangles.shape[0]
+        if self.corner_tangents is None and np.any(m.normal_texture >= 0):
+            self.corner_tangents = np.zeros((t, 3, 4), np.float32)
+        if self.corner_tangents is not None:
+            self.corner_tangents = np.ascontiguousarray(
+                np.nan_to_num(np.asarray(self.corner_tangents, np.float32)),
+                np.float32).reshape(t, 3, 4)
+        if self.corner_normals is None:
+            tri = self.vertices.astype(np.float64)[self.triangles]
+            face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            self.corner_normals = np.repeat(face[:, None, :], 3, axis=1)
+            self._check_corner_normals()
 
     def _check_corner_normals(self):
         """Normalise ``corner_normals`` to unit (t, 3, 3) float32 (zero stays zero)."""

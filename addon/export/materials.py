@@ -22,7 +22,8 @@ from ...core.scene import (
 )
 from .anisotropy import AXES, glossy_anisotropy, principled_anisotropy
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
-from .textures import roughness_texture, surface_texture
+from .normal_maps import mixed_normal_input, normal_input, report_bump_map_correction
+from .textures import roughness_texture, scalar_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
 DEFAULT_SURFACE_NAME = "Default Surface"
@@ -68,6 +69,13 @@ class Surface(NamedTuple):
     aniso_scale: float = 1.0
     aniso_rotation: float = 0.0
     tangent_axis: str = None
+    # The Normal Map feeding the Normal input (normal_maps.NormalMap), or None; a mixture
+    # row's applies to all its components.
+    normal_map: tuple = None
+    bump: tuple = None  # the Bump node (normal_maps.Bump) after the normal map, or None
+    # (pixels, mode) of a Principled's Metallic texture (its mixture laid out for metallic
+    # 0.5, see core.metallic), or None.
+    metallic_texture: tuple = None
 
 
 def _diffuse(color, emission=None):
@@ -105,7 +113,9 @@ def material_surface(material, messages):
         socket = output.inputs.get(name)
         if socket is not None and follow_link(socket) is not None:
             messages.add(f"{owner}: {name.lower()} is not supported yet; ignored")
-    return _shader_surface(follow_link(output.inputs["Surface"]), owner, messages)
+    surface = _shader_surface(follow_link(output.inputs["Surface"]), owner, messages)
+    report_bump_map_correction(material, surface, owner, messages)
+    return surface
 
 
 def _distribution_note(node, read, owner, what="GGX", handled=('GGX', 'SHARP')):
@@ -130,26 +140,40 @@ def _shader_surface(source, owner, messages, depth=0):
                                              depth + 1)),
                  (fac, _shader_surface(follow_link(node.inputs[2]), owner, messages,
                                        depth + 1))]
-        return mix_surfaces(parts, owner, messages)
+        return mix_surfaces(parts, owner, messages)._replace(
+            **mixed_normal_input(parts, owner, messages))
+    normal, bump = (normal_input(node, owner, messages)
+                    if kind != 'ShaderNodeEmission' else (None, None))
     texture = surface_texture(node, owner, messages)
     rough = roughness_texture(node, owner, messages)
     rough = {} if rough is None else {"roughness_texture": rough[0],
                                       "roughness_texture_mode": rough[1]}
     if kind == 'ShaderNodeBsdfPrincipled':
-        read.ignored_if_linked(node, "Normal", "the normal input")
-        return _principled_surface(node, read, owner, texture, rough)
+        metal = _metallic_texture(node, owner, messages, depth)
+        surface = _principled_surface(node, read, owner, texture, rough, metal)
+        return surface._replace(normal_map=normal, bump=bump, metallic_texture=metal)
     surface = _node_surface(node, read, owner, messages)
     if texture is not None:
         surface = surface._replace(texture=texture[0], texture_mode=texture[1])
-    return surface._replace(**rough)
+    return surface._replace(normal_map=normal, bump=bump, **rough)
+
+
+def _metallic_texture(node, owner, messages, depth):
+    """``(pixels, mode)`` of an Image Texture into the Metallic of Principled ``node``, or
+    None; only a material's own Principled (not one inside a Mix Shader) is re-weighted per
+    hit, others are reported and use the socket's value."""
+    metal = scalar_texture(node, "Metallic", owner, messages)
+    if metal is not None and depth > 0:
+        messages.add(f"{owner}: the metallic texture of node '{node_name(node)}' inside a mix "
+                     f"is not supported yet; using the input's own value")
+        return None
+    return metal
 
 
 def _node_surface(node, read, owner, messages):
     """Translate one shader node other than a Mix Shader or a Principled BSDF."""
     kind = node.bl_idname
     name = node_name(node)
-    if kind not in {'ShaderNodeMixShader', 'ShaderNodeEmission'}:
-        read.ignored_if_linked(node, "Normal", "the normal input")
 
     if kind == 'ShaderNodeBsdfDiffuse':
         if read.value(node, "Roughness") > 0:
@@ -242,7 +266,8 @@ def mix_surfaces(parts, owner, messages):
         for w, component in inner:
             if weight * w > 0:
                 flat.append((weight * w, component._replace(emission=np.zeros(3),
-                                                            components=())))
+                                                            components=(), normal_map=None,
+                                                            bump=None, metallic_texture=None)))
     merged = {}
     for w, component in flat:
         key = _surface_key(component)
@@ -267,7 +292,7 @@ def mix_surfaces(parts, owner, messages):
     return main._replace(emission=emission, texture=None, components=components)
 
 
-def _principled_surface(node, read, owner, texture=None, rough=None):
+def _principled_surface(node, read, owner, texture=None, rough=None, metal=None):
     """Principled BSDF -> a mixture of conductor (metallic), dielectric (transmission), coat
     over diffuse and, for Alpha < 1, a transparent pass-through.
 
@@ -275,13 +300,14 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
     glass ``(1 - m) t`` and the opaque dielectric ``(1 - m)(1 - t)``; emission is scaled by
     ``a`` too. ``texture`` (pixels, modes) drives the base colour of every component but the
     transparent one, ``rough`` (the :class:`Surface` fields of a roughness texture) their
-    roughness.
+    roughness. With ``metal`` (a metallic texture) the mixture is laid out for Metallic 0.5
+    and re-weighted at every hit (:mod:`core.metallic`).
     """
     messages = read.messages
     name = node_name(node)
     base = read.color(node, "Base Color", DEFAULT_SURFACE_COLOR)
     emission = read.color(node, "Emission Color") * read.value(node, "Emission Strength")
-    metallic = min(max(read.value(node, "Metallic"), 0.0), 1.0)
+    metallic = 0.5 if metal is not None else min(max(read.value(node, "Metallic"), 0.0), 1.0)
     transmission = min(max(read.value(node, "Transmission Weight"), 0.0), 1.0)
     roughness = min(max(read.value(node, "Roughness", 0.5), 0.0), 1.0)
     ior = read.value(node, "IOR", 1.5)
@@ -296,8 +322,9 @@ def _principled_surface(node, read, owner, texture=None, rough=None):
         messages.add(f"{owner}: emission under the sheen of node '{name}' is not attenuated "
                      f"by the sheen yet")
     if coat["coat_weight"] > 0 and np.any(emission > 0):
-        messages.add(f"{owner}: emission under the coat of node '{name}' is not attenuated "
-                     f"by the coat yet")
+        messages.add(f"{owner}: emission under the coat of node '{name}' is attenuated by the "
+                     f"coat everywhere; Cycles' light sampling leaves out the coat's reflection, "
+                     f"so what it lights is darker than in Cycles")
     alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
     aniso = principled_anisotropy(node, read, owner)
     weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
@@ -437,17 +464,31 @@ class MaterialTable:
             sheen_tint=col["sheen_tint"], aniso_scale=col["aniso_scale"],
             aniso_rotation=col["aniso_rotation"],
             texture=self._texture_index()[0], roughness_texture=self._texture_index()[1],
+            normal_texture=self._texture_index()[3],
+            normal_strength=[1.0 if s.normal_map is None else s.normal_map.strength
+                             for s in self.surfaces],
+            bump_texture=self._texture_index()[4],
+            bump_distance=[1.0 if s.bump is None else s.bump.distance for s in self.surfaces],
+            bump_strength=[1.0 if s.bump is None else s.bump.strength for s in self.surfaces],
+            metallic_texture=self._texture_index()[5],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):
         """``(m,) int32`` indices into the distinct textures per row for the base colour and
-        for the roughness (-1 for none), and those textures as
-        ``[(pixels, (interpolation, extension)), ...]``."""
-        columns, distinct, found = ([], []), [], {}
+        for the roughness (-1 for none), those textures as
+        ``[(pixels, (interpolation, extension)), ...]``, and the indices for the normal map and
+        the bump height."""
+        columns, distinct, found = ([], [], [], [], []), [], {}
         for s in self.surfaces:
+            normal = s.normal_map or (None, None, None)
+            bump = s.bump or (None, None)
+            metal = s.metallic_texture or (None, None)
             for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
                                          (columns[1], s.roughness_texture,
-                                          s.roughness_texture_mode)):
+                                          s.roughness_texture_mode),
+                                         (columns[2], normal[0], normal[1]),
+                                         (columns[3], bump[0], bump[1]),
+                                         (columns[4], metal[0], metal[1])):
                 if pixels is None:
                     column.append(-1)
                     continue
@@ -456,7 +497,9 @@ class MaterialTable:
                     found[key] = len(distinct)
                     distinct.append((pixels, mode))
                 column.append(found[key])
-        return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct)
+        return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct,
+                np.asarray(columns[2], np.int32), np.asarray(columns[3], np.int32),
+                np.asarray(columns[4], np.int32))
 
     @property
     def textures(self):
@@ -485,6 +528,16 @@ class MaterialTable:
 
     def textured(self, rows):
         """Whether any of the material rows ``rows`` (or their components) has a texture."""
-        return any(self.surfaces[c].texture is not None
-                   or self.surfaces[c].roughness_texture is not None
-                   for r in np.unique(rows) for c, _ in self.mixes[int(r)])
+        return self.normal_mapped(rows) or self._bumped(rows) or any(
+            self.surfaces[c].texture is not None or self.surfaces[c].roughness_texture is not None
+            for r in np.unique(rows) for c, _ in self.mixes[int(r)])
+
+    def normal_mapped(self, rows):
+        """Whether any of the material rows ``rows`` has a normal map."""
+        return any(self.surfaces[int(r)].normal_map is not None for r in np.unique(rows))
+
+    def _bumped(self, rows):
+        """Whether any of the material rows ``rows`` has a Bump node or a Metallic on an
+        image (textures of the row itself, not of its components)."""
+        return any(self.surfaces[int(r)].bump is not None
+                   or self.surfaces[int(r)].metallic_texture is not None for r in np.unique(rows))

@@ -20,7 +20,10 @@ from ...core.scene import (
     VIS_SHADOW,
     VIS_TRANSMISSION,
 )
-from .anisotropy import radial_tangents, tangents_to_world, texture_space
+from .anisotropy import radial_tangents, texture_space
+from .anisotropy import tangents_to_world as aniso_tangents_to_world
+from .normal_maps import (concat_tangents, mesh_corner_tangents, report_smooth_normal_maps,
+                          tangents_to_world)
 
 # Object types Blender can turn into a triangle mesh.
 MESH_TYPES = {'MESH', 'CURVE', 'SURFACE', 'FONT', 'META'}
@@ -46,8 +49,9 @@ class Geometry:
         self._vertices, self._triangles, self._material, self._visibility = [], [], [], []
         # Per instance: corner UVs, and world corner normals with the triangle count.
         self._uvs, self._normals = [], []
-        # Per instance: world corner tangents (None when isotropic) with the triangle count.
-        self._tangents = []
+        # Per instance: world anisotropy tangents (None when isotropic) with the triangle count.
+        self._aniso_tangents = []
+        self._tangents = []  # per instance: world UV tangents, or None without normal maps
         self._n_verts = 0
 
     def add(self, ob, matrix):
@@ -63,22 +67,23 @@ class Geometry:
             self._shared[key] = self._evaluate(ob)
         if self._shared[key] is None:
             return
-        verts, tris, tri_mat, corner, uvs, tangents = self._shared[key]
+        verts, tris, tri_mat, corner, uvs, aniso, tangents = self._shared[key]
         self._vertices.append(_to_world(verts, matrix))
         self._triangles.append(tris + self._n_verts)
         self._material.append(tri_mat)
         self._visibility.append(np.full(tris.shape[0], _visibility_bits(ob), np.int32))
         self._uvs.append(_instance_uvs(tri_mat, self.materials, uvs))
+        self._tangents.append(None if tangents is None else tangents_to_world(tangents, matrix))
         self._n_verts += verts.shape[0]
         self._normals.append((None if corner is None else _normals_to_world(corner, matrix),
                               tris.shape[0]))
-        self._tangents.append((None if tangents is None else tangents_to_world(tangents, matrix),
-                               tris.shape[0]))
+        self._aniso_tangents.append(
+            (None if aniso is None else aniso_tangents_to_world(aniso, matrix), tris.shape[0]))
 
     def _evaluate(self, ob):
-        """``(vertices, triangles, material rows, corner normals, corner UVs, corner
-        tangents)`` of the evaluated mesh of ``ob`` in object space, or None when it has no
-        triangles."""
+        """``(vertices, triangles, material rows, corner normals, corner UVs, anisotropy
+        tangents, corner UV tangents)`` of the evaluated mesh of ``ob`` in object space, or
+        None when it has no triangles."""
         with evaluated_mesh(ob) as mesh:
             arrays = None if mesh is None else mesh_arrays(mesh)
             if arrays is None:
@@ -88,9 +93,14 @@ class Geometry:
             uvs = (mesh_corner_uvs(mesh, ob.name, self.messages)
                    if self.materials.textured(tri_mat) else None)
             axes = self.materials.tangent_axes(tri_mat)
-            tangents = (radial_tangents(verts, tris, axes, texture_space(mesh, verts))
-                        if axes.any() else None)
-            return verts, tris, tri_mat, mesh_corner_normals(mesh), uvs, tangents
+            aniso = (radial_tangents(verts, tris, axes, texture_space(mesh, verts))
+                     if axes.any() else None)
+            tangents = (mesh_corner_tangents(mesh, ob.name, self.messages)
+                        if self.materials.normal_mapped(tri_mat) else None)
+            corner = mesh_corner_normals(mesh)
+            if tangents is not None and corner is not None:
+                report_smooth_normal_maps(ob.name, self.messages)
+            return verts, tris, tri_mat, corner, uvs, aniso, tangents
 
     def _triangle_materials(self, ob, slot):
         """``(t,) int32`` material rows of triangles with material slot indices ``slot``."""
@@ -104,7 +114,7 @@ class Geometry:
     def arrays(self):
         """The triangle fields of :class:`core.scene.Scene`: ``vertices``, ``triangles``,
         ``material``, ``visibility``, ``corner_uvs``, ``corner_normals`` and
-        ``aniso_tangents``."""
+        ``aniso_tangents`` and ``corner_tangents``."""
         if self._vertices:
             vertices = np.concatenate(self._vertices)
             triangles = np.concatenate(self._triangles)
@@ -122,7 +132,9 @@ class Geometry:
             visibility=visibility,
             corner_uvs=_concat_uvs(self._uvs, [t.shape[0] for t in self._triangles]),
             corner_normals=_concat_corner_normals(self._normals, vertices, triangles),
-            aniso_tangents=_concat_aniso_tangents(self._tangents),
+            aniso_tangents=_concat_aniso_tangents(self._aniso_tangents),
+            corner_tangents=concat_tangents(self._tangents,
+                                            [t.shape[0] for t in self._triangles]),
         )
 
 

@@ -28,6 +28,12 @@ ROUGHNESS_SOCKETS = {
 }
 
 
+# Scalar inputs an Image Texture may drive (its luminance), read by textures.scalar_texture.
+SCALAR_TEXTURE_SOCKETS = {
+    'ShaderNodeBsdfPrincipled': ("Metallic",),
+}
+
+
 def uses_nodes(id_data):
     """Whether a material or world shades with its node tree."""
     # Blender 5 always shades with nodes and deprecates `use_nodes`.
@@ -104,7 +110,8 @@ class NodeReader:
             if src_node.bl_idname in {'ShaderNodeRGB', 'ShaderNodeValue'}:
                 return as_size(out.default_value, size)
             textured = socket.name in (TEXTURED_SOCKETS.get(node.bl_idname),
-                                       ROUGHNESS_SOCKETS.get(node.bl_idname))
+                                       ROUGHNESS_SOCKETS.get(node.bl_idname),
+                                       *SCALAR_TEXTURE_SOCKETS.get(node.bl_idname, ()))
             if textured and src_node.bl_idname == 'ShaderNodeTexImage':
                 # Read by textures.surface_texture, which reports what it cannot translate.
                 return as_size(socket.default_value, size)

@@ -40,6 +40,17 @@ def roughness_texture(node, owner, messages):
     return _image_texture_pixels(link[0], link[1], owner, messages)
 
 
+def scalar_texture(node, name, owner, messages):
+    """``(pixels, (interpolation, extension))`` of the Image Texture driving the scalar input
+    ``name`` of ``node`` (one of ``nodes.SCALAR_TEXTURE_SOCKETS``; its luminance is the value,
+    the image's colour space honoured as for colours), or None (unsupported ones reported)."""
+    socket = node.inputs.get(name)
+    link = follow_link(socket) if socket is not None else None
+    if link is None or link[0].bl_idname != 'ShaderNodeTexImage':
+        return None
+    return _image_texture_pixels(link[0], link[1], owner, messages)
+
+
 def _image_texture_pixels(node, out, owner, messages):
     """``(pixels, (interpolation, extension))`` of an Image Texture node: RGB ``(h, w, 3)``
     float32 and the lookup modes, or None (reported).

@@ -9,6 +9,8 @@ import numpy as np
 from ..accel import Hits
 from ..camera import generate_rays
 from ..materials.bsdf import LOBE_DIFFUSE, LOBE_TRANSMIT
+from ..bump import bump_mapped
+from ..normal_maps import normal_mapped
 from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 
@@ -290,7 +292,11 @@ def shading_normals(prep, prim, u, v, ng, wo):
     or the interpolation vanishes, the geometric normal is used instead: BSDFs then never see an
     incoming direction from the "wrong" side of their frame, and the geometric-side test of the
     integrators (see :mod:`.path`) keeps shading normals from leaking light through surfaces.
-    Returns ``ng`` itself when the scene has no corner normals (every face flat).
+    Materials with a Normal Map or Bump node perturb the normal first
+    (:func:`core.normal_maps.normal_mapped`, then :func:`core.bump.bump_mapped`), and the
+    same fallbacks apply to the perturbed normal (where the view falls below it, or it points
+    behind ``ng``; Cycles keeps it there). Returns ``ng`` itself when the scene has no corner
+    normals (every face flat; a scene with normal maps or bumps always has them).
 
     Parameters
     ----------
@@ -311,14 +317,16 @@ def shading_normals(prep, prim, u, v, ng, wo):
     c = corner[prim].astype(np.float64)
     u = np.asarray(u, np.float64)[:, None]
     v = np.asarray(v, np.float64)[:, None]
-    n = (1.0 - u - v) * c[:, 0] + u * c[:, 1] + v * c[:, 2]
-    length = np.linalg.norm(n, axis=1)
+    raw = (1.0 - u - v) * c[:, 0] + u * c[:, 1] + v * c[:, 2]
+    raw *= np.where(np.einsum("ij,ij->i", raw, ng) < 0, -1.0, 1.0)[:, None]
+    length = np.linalg.norm(raw, axis=1)
     good = length > 1e-12
-    n = n / np.where(good, length, 1.0)[:, None]
-    n *= np.where(np.einsum("ij,ij->i", n, ng) < 0, -1.0, 1.0)[:, None]
+    n = raw / np.where(good, length, 1.0)[:, None]
+    n = normal_mapped(prep.scene, prim, u[:, 0], v[:, 0], raw, n)
+    n = bump_mapped(prep.scene, prim, u[:, 0], v[:, 0], n)
     cos_g = np.einsum("ij,ij->i", ng, wo)
     cos_s = np.einsum("ij,ij->i", n, wo)
-    good &= cos_g * cos_s > 0
+    good &= (cos_g * cos_s > 0) & (np.einsum("ij,ij->i", n, ng) >= 0)
     return np.where(good[:, None], n, ng)
 
 
@@ -382,5 +390,5 @@ def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mi
             cos_l = np.einsum("ij,ij->i", take_rows(d, rows), take_rows(prep.tri_normal, prim))
             pdf_l = lights.triangle_pdf(prim, take_rows(o, rows), hits.t[rows], cos_l,
                                         None if n_prev is None else take_rows(n_prev, rows))
-            le = take_rows(prep.tri_emission, prim)
+            le = lights.triangles.hit_emission(prim, cos_l)
             add_rows(L, rows_of[rows], take_rows(beta, rows) * le * weight(rows, pdf_l)[:, None])

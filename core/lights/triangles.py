@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..materials.coat import coat_attenuation
 from ..sampling import warps
 from .area import area_point_pdf, cosine_from_faces, solid_angle_pdf
 from .base import LUMINANCE, LightFamily, batch_rows, dot
@@ -58,6 +59,7 @@ class EmissiveTriangles(LightFamily):
         self.emissive = emissive
         self.tri_emitter = np.full(scene.n_triangles, -1, np.int64)
         self.tri_emitter[emissive] = k + np.arange(emissive.size)
+        self.first_emitter = k
         self.tri_area = tri_area
         self.tri_normal = tri_normal
         self.tri_emission = emission
@@ -71,6 +73,23 @@ class EmissiveTriangles(LightFamily):
         self.emit_power = tri_power[emissive]
         self.emit_group = np.repeat(np.arange(groups.size),
                                     np.diff(np.append(group_start, emissive.size)))
+        self.emit_coat = _emitter_coats(scene.materials, scene.material[emissive])
+
+    def coat_factor(self, e, cos):
+        """What the Principled Coat over emitters ``e (j,)`` leaves of their emission seen at
+        ``cos (j,)`` to the normal (Cycles attenuates emission below the coat as the layers
+        below it, :func:`core.materials.coat.coat_attenuation`): ``(j, 3)``, or None when no
+        emitter has a coat."""
+        if self.emit_coat is None:
+            return None
+        weight, eta, tint = (np.take(c, e, axis=0) for c in self.emit_coat)
+        return coat_attenuation(weight, eta, tint, cos)
+
+    def hit_emission(self, prim, cos):
+        """Radiance ``(j, 3)`` of emissive triangles ``prim (j,)`` seen at ``cos (j,)``."""
+        le = np.take(self.tri_emission, prim, axis=0)
+        factor = self.coat_factor(self.tri_emitter[prim] - self.first_emitter, cos)
+        return le if factor is None else le * factor
 
     def group_power(self):
         """Power ``(n_groups,)`` of each emission material's triangles together."""
@@ -128,8 +147,12 @@ class EmissiveTriangles(LightFamily):
                 q = qs
             else:
                 q[idx] = qs
-        area_point_pdf(m, p, q, normal, self.emit_area[e],
-                       np.take(self.emit_radiance, e, axis=0), pmf, False, out)
+        emitted = np.take(self.emit_radiance, e, axis=0)
+        if self.emit_coat is not None:
+            to_p = pm - q
+            cos = dot(to_p, normal) / np.maximum(np.linalg.norm(to_p, axis=1), 1e-300)
+            emitted = emitted * self.coat_factor(e, cos)
+        area_point_pdf(m, p, q, normal, self.emit_area[e], emitted, pmf, False, out)
         solid_angle_pdf(m, sph, omega, pmf, out.pdf)
 
     def pdf_li(self, prim, p_prev, dist, cos_light, n_prev=None):
@@ -173,9 +196,21 @@ class EmissiveTriangles(LightFamily):
 
     def le(self, m, e, cos, w, receiver, out):
         out[m] = self.emit_radiance[e] * (cos[m] != 0)[:, None]
+        if self.emit_coat is not None:
+            out[m] *= self.coat_factor(e, cos[m])
 
     def pdf_le_origin(self, m, e, sel, w, out):
         out[m] = sel[m] / self.emit_area[e]
 
     def pdf_le_direction(self, m, e, cos, w, out):
         out[m] = 0.5 * np.abs(cos[m]) / np.pi
+
+
+def _emitter_coats(materials, rows):
+    """``(weight, eta, tint)`` of the Coat over each emitter's material row ``rows (e,)``, or
+    None when none is coated."""
+    weight = np.asarray(materials.coat_weight, np.float64)[rows]
+    if not np.any(weight > 0):
+        return None
+    return (weight, np.maximum(np.asarray(materials.coat_ior, np.float64)[rows], 1.0),
+            np.asarray(materials.coat_tint, np.float64)[rows])

@@ -1,0 +1,244 @@
+"""Normal Map nodes (tangent space): the exporter reads the map, its Strength and the meshes'
+UV tangents, and normal-mapped surfaces agree with Cycles.
+
+The map is made here: the tangent-space normals of a height field of crossed waves, encoded as
+Cycles decodes them (``color = (n + 1) / 2``), Non-Color data. The Cycles comparison is the
+one of ``test_cycles_agreement.py``: image mean per channel within 1 % (plus its confidence
+interval), every 8 x 8 block within the confidence interval of the difference.
+"""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes as S
+from test_cycles_textures import add_uv_quad
+
+CYCLES_RUNS = 4
+BOUNCES = 4
+
+
+def wave_normal_map(name, n=16, slope=0.8):
+    """An ``n x n`` Non-Color float image of the normals of ``sin(2 pi u) cos(4 pi v)``."""
+    u = (np.arange(n) + 0.5) / n
+    uu, vv = np.meshgrid(u, u, indexing="xy")  # rows are v (row 0 at v = 0)
+    dx = slope * np.cos(2 * np.pi * uu) * np.cos(4 * np.pi * vv)
+    dy = -slope * np.sin(2 * np.pi * uu) * np.sin(4 * np.pi * vv)
+    normal = np.stack([-dx, -dy, np.ones_like(dx)], axis=-1)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    rgba = np.concatenate([0.5 * (normal + 1.0), np.ones((n, n, 1))], axis=-1)
+    # Non-Color before the pixels: changing a generated image's colour space regenerates it.
+    image = bpy.data.images.new(name, n, n, alpha=True, float_buffer=True, is_data=True)
+    image.pixels.foreach_set(rgba.astype(np.float32).ravel())
+    image.update()
+    assert image.colorspace_settings.name == 'Non-Color'
+    return image
+
+
+def normal_mapped_material(name, image, strength=1.0, node_type="ShaderNodeBsdfPrincipled"):
+    """A BSDF whose Normal is a tangent-space Normal Map of an Image Texture of ``image``,
+    with Cycles' Bump Map Correction off (not modelled; see the report test)."""
+    mat = S.shader_material(name, node_type)
+    mat.cycles.use_bump_map_correction = False
+    tree = mat.node_tree
+    bsdf = next(n for n in tree.nodes if n.bl_idname == node_type)
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    tex.interpolation = 'Linear'
+    normal_map = tree.nodes.new("ShaderNodeNormalMap")
+    normal_map.inputs["Strength"].default_value = strength
+    tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
+    tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    return mat, bsdf, normal_map
+
+
+def add_smooth_uv_sphere(scene, name, center, radius, material, segments=32, rings=16):
+    """A smooth-shaded UV sphere with Blender's UV layout (u around, v from pole to pole)."""
+    import bmesh
+
+    mesh = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bm.loops.layers.uv.new("UVMap")
+    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius,
+                              calc_uvs=True)
+    bm.to_mesh(mesh)
+    bm.free()
+    mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))
+    mesh.update()
+    mesh.materials.append(material)
+    ob = bpy.data.objects.new(name, mesh)
+    ob.location = center
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def test_normal_map_exports_image_strength_and_world_tangents(empty_scene, export):
+    mat, _, _ = normal_mapped_material("Bumpy", wave_normal_map("Waves"), strength=0.7)
+    ob = add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    ob.rotation_euler = (0.0, 0.0, math.radians(90.0))  # u now runs along world +Y
+    S.add_uv_sphere(empty_scene, "Plain", (0, 0, 3), 0.5, S.diffuse_material("Grey", (0.5,) * 3))
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert s.messages == []
+    m = s.materials
+    row = m.names.index("Bumpy")
+    assert m.normal_texture[row] == 0 and m.normal_strength[row] == pytest.approx(0.7)
+    assert m.normal_texture[m.names.index("Grey")] == -1
+    mapped = s.material == row
+    np.testing.assert_allclose(s.corner_tangents[mapped][..., :3], np.tile([0, 1, 0], (2, 3, 1)),
+                               atol=1e-5)
+    np.testing.assert_allclose(s.corner_tangents[mapped][..., 3], 1.0)
+    assert not s.corner_tangents[~mapped].any()
+
+
+@pytest.mark.parametrize("case", ["geometry", "bump_on_noise", "object_space"])
+def test_unsupported_normal_inputs_are_reported_once(empty_scene, export, case):
+    mat, bsdf, normal_map = normal_mapped_material("Bumpy", wave_normal_map("Waves"))
+    tree = mat.node_tree
+    if case == "geometry":
+        geometry = tree.nodes.new("ShaderNodeNewGeometry")
+        tree.links.new(geometry.outputs["Normal"], bsdf.inputs["Normal"])
+    elif case == "bump_on_noise":
+        bump = tree.nodes.new("ShaderNodeBump")
+        noise = tree.nodes.new("ShaderNodeTexNoise")
+        tree.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+        tree.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    else:
+        normal_map.space = 'OBJECT'
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert s.corner_tangents is None and s.materials.normal_texture[0] == -1
+    assert s.materials.bump_texture[0] == -1
+    assert len([m for m in s.messages if "normal input" in m or "height of bump" in m]) == 1, \
+        s.messages
+
+
+def test_normal_mapped_plane_agrees_with_cycles(empty_scene, tmp_path):
+    scene = empty_scene
+    mat, bsdf, _ = normal_mapped_material("Bumpy", wave_normal_map("Waves"))
+    bsdf.inputs["Base Color"].default_value = (0.7, 0.5, 0.3, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.3
+    add_uv_quad(scene, "Plane", 1.0, mat)
+    S.add_light(scene, 'AREA', "Area", (2.2, 0.0, 1.5), (0.0, math.radians(56), 0.0),
+                energy=60.0, size=0.6)
+    S.set_world(scene, (0.15, 0.2, 0.3), 1.0)
+    S.add_camera(scene, (0.0, 0.0, 2.8), (0.0, 0.0, 0.0), lens=35.0)
+    S.set_resolution(scene, 48, 48)
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 256, 64, CYCLES_RUNS, BOUNCES,
+                                            our_seed=11, cycles_seed=701)
+    # Sized for the default targets: 2 % image-mean and 5 % block errors detected with 99 %
+    # power. Measured 1.0002 image mean ours / Cycles; the plane without its map is about 6 %
+    # brighter than with it (measured), far outside.
+    S.assert_ours_agree_with_cycles(ours, cycles, "normal-mapped plane")
+
+
+def test_normal_map_approximations_are_reported(empty_scene, export):
+    mat, _, _ = normal_mapped_material("Bumpy", wave_normal_map("Waves"))
+    mat.cycles.use_bump_map_correction = True  # Blender's default
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    add_smooth_uv_sphere(empty_scene, "Ball", (0.0, 0.0, 2.0), 0.5, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert len([m for m in s.messages if "Bump Map Correction" in m]) == 1, s.messages
+    smooth = [m for m in s.messages if "falls below a mapped normal" in m]
+    assert len(smooth) == 1 and smooth[0].startswith("Object 'Ball'"), s.messages
+
+
+@pytest.mark.xfail(strict=True, reason="measured: image mean ours / Cycles 1.005, but blocks near "
+                   "the silhouettes up to 12 % brighter (where the view falls below the mapped "
+                   "normal we shade with the facet normal; reported)")
+def test_normal_mapped_sphere_agrees_with_cycles(empty_scene, tmp_path):
+    scene = empty_scene
+    mat, bsdf, _ = normal_mapped_material("Bumpy", wave_normal_map("Waves", slope=1.2),
+                                          strength=0.8)
+    bsdf.inputs["Base Color"].default_value = (0.3, 0.6, 0.8, 1.0)
+    ob = add_smooth_uv_sphere(scene, "Ball", (0.0, 0.0, 0.0), 0.8, mat)
+    ob.rotation_euler = (math.radians(30.0), 0.0, math.radians(40.0))
+    S.add_light(scene, 'AREA', "Area", (1.5, -1.5, 2.0), (math.radians(40), 0.0,
+                                                          math.radians(45)),
+                energy=120.0, size=1.0)
+    S.set_world(scene, (0.1, 0.1, 0.1), 1.0)
+    S.add_camera(scene, (0.0, -3.0, 0.0), (math.radians(90.0), 0.0, 0.0), lens=50.0)
+    S.set_resolution(scene, 48, 48)
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 256, 64, CYCLES_RUNS, BOUNCES,
+                                            our_seed=12, cycles_seed=801)
+    S.assert_ours_agree_with_cycles(ours, cycles, "normal-mapped sphere")
+
+
+def wave_height(name, n=16):
+    """An ``n x n`` Non-Color grey float image of ``0.5 + 0.5 sin(2 pi u) cos(4 pi v)``."""
+    u = (np.arange(n) + 0.5) / n
+    uu, vv = np.meshgrid(u, u, indexing="xy")
+    h = 0.5 + 0.5 * np.sin(2 * np.pi * uu) * np.cos(4 * np.pi * vv)
+    rgba = np.stack([h, h, h, np.ones_like(h)], axis=-1)
+    image = bpy.data.images.new(name, n, n, alpha=True, float_buffer=True, is_data=True)
+    image.pixels.foreach_set(rgba.astype(np.float32).ravel())
+    image.update()
+    return image
+
+
+def bumped_material(name, image, distance=0.2, strength=1.0, invert=False,
+                    node_type="ShaderNodeBsdfPrincipled"):
+    """A BSDF whose Normal is a Bump node on an Image Texture of ``image`` (correction off)."""
+    mat = S.shader_material(name, node_type)
+    mat.cycles.use_bump_map_correction = False
+    tree = mat.node_tree
+    bsdf = next(n for n in tree.nodes if n.bl_idname == node_type)
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.invert = invert
+    bump.inputs["Distance"].default_value = distance
+    bump.inputs["Strength"].default_value = strength
+    tree.links.new(tex.outputs["Color"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    return mat, bsdf, bump
+
+
+def test_bump_exports_height_distance_invert_and_strength(empty_scene, export):
+    mat, _, _ = bumped_material("Bumpy", wave_height("Height"), 0.3, 0.6, invert=True)
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert s.messages == [] and s.corner_tangents is None and s.corner_uvs is not None
+    m = s.materials
+    assert m.bump_texture[0] == 0 and m.normal_texture[0] == -1
+    assert m.bump_distance[0] == pytest.approx(-0.3) and m.bump_strength[0] == pytest.approx(0.6)
+
+
+def test_bumped_plane_agrees_with_cycles(empty_scene, tmp_path):
+    scene = empty_scene
+    mat, bsdf, _ = bumped_material("Bumpy", wave_height("Height"))
+    bsdf.inputs["Base Color"].default_value = (0.7, 0.5, 0.3, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.3
+    add_uv_quad(scene, "Plane", 1.0, mat)
+    S.add_light(scene, 'AREA', "Area", (2.2, 0.0, 1.5), (0.0, math.radians(56), 0.0),
+                energy=60.0, size=0.6)
+    S.set_world(scene, (0.15, 0.2, 0.3), 1.0)
+    S.add_camera(scene, (0.0, 0.0, 2.8), (0.0, 0.0, 0.0), lens=35.0)
+    S.set_resolution(scene, 48, 48)
+    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 256, 64, CYCLES_RUNS, BOUNCES,
+                                            our_seed=13, cycles_seed=901)
+    # Sized for the default targets (2 % image mean, 5 % blocks, 99 % power). Measured 0.9991-
+    # 0.9997 image mean ours / Cycles; without the bump (Distance 0) ours differs from this
+    # Cycles image by up to 18 % per block (measured) and fails.
+    S.assert_ours_agree_with_cycles(ours, cycles, "bumped plane")
+
+
+def test_bump_over_a_normal_map_exports_both(empty_scene, export):
+    mat, _, bump = bumped_material("Bumpy", wave_height("Height"))
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = wave_normal_map("Waves")
+    normal_map = tree.nodes.new("ShaderNodeNormalMap")
+    tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
+    tree.links.new(normal_map.outputs["Normal"], bump.inputs["Normal"])
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert s.messages == [] and s.corner_tangents is not None
+    m = s.materials
+    assert {int(m.bump_texture[0]), int(m.normal_texture[0])} == {0, 1}
