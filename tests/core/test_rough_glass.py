@@ -12,9 +12,14 @@ grazing angles, by exactly the visible-normal samples that *refract* into ``wo``
 hemisphere: Cycles' ``bsdf_microfacet_sample`` does not check the side of a refracted
 direction (the check is commented out), so those samples keep their weight ``G2 / G1`` and the
 path goes on into the glass; we drop them, as a single-scattering microfacet model does (they
-are light that would hit the microsurface again). That is the 8-9 % by which our
-single-scattering rough glass sphere at roughness 1 is darker than Cycles' (light trapped in a
-rough sphere meets its inside at grazing angles).
+are light that would hit the microsurface again).
+
+This is *not* the main part of the 8-9 % by which our single-scattering rough glass sphere at
+roughness 1 is darker than Cycles': keeping those samples (tried, not kept) brightened our
+sphere by only 0.1-0.5 %. The larger part is in light sampling: Cycles' ``bsdf_microfacet_eval``
+does not reject refraction pairs whose microfacet faces away from one of the two directions,
+so at high roughness its evaluated transmission (used by next-event estimation) exceeds what
+its sampler produces; see docs/USER_GUIDE.md (Multiscatter GGX) for the figures.
 """
 
 from __future__ import annotations
