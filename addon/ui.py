@@ -186,7 +186,10 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         kinds.prop(settings, "diffuse_bounces")
         kinds.prop(settings, "glossy_bounces")
         kinds.prop(settings, "transmission_bounces")
-        kinds.prop(settings, "transparent_max_bounces")
+        # Light tracing's camera connections cross at most this many transparent surfaces.
+        transparent = col.column(align=True)
+        transparent.active = settings.integrator in {'PATH', 'LIGHT'}
+        transparent.prop(settings, "transparent_max_bounces")
         col.separator()
         rr = col.column()
         # Photon mapping's camera paths stop at the first rough surface, and its photons

@@ -255,8 +255,10 @@ def used_settings(settings):
         "photon_kernel": settings.photon_kernel if jensen else na,
         "gather_rays": settings.gather_rays if jensen else na,
         **{name: na for name in RADIOSITY_OPTIONS},
-        # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's.
-        **{name: getattr(settings, name) if settings.integrator == "path" else na
+        # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
+        # light tracing's camera connections cross at most the Transparent limit's surfaces.
+        **{name: getattr(settings, name) if settings.integrator == "path"
+           or (settings.integrator == "light" and name == "transparent_max_bounces") else na
            for name in BOUNCE_KIND_OPTIONS},
     }
 
@@ -459,11 +461,15 @@ def _messages(scene, settings, integrator):
     if scene.film_transparent and settings.integrator != "path":
         messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
                         f"tracing only; the background is rendered opaque")
-    if (settings.integrator not in ("path", "radiosity")
+    if (settings.integrator not in ("path", "radiosity", "light")
             and integrator.prep.material_transparency is not None):
         messages.append(f"{settings.integrator}: transparent surfaces (Transparent BSDF, "
                         f"Alpha) block shadow rays and connections, and count as "
                         f"transmission bounces; path tracing lets shadow rays through them")
+    if settings.integrator == "light" and integrator.prep.material_transparency is not None:
+        messages.append("light: transparent surfaces (Transparent BSDF, Alpha) count as "
+                        "transmission bounces of the light paths; camera connections pass "
+                        "through them")
     return messages
 
 

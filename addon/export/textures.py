@@ -160,7 +160,8 @@ def _interpolation(node, what, name, owner, messages, supported=("Linear",)):
 
 def _image_rgb(image, owner, messages):
     """Linear RGB ``(h, w, 3)`` float32 of an image (row 0 at the bottom), read with
-    ``foreach_get``: linear colour spaces as they are, 8-bit sRGB decoded, others reported."""
+    ``foreach_get``: float images and 8-bit linear colour spaces as they are, 8-bit sRGB
+    decoded, others reported."""
     w, h = (int(x) for x in image.size)
     channels = int(image.channels)
     buf = np.empty(w * h * channels, np.float32)
@@ -169,7 +170,16 @@ def _image_rgb(image, owner, messages):
     rgb = buf[..., :3] if channels >= 3 else np.repeat(buf[..., :1], 3, axis=2)
     rgb = np.ascontiguousarray(rgb)
     space = image.colorspace_settings.name
-    if not image.is_float and space == 'sRGB':
+    if image.is_float:
+        # Blender converts a float image to scene-linear Rec.709 as it loads it, whatever its
+        # colour space (e.g. the 'sRGB' it tags EXR files it wrote with); Cycles' texels are
+        # the same, but from a non-linear space it interpolates before converting.
+        if space not in _LINEAR_COLORSPACES and not space.startswith("Linear"):
+            messages.add(f"{owner}: float image '{image.name}' in colour space '{space}' is "
+                         f"interpolated after conversion to linear (Cycles converts after "
+                         f"interpolating; the texels agree, the blend between them differs)")
+        return rgb
+    if space == 'sRGB':
         # 8-bit sRGB pixels are stored encoded; Cycles decodes them to linear.
         rgb = np.where(rgb <= 0.04045, rgb / 12.92,
                        ((np.maximum(rgb, 0.04045) + 0.055) / 1.055) ** 2.4).astype(np.float32)

@@ -19,6 +19,7 @@ from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import finite_rows, max_component, take_rows
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
+from .shadows import shadow_transmittance
 from .subpaths import Gathered, dot, take_params, to_area
 
 # Connections joined per batch of array operations (see _in_pieces).
@@ -264,12 +265,24 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
     o, dirs, tmax = ctx.prep.accel.shadow_rays(
         take_rows(y, cand), take_rows(yv.ng, cand), prim[cand], take_rows(w, cand), dist[cand],
         np.zeros((cand.size, 3)))
-    blocked = ctx.prep.accel.occluded(o, dirs, tmax, VIS_CAMERA)
     ctx.counters.rays += cand.size
-    keep = cand[~blocked]
+    if ctx.weighs:
+        # BDPT's MIS counts transparent passes as vertices: its connections stop at them.
+        through = np.nonzero(~ctx.prep.accel.occluded(o, dirs, tmax, VIS_CAMERA))[0]
+        keep = cand[through]
+        value = take_rows(value, keep)
+    else:
+        # Light tracing (one strategy) lets the connection through transparent surfaces, as
+        # the path tracer's shadow rays (:mod:`.shadows`), within the Transparent limit.
+        transmit = shadow_transmittance(ctx.prep, o, dirs, tmax,
+                                        ctx.settings.transparent_max_bounces, ctx.counters,
+                                        VIS_CAMERA)
+        through = np.nonzero(max_component(transmit) > 0)[0]
+        keep = cand[through]
+        value = take_rows(value, keep) * take_rows(transmit, through).astype(value.dtype)
     if keep.size == 0:
         return
-    value, film_xy = take_rows(value, keep), take_rows(film_xy, keep)
+    film_xy = take_rows(film_xy, keep)
     if not ctx.weighs:
         weight = np.ones(keep.size)
     else:

@@ -22,6 +22,9 @@ Sampling
     sample is valid (directions scattered to the wrong side are lost, as single-scattering
     microfacet models lose them). The sample weight is ``G2 / G1(wo)`` times the tint (and
     ``1 / etap^2`` for radiance transmission), never larger than one in importance mode.
+    Cycles differs: its sampler keeps refractions that turn back into ``wo``'s hemisphere, and
+    its eval does not reject pairs whose microfacet faces away from ``wo`` or ``wi``, so its
+    rough glass is brighter at high roughness (``tests/core/test_rough_glass.py``).
 Transport mode
     ``RADIANCE`` (camera paths: ``wo`` points toward the camera, ``wi`` toward the light) scales
     transmitted radiance by ``1 / etap^2`` (radiance is compressed into a smaller solid angle

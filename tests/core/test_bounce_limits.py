@@ -1,4 +1,5 @@
-"""Bounce limits per kind and transparent shadows of the path tracer, against closed forms.
+"""Bounce limits per kind and transparent shadows of the path tracer (and light tracing's
+camera connections through transparent sheets), against closed forms.
 
 Scenes where each limit changes the image by a known amount: a diffuse furnace (the diffuse
 limit truncates the series ``sum rho^k``), a mirror furnace (the glossy limit counts mirror
@@ -69,12 +70,12 @@ def _quad_tris(z, half):
     return v, np.array([[0, 1, 2], [0, 2, 3]])
 
 
-def _sheets_scene(n_sheets, colors, table, light, size=16):
+def _sheets_scene(n_sheets, colors, table, light, size=16, sheet_half=50.0):
     """A floor at z = 0 (material row 0), ``n_sheets`` large sheets above it (row 1) and a
     camera above them looking straight down, so camera rays and the light's rays both cross
     every sheet. ``colors``: base colours of rows 0, 1, ...; ``table``: the other columns."""
     verts, faces, mats = [], [], []
-    layers = [(0.0, 1.0, 0)] + [(0.2 + 0.1 * i, 50.0, 1) for i in range(n_sheets)]
+    layers = [(0.0, 1.0, 0)] + [(0.2 + 0.1 * i, sheet_half, 1) for i in range(n_sheets)]
     for k, (z, half, m) in enumerate(layers):
         v, f = _quad_tris(z, half)
         verts.append(v)
@@ -89,11 +90,11 @@ def _sheets_scene(n_sheets, colors, table, light, size=16):
                  np.array(mats, np.int32), materials, light, camera)
 
 
-def _transparent_sheets(n_sheets, color, light, rho=0.5):
+def _transparent_sheets(n_sheets, color, light, rho=0.5, sheet_half=50.0):
     """Floor of albedo ``rho``; sheets of Transparent BSDF of ``color`` (IOR 1 glass)."""
     return _sheets_scene(n_sheets, [(rho,) * 3, (color,) * 3],
                          dict(kinds=[0, KIND_DIELECTRIC], roughness=[0.5, 0.0], ior=[1.5, 1.0]),
-                         light)
+                         light, sheet_half=sheet_half)
 
 
 @pytest.mark.parametrize("n_sheets,limit,lit", [(1, 2, True), (1, 1, False), (2, 4, True),
@@ -105,6 +106,29 @@ def test_transparent_shadows_cross_the_budget_left_by_camera_passes(n_sheets, li
     res = render(scene, plain_settings(spp=2, max_bounces=0, transparent_max_bounces=limit))
     floor = rho / np.pi * strength * c ** (2 * n_sheets)
     np.testing.assert_allclose(pixel_means(res), floor if lit else 0.0, rtol=1e-5, atol=1e-7)
+
+
+@pytest.mark.parametrize("n_sheets,limit,lit", [(1, 1, True), (2, 2, True), (2, 1, False)])
+def test_light_tracing_connects_to_the_camera_through_transparent_sheets(n_sheets, limit, lit):
+    # The same floor under a sun through n sheets of colour c, by light tracing: the light
+    # paths pass the sheets by sampling (weight c each), the camera connections through them
+    # (transmittance c^n, at most `limit` sheets). Every pixel sees the floor, so every
+    # replicate's image mean estimates rho / pi E c^(2 n). Standard error of the replicates'
+    # mean 2.9 % (measured; ratio 1.005 for one and two sheets): the interval (Student t,
+    # 7 dof) is +-23 %, and a shift of 32 % is detected with 99 % power; a missing factor c
+    # (connections that skip the transmittance) is 40 %.
+    c, rho, strength = 0.6, 0.5, 3.0
+    scene = _transparent_sheets(n_sheets, c, sun_light((0, 0, -1), (1, 1, 1), strength), rho,
+                                sheet_half=1.5)
+    means = [pixel_means(render(scene, plain_settings(
+        integrator="light", spp=64, max_bounces=4, transparent_max_bounces=limit,
+        seed=5 + 1000 * i))).mean() for i in range(8)]
+    floor = rho / np.pi * strength * c ** (2 * n_sheets)
+    if lit:
+        assert_mean_within_ci(np.array(means), floor)
+    else:
+        assert max(means) == 0.0
+    assert used_settings(plain_settings(integrator="light"))["transparent_max_bounces"] != "n/a"
 
 
 @pytest.mark.parametrize("n_sheets,limit,seen", [(3, 3, True), (3, 2, False), (1, 0, True),
