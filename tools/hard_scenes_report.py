@@ -27,8 +27,8 @@ def print_scene(info, rows, seconds):
               f"{info['reference_consistency_relmse']:.2e}, noise alone "
               f"{info['reference_consistency_noise_only']:.2e}: "
               f"{_verdict(info)}")
-    print(f"   reference noise {info['reference_noise']:.2e}; {FLAG} marks an error it exceeds "
-          f"{NOISE_FLAG:g} x of")
+    print(f"   reference noise {info['reference_noise']:.2e} ({FLAG}: a row whose error is "
+          f"under {1 / NOISE_FLAG:.3g} x that)")
     for r in rows:
         print(f"   {r['renderer']:<8} {r['spp']:8.1f} spp {r['time_s']:6.2f} s "
               f"{r['samples_per_s'] / 1e6:7.3f} M samples/s  relMSE {r['relmse_vs_ref']:.3e} "
