@@ -337,7 +337,8 @@ class _Bench:
         mean, the variance of that mean, and the seconds it took.
 
         The first chunk runs to ``reference_spp / CHUNKS`` samples or its share of the time
-        cap; the others render the sample count it reached."""
+        cap; the others render the sample count it reached (capped at three times that share,
+        should the machine get much busier: the chunks' counts weigh them)."""
         chunk_s = self.reference_seconds / CHUNKS if self.reference_seconds > 0 else 0.0
         spp = max(1, self.reference_spp // CHUNKS)
         stage(f"{name}: reference ({REFERENCE_INTEGRATOR}, {self.sampler}), {CHUNKS} chunks "
@@ -345,7 +346,7 @@ class _Bench:
         images, counts, t0 = [], [], time.perf_counter()
         for i in range(CHUNKS):
             res = render(core_scene, self.settings(
-                integrator=REFERENCE_INTEGRATOR, spp=spp, time_limit=chunk_s if i == 0 else 0.0,
+                integrator=REFERENCE_INTEGRATOR, spp=spp, time_limit=chunk_s * (1 if i == 0 else 3),
                 seed=self.seed + 1 + i, sampler=self.sampler))
             images.append(res.combined()[..., :3])
             counts.append(res.stats["samples"] / self.pixels)
