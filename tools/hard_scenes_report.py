@@ -16,7 +16,8 @@ FLAG = "(!)"
 
 
 def print_scene(info, rows, seconds):
-    print(f"\n{info['scene']}: our reference {info['pt_reference_spp']:.0f} spp "
+    print(f"\n{info['scene']}: our reference ({info['reference_integrator']}) "
+          f"{info['pt_reference_spp']:.0f} spp "
           f"({info['pt_reference_s']:.1f} s), its noise {info['pt_reference_noise']:.2e}")
     if "reference_mean_ratio_pt_over_cycles" in info:
         print(f"   Cycles reference {info['cycles_reference_spp']} spp "
@@ -109,7 +110,7 @@ def _header(summary, seconds, command):
         "the same scene just before, fits into the budget. See `tools/hard_scenes.py` for the "
         "method.",
         "",
-        f"Reference: our `{summary['reference_integrator']}` integrator ({summary['sampler']} "
+        f"Reference: our {summary['reference_integrator']} integrator ({summary['sampler']} "
         f"sampler) and Cycles, each to {summary['reference_spp_requested']} spp or "
         f"{summary['reference_seconds_cap']:g} s, each as {CHUNKS} renders with other seeds: "
         "the spread of the chunks measures each reference's noise whatever the sampler. When "
@@ -189,11 +190,11 @@ def _references(scene_rows):
                       f"({s['reference_channel_ratios']})",
                       _fmt(s["reference_consistency_relmse"]),
                       _fmt(s["reference_consistency_noise_only"]),
-                      (f"{s['reference_weight_ours']:.2f} ours + "
+                      (f"{s['reference_weight_ours']:.2f} {s['reference_integrator']} + "
                        f"{1 - s['reference_weight_ours']:.2f} Cycles" if s["references_agree"]
-                       else "ours alone (they disagree)")]
+                       else f"{s['reference_integrator']} alone (they disagree)")]
         else:
-            cells += ["–", "–", "–", "ours alone"]
+            cells += ["–", "–", "–", f"{s['reference_integrator']} alone"]
         cells += [_fmt(s["reference_noise"]), f"{s['load_start']} / {s['load_end']}"]
         lines.append("| " + " | ".join(cells) + " |")
     return lines
