@@ -110,7 +110,7 @@ REFERENCE_MIN_SECONDS = 30.0
 REFERENCE_TIME_FACTOR = 6.0
 REFERENCE_INTEGRATOR = "path"
 # Scenes where another unbiased integrator of ours converges faster: BDPT's error at equal time
-# is a third of the path tracer's on the mirror ball and 0.65-0.78 x on the glass sphere
+# is a third to a half of the path tracer's on the mirror ball and 0.64-0.78 x on the glass sphere
 # (docs/BENCHMARKS.md, "Third round").
 SCENE_REFERENCE_INTEGRATORS = {"mirror_ball": "bdpt", "glass_sphere": "bdpt"}
 # What docs/ shows, relative to the output folder (and to docs/).
