@@ -14,7 +14,8 @@ process:
    the sample count its measured rate fits into ``seconds`` of wall clock, fixed cost included
    (planned again once if it misses by more than 15 %). Times are wall clock of the whole
    render call: scene preparation for ours; synchronisation, BVH and EXR writing for Cycles.
-4. *References*: our reference integrator (``path``, the bench's sampler) and Cycles, each to
+4. *References*: our reference integrator (``path``; ``bdpt`` on the scenes of
+   :data:`SCENE_REFERENCE_INTEGRATORS`; the bench's sampler) and Cycles, each to
    ``reference_spp`` or a time cap, each as :data:`.hard_scenes_reference.CHUNKS` renders
    with other seeds, so that the spread of the chunks measures each reference's noise
    (:mod:`.hard_scenes_reference`). When the two agree (their difference is no larger than
@@ -106,7 +107,7 @@ INTEGRATOR_SCENES = ("cornell", "glass_sphere", "mirror_ball")
 CALIBRATION_SAMPLES = 1 << 18
 REFERENCE_MIN_SECONDS = 30.0
 # Each reference (ours, Cycles') gets max(30 s, 6 x the budget): with the issue's 8 s and five
-# scenes the whole run takes about 13 minutes.
+# scenes the whole run took 694 s (11.6 minutes, loaded machine, docs/BENCHMARKS.md).
 REFERENCE_TIME_FACTOR = 6.0
 REFERENCE_INTEGRATOR = "path"
 # Scenes where another unbiased integrator of ours converges faster: BDPT's error at equal time
