@@ -126,7 +126,9 @@ def _header(summary, seconds, command):
         f"{FLAG} where it exceeds {NOISE_FLAG:g} × the figure (too noisy a reference to judge "
         "it); *vs Cycles ref*: corrected relMSE against the Cycles reference alone (a "
         "cross-check that does not depend on ours); *mean / ref*: image mean over the "
-        "reference's.",
+        "reference's. On the caustic scenes (glass sphere, mirror ball) one render's error "
+        "scattered by up to ten times between seeds (heavy tails; docs/BENCHMARKS.md, "
+        "\"Third round\"): there a single run's ratios are good to a factor of 2–3.",
     ]
 
 
