@@ -40,7 +40,8 @@ def _bench_scenes(args):
     return run(scenes=args.scenes, integrators=args.integrators, seconds=args.seconds,
                size=args.size, reference_spp=args.reference_spp, cycles=not args.no_cycles,
                output=args.output, update_docs=args.update_docs,
-               reference_seconds=args.reference_seconds, sampler=args.sampler, command=command)
+               reference_seconds=args.reference_seconds, sampler=args.sampler, seed=args.seed,
+               command=command)
 
 
 def _bdpt_views(args):
@@ -350,5 +351,8 @@ def _add_bench_scenes(sub, **kw):
                    default=OPTIONS["sampler"].default,
                    metavar="NAME", help=f"sampler of our equal-time renders and reference: one of "
                                         f"{OPTIONS['sampler'].allowed()}")
+    h.add_argument("--seed", type=_positive_int, default=0,
+                   help="seed of every render (the references take the next four): repeat a "
+                        "run with other seeds where one render's error scatters (caustics)")
     h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
     add_output_arguments(h, "bench-scenes", "HARD_SCENES.md and its figure")

@@ -177,7 +177,7 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
                    equal_time_s=seconds, reference_spp_requested=reference_spp,
                    reference_seconds_cap=reference_seconds, integrators=" ".join(integrators),
                    reference_integrator=_reference_names(scenes), scenes=" ".join(scenes),
-                   sampler=sampler)
+                   sampler=sampler, seed=seed)
     print(f"Sampling Lab bench-scenes: {', '.join(scenes)}; integrators {', '.join(integrators)}"
           f"{' and Cycles' if cycles else ''}; {width}x{height}, {seconds:g} s each, "
           f"{max_bounces} bounces, {threads} threads\nmachine: {summary['cpu']}, "

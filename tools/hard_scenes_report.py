@@ -128,7 +128,7 @@ def _header(summary, seconds, command):
         "cross-check that does not depend on ours); *mean / ref*: image mean over the "
         "reference's. On the caustic scenes (glass sphere, mirror ball) one render's error "
         "scattered by up to ten times between seeds (heavy tails; docs/BENCHMARKS.md, "
-        "\"Third round\"): there a single run's ratios are good to a factor of 2–3.",
+        "\"Third round\"): a single run's ratio there can be off several times over.",
     ]
 
 
