@@ -40,7 +40,8 @@ def _bench_scenes(args):
     return run(scenes=args.scenes, integrators=args.integrators, seconds=args.seconds,
                size=args.size, reference_spp=args.reference_spp, cycles=not args.no_cycles,
                output=args.output, update_docs=args.update_docs,
-               reference_seconds=args.reference_seconds, sampler=args.sampler, command=command)
+               reference_seconds=args.reference_seconds, sampler=args.sampler, seed=args.seed,
+               command=command)
 
 
 def _bdpt_views(args):
@@ -340,13 +341,18 @@ def _add_bench_scenes(sub, **kw):
     h.add_argument("--seconds", type=_positive_float, default=4.0,
                    help="equal wall-clock budget of every render")
     _size(h, (64, 64))
-    h.add_argument("--reference-spp", type=_positive_int, default=1024,
-                   help="samples per pixel of the references (capped by time)")
+    h.add_argument("--reference-spp", type=_positive_int, default=1 << 16,
+                   help="samples per pixel of each reference (capped by time, which usually "
+                        "decides)")
     h.add_argument("--reference-seconds", type=float, default=None,
-                   help="time cap of each reference (default: max(30, 8 x --seconds); 0: none)")
+                   help="time cap of each of the two references, ours and Cycles' (default: "
+                        "max(30, 6 x --seconds); 0: none)")
     h.add_argument("--sampler", type=_option_type(OPTIONS["sampler"]),
                    default=OPTIONS["sampler"].default,
-                   metavar="NAME", help=f"sampler of our equal-time renders: one of "
+                   metavar="NAME", help=f"sampler of our equal-time renders and reference: one of "
                                         f"{OPTIONS['sampler'].allowed()}")
+    h.add_argument("--seed", type=_positive_int, default=0,
+                   help="seed of every render (the references take the next four): repeat a "
+                        "run with other seeds where one render's error scatters (caustics)")
     h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
     add_output_arguments(h, "bench-scenes", "HARD_SCENES.md and its figure")

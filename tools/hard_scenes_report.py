@@ -9,22 +9,46 @@ import numpy as np
 
 from ..core.exr import write_png_preview
 from .common import EPS
+from .hard_scenes_reference import CHUNKS, NOISE_FLAG
+
+# Marks a figure whose reference is too noisy to judge it.
+FLAG = "(!)"
 
 
 def print_scene(info, rows, seconds):
-    print(f"\n{info['scene']}: reference {info['pt_reference_spp']:.0f} spp "
+    print(f"\n{info['scene']}: our reference ({info['reference_integrator']}) "
+          f"{info['pt_reference_spp']:.0f} spp "
           f"({info['pt_reference_s']:.1f} s), its noise {info['pt_reference_noise']:.2e}")
     if "reference_mean_ratio_pt_over_cycles" in info:
-        print(f"   references: image mean ours / Cycles = "
+        print(f"   Cycles reference {info['cycles_reference_spp']} spp "
+              f"({info['cycles_reference_s']:.1f} s), its noise "
+              f"{info['cycles_reference_noise']:.2e}; image mean ours / Cycles = "
               f"{info['reference_mean_ratio_pt_over_cycles']:.4f} (RGB "
               f"{info['reference_channel_ratios']}); relMSE between them "
-              f"{info['reference_consistency_relmse']:.2e}, noise alone ~ "
-              f"{info['reference_consistency_noise_only']:.2e}")
+              f"{info['reference_consistency_relmse']:.2e}, noise alone "
+              f"{info['reference_consistency_noise_only']:.2e}: "
+              f"{_verdict(info)}")
+    print(f"   reference noise {info['reference_noise']:.2e} ({FLAG}: a row whose error is "
+          f"under {1 / NOISE_FLAG:.3g} x that)")
     for r in rows:
         print(f"   {r['renderer']:<8} {r['spp']:8.1f} spp {r['time_s']:6.2f} s "
               f"{r['samples_per_s'] / 1e6:7.3f} M samples/s  relMSE {r['relmse_vs_ref']:.3e} "
               f"corrected {r['relmse_corrected']:.3e}  @{seconds:g} s "
-              f"{r['relmse_at_budget']:.3e}  vs Cycles ref {r['relmse_vs_cycles_ref']:.3e}")
+              f"{r['relmse_at_budget']:.3e}{_flag(r)}  vs Cycles ref "
+              f"{r['relmse_vs_cycles_ref']:.3e}")
+
+
+def _verdict(info):
+    """How the reference was made, in words."""
+    if info.get("references_agree"):
+        return (f"they agree, reference = {info['reference_weight_ours']:.2f} x ours + "
+                f"{1 - info['reference_weight_ours']:.2f} x Cycles'")
+    return (f"they DISAGREE (excess {info['reference_bias_excess']:.2e} +- "
+            f"{info['reference_bias_excess_se']:.1e}), reference = ours alone")
+
+
+def _flag(row):
+    return f" {FLAG}" if row.get("noise_flag") else ""
 
 
 def write_montage(path, montage):
@@ -86,18 +110,25 @@ def _header(summary, seconds, command):
         "the same scene just before, fits into the budget. See `tools/hard_scenes.py` for the "
         "method.",
         "",
-        f"Reference: our `{summary['reference_integrator']}` integrator with another seed, to "
-        f"{summary['reference_spp_requested']} spp or {summary['reference_seconds_cap']:g} s; "
-        "Cycles rendered the same sample count (another seed) as a second reference, and the "
-        "two are compared below. relMSE = mean over pixels and RGB of (x − ref)² / (ref² + "
-        f"{EPS:g}). *corrected*: minus the reference's own noise (its per-pixel variance), an "
+        f"Reference: our {summary['reference_integrator']} integrator ({summary['sampler']} "
+        f"sampler) and Cycles, each to {summary['reference_spp_requested']} spp or "
+        f"{summary['reference_seconds_cap']:g} s, each as {CHUNKS} renders with other seeds: "
+        "the spread of the chunks measures each reference's noise whatever the sampler. When "
+        "the two agree (their difference is what their noise explains; below), the reference "
+        "is their average weighted by inverse noise, otherwise ours alone "
+        "(`tools/hard_scenes_reference.py`). relMSE = mean over pixels and RGB of (x − ref)² / "
+        f"(ref² + {EPS:g}). *corrected*: minus the reference's own noise, an "
         f"unbiased estimate of the error against the converged image; *@{seconds:g} s*: "
         f"corrected × (time − fixed) / ({seconds:g} s − fixed), the error at exactly the "
         "budget, where *fixed* is the part of a render that takes no samples (our scene "
         "preparation, Cycles' fixed cost of a render, measured on a 1-spp render): the column "
-        "to compare; *vs Cycles ref*: raw relMSE against the Cycles reference (a cross-check "
-        "that does not depend on our reference); *mean / ref*: image mean over the "
-        "reference's.",
+        "to compare; *ref noise*: the reference's noise on the same scale, and "
+        f"{FLAG} where it exceeds {NOISE_FLAG:g} × the figure (too noisy a reference to judge "
+        "it); *vs Cycles ref*: corrected relMSE against the Cycles reference alone (a "
+        "cross-check that does not depend on ours); *mean / ref*: image mean over the "
+        "reference's. On the caustic scenes (glass sphere, mirror ball) one render's error "
+        "scattered by up to ten times between seeds (heavy tails; docs/BENCHMARKS.md, "
+        "\"Third round\"): a single run's ratio there can be off several times over.",
     ]
 
 
@@ -105,15 +136,16 @@ def _equal_time_table(rows, seconds):
     lines = [
         "",
         "| scene | renderer | spp | time s | M samples/s | relMSE | corrected | "
-        f"@{seconds:g} s | vs Cycles ref | mean / ref |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        f"@{seconds:g} s | ref noise | vs Cycles ref | mean / ref |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         lines.append(
             f"| {r['scene']} | {r['renderer']} | {r['spp']:.1f} | {r['time_s']:.2f} | "
             f"{r['samples_per_s'] / 1e6:.3f} | {_fmt(r['relmse_vs_ref'])} | "
-            f"{_fmt(r['relmse_corrected'])} | **{_fmt(r['relmse_at_budget'])}** | "
-            f"{_fmt(r['relmse_vs_cycles_ref'])} | {r['mean_over_ref']:.4f} |")
+            f"{_fmt(r['relmse_corrected'])} | **{_fmt(r['relmse_at_budget'])}**{_flag(r)} | "
+            f"{_fmt(r.get('reference_noise'))} | {_fmt(r['relmse_vs_cycles_ref'])} | "
+            f"{r['mean_over_ref']:.4f} |")
     return lines
 
 
@@ -132,7 +164,8 @@ def _relative_to_cycles(rows, scene_rows, integrators):
                 parts.append(f"`{integ}` failed")
             elif cy is not None and cy["relmse_at_budget"] > 0 and math.isfinite(
                     r["relmse_at_budget"]):
-                parts.append(f"`{integ}` {r['relmse_at_budget'] / cy['relmse_at_budget']:.3g} ×")
+                parts.append(f"`{integ}` {r['relmse_at_budget'] / cy['relmse_at_budget']:.3g} ×"
+                             + _flag(r) + ("" if r is cy else _flag(cy)))
             else:
                 parts.append(f"`{integ}` –")
         lines.append(f"- {s['scene']}: " + ", ".join(parts))
@@ -142,33 +175,42 @@ def _relative_to_cycles(rows, scene_rows, integrators):
 def _references(scene_rows):
     lines = []
     lines += ["", "## References and their agreement", "",
-              "| scene | triangles | ours: spp | s | noise | Cycles: spp | s | mean ours / "
-              "Cycles (RGB) | relMSE between | noise alone | load at start / end |",
-              "|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---|"]
+              "| scene | triangles | ours: spp | s | noise | Cycles: spp | s | noise | mean ours / "
+              "Cycles (RGB) | relMSE between | noise alone | reference | its noise | "
+              "load at start / end |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---|---:|---|"]
     for s in scene_rows:
         cells = [s["scene"], str(s["triangles"]), f"{s['pt_reference_spp']:.0f}",
                  f"{s['pt_reference_s']:.1f}", _fmt(s["pt_reference_noise"])]
         if "cycles_reference_s" in s:
-            cells += [str(s["cycles_reference_spp"]), f"{s['cycles_reference_s']:.1f}"]
+            cells += [str(s["cycles_reference_spp"]), f"{s['cycles_reference_s']:.1f}",
+                      _fmt(s["cycles_reference_noise"])]
         else:
-            cells += ["–", "–"]
+            cells += ["–", "–", "–"]
         if "reference_mean_ratio_pt_over_cycles" in s:
             cells += [f"{s['reference_mean_ratio_pt_over_cycles']:.4f} "
                       f"({s['reference_channel_ratios']})",
                       _fmt(s["reference_consistency_relmse"]),
-                      _fmt(s["reference_consistency_noise_only"])]
+                      _fmt(s["reference_consistency_noise_only"]),
+                      (f"{s['reference_weight_ours']:.2f} {s['reference_integrator']} + "
+                       f"{1 - s['reference_weight_ours']:.2f} Cycles" if s["references_agree"]
+                       else f"{s['reference_integrator']} alone (they disagree)")]
         else:
-            cells += ["–", "–", "–"]
-        cells.append(f"{s['load_start']} / {s['load_end']}")
+            cells += ["–", "–", "–", f"{s['reference_integrator']} alone"]
+        cells += [_fmt(s["reference_noise"]), f"{s['load_start']} / {s['load_end']}"]
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 
 def _scenes(scene_rows, descriptions, integrators, cycles, seconds, image_rel):
     lines = []
-    lines += ["", "If the relMSE between the references is close to what their noise alone "
-              "gives and the mean ratio is close to 1, the two renderers converge to the same "
-              "image and the equal-time figures compare like with like.", "", "## Scenes", ""]
+    lines += ["", "*noise*: each reference's noise measured from the spread of its chunks "
+              "(relMSE scale). If the relMSE between the references is close to what their "
+              "noise alone gives and the mean ratio is close to 1, the two renderers converge "
+              "to the same image, the equal-time figures compare like with like, and the "
+              "reference is the two averaged (*reference*, weights by inverse noise; *its "
+              "noise*: the noise of what every render was judged against).", "",
+              "## Scenes", ""]
     for s in scene_rows:
         lines.append(f"- `{s['scene']}`: {descriptions[s['scene']]}."
                      + (f" Export notes: {s['notes']}." if s["notes"] else ""))

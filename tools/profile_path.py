@@ -15,12 +15,19 @@ Run it from a checkout's parent so that ``sampling_lab`` resolves to the tree to
 
 It imports the package by its absolute name (not relatively, as the CLI's tools do), so the
 same file profiles an older worktree of the renderer when ``PYTHONPATH`` names that one.
+
+``--gil-check`` asks what limits the speed-up from one thread to two: it times the same
+render with one thread, with ``--threads`` threads in one process, and as ``--threads``
+one-thread processes at once (their samples summed over the slowest one's time). Processes
+share the cores and memory but not the GIL, the allocator or the render loop: if processes
+scale much better than threads, what is shared inside the process is the limit.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import multiprocessing
 import time
 
 # From the script's own folder (tools/), whichever tree PYTHONPATH puts first.
@@ -85,10 +92,16 @@ def main(argv=None):
     parser.add_argument("--cpu-repeats", type=int, default=0,
                         help="also print CPU microseconds per sample of N one-thread renders "
                              "(the best; hardly moved by other processes' load)")
+    parser.add_argument("--gil-check", action="store_true",
+                        help="one thread, --threads threads, and --threads one-thread "
+                             "processes at once: samples/s of each (see the module's doc)")
     args = parser.parse_args(argv)
 
     from sampling_lab.core.render import render
 
+    if args.gil_check:
+        gil_check(args)
+        return
     scene, settings = _scene_and_settings(args)
     render(scene, settings)  # warm-up: imports, Embree build, table caches
     res = render(scene, settings)
@@ -115,6 +128,49 @@ def main(argv=None):
         print(f"  {100 * sec / total:5.1f} %  {name}")
 
 
+def _timed_render(args, threads, barrier=None):
+    """Camera samples and wall seconds of one render (after a warm-up render), started
+    together with the other processes when ``barrier`` is given."""
+    from sampling_lab.core.render import render
+
+    scene, settings = _scene_and_settings(args)
+    settings = dataclasses.replace(settings, threads=threads)
+    render(scene, settings)
+    if barrier is not None:
+        barrier.wait()
+    t0 = time.perf_counter()
+    res = render(scene, settings)
+    return res.stats["samples"], time.perf_counter() - t0
+
+
+def _process_render(args, barrier, queue):
+    queue.put(_timed_render(args, 1, barrier))
+
+
+def gil_check(args, repeats=2):
+    """Print samples/s of one thread, of ``args.threads`` threads in one process and of
+    ``args.threads`` one-thread processes at once (best of ``repeats`` each, interleaved)."""
+    n = args.threads
+    ctx = multiprocessing.get_context("spawn")
+    best = {"1 thread": 0.0, f"{n} threads, one process": 0.0,
+            f"{n} processes of 1 thread": 0.0}
+    for _ in range(repeats):
+        for label, threads in (("1 thread", 1), (f"{n} threads, one process", n)):
+            samples, wall = _timed_render(args, threads)
+            best[label] = max(best[label], samples / wall)
+        barrier, queue = ctx.Barrier(n), ctx.Queue()
+        procs = [ctx.Process(target=_process_render, args=(args, barrier, queue))
+                 for _ in range(n)]
+        for p in procs:
+            p.start()
+        out = [queue.get() for _ in procs]
+        for p in procs:
+            p.join()
+        label = f"{n} processes of 1 thread"
+        best[label] = max(best[label], sum(s for s, _ in out) / max(w for _, w in out))
+    one = best["1 thread"]
+    for label, sps in best.items():
+        print(f"{label:>26}: {sps / 1e6:.3f} M samples/s ({sps / one:.2f} x one thread)")
 
 
 if __name__ == "__main__":
