@@ -185,6 +185,12 @@ class Integrator:
         """Figures of this estimator's own work for the render stats; default none."""
         return {}
 
+    def pass_sum_sq(self):
+        """``whole_passes`` integrators: per-pixel sum ``(n_pixels, 3)`` of the squared per-pass
+        estimates whose mean the image is (the film's Variance pass), or None: the variance is
+        not estimated and the pass is zero (default)."""
+        return None
+
     def render_samples(self, stream, pixel_filter, counters: Counters) -> BatchOutput:
         """Estimates of one work unit: one sample per entry of ``stream``.
 

@@ -52,11 +52,30 @@ import time
 
 import numpy as np
 
+from ..camera import view_extent
+from ..photons.compatible import compatible
 from ..photons.lookup import PhotonTree
 from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, Photons, photon_chunk, photon_setup,
                                spans, sppm_auto_radius)
 from ..photons.visible import join_points, trace_visible_points
 from .base import Counters, Integrator
+
+
+# Footprint radius: this many pixel footprints at a pixel's first visible point.
+FOOTPRINT_PIXELS = 1.5
+
+
+def footprint_scale(camera):
+    """``fn(dist) -> radius`` of one pixel's footprint at path length ``dist``: the pixel's
+    angle times the distance for a perspective camera (its width for an orthographic one);
+    None for a camera with no pixels."""
+    if camera.width < 1 or camera.height < 1:
+        return None
+    half_x, half_y, _, _ = view_extent(camera)
+    pixel = max(2.0 * half_x / camera.width, 2.0 * half_y / camera.height)
+    if camera.type == "ORTHO":
+        return lambda dist: np.full(np.shape(dist), pixel)
+    return lambda dist: pixel * np.asarray(dist, np.float64)
 
 
 class SPPM(Integrator):
@@ -70,6 +89,10 @@ class SPPM(Integrator):
         self.photons, self.radius0, self.photon_sampler = photon_setup(prep, settings,
                                                                        sppm_auto_radius)
         self.alpha = float(settings.sppm_alpha)
+        # Per-pixel initial radii from the pixel footprint (auto radius only).
+        self.footprint = (settings.sppm_radius == "pixel" and not settings.photon_radius
+                          and footprint_scale(prep.scene.camera) is not None)
+        self.surface_test = bool(settings.photon_surface_test)
         self.state = None
         self.peak_bytes = 0
         self.photons_stored = 0
@@ -79,9 +102,11 @@ class SPPM(Integrator):
         self.workers = thread_count(settings)
 
     def _start(self, n_pixels):
-        self.state = {"r": np.full(n_pixels, self.radius0), "N": np.zeros(n_pixels),
+        # r is NaN until a pixel's first visible point sets it (footprint radii).
+        r0 = np.nan if self.footprint else self.radius0
+        self.state = {"r": np.full(n_pixels, r0), "N": np.zeros(n_pixels),
                       "tau": np.zeros((n_pixels, 3)), "direct": np.zeros((n_pixels, 3)),
-                      "passes": 0}
+                      "sum_sq": np.zeros((n_pixels, 3)), "passes": 0}
 
     def render_pass(self, pass_index, frame_pixels, sampler, pixel_filter, counters,
                     map_chunks):
@@ -108,6 +133,8 @@ class SPPM(Integrator):
         if traced is None:
             return None
         direct, points, photons = traced
+        if self.footprint:
+            self._first_radii(points)
         tree = PhotonTree(photons.p, origin=np.zeros(3))
         found = map_chunks(lambda span: self._gather(points.take(slice(*span)), photons, tree),
                            spans(points.rows.size, self.workers))
@@ -118,10 +145,41 @@ class SPPM(Integrator):
         # No NaN or Inf may stay in the per-pixel sums (they would blank a pixel for good).
         phi[~np.isfinite(phi).all(axis=1)] = 0.0
         direct[~np.isfinite(direct).all(axis=1)] = 0.0
+        self._add_pass_estimate(direct, points.rows, phi)
         self._update(points.rows, phi, m)
         self.state["direct"] += direct
         self.state["passes"] += 1
         return self.image()
+
+    def _first_radii(self, points):
+        """Footprint radii: pixels without a radius yet take :data:`FOOTPRINT_PIXELS` pixel
+        footprints at their visible point of this pass (path length x pixel angle)."""
+        r = self.state["r"]
+        new = np.isnan(r[points.rows])
+        footprint = footprint_scale(self.prep.scene.camera)
+        r[points.rows[new]] = np.maximum(FOOTPRINT_PIXELS * footprint(points.dist[new]), 1e-9)
+
+    def _add_pass_estimate(self, direct, rows, phi):
+        """Add the squares of this pass's own estimate ``direct + phi / (photons pi r^2)`` (with
+        the radii it used) to ``sum_sq``: the image is the mean of these per-pass estimates,
+        so their spread gives its variance (:meth:`pass_sum_sq`)."""
+        x = direct.copy()
+        r = self.state["r"][rows]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            found = phi / (float(self.photons) * np.pi * r * r)[:, None]
+        found[~np.isfinite(found).all(axis=1)] = 0.0  # no radius yet: no photons either
+        x[rows] += found
+        self.state["sum_sq"] += x * x
+
+    def pass_sum_sq(self):
+        """Per-pixel sum ``(n_pixels, 3)`` of the squared per-pass estimates, for the film's
+        Variance pass (:func:`core.render.show_estimate`): the image is their mean (Knaus and
+        Zwicker 2011), so sample variance / passes estimates the variance of the image *given
+        the radii* (the photons of different passes are independent). It is the variance of a
+        biased estimator, not its error (MSE): the bias is not in it. The pass estimates'
+        expectations drift as the radius shrinks, which adds to the spread: an overestimate,
+        slight once the radii change slowly."""
+        return None if self.state is None else self.state["sum_sq"]
 
     def _trace(self, pass_index, frame_pixels, sampler, pixel_filter, counters, map_chunks):
         """Stages *visible points* (one camera path per pixel, with its direct light) and
@@ -171,9 +229,14 @@ class SPPM(Integrator):
         every visible point from the photons (``tree`` over their positions) within its
         pixel's radius."""
         k = points.rows.size
-        i, j, _ = tree.pairs_within(points.p, self.state["r"][points.rows])
+        radii = self.state["r"][points.rows]
+        live = np.nonzero(np.isfinite(radii))[0]  # a footprint radius is set for each point
+        i, j, _ = tree.pairs_within(points.p[live], radii[live])
+        i = live[i]
         # Paths no longer than the path tracer's: specular bounces + photon hits <= B + 1.
         ok = points.bounces[i] + photons.hit[j] <= self.settings.max_bounces + 1
+        if self.surface_test:
+            ok &= compatible(points.p[i], points.ng[i], photons.p[j], photons.n[j], radii[i])
         i, j = i[ok], j[ok]
         contrib = (points.f(i, photons.wi[j].astype(np.float64))
                    * photons.power[j].astype(np.float64))
@@ -196,7 +259,10 @@ class SPPM(Integrator):
         s = self.state
         passes = max(s["passes"], 1)
         emitted = float(self.photons) * passes
-        img = s["direct"] / passes + s["tau"] / (emitted * np.pi * s["r"] ** 2)[:, None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            indirect = s["tau"] / (emitted * np.pi * s["r"] ** 2)[:, None]
+        indirect[~np.isfinite(indirect).all(axis=1)] = 0.0  # no radius yet: no photons
+        img = s["direct"] / passes + indirect
         img[~np.isfinite(img).all(axis=1)] = 0.0
         return np.maximum(img, 0.0)
 
@@ -209,7 +275,11 @@ class SPPM(Integrator):
                 "photons_per_s": emitted / self.photon_s if self.photon_s > 0 else 0.0,
                 "photons_stored": self.photons_stored,
                 "photon_memory_peak_mb": self.peak_bytes / (1 << 20),
-                "photon_radius_initial": self.radius0,
-                "photon_radius_mean": (float(np.mean(self.state["r"])) if self.state
-                                       else self.radius0)}
+                "photon_radius_initial": ("pixel footprint" if self.footprint
+                                          else self.radius0),
+                "photon_radius_mean": (float(np.nanmean(self.state["r"]))
+                                       if self.state and np.isfinite(self.state["r"]).any()
+                                       else self.radius0),
+                "variance_pass": "spread of the per-pass estimates: the variance of this "
+                                 "biased estimate, not its error (no bias in it)"}
 
