@@ -523,6 +523,11 @@ OPTIONS = {o.name: o for o in (
            "surfaces (less bias there); changes nothing on flat open surfaces, and on curved "
            "ones only while the radius is large against their curvature", True,
            prop="use_photon_surface_test"),
+    Option("sppm_coverage", bool, "Edge Correction",
+           "SPPM: divide each lookup by the share of its disk that lies on the surface (16 "
+           "short probe rays per pixel and pass) instead of the whole disk. Removes the "
+           "darkening where the disk reaches past a surface's edge into empty space; costs the "
+           "probe rays", True, prop="use_sppm_coverage"),
     _menu("sppm_radius", "Initial Radius",
           "SPPM with Radius 0: how the initial lookup radius is chosen", "scene",
           (Choice("scene", "Scene", "One radius for every pixel: 1.25 scene bounding-box "

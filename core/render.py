@@ -118,6 +118,7 @@ class RenderSettings:
     photon_memory: float = DEFAULTS["photon_memory"]
     photon_surface_test: bool = DEFAULTS["photon_surface_test"]
     sppm_radius: str = DEFAULTS["sppm_radius"]
+    sppm_coverage: bool = DEFAULTS["sppm_coverage"]
     radiosity_solver: str = DEFAULTS["radiosity_solver"]
     radiosity_patch_size: float = DEFAULTS["radiosity_patch_size"]
     radiosity_samples: int = DEFAULTS["radiosity_samples"]
@@ -256,6 +257,7 @@ def used_settings(settings):
                           or (jensen and settings.photon_lookup == "radius") else na),
         "photon_kernel": settings.photon_kernel if jensen else na,
         "photon_surface_test": settings.photon_surface_test if photon else na,
+        "sppm_coverage": settings.sppm_coverage if settings.integrator == "sppm" else na,
         # Footprint radii replace the automatic initial radius only (Radius 0).
         "sppm_radius": (settings.sppm_radius if settings.integrator == "sppm"
                         and not settings.photon_radius else na),

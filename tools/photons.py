@@ -148,21 +148,20 @@ def sweep(scenes=tuple(SCENES), size=(64, 64), seconds=6.0, reference_seconds=12
 # SPPM settings compared by ``bench-photons --variants`` (name -> render settings; the key
 # ``footprint_pixels`` sets core.integrators.sppm.FOOTPRINT_PIXELS for that render).
 VARIANTS = {
-    "sppm, no surface test": dict(photon_surface_test=False),
     "sppm": dict(),
+    "sppm, no edge correction": dict(sppm_coverage=False),
+    "sppm, no surface test": dict(photon_surface_test=False),
+    "sppm, neither": dict(photon_surface_test=False, sppm_coverage=False),
     "sppm, footprint 1": dict(sppm_radius="pixel", footprint_pixels=1.0),
     "sppm, footprint 1.5": dict(sppm_radius="pixel", footprint_pixels=1.5),
-    "sppm, footprint 2.5": dict(sppm_radius="pixel", footprint_pixels=2.5),
     "sppm, 25k photons": dict(photons=25_000),
-    "sppm, footprint 1.5, 25k photons": dict(sppm_radius="pixel", footprint_pixels=1.5,
-                                             photons=25_000),
 }
 
 
 def variants(scenes=tuple(SCENES), names=tuple(VARIANTS), size=(64, 64), seconds=8.0,
-             reference_seconds=120.0, threads=2, output="out/bench-photons"):
-    """SPPM's lookup and radius options (:data:`VARIANTS`) at equal time, between two BDPT
-    renders (the second shows how the machine's load drifted), in one run. Writes
+             reference_seconds=120.0, threads=2, output="out/bench-photons", rounds=2):
+    """SPPM's lookup and radius options (:data:`VARIANTS`) at equal time, each round of them
+    after a BDPT render (the rounds show how the machine's load drifted), in one run. Writes
     ``photons_variants.csv``; returns the rows."""
     from ..core.integrators import sppm
 
@@ -173,7 +172,7 @@ def variants(scenes=tuple(SCENES), names=tuple(VARIANTS), size=(64, 64), seconds
         bounces = SCENES[name]
         ref = _reference(name, scene, bounces, reference_seconds, threads, cache=output)
         mask = direct_pixels(scene, bounces)
-        for label in ("bdpt",) + tuple(names) + ("bdpt",):
+        for label in (("bdpt",) + tuple(names)) * rounds:
             extra = dict(VARIANTS.get(label, {}))
             old = sppm.FOOTPRINT_PIXELS
             sppm.FOOTPRINT_PIXELS = extra.pop("footprint_pixels", old)
@@ -240,13 +239,16 @@ WORST_PIXELS = 16
 
 
 def error_breakdown(img, ref):
-    """How the relMSE is spread over the pixels: ``(median, share)``, the median over pixels
-    of the per-pixel relMSE (RGB mean) and the share of the total held by the
+    """How the relMSE is spread over the pixels: ``(median, share)``, the median of the
+    per-pixel relMSE (RGB mean) over the pixels lit in the image or the reference (the black
+    background would make it zero) and the share of the total held by the
     :data:`WORST_PIXELS` worst pixels (near 1: a handful of pixels decide the relMSE)."""
-    per_pixel = ((img - ref) ** 2 / (ref ** 2 + 1e-2)).mean(axis=-1).ravel()
+    per_pixel = ((img - ref) ** 2 / (ref ** 2 + 1e-2)).mean(axis=-1)
+    lit = (ref.max(axis=-1) > 0) | (img.max(axis=-1) > 0)
     total = per_pixel.sum()
-    worst = np.sort(per_pixel)[-WORST_PIXELS:].sum()
-    return float(np.median(per_pixel)), float(worst / total) if total > 0 else 0.0
+    worst = np.sort(per_pixel.ravel())[-WORST_PIXELS:].sum()
+    median = float(np.median(per_pixel[lit])) if lit.any() else 0.0
+    return median, float(worst / total) if total > 0 else 0.0
 
 
 def _reference(name, scene, bounces, seconds, threads, cache=None):

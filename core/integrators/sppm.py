@@ -53,7 +53,9 @@ import time
 import numpy as np
 
 from ..camera import view_extent
+from ..materials.frame import to_world
 from ..photons.compatible import compatible
+from ..photons.coverage import disk_coverage
 from ..photons.lookup import PhotonTree
 from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, Photons, photon_chunk, photon_setup,
                                spans, sppm_auto_radius)
@@ -93,6 +95,7 @@ class SPPM(Integrator):
         self.footprint = (settings.sppm_radius == "pixel" and not settings.photon_radius
                           and footprint_scale(prep.scene.camera) is not None)
         self.surface_test = bool(settings.photon_surface_test)
+        self.coverage = bool(settings.sppm_coverage)
         self.state = None
         self.peak_bytes = 0
         self.photons_stored = 0
@@ -241,7 +244,17 @@ class SPPM(Integrator):
         contrib = (points.f(i, photons.wi[j].astype(np.float64))
                    * photons.power[j].astype(np.float64))
         phi = np.stack([np.bincount(i, contrib[:, c], minlength=k) for c in range(3)], axis=1)
-        return phi * points.beta, np.bincount(i, minlength=k).astype(np.float64)
+        m = np.bincount(i, minlength=k).astype(np.float64)
+        if self.coverage:
+            phi[live] /= self._coverage(points.take(live), radii[live])[:, None]
+        return phi * points.beta, m
+
+    def _coverage(self, points, radii):
+        """Share of each point's disk on a compatible surface (:mod:`core.photons.coverage`),
+        probed from the side the camera sees."""
+        wo = to_world(points.wo_local, *points.frame)
+        side = np.where(np.einsum("ij,ij->i", points.ng, wo) < 0, -1.0, 1.0)
+        return disk_coverage(self.prep, points.p, points.ng * side[:, None], radii)
 
     def _update(self, pixels, phi, m):
         """The progressive radius reduction of the pixels ``pixels`` that found photons."""

@@ -10,9 +10,10 @@ import scenes
 from panels import drawn_rows
 
 ROWS = ("photons", "photon_memory", "sppm_alpha", "photon_lookup", "photon_k", "photon_radius",
-        "photon_kernel", "gather_rays", "sppm_radius", "use_photon_surface_test")
+        "photon_kernel", "gather_rays", "sppm_radius", "use_photon_surface_test",
+        "use_sppm_coverage")
 # Property name -> option name where they differ.
-OPTION = {"use_photon_surface_test": "photon_surface_test"}
+OPTION = {"use_photon_surface_test": "photon_surface_test", "use_sppm_coverage": "sppm_coverage"}
 
 
 @pytest.mark.parametrize("integrator, lookup, radius", [
