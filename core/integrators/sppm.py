@@ -24,9 +24,16 @@ Bias and consistency
 Parameters
     ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0:
     :func:`core.photons.tracing.sppm_auto_radius`, 1.25 scene diagonals over the larger image
-    side in pixels, a few pixels at any resolution), ``sppm_alpha``, ``photon_memory`` (MB cap of a
-    pass's photons), ``max_bounces``. Lookups use a kd-tree (``scipy.spatial.cKDTree``, see
-    :mod:`core.photons.lookup`) with a uniform kernel (the radius update counts photons).
+    side in pixels, a few pixels at any resolution, or with ``sppm_radius`` ``'pixel'``
+    :data:`FOOTPRINT_PIXELS` pixel footprints at each pixel's first visible point),
+    ``sppm_alpha``, ``photon_surface_test`` (photons of other surfaces are not counted,
+    :mod:`core.photons.compatible`), ``sppm_coverage`` (divide by the share of the disk on a
+    compatible surface, :mod:`core.photons.coverage`, instead of the whole disk),
+    ``photon_memory`` (MB cap of a pass's photons), ``max_bounces``. Lookups use a kd-tree
+    (``scipy.spatial.cKDTree``, see :mod:`core.photons.lookup`) with a uniform kernel (the
+    radius update counts photons). The surface test and the coverage change the estimate only
+    where the disk meets other surfaces or a surface's edge, and as ``r -> 0`` neither changes
+    it at interior points of smooth surfaces: consistency is kept, and both remove bias.
 When to use it
     Light that reaches diffuse surfaces only through mirrors or smooth glass from small or point
     lights (caustics, a point light seen in a mirror on the floor): path tracing cannot find it
@@ -39,8 +46,10 @@ When it fails
 
 Render loop: a pass is one call of :meth:`SPPM.render_pass` (``whole_passes``): photons are
 shared by every pixel and the per-pixel state changes between passes, so the image is not a
-mean of independent samples; the film shows the current estimate after each pass, and its
-variance pass is zero (not estimated). Within a pass the camera paths and the photons are cut
+mean of independent samples; the film shows the current estimate after each pass. The image
+is, however, the mean of per-pass estimates ``direct_k + phi_k / (photons pi r_k^2)`` (Knaus
+and Zwicker 2011), whose spread gives the Variance pass (:meth:`SPPM.pass_sum_sq`): the
+variance of this biased estimate, not its mean squared error. Within a pass the camera paths and the photons are cut
 into one chunk per worker thread at least and run in one batch of chunks, then the lookups;
 cancel is polled between chunks. Photons straight from a light are not stored (direct light
 comes from next-event estimation).

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..camera import camera_position
 from ..integrators.common import (add_emitters_along_rays, add_rows, camera_rays,
                                   intersect_by_class, max_component, ray_class,
                                   surface_hits, surface_interaction, take_rows)
@@ -120,12 +121,15 @@ def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, dire
     """
     n = len(stream)
     o, d, tmax = camera_rays(prep, pixel_filter, stream)
+    # Rays start at the near clipping plane: their length from the pinhole counts too.
+    eye = camera_position(prep.scene.camera)
     return follow_specular(prep, stream, o, d, tmax, np.ones((n, 3)), np.arange(n),
-                           np.full(n, VIS_CAMERA, np.int32), max_bounces, counters, direct)
+                           np.full(n, VIS_CAMERA, np.int32), max_bounces, counters, direct,
+                           start=np.linalg.norm(o - eye, axis=1))
 
 
 def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, counters,
-                    direct=None, dims=DIMS_CAMERA):
+                    direct=None, dims=DIMS_CAMERA, start=None):
     """Follow rays through specular bounces to their first non-specular hits.
 
     Parameters
@@ -142,10 +146,12 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
         whose light from emitters is estimated elsewhere (final gathering), which add neither.
     dims : int
         First sample dimension of bounce 0 (:data:`DIMS_PER_BOUNCE` per bounce).
+    start : (m,) float64 or None
+        Path length before the rays' origins (the points' ``dist`` adds it; None: zero).
     """
     no_mis = MIS("power")  # never consulted: every weight here is one (use_mis false)
     parts = []
-    travelled = np.zeros(rows.size)
+    travelled = np.zeros(rows.size) if start is None else np.asarray(start, np.float64)
     for bounce in range(max_bounces + 1):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         counters.rays += rows.size
