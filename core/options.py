@@ -479,8 +479,8 @@ OPTIONS = {o.name: o for o in (
     Option("photon_radius", float, "Radius",
            "Photon mapping: lookup radius in scene units, SPPM's initial one (it shrinks every "
            "pass; 0: 1.25 times the scene's bounding-box diagonal over the image's larger side "
-           "in pixels, a blur of a few pixels, or per pixel with Initial Radius) and Photon Mapping's fixed one (0: 1/100 of the "
-           "diagonal). A larger radius gathers more photons (less noise) but blurs the light "
+           "in pixels, a blur of a few pixels, or per pixel with Initial Radius) and Photon "
+           "Mapping's fixed one (0: 1/100 of the diagonal). A larger radius gathers more photons (less noise) but blurs the light "
            "over a larger disk (more bias)", 0.0, minimum=0.0, maximum=1e6),
     Option("sppm_alpha", float, "Alpha",
            "SPPM: fraction of a pass's photons kept when the radius shrinks (Hachisuka and "

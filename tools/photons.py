@@ -349,7 +349,8 @@ def _line(row):
              if row["m_photons_per_s"] != "" else "")
     return (f"{row['scene']} {row['renderer']}: {row['spp']} spp in {row['time_s']:.1f} s, "
             f"relMSE {row['rel_mse']:.4g} (pixels seen directly {row['rel_mse_direct']:.4g}; "
-            f"median {row['median']:.3g}, worst {WORST_PIXELS} px {100 * row['worst_share']:.0f} %),"
+            f"median {row['median']:.3g}, worst {WORST_PIXELS} px "
+            f"{100 * row['worst_share']:.0f} %),"
             f" mean/ref {row['mean_ratio']:.4f}{extra}")
 
 

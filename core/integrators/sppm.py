@@ -49,8 +49,9 @@ shared by every pixel and the per-pixel state changes between passes, so the ima
 mean of independent samples; the film shows the current estimate after each pass. The image
 is, however, the mean of per-pass estimates ``direct_k + phi_k / (photons pi r_k^2)`` (Knaus
 and Zwicker 2011), whose spread gives the Variance pass (:meth:`SPPM.pass_sum_sq`): the
-variance of this biased estimate, not its mean squared error. Within a pass the camera paths and the photons are cut
-into one chunk per worker thread at least and run in one batch of chunks, then the lookups;
+variance of this biased estimate, not its mean squared error. Within a pass the camera paths
+and the photons are cut into one chunk per worker thread at least and run in one batch of
+chunks, then the lookups;
 cancel is polled between chunks. Photons straight from a light are not stored (direct light
 comes from next-event estimation).
 """

@@ -9,9 +9,10 @@ is continued by Russian roulette *by albedo*: it survives with probability
 keep roughly the power they had (Jensen's photon tracing) and the estimate stays unbiased.
 
 Every hit on a surface that is not purely specular (a delta BSDF cannot be density-estimated)
-is a stored photon: its position, the geometric normal of the surface it landed on, the direction
-back toward where it came from, its power, the number of the hit along the path (1: direct from the light) and whether every earlier bounce
-was specular (``caustic``: a path ``L S+ D``). Storage is float32 (positions relative to the
+is a stored photon: its position, the geometric normal of the surface it landed on, the
+direction back toward where it came from, its power, the number of the hit along the path (1:
+direct from the light) and whether every earlier bounce was specular (``caustic``: a path
+``L S+ D``). Storage is float32 (positions relative to the
 prepared scene's origin, which :func:`core.prepare.recentred` puts at the scene's centre), and
 the number of photons a setting may store is bounded by a memory cap (:func:`check_memory`).
 """
