@@ -253,7 +253,8 @@ class SPPM(Integrator):
         i, j = i[ok], j[ok]
         contrib = (points.f(i, photons.wi[j].astype(np.float64))
                    * photons.power[j].astype(np.float64))
-        phi = np.stack([np.bincount(i, contrib[:, c], minlength=k) for c in range(3)], axis=1)
+        phi = np.stack([np.bincount(i, contrib[:, c], minlength=k) for c in range(3)],
+                       axis=1).astype(np.float64)  # (no pairs: bincount gives integers)
         m = np.bincount(i, minlength=k).astype(np.float64)
         if self.coverage:
             phi[live] /= self._coverage(points.take(live), radii[live])[:, None]
