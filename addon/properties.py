@@ -101,6 +101,9 @@ class SamplingLabSettings(PropertyGroup):
     photon_lookup: _property("photon_lookup")
     photon_k: _property("photon_k", soft_max=500)
     photon_kernel: _property("photon_kernel")
+    use_photon_surface_test: _property("photon_surface_test")
+    sppm_radius: _property("sppm_radius")
+    use_sppm_coverage: _property("sppm_coverage")
     gather_rays: _property("gather_rays", soft_max=64)
     radiosity_solver: _property("radiosity_solver")
     radiosity_patch_size: _property("radiosity_patch_size", soft_min=0.01, soft_max=2.0,

@@ -137,6 +137,14 @@ class SAMPLINGLAB_RENDER_PT_photons(SamplingLabButtonsPanel, Panel):
         # SPPM's initial radius; photon mapping's fixed radius.
         row.active = sppm or (jensen and settings.photon_lookup == 'RADIUS')
         row.prop(settings, "photon_radius")
+        row = col.column()
+        # Footprint radii replace the automatic initial radius only (core.render.used_settings).
+        row.active = sppm and settings.photon_radius == 0.0
+        row.prop(settings, "sppm_radius")
+        row = col.column()
+        row.active = sppm
+        row.prop(settings, "use_sppm_coverage")
+        col.prop(settings, "use_photon_surface_test")
         sub = col.column()
         sub.active = jensen
         sub.prop(settings, "photon_kernel")

@@ -478,9 +478,9 @@ OPTIONS = {o.name: o for o in (
            minimum=1, maximum=1 << 26),
     Option("photon_radius", float, "Radius",
            "Photon mapping: lookup radius in scene units, SPPM's initial one (it shrinks every "
-           "pass; 0: 2.5 times the scene's bounding-box diagonal over the image's larger side "
-           "in pixels, a blur of a few pixels) and Photon Mapping's fixed one (0: 1/100 of the "
-           "diagonal). A larger radius gathers more photons (less noise) but blurs the light "
+           "pass; 0: 1.25 times the scene's bounding-box diagonal over the image's larger side "
+           "in pixels, a blur of a few pixels, or per pixel with Initial Radius) and Photon "
+           "Mapping's fixed one (0: 1/100 of the diagonal). A larger radius gathers more photons (less noise) but blurs the light "
            "over a larger disk (more bias)", 0.0, minimum=0.0, maximum=1e6),
     Option("sppm_alpha", float, "Alpha",
            "SPPM: fraction of a pass's photons kept when the radius shrinks (Hachisuka and "
@@ -516,6 +516,26 @@ OPTIONS = {o.name: o for o in (
            "Photon mapping: largest photon storage in MB (photons of one pass and their "
            "kd-tree). A render whose photons could need more stops with a message before it "
            "starts", 1024.0, minimum=1.0, maximum=1 << 20),
+    Option("photon_surface_test", bool, "Surface Test",
+           "Photon mapping: count only photons on surfaces like the one looked up (normals "
+           "within 37 degrees, close to its tangent plane: a disk-shaped lookup, as Jensen's "
+           "photon maps). Removes the blur across corners and edges and between nearby "
+           "surfaces (less bias there); changes nothing on flat open surfaces, and on curved "
+           "ones only while the radius is large against their curvature", True,
+           prop="use_photon_surface_test"),
+    Option("sppm_coverage", bool, "Edge Correction",
+           "SPPM: divide each lookup by the share of its disk that lies on the surface (16 "
+           "short probe rays per pixel and pass) instead of the whole disk. Removes the "
+           "darkening where the disk reaches past a surface's edge into empty space; costs the "
+           "probe rays", True, prop="use_sppm_coverage"),
+    _menu("sppm_radius", "Initial Radius",
+          "SPPM with Radius 0: how the initial lookup radius is chosen", "scene",
+          (Choice("scene", "Scene", "One radius for every pixel: 1.25 scene bounding-box "
+                  "diagonals over the image's larger side in pixels"),
+           Choice("pixel", "Pixel Footprint", "Each pixel's own radius: 1.5 times the width "
+                  "of the pixel at its first visible point (path length times the pixel's "
+                  "angle). Sharper near the camera and at silhouettes, noisier where few "
+                  "photons land"))),
     _menu("radiosity_solver", "Solver",
           "Radiosity only: how the radiosity system B = E + rho F B is solved",
           "gauss_seidel", _choices(RADIOSITY_SOLVERS, _RADIOSITY_SOLVER_TEXT)),

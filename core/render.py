@@ -116,6 +116,9 @@ class RenderSettings:
     photon_kernel: str = DEFAULTS["photon_kernel"]
     gather_rays: int = DEFAULTS["gather_rays"]
     photon_memory: float = DEFAULTS["photon_memory"]
+    photon_surface_test: bool = DEFAULTS["photon_surface_test"]
+    sppm_coverage: bool = DEFAULTS["sppm_coverage"]
+    sppm_radius: str = DEFAULTS["sppm_radius"]
     radiosity_solver: str = DEFAULTS["radiosity_solver"]
     radiosity_patch_size: float = DEFAULTS["radiosity_patch_size"]
     radiosity_samples: int = DEFAULTS["radiosity_samples"]
@@ -253,6 +256,11 @@ def used_settings(settings):
         "photon_radius": (settings.photon_radius if settings.integrator == "sppm"
                           or (jensen and settings.photon_lookup == "radius") else na),
         "photon_kernel": settings.photon_kernel if jensen else na,
+        "photon_surface_test": settings.photon_surface_test if photon else na,
+        "sppm_coverage": settings.sppm_coverage if settings.integrator == "sppm" else na,
+        # Footprint radii replace the automatic initial radius only (Radius 0).
+        "sppm_radius": (settings.sppm_radius if settings.integrator == "sppm"
+                        and not settings.photon_radius else na),
         "gather_rays": settings.gather_rays if jensen else na,
         **{name: na for name in RADIOSITY_OPTIONS},
         # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
@@ -609,7 +617,7 @@ class _Passes:
                 if image is None:
                     return True
                 self.done_spp += 1
-                show_estimate(film, image, self.done_spp)
+                show_estimate(film, image, self.done_spp, integrator.pass_sum_sq())
                 self.report(self.done_spp / self.total_spp if self.total_spp
                             else self.elapsed() / self.settings.time_limit)
                 on_pass()
@@ -701,13 +709,14 @@ class _AbortingSampler:
         return getattr(self.sampler, name)
 
 
-def show_estimate(film, image, passes):
+def show_estimate(film, image, passes, sum_sq=None):
     """Make ``film`` show ``image (n_pixels, 3)`` as the estimate of ``passes`` samples per
-    pixel (integrators with ``whole_passes``: their image is not a mean of samples, so the
-    film's sums are replaced, and its variance is zero: not estimated)."""
+    pixel (integrators with ``whole_passes``: the film's sums are replaced). ``sum_sq
+    (n_pixels, 3)``: the sum of the squared per-pass estimates whose mean ``image`` is (SPPM),
+    which gives the Variance pass; None: the variance is zero (not estimated)."""
     film.count[:] = passes
     film.sum[:] = image * passes
-    film.sum_sq[:] = image * image * passes
+    film.sum_sq[:] = image * image * passes if sum_sq is None else sum_sq
 
 
 def preparation_key(scene, settings):

@@ -68,8 +68,12 @@ def _bench_caustic(args):
 
 
 def _bench_photons(args):
-    from .photons import run, sweep
+    from .photons import run, sweep, variants
 
+    if args.variants:
+        variants(scenes=args.scenes, size=args.size, seconds=args.seconds,
+                 reference_seconds=args.reference_seconds, output=args.output)
+        return 0
     if args.sweep:
         sweep(scenes=args.scenes, size=args.size, seconds=args.seconds,
               reference_seconds=args.reference_seconds, output=args.output)
@@ -97,6 +101,10 @@ def _add_bench_photons(sub, **kw):
                    help="photons per SPPM pass and in photon mapping's maps (default: the "
                         "render default, Photons)")
     p.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
+    p.add_argument("--variants", action="store_true",
+                   help="instead: SPPM with and without the surface test, with footprint "
+                        "radii and with 25k photons per pass, between two BDPT renders "
+                        "(photons_variants.csv)")
     p.add_argument("--sweep", action="store_true",
                    help="instead: SPPM's photons per pass, initial radius and alpha against "
                         "BDPT at equal time (photons_sweep.csv), what its defaults rest on")

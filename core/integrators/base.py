@@ -25,7 +25,8 @@ What the render loop reads from an integrator:
     samples). The render loop then calls ``render_pass(pass_index, frame_pixels, sampler,
     pixel_filter, counters, map_chunks)`` once per pass instead of :meth:`render_samples`,
     shows the ``(n_pixels, 3)`` image it returns (None: cancelled, the pass is dropped) and
-    adds ``render_stats(seconds)`` (a dict) to the render's stats; see :mod:`.sppm`.
+    adds ``render_stats(seconds)`` (a dict) to the render's stats; ``pass_sum_sq()`` gives the
+    film's Variance pass (None: zero, not estimated); see :mod:`.sppm`.
 ``layers`` (instance attribute)
     Names of the extra images this render writes, in the order the render passes list them;
     :class:`BatchOutput` carries values for no other names.
@@ -184,6 +185,12 @@ class Integrator:
     def stats(self) -> dict:
         """Figures of this estimator's own work for the render stats; default none."""
         return {}
+
+    def pass_sum_sq(self):
+        """``whole_passes`` integrators: per-pixel sum ``(n_pixels, 3)`` of the squared per-pass
+        estimates whose mean the image is (the film's Variance pass), or None: the variance is
+        not estimated and the pass is zero (default)."""
+        return None
 
     def render_samples(self, stream, pixel_filter, counters: Counters) -> BatchOutput:
         """Estimates of one work unit: one sample per entry of ``stream``.

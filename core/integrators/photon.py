@@ -101,7 +101,7 @@ class PhotonMapping(Integrator):
     def _lookup(self):
         s = self.settings
         return dict(lookup=s.photon_lookup, k=s.photon_k, radius=self.radius,
-                    kernel=s.photon_kernel)
+                    kernel=s.photon_kernel, surface_test=s.photon_surface_test)
 
     def _build_maps(self, map_chunks, counters):
         t0 = time.perf_counter()
@@ -204,5 +204,7 @@ class PhotonMapping(Integrator):
                 "photons_per_s": self.photons / self.photon_s if self.photon_s > 0 else 0.0,
                 "photons_stored": stored,
                 "photon_memory_peak_mb": stored * BYTES_PER_PHOTON / (1 << 20),
-                "photon_radius_initial": self.radius}
+                "photon_radius_initial": self.radius,
+                "variance_pass": "not estimated (zero): every sample reads one set of photon "
+                                 "maps, whose noise a per-pixel spread would not show"}
 

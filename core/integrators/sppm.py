@@ -24,9 +24,16 @@ Bias and consistency
 Parameters
     ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0:
     :func:`core.photons.tracing.sppm_auto_radius`, 1.25 scene diagonals over the larger image
-    side in pixels, a few pixels at any resolution), ``sppm_alpha``, ``photon_memory`` (MB cap of a
-    pass's photons), ``max_bounces``. Lookups use a kd-tree (``scipy.spatial.cKDTree``, see
-    :mod:`core.photons.lookup`) with a uniform kernel (the radius update counts photons).
+    side in pixels, a few pixels at any resolution, or with ``sppm_radius`` ``'pixel'``
+    :data:`FOOTPRINT_PIXELS` pixel footprints at each pixel's first visible point),
+    ``sppm_alpha``, ``photon_surface_test`` (photons of other surfaces are not counted,
+    :mod:`core.photons.compatible`), ``sppm_coverage`` (divide by the share of the disk on a
+    compatible surface, :mod:`core.photons.coverage`, instead of the whole disk),
+    ``photon_memory`` (MB cap of a pass's photons), ``max_bounces``. Lookups use a kd-tree
+    (``scipy.spatial.cKDTree``, see :mod:`core.photons.lookup`) with a uniform kernel (the
+    radius update counts photons). The surface test and the coverage change the estimate only
+    where the disk meets other surfaces or a surface's edge, and as ``r -> 0`` neither changes
+    it at interior points of smooth surfaces: consistency is kept, and both remove bias.
 When to use it
     Light that reaches diffuse surfaces only through mirrors or smooth glass from small or point
     lights (caustics, a point light seen in a mirror on the floor): path tracing cannot find it
@@ -39,9 +46,12 @@ When it fails
 
 Render loop: a pass is one call of :meth:`SPPM.render_pass` (``whole_passes``): photons are
 shared by every pixel and the per-pixel state changes between passes, so the image is not a
-mean of independent samples; the film shows the current estimate after each pass, and its
-variance pass is zero (not estimated). Within a pass the camera paths and the photons are cut
-into one chunk per worker thread at least and run in one batch of chunks, then the lookups;
+mean of independent samples; the film shows the current estimate after each pass. The image
+is, however, the mean of per-pass estimates ``direct_k + phi_k / (photons pi r_k^2)`` (Knaus
+and Zwicker 2011), whose spread gives the Variance pass (:meth:`SPPM.pass_sum_sq`): the
+variance of this biased estimate, not its mean squared error. Within a pass the camera paths
+and the photons are cut into one chunk per worker thread at least and run in one batch of
+chunks, then the lookups;
 cancel is polled between chunks. Photons straight from a light are not stored (direct light
 comes from next-event estimation).
 """
@@ -52,11 +62,32 @@ import time
 
 import numpy as np
 
+from ..camera import view_extent
+from ..materials.frame import to_world
+from ..photons.compatible import compatible
+from ..photons.coverage import disk_coverage
 from ..photons.lookup import PhotonTree
 from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, Photons, photon_chunk, photon_setup,
                                spans, sppm_auto_radius)
 from ..photons.visible import join_points, trace_visible_points
 from .base import Counters, Integrator
+
+
+# Footprint radius: this many pixel footprints at a pixel's first visible point.
+FOOTPRINT_PIXELS = 1.5
+
+
+def footprint_scale(camera):
+    """``fn(dist) -> radius`` of one pixel's footprint at path length ``dist``: the pixel's
+    angle times the distance for a perspective camera (its width for an orthographic one);
+    None for a camera with no pixels."""
+    if camera.width < 1 or camera.height < 1:
+        return None
+    half_x, half_y, _, _ = view_extent(camera)
+    pixel = max(2.0 * half_x / camera.width, 2.0 * half_y / camera.height)
+    if camera.type == "ORTHO":
+        return lambda dist: np.full(np.shape(dist), pixel)
+    return lambda dist: pixel * np.asarray(dist, np.float64)
 
 
 class SPPM(Integrator):
@@ -70,6 +101,11 @@ class SPPM(Integrator):
         self.photons, self.radius0, self.photon_sampler = photon_setup(prep, settings,
                                                                        sppm_auto_radius)
         self.alpha = float(settings.sppm_alpha)
+        # Per-pixel initial radii from the pixel footprint (auto radius only).
+        self.footprint = (settings.sppm_radius == "pixel" and not settings.photon_radius
+                          and footprint_scale(prep.scene.camera) is not None)
+        self.surface_test = bool(settings.photon_surface_test)
+        self.coverage = bool(settings.sppm_coverage)
         self.state = None
         self.peak_bytes = 0
         self.photons_stored = 0
@@ -79,9 +115,11 @@ class SPPM(Integrator):
         self.workers = thread_count(settings)
 
     def _start(self, n_pixels):
-        self.state = {"r": np.full(n_pixels, self.radius0), "N": np.zeros(n_pixels),
+        # r is NaN until a pixel's first visible point sets it (footprint radii).
+        r0 = np.nan if self.footprint else self.radius0
+        self.state = {"r": np.full(n_pixels, r0), "N": np.zeros(n_pixels),
                       "tau": np.zeros((n_pixels, 3)), "direct": np.zeros((n_pixels, 3)),
-                      "passes": 0}
+                      "sum_sq": np.zeros((n_pixels, 3)), "passes": 0}
 
     def render_pass(self, pass_index, frame_pixels, sampler, pixel_filter, counters,
                     map_chunks):
@@ -108,6 +146,8 @@ class SPPM(Integrator):
         if traced is None:
             return None
         direct, points, photons = traced
+        if self.footprint:
+            self._first_radii(points)
         tree = PhotonTree(photons.p, origin=np.zeros(3))
         found = map_chunks(lambda span: self._gather(points.take(slice(*span)), photons, tree),
                            spans(points.rows.size, self.workers))
@@ -118,10 +158,41 @@ class SPPM(Integrator):
         # No NaN or Inf may stay in the per-pixel sums (they would blank a pixel for good).
         phi[~np.isfinite(phi).all(axis=1)] = 0.0
         direct[~np.isfinite(direct).all(axis=1)] = 0.0
+        self._add_pass_estimate(direct, points.rows, phi)
         self._update(points.rows, phi, m)
         self.state["direct"] += direct
         self.state["passes"] += 1
         return self.image()
+
+    def _first_radii(self, points):
+        """Footprint radii: pixels without a radius yet take :data:`FOOTPRINT_PIXELS` pixel
+        footprints at their visible point of this pass (path length x pixel angle)."""
+        r = self.state["r"]
+        new = np.isnan(r[points.rows])
+        footprint = footprint_scale(self.prep.scene.camera)
+        r[points.rows[new]] = np.maximum(FOOTPRINT_PIXELS * footprint(points.dist[new]), 1e-9)
+
+    def _add_pass_estimate(self, direct, rows, phi):
+        """Add the squares of this pass's own estimate ``direct + phi / (photons pi r^2)`` (with
+        the radii it used) to ``sum_sq``: the image is the mean of these per-pass estimates,
+        so their spread gives its variance (:meth:`pass_sum_sq`)."""
+        x = direct.copy()
+        r = self.state["r"][rows]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            found = phi / (float(self.photons) * np.pi * r * r)[:, None]
+        found[~np.isfinite(found).all(axis=1)] = 0.0  # no radius yet: no photons either
+        x[rows] += found
+        self.state["sum_sq"] += x * x
+
+    def pass_sum_sq(self):
+        """Per-pixel sum ``(n_pixels, 3)`` of the squared per-pass estimates, for the film's
+        Variance pass (:func:`core.render.show_estimate`): the image is their mean (Knaus and
+        Zwicker 2011), so sample variance / passes estimates the variance of the image *given
+        the radii* (the photons of different passes are independent). It is the variance of a
+        biased estimator, not its error (MSE): the bias is not in it. The pass estimates'
+        expectations drift as the radius shrinks, which adds to the spread: an overestimate,
+        slight once the radii change slowly."""
+        return None if self.state is None else self.state["sum_sq"]
 
     def _trace(self, pass_index, frame_pixels, sampler, pixel_filter, counters, map_chunks):
         """Stages *visible points* (one camera path per pixel, with its direct light) and
@@ -171,14 +242,30 @@ class SPPM(Integrator):
         every visible point from the photons (``tree`` over their positions) within its
         pixel's radius."""
         k = points.rows.size
-        i, j, _ = tree.pairs_within(points.p, self.state["r"][points.rows])
+        radii = self.state["r"][points.rows]
+        live = np.nonzero(np.isfinite(radii))[0]  # a footprint radius is set for each point
+        i, j, _ = tree.pairs_within(points.p[live], radii[live])
+        i = live[i]
         # Paths no longer than the path tracer's: specular bounces + photon hits <= B + 1.
         ok = points.bounces[i] + photons.hit[j] <= self.settings.max_bounces + 1
+        if self.surface_test:
+            ok &= compatible(points.p[i], points.ng[i], photons.p[j], photons.n[j], radii[i])
         i, j = i[ok], j[ok]
         contrib = (points.f(i, photons.wi[j].astype(np.float64))
                    * photons.power[j].astype(np.float64))
-        phi = np.stack([np.bincount(i, contrib[:, c], minlength=k) for c in range(3)], axis=1)
-        return phi * points.beta, np.bincount(i, minlength=k).astype(np.float64)
+        phi = np.stack([np.bincount(i, contrib[:, c], minlength=k) for c in range(3)],
+                       axis=1).astype(np.float64)  # (no pairs: bincount gives integers)
+        m = np.bincount(i, minlength=k).astype(np.float64)
+        if self.coverage:
+            phi[live] /= self._coverage(points.take(live), radii[live])[:, None]
+        return phi * points.beta, m
+
+    def _coverage(self, points, radii):
+        """Share of each point's disk on a compatible surface (:mod:`core.photons.coverage`),
+        probed from the side the camera sees."""
+        wo = to_world(points.wo_local, *points.frame)
+        side = np.where(np.einsum("ij,ij->i", points.ng, wo) < 0, -1.0, 1.0)
+        return disk_coverage(self.prep, points.p, points.ng * side[:, None], radii)
 
     def _update(self, pixels, phi, m):
         """The progressive radius reduction of the pixels ``pixels`` that found photons."""
@@ -196,7 +283,10 @@ class SPPM(Integrator):
         s = self.state
         passes = max(s["passes"], 1)
         emitted = float(self.photons) * passes
-        img = s["direct"] / passes + s["tau"] / (emitted * np.pi * s["r"] ** 2)[:, None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            indirect = s["tau"] / (emitted * np.pi * s["r"] ** 2)[:, None]
+        indirect[~np.isfinite(indirect).all(axis=1)] = 0.0  # no radius yet: no photons
+        img = s["direct"] / passes + indirect
         img[~np.isfinite(img).all(axis=1)] = 0.0
         return np.maximum(img, 0.0)
 
@@ -209,7 +299,11 @@ class SPPM(Integrator):
                 "photons_per_s": emitted / self.photon_s if self.photon_s > 0 else 0.0,
                 "photons_stored": self.photons_stored,
                 "photon_memory_peak_mb": self.peak_bytes / (1 << 20),
-                "photon_radius_initial": self.radius0,
-                "photon_radius_mean": (float(np.mean(self.state["r"])) if self.state
-                                       else self.radius0)}
+                "photon_radius_initial": ("pixel footprint" if self.footprint
+                                          else self.radius0),
+                "photon_radius_mean": (float(np.nanmean(self.state["r"]))
+                                       if self.state and np.isfinite(self.state["r"]).any()
+                                       else self.radius0),
+                "variance_pass": "spread of the per-pass estimates: the variance of this "
+                                 "biased estimate, not its error (no bias in it)"}
 

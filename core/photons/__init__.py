@@ -8,7 +8,9 @@
   the kd-tree in ``tools/photons.py``; slower, so unused by the integrators);
 - :mod:`.kernels`: density-estimation kernels (uniform, cone, Epanechnikov), normalised in 2-D;
 - :mod:`.estimate`: radiance estimates from a photon map (k nearest or fixed radius);
-- :mod:`.visible`: camera paths through specular chains to the first non-specular surface.
+- :mod:`.visible`: camera paths through specular chains to the first non-specular surface;
+- :mod:`.compatible`: the surface-compatibility test of a lookup (a disk, not a ball);
+- :mod:`.coverage`: the share of a lookup disk on its surface (SPPM's edge correction).
 """
 
 # The stages use the integrators' common stages, and two integrators use these stages: load the

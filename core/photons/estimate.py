@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .compatible import compatible
 from .kernels import kernel_weight
 from .lookup import PhotonTree
 
@@ -62,7 +63,7 @@ class PhotonMap:
         return i, idx[i, slot], dist[i, slot], r
 
     def radiance(self, points, max_hit, lookup="knn", k=50, radius=0.01, kernel="uniform",
-                 min_hit=1, skip_caustic=False):
+                 min_hit=1, skip_caustic=False, surface_test=False):
         """Reflected radiance ``(n, 3)`` at visible points from the photons of this map.
 
         Parameters
@@ -81,6 +82,9 @@ class PhotonMap:
             Smallest photon hit number used (2: indirect light only).
         skip_caustic : bool
             Leave out caustic photons (when a caustic map estimates them).
+        surface_test : bool
+            Keep only photons on surfaces compatible with the point's
+            (:func:`.compatible.compatible`).
         """
         n = points.rows.size
         out = np.zeros((n, 3))
@@ -91,6 +95,8 @@ class PhotonMap:
         keep = (ph.hit[j] <= max_hit[i]) & (ph.hit[j] >= min_hit) & (r[i] > 0)
         if skip_caustic:
             keep &= ~ph.caustic[j]
+        if surface_test:
+            keep &= compatible(points.p[i], points.ng[i], ph.p[j], ph.n[j], r[i])
         i, j, dist = i[keep], j[keep], dist[keep]
         w = kernel_weight(kernel, dist / r[i]) / (r[i] ** 2 * self.emitted)
         contrib = (points.f(i, ph.wi[j].astype(np.float64)) * ph.power[j].astype(np.float64)

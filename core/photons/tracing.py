@@ -9,9 +9,10 @@ is continued by Russian roulette *by albedo*: it survives with probability
 keep roughly the power they had (Jensen's photon tracing) and the estimate stays unbiased.
 
 Every hit on a surface that is not purely specular (a delta BSDF cannot be density-estimated)
-is a stored photon: its position, the direction back toward where it came from, its power, the
-number of the hit along the path (1: direct from the light) and whether every earlier bounce
-was specular (``caustic``: a path ``L S+ D``). Storage is float32 (positions relative to the
+is a stored photon: its position, the geometric normal of the surface it landed on, the
+direction back toward where it came from, its power, the number of the hit along the path (1:
+direct from the light) and whether every earlier bounce was specular (``caustic``: a path
+``L S+ D``). Storage is float32 (positions relative to the
 prepared scene's origin, which :func:`core.prepare.recentred` puts at the scene's centre), and
 the number of photons a setting may store is bounded by a memory cap (:func:`check_memory`).
 """
@@ -36,9 +37,9 @@ from .lookup import require_scipy
 # BSDF lobe, the BSDF direction 2-D and Russian roulette.
 DIMS_START = 5
 DIMS_PER_HIT = 4
-# Bytes per stored photon: float32 position, direction and power, int16 hit number, bool
+# Bytes per stored photon: float32 position, normal, direction and power, int16 hit number, bool
 # caustic flag; plus the kd-tree's float64 copy of the position and its int64 index.
-BYTES_PER_PHOTON = 3 * 12 + 2 + 1 + 24 + 8
+BYTES_PER_PHOTON = 4 * 12 + 2 + 1 + 24 + 8
 
 
 @dataclass
@@ -49,6 +50,9 @@ class Photons:
     ----------
     p : (m, 3) float32
         Positions (prepared frame).
+    n : (m, 3) float32
+        Unit geometric normal of the surface at each position (the side as stored; the
+        surface-compatibility test of :mod:`.compatible` compares it with a visible point's).
     wi : (m, 3) float32
         Unit direction from the position back toward where the photon came from.
     power : (m, 3) float32
@@ -60,6 +64,7 @@ class Photons:
     """
 
     p: np.ndarray
+    n: np.ndarray
     wi: np.ndarray
     power: np.ndarray
     hit: np.ndarray
@@ -70,16 +75,15 @@ class Photons:
         """The photons of ``parts`` in order (an empty store if there are none)."""
         parts = list(parts)
         if not parts:
-            return Photons(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32),
-                           np.zeros((0, 3), np.float32), np.zeros(0, np.int16),
-                           np.zeros(0, bool))
+            z3 = np.zeros((0, 3), np.float32)
+            return Photons(z3, z3, z3, z3, np.zeros(0, np.int16), np.zeros(0, bool))
         return Photons(*(np.concatenate([getattr(p, name) for p in parts])
-                         for name in ("p", "wi", "power", "hit", "caustic")))
+                         for name in ("p", "n", "wi", "power", "hit", "caustic")))
 
     def take(self, rows):
         """The photons ``rows`` (index array or mask)."""
-        return Photons(self.p[rows], self.wi[rows], self.power[rows], self.hit[rows],
-                       self.caustic[rows])
+        return Photons(self.p[rows], self.n[rows], self.wi[rows], self.power[rows],
+                       self.hit[rows], self.caustic[rows])
 
     def __len__(self):
         return self.p.shape[0]
@@ -87,7 +91,8 @@ class Photons:
     @property
     def nbytes(self):
         """Bytes the arrays hold (without a kd-tree)."""
-        return sum(a.nbytes for a in (self.p, self.wi, self.power, self.hit, self.caustic))
+        return sum(a.nbytes for a in (self.p, self.n, self.wi, self.power, self.hit,
+                                      self.caustic))
 
 
 def worst_case_bytes(photons, max_bounces):
@@ -176,7 +181,8 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
                                                       hits.v[live])
         beta, specular = beta[live], specular[live]
         store = np.nonzero(~delta_only)[0] if hit >= min_hit else np.zeros(0, np.int64)
-        parts.append(Photons(si.p[store].astype(np.float32), si.wo[store].astype(np.float32),
+        parts.append(Photons(si.p[store].astype(np.float32), si.ng[store].astype(np.float32),
+                             si.wo[store].astype(np.float32),
                              beta[store].astype(np.float32),
                              np.full(store.size, hit, np.int16), specular[store]))
         if hit == max_bounces + 1:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..camera import camera_position
 from ..integrators.common import (add_emitters_along_rays, add_rows, camera_rays,
                                   intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
@@ -57,6 +58,9 @@ class VisiblePoints:
         Specular bounces before the point (0: seen directly).
     prim : (k,) int64
         Triangle of each point.
+    dist : (k,) float64
+        Length of the path from its start (the pinhole) to the point, through the specular
+        chain (the pixel-footprint radius of :mod:`core.integrators.sppm` scales with it).
     """
 
     rows: np.ndarray
@@ -68,13 +72,15 @@ class VisiblePoints:
     beta: np.ndarray
     bounces: np.ndarray
     prim: np.ndarray = None
+    dist: np.ndarray = None
 
     def take(self, idx):
         """The points ``idx`` (index array or slice) as a new :class:`VisiblePoints`."""
         return VisiblePoints(self.rows[idx], self.p[idx], self.ng[idx],
                              tuple(a[idx] for a in self.frame), self.wo_local[idx],
                              self.params.take(idx), self.beta[idx], self.bounces[idx],
-                             None if self.prim is None else self.prim[idx])
+                             None if self.prim is None else self.prim[idx],
+                             None if self.dist is None else self.dist[idx])
 
     def f(self, idx, wi):
         """BSDF value ``f(wo, wi)`` (no cosine) of the points ``idx (m,)`` for unit world
@@ -117,12 +123,15 @@ def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, dire
     """
     n = len(stream)
     o, d, tmax = camera_rays(prep, pixel_filter, stream)
+    # Rays start at the near clipping plane: their length from the pinhole counts too.
+    eye = camera_position(prep.scene.camera)
     return follow_specular(prep, stream, o, d, tmax, np.ones((n, 3)), np.arange(n),
-                           np.full(n, VIS_CAMERA, np.int32), max_bounces, counters, direct)
+                           np.full(n, VIS_CAMERA, np.int32), max_bounces, counters, direct,
+                           start=np.linalg.norm(o - eye, axis=1))
 
 
 def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, counters,
-                    direct=None, dims=DIMS_CAMERA):
+                    direct=None, dims=DIMS_CAMERA, start=None):
     """Follow rays through specular bounces to their first non-specular hits.
 
     Parameters
@@ -139,9 +148,12 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
         whose light from emitters is estimated elsewhere (final gathering), which add neither.
     dims : int
         First sample dimension of bounce 0 (:data:`DIMS_PER_BOUNCE` per bounce).
+    start : (m,) float64 or None
+        Path length before the rays' origins (the points' ``dist`` adds it; None: zero).
     """
     no_mis = MIS("power")  # never consulted: every weight here is one (use_mis false)
     parts = []
+    travelled = np.zeros(rows.size) if start is None else np.asarray(start, np.float64)
     for bounce in range(max_bounces + 1):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         counters.rays += rows.size
@@ -154,6 +166,7 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
             break
         si = surface_interaction(prep, hits, d, live)
         rows, beta = rows[live], take_rows(beta, live)
+        travelled = travelled[live] + hits.t[live]
         stream.skip_to(dims + bounce * DIMS_PER_BOUNCE)
         u_lobe, u_bsdf = stream.next_1d()[rows], stream.next_2d()[rows]
         u_sel, u_light = stream.next_1d()[rows], stream.next_2d()[rows]
@@ -165,7 +178,8 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
         if vp.size:
             point = VisiblePoints(rows[vp], si.p[vp], si.ng[vp], (fs[vp], ft[vp], fn[vp]),
                                   wo_l[vp], params.take(vp), beta[vp],
-                                  np.full(vp.size, bounce, np.int64), si.prim[vp])
+                                  np.full(vp.size, bounce, np.int64), si.prim[vp],
+                                  travelled[vp])
             if direct is not None:
                 _direct_light(prep, point, u_sel[vp], u_light[vp], direct, counters)
             parts.append(point)
@@ -179,6 +193,7 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
         ok = np.nonzero((smp.pdf > 0) & (max_component(beta) > 0)
                         & np.isfinite(beta).all(axis=1))[0]
         rows, beta, wi, spec = rows[spec][ok], beta[ok], wi[ok], spec[ok]
+        travelled = travelled[spec]
         o = prep.accel.offset_origin(si.p[spec], si.ng[spec], si.prim[spec], wi)
         d, tmax = wi, None
         vis = ray_class(smp.lobe[ok])
@@ -207,7 +222,7 @@ def join_points(parts):
         z3 = np.zeros((0, 3))
         return VisiblePoints(np.zeros(0, np.int64), z3, z3, (z3, z3, z3), z3,
                              BSDFParams(np.zeros(0, np.int32), z3, np.ones(0), np.ones(0), z3),
-                             z3, np.zeros(0, np.int64), np.zeros(0, np.int64))
+                             z3, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
     cat = np.concatenate
     return VisiblePoints(
         cat([p.rows for p in parts]), cat([p.p for p in parts]), cat([p.ng for p in parts]),
@@ -215,4 +230,4 @@ def join_points(parts):
         cat([p.wo_local for p in parts]),
         BSDFParams.concat([p.params for p in parts]),
         cat([p.beta for p in parts]), cat([p.bounces for p in parts]),
-        cat([p.prim for p in parts]))
+        cat([p.prim for p in parts]), cat([p.dist for p in parts]))

@@ -10,24 +10,28 @@ import scenes
 from panels import drawn_rows
 
 ROWS = ("photons", "photon_memory", "sppm_alpha", "photon_lookup", "photon_k", "photon_radius",
-        "photon_kernel", "gather_rays")
+        "photon_kernel", "gather_rays", "sppm_radius", "use_photon_surface_test",
+        "use_sppm_coverage")
+# Property name -> option name where they differ.
+OPTION = {"use_photon_surface_test": "photon_surface_test", "use_sppm_coverage": "sppm_coverage"}
 
 
-@pytest.mark.parametrize("integrator, lookup", [
-    ('PATH', 'KNN'), ('BDPT', 'KNN'), ('SPPM', 'KNN'), ('PHOTON', 'KNN'), ('PHOTON', 'RADIUS')])
+@pytest.mark.parametrize("integrator, lookup, radius", [
+    ('PATH', 'KNN', 0.0), ('BDPT', 'KNN', 0.0), ('SPPM', 'KNN', 0.0), ('SPPM', 'KNN', 0.1),
+    ('PHOTON', 'KNN', 0.0), ('PHOTON', 'RADIUS', 0.0)])
 def test_photon_rows_are_active_exactly_where_the_render_uses_them(empty_scene, addon,
-                                                                    integrator, lookup):
+                                                                    integrator, lookup, radius):
     from importlib import import_module
     core_render = import_module(f"{addon.__name__}.core.render")
     props = empty_scene.sampling_lab
-    props.integrator, props.photon_lookup = integrator, lookup
+    props.integrator, props.photon_lookup, props.photon_radius = integrator, lookup, radius
     active = drawn_rows("SAMPLINGLAB_RENDER_PT_photons", empty_scene)
     assert set(active) == set(ROWS)
     settings = core_render.RenderSettings(integrator=integrator.lower(),
-                                          photon_lookup=lookup.lower())
+                                          photon_lookup=lookup.lower(), photon_radius=radius)
     used = core_render.used_settings(settings)
     for row in ROWS:
-        assert active[row] == (used[row] != "n/a"), row
+        assert active[row] == (used[OPTION.get(row, row)] != "n/a"), row
     light = drawn_rows("SAMPLINGLAB_RENDER_PT_light_sampling", empty_scene)
     assert light["mis_heuristic"] == (used["mis_heuristic"] != "n/a")
 

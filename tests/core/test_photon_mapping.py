@@ -43,7 +43,8 @@ def test_every_lookup_setting_shown_changes_the_render():
     base = image()
     for kw in (dict(photon_kernel="cone"), dict(photon_kernel="epanechnikov"),
                dict(photon_k=10), dict(gather_rays=0), dict(gather_rays=2),
-               dict(photon_lookup="radius", photon_radius=0.05)):
+               dict(photon_lookup="radius", photon_radius=0.05),
+               dict(photon_surface_test=False)):
         other = image(**kw)
         assert np.isfinite(other).all() and not np.array_equal(base, other), kw
     fixed = image(photon_lookup="radius", photon_radius=0.05)
@@ -58,6 +59,11 @@ def test_stats_say_which_photon_settings_were_used():
     assert fixed["photon_radius"] == 0.1 and fixed["photon_k"] == "n/a"
     sppm = render.used_settings(_settings(integrator="sppm"))
     assert sppm["sppm_alpha"] == 0.7 and sppm["photon_kernel"] == "n/a"
+    assert sppm["sppm_radius"] == "scene" and sppm["photon_surface_test"] is True
+    # Footprint radii replace the automatic initial radius only.
+    assert render.used_settings(_settings(integrator="sppm", photon_radius=0.1))[
+        "sppm_radius"] == "n/a"
+    assert knn["sppm_radius"] == "n/a" and knn["photon_surface_test"] is True
     path = render.used_settings(_settings(integrator="path"))
     assert all(path[k] == "n/a" for k in ("photons", "photon_radius", "gather_rays"))
 
