@@ -129,19 +129,13 @@ def mixed_normal_input(parts, owner, messages):
     return {"normal_map": chosen[0], "bump": chosen[1]}
 
 
-def report_bump_map_correction(material, surface, owner, messages):
-    """Report Cycles' Bump Map Correction (a material setting, on by default) on a normal-mapped
-    surface with a diffuse lobe: Cycles then darkens diffuse light near the terminator of the
-    bumps (Conty Estevez et al. 2019's shadowing term); we render as with it off."""
+def bump_map_correction(material, surface):
+    """Whether Cycles' Bump Map Correction (a material setting, on by default) applies to
+    ``surface``: the setting is on and a normal map or bump perturbs the normal
+    (:mod:`core.materials.bump_correction` shadows the diffuse lobes then)."""
     if surface.normal_map is None and surface.bump is None:
-        return
-    if not getattr(getattr(material, "cycles", None), "use_bump_map_correction", False):
-        return
-    parts = [c for _, c in surface.components] or [surface]
-    if any(c.kind in (MAT_DIFFUSE, MAT_LAYERED) for c in parts):
-        messages.add(f"{owner}: Bump Map Correction of its normal input is not supported yet; "
-                     f"rendered as with it off (diffuse light near the bumps' terminator is "
-                     f"brighter than in Cycles)")
+        return False
+    return bool(getattr(getattr(material, "cycles", None), "use_bump_map_correction", False))
 
 
 def report_smooth_normal_maps(name, messages):
