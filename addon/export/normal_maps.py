@@ -151,21 +151,23 @@ def _pass_through(surface):
             and not surface.components)
 
 
-def mesh_corner_tangents(mesh, name, messages):
+def mesh_corner_tangents(mesh, name, messages, user="its normal maps",
+                         fallback="they are ignored"):
     """``(t, 3, 4) float32`` MikkTSpace tangents (xyz, object space) and bitangent signs (w)
     of the active UV map at the corners of an evaluated mesh's loop triangles, or None
-    (reported) without a UV map or where Blender cannot compute them."""
+    (reported, naming ``user`` and what is done instead, ``fallback``) without a UV map or
+    where Blender cannot compute them."""
     n_tris = len(mesh.loop_triangles)
     layer = mesh.uv_layers.active
     if n_tris == 0 or layer is None:
         if n_tris:
-            messages.add(f"Object '{name}': no UV map for its normal maps; they are ignored")
+            messages.add(f"Object '{name}': no UV map for {user}; {fallback}")
         return None
     try:
         mesh.calc_tangents(uvmap=layer.name)
     except RuntimeError as err:
-        messages.add(f"Object '{name}': tangents for its normal maps could not be computed "
-                     f"({str(err).strip()}); normal maps ignored")
+        messages.add(f"Object '{name}': tangents for {user} could not be computed "
+                     f"({str(err).strip()}); {fallback}")
         return None
     n_loops = len(mesh.loops)
     tangent = np.empty(n_loops * 3, np.float32)
