@@ -463,7 +463,13 @@ def eval_bsdf(params, wo, wi, mode=RADIANCE):
     out = _eval_below_sheen(params, wo, wi, mode)
     rows = sheen.sheen_rows(params)
     if rows.size:
-        out[rows] = sheen.eval_sheened(params.take(rows), wo[rows], wi[rows], out[rows], mode)
+        p = params.take(rows)
+        out[rows] = sheen.eval_sheened(p, wo[rows], wi[rows], out[rows], mode)
+        if p.bump_normal is not None:
+            # The sheen is a diffuse closure in Cycles: its lobe gets the correction too.
+            lobe = sheen.eval_sheened(p, wo[rows], wi[rows], np.zeros((rows.size, 3)), mode)
+            out[rows] = bump_correction.correct_sheen(p, wo[rows], wi[rows], mode,
+                                                      out[rows], lobe)
     return out
 
 
@@ -549,7 +555,7 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
 def _bump_corrected_weight(params, wo, smp, mode):
     """``smp`` with the weight of bump-corrected rows' non-delta samples recomputed as
     ``eval_bsdf / pdf`` (the correction scales eval, not the pdf, as in Cycles)."""
-    rows = bump_correction.corrected_rows(params)
+    rows = bump_correction.bumped_rows(params)
     if rows.size:
         rows = rows[~smp.delta[rows] & (smp.pdf[rows] > 0.0)]
     if rows.size == 0:

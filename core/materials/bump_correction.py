@@ -10,10 +10,10 @@ read as the roughness of a GGX surface, ``alpha^2 = clamp(tan^2(theta_d) / 8, 0,
 ``cos theta_d = |Ns . N|``, and the diffuse lobe is multiplied by that GGX's Smith masking
 ``G1 = 2 / (1 + sqrt(1 + alpha^2 tan^2 theta_i))`` of the *light-side* direction, ``cos
 theta_i = |Ns . w|`` (0 below ``cos theta_i = 1e-6``; 1 where ``N == Ns``). Only diffuse
-closures get it (Cycles' ``CLOSURE_IS_BSDF_DIFFUSE``: here the diffuse kind and the diffuse
-base of the layered kinds; not the microfacet lobes, not the sheen), in evaluation and in
-the sampled weight (``weight = eval / pdf``: the pdf is unchanged, as Cycles multiplies
-``eval`` only).
+closures get it (Cycles' ``CLOSURE_IS_BSDF_DIFFUSE``: here the diffuse kind, the diffuse
+base of the layered kinds and the microfiber sheen; not the microfacet lobes), in evaluation
+and in the sampled weight (``weight = eval / pdf``: the pdf is unchanged, as Cycles
+multiplies ``eval`` only).
 
 The factor depends on the light-side direction only, so the corrected BSDF is not
 reciprocal: camera paths (``mode='radiance'``) apply it to ``wi``; light paths
@@ -65,13 +65,25 @@ def shadowing(bump_normal, w):
     return np.where(active & (cos_d < 1.0) & (cos_i < 1.0), g, 1.0)
 
 
-def corrected_rows(params):
-    """Row indices ``(j,)`` whose diffuse part the correction scales (diffuse and layered
-    kinds with a non-zero ``bump_normal``)."""
+def bumped_rows(params):
+    """Row indices ``(j,)`` with a non-zero ``bump_normal`` (any kind)."""
     if params.bump_normal is None:
         return np.zeros(0, np.int64)
-    diffuse = np.isin(params.kind, (KIND_DIFFUSE, KIND_LAYERED, KIND_LAYERED_MS))
-    return np.nonzero(diffuse & np.any(params.bump_normal != 0.0, axis=1))[0]
+    return np.nonzero(np.any(params.bump_normal != 0.0, axis=1))[0]
+
+
+def corrected_rows(params):
+    """Row indices ``(j,)`` whose kind's diffuse part the correction scales (diffuse and
+    layered kinds with a non-zero ``bump_normal``)."""
+    rows = bumped_rows(params)
+    return rows[np.isin(params.kind[rows], (KIND_DIFFUSE, KIND_LAYERED, KIND_LAYERED_MS))]
+
+
+def correct_sheen(params, wo, wi, mode, out, lobe):
+    """``out (k, 3)`` of rows with a sheen whose sheen ``lobe (k, 3)`` (its ``f cos``) is
+    scaled by :func:`shadowing` (the sheen is a diffuse closure in Cycles)."""
+    g = shadowing(params.bump_normal, wi if mode == RADIANCE else wo)
+    return np.maximum(out - (1.0 - g)[:, None] * lobe, 0.0)
 
 
 def correct_eval(params, wo, wi, mode, out, eval_kinds):

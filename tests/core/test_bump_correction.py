@@ -9,8 +9,9 @@ import pytest
 
 from sampling_lab.core import lights as L
 from sampling_lab.core.materials import bump_correction as bc
-from sampling_lab.core.materials.bsdf import (IMPORTANCE, KIND_DIFFUSE, KIND_LAYERED, RADIANCE,
-                                              eval_bsdf, make_params, pdf_bsdf, sample_bsdf)
+from sampling_lab.core.materials.bsdf import (IMPORTANCE, KIND_CONDUCTOR, KIND_DIFFUSE,
+                                              KIND_LAYERED, RADIANCE, eval_bsdf, make_params,
+                                              pdf_bsdf, sample_bsdf)
 from sampling_lab.core.render import render
 from sampling_lab.core.scene import Camera, Materials, Scene
 from tests.core.test_normal_maps import with_normal_map
@@ -74,15 +75,22 @@ def test_shadowing_term_limits():
     np.testing.assert_allclose(bc.shadowing(n, w), [1.0, 1.0, 0.0, 1.0])
 
 
+SHEENED_METAL = "sheened metal"  # a conductor under a sheen: only the sheen is corrected
+
+
 def bumped_params(kind):
     tilt = np.radians(40.0)
-    params = make_params(np.array([kind]), (0.7, 0.5, 0.3), roughness=0.4, k=1)
+    if kind == SHEENED_METAL:
+        params = make_params(np.array([KIND_CONDUCTOR]), (0.7, 0.5, 0.3), roughness=0.4, k=1,
+                             sheen_weight=1.0, sheen_roughness=0.5)
+    else:
+        params = make_params(np.array([kind]), (0.7, 0.5, 0.3), roughness=0.4, k=1)
     # The smooth normal seen from the frame of the mapped one (tilted 40 degrees about Y).
     return dataclasses.replace(params, bump_normal=np.array([[-np.sin(tilt), 0.0,
                                                                np.cos(tilt)]]))
 
 
-@pytest.mark.parametrize("kind", [KIND_DIFFUSE, KIND_LAYERED])
+@pytest.mark.parametrize("kind", [KIND_DIFFUSE, KIND_LAYERED, SHEENED_METAL])
 @pytest.mark.parametrize("mode", [RADIANCE, IMPORTANCE])
 def test_sampled_weights_are_eval_over_pdf(kind, mode):
     rng = np.random.default_rng(4)
@@ -100,7 +108,7 @@ def test_sampled_weights_are_eval_over_pdf(kind, mode):
     assert np.all(f <= plain + 1e-12) and np.any(f < 0.9 * plain)  # the term acted
 
 
-@pytest.mark.parametrize("kind", [KIND_DIFFUSE, KIND_LAYERED])
+@pytest.mark.parametrize("kind", [KIND_DIFFUSE, KIND_LAYERED, SHEENED_METAL])
 def test_importance_mode_is_the_adjoint(kind):
     rng = np.random.default_rng(5)
     k = 256
