@@ -274,7 +274,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     used = np.unique(scene.material)
     lambert_only = bool(np.all(mats.kind[used] == 0) and not np.any(mats.mixed[used])
                         and not np.any(mats.coat_weight[used] > 0)
-                        and not np.any(mats.sheen_weight[used] > 0))
+                        and not np.any(mats.sheen_weight[used] > 0)
+                        and not np.any(mats.bump_correction[used]))
     transparency = transparency_table(bsdf, mix_rows, mix_weights)
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),

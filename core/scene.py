@@ -183,6 +183,10 @@ class Materials:
         ``metallic`` the mixture was laid out for); -1 (the default) for none.
     bump_distance, bump_strength : (m,) float32
         The Bump node's Distance (negated when Invert is on) and Strength; defaults 1, 1.
+    bump_correction : (m,) bool
+        Cycles' Bump Map Correction on the diffuse lobes of the triangles whose own row this
+        is (:mod:`core.materials.bump_correction`), where a normal map or bump perturbs their
+        normal; default False.
     mix_rows : (m, c) int32
         Component rows of each material: a row whose ``mix_rows`` is more than itself is a
         *mixture* (a Principled BSDF with fractional Metallic, Transmission or Alpha, a Mix
@@ -224,6 +228,7 @@ class Materials:
     metallic_texture: np.ndarray = None
     bump_distance: np.ndarray = None
     bump_strength: np.ndarray = None
+    bump_correction: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
 
@@ -261,6 +266,9 @@ class Materials:
         self.metallic_texture = texture_column(self.metallic_texture, m)
         self.bump_distance = column(self.bump_distance, 1.0)
         self.bump_strength = column(self.bump_strength, 1.0)
+        self.bump_correction = (np.zeros(m, bool) if self.bump_correction is None else
+                                np.broadcast_to(np.asarray(self.bump_correction, bool),
+                                                (m,)).copy())
         self._check_mix(m)
 
     def _check_mix(self, m):
@@ -302,7 +310,7 @@ class Materials:
                    sheen_tint=None, aniso_scale=None, aniso_rotation=None,
                    normal_texture=None, normal_strength=None, bump_texture=None,
                    bump_distance=None, bump_strength=None,
-                   metallic_texture=None) -> "Materials":
+                   metallic_texture=None, bump_correction=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -319,7 +327,7 @@ class Materials:
             coat_ior=coat_ior, roughness_texture=roughness_texture,
             normal_texture=normal_texture, normal_strength=normal_strength,
             bump_texture=bump_texture, bump_distance=bump_distance, bump_strength=bump_strength,
-            metallic_texture=metallic_texture,
+            bump_correction=bump_correction, metallic_texture=metallic_texture,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
             sheen_weight=sheen_weight, sheen_roughness=sheen_roughness,

@@ -123,6 +123,8 @@ def uv_sphere(scene, name, center, radius, material, smooth=False, segments=24, 
 
     mesh = bpy.data.meshes.new(name)
     bm = bmesh.new()
+    # calc_uvs fills the UV layer that exists (a new sphere in Blender has "UVMap").
+    bm.loops.layers.uv.new("UVMap")
     bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius,
                               calc_uvs=True)
     bm.to_mesh(mesh)

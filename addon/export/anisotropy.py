@@ -10,8 +10,11 @@ tangent ``(-(g_y - 1/2), g_x - 1/2, 0)`` about Z of the generated coordinates ``
 object's texture space), moved to the world by the object's normal matrix and projected on the
 shading normal's plane at the hit; a Tangent node in Radial mode is the same about its X, Y or
 Z axis (``svm_node_tangent``). Generated coordinates are read from the evaluated mesh (Cycles
-takes them before deforming modifiers). A Tangent node in UV Map mode is approximated by the radial Z
-tangent and reported.
+takes them before deforming modifiers). A Tangent node in UV Map mode gives the MikkTSpace
+tangents of the active UV map (:func:`.normal_maps.mesh_corner_tangents`, as Cycles'
+``svm_node_tangent`` reads its tangent attribute), moved by the same normal matrix; another
+UV map than the active one is reported, and a mesh without a UV map falls back to the radial
+Z tangent.
 """
 
 from __future__ import annotations
@@ -22,22 +25,29 @@ from ...core.materials.anisotropic import glossy_scale, principled_scale
 from .nodes import follow_link, node_name
 
 # Axis codes of corner tangents: 0 for isotropic triangles.
-AXES = {None: 0, 'X': 1, 'Y': 2, 'Z': 3}
+# 'UV': the UV map's tangents (a Tangent node in UV Map mode).
+AXES = {None: 0, 'X': 1, 'Y': 2, 'Z': 3, 'UV': 4}
 
 
 def tangent_axis(node, owner, messages):
-    """Axis ``'X'``, ``'Y'`` or ``'Z'`` of the radial tangent feeding ``node``'s Tangent."""
+    """Axis ``'X'``, ``'Y'`` or ``'Z'`` of the radial tangent feeding ``node``'s Tangent, or
+    ``'UV'`` for a Tangent node in UV Map mode."""
     socket = node.inputs.get("Tangent")
     source = None if socket is None else follow_link(socket)
     if source is None:
         return 'Z'
     tangent = source[0]
-    if tangent.bl_idname == 'ShaderNodeTangent' and tangent.direction_type == 'RADIAL':
-        return tangent.axis
-    what = ("a UV map tangent" if tangent.bl_idname == 'ShaderNodeTangent'
-            else f"node '{node_name(tangent)}'")
-    messages.add(f"{owner}: the tangent of node '{node_name(node)}' from {what} is not "
-                 f"supported yet; approximated by the radial tangent about Z")
+    if tangent.bl_idname == 'ShaderNodeTangent':
+        if tangent.direction_type == 'RADIAL':
+            return tangent.axis
+        if getattr(tangent, "uv_map", ""):
+            messages.add(f"{owner}: UV map '{tangent.uv_map}' of tangent node "
+                         f"'{node_name(tangent)}' is not supported yet; the active UV map is "
+                         f"used")
+        return 'UV'
+    messages.add(f"{owner}: the tangent of node '{node_name(node)}' from node "
+                 f"'{node_name(tangent)}' is not supported yet; approximated by the radial "
+                 f"tangent about Z")
     return 'Z'
 
 
@@ -89,6 +99,20 @@ def radial_tangents(verts, tris, axis_codes, space):
     for code, radial in per_axis.items():
         rows = np.flatnonzero(axis_codes == code)
         out[rows] = radial[tris[rows]]
+    return out
+
+
+def object_tangents(verts, tris, axis_codes, space, uv_tangents):
+    """Object-space corner tangents ``(t, 3, 3)``: radial (:func:`radial_tangents`), and the
+    UV map's ``uv_tangents (t, 3, 4)`` (xyz used) on triangles of code ``AXES['UV']``; those
+    take the radial Z tangent when ``uv_tangents`` is None (no UV map, reported)."""
+    codes = np.asarray(axis_codes)
+    uv = codes == AXES['UV']
+    if uv_tangents is None:
+        codes = np.where(uv, AXES['Z'], codes)
+    out = radial_tangents(verts, tris, codes, space)
+    if uv_tangents is not None and uv.any():
+        out[uv] = uv_tangents[uv, :, :3]
     return out
 
 

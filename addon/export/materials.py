@@ -22,7 +22,7 @@ from ...core.scene import (
 )
 from .anisotropy import AXES, glossy_anisotropy, principled_anisotropy
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
-from .normal_maps import mixed_normal_input, normal_input, report_bump_map_correction
+from .normal_maps import bump_map_correction, mixed_normal_input, normal_input
 from .textures import roughness_texture, scalar_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
@@ -76,6 +76,8 @@ class Surface(NamedTuple):
     # (pixels, mode) of a Principled's Metallic texture (its mixture laid out for metallic
     # 0.5, see core.metallic), or None.
     metallic_texture: tuple = None
+    # Cycles' Bump Map Correction on this row's diffuse lobes (core.materials.bump_correction).
+    bump_correction: bool = False
 
 
 def _diffuse(color, emission=None):
@@ -114,7 +116,8 @@ def material_surface(material, messages):
         if socket is not None and follow_link(socket) is not None:
             messages.add(f"{owner}: {name.lower()} is not supported yet; ignored")
     surface = _shader_surface(follow_link(output.inputs["Surface"]), owner, messages)
-    report_bump_map_correction(material, surface, owner, messages)
+    if bump_map_correction(material, surface):
+        surface = surface._replace(bump_correction=True)
     return surface
 
 
@@ -470,7 +473,7 @@ class MaterialTable:
             bump_texture=self._texture_index()[4],
             bump_distance=[1.0 if s.bump is None else s.bump.distance for s in self.surfaces],
             bump_strength=[1.0 if s.bump is None else s.bump.strength for s in self.surfaces],
-            metallic_texture=self._texture_index()[5],
+            metallic_texture=self._texture_index()[5], bump_correction=col["bump_correction"],
             mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):

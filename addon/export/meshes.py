@@ -20,7 +20,7 @@ from ...core.scene import (
     VIS_SHADOW,
     VIS_TRANSMISSION,
 )
-from .anisotropy import radial_tangents, texture_space
+from .anisotropy import AXES, object_tangents, texture_space
 from .anisotropy import tangents_to_world as aniso_tangents_to_world
 from .normal_maps import (concat_tangents, mesh_corner_tangents, report_smooth_normal_maps,
                           tangents_to_world)
@@ -93,10 +93,15 @@ class Geometry:
             uvs = (mesh_corner_uvs(mesh, ob.name, self.messages)
                    if self.materials.textured(tri_mat) else None)
             axes = self.materials.tangent_axes(tri_mat)
-            aniso = (radial_tangents(verts, tris, axes, texture_space(mesh, verts))
-                     if axes.any() else None)
             tangents = (mesh_corner_tangents(mesh, ob.name, self.messages)
                         if self.materials.normal_mapped(tri_mat) else None)
+            uv_tangents = tangents
+            if uv_tangents is None and np.any(axes == AXES['UV']):
+                uv_tangents = mesh_corner_tangents(
+                    mesh, ob.name, self.messages, "its UV Map tangent nodes",
+                    "the radial tangent about Z is used")
+            aniso = (object_tangents(verts, tris, axes, texture_space(mesh, verts), uv_tangents)
+                     if axes.any() else None)
             corner = mesh_corner_normals(mesh)
             if tangents is not None and corner is not None:
                 report_smooth_normal_maps(ob.name, self.messages)

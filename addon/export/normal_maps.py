@@ -129,19 +129,13 @@ def mixed_normal_input(parts, owner, messages):
     return {"normal_map": chosen[0], "bump": chosen[1]}
 
 
-def report_bump_map_correction(material, surface, owner, messages):
-    """Report Cycles' Bump Map Correction (a material setting, on by default) on a normal-mapped
-    surface with a diffuse lobe: Cycles then darkens diffuse light near the terminator of the
-    bumps (Conty Estevez et al. 2019's shadowing term); we render as with it off."""
+def bump_map_correction(material, surface):
+    """Whether Cycles' Bump Map Correction (a material setting, on by default) applies to
+    ``surface``: the setting is on and a normal map or bump perturbs the normal
+    (:mod:`core.materials.bump_correction` shadows the diffuse lobes then)."""
     if surface.normal_map is None and surface.bump is None:
-        return
-    if not getattr(getattr(material, "cycles", None), "use_bump_map_correction", False):
-        return
-    parts = [c for _, c in surface.components] or [surface]
-    if any(c.kind in (MAT_DIFFUSE, MAT_LAYERED) for c in parts):
-        messages.add(f"{owner}: Bump Map Correction of its normal input is not supported yet; "
-                     f"rendered as with it off (diffuse light near the bumps' terminator is "
-                     f"brighter than in Cycles)")
+        return False
+    return bool(getattr(getattr(material, "cycles", None), "use_bump_map_correction", False))
 
 
 def report_smooth_normal_maps(name, messages):
@@ -157,21 +151,23 @@ def _pass_through(surface):
             and not surface.components)
 
 
-def mesh_corner_tangents(mesh, name, messages):
+def mesh_corner_tangents(mesh, name, messages, user="its normal maps",
+                         fallback="they are ignored"):
     """``(t, 3, 4) float32`` MikkTSpace tangents (xyz, object space) and bitangent signs (w)
     of the active UV map at the corners of an evaluated mesh's loop triangles, or None
-    (reported) without a UV map or where Blender cannot compute them."""
+    (reported, naming ``user`` and what is done instead, ``fallback``) without a UV map or
+    where Blender cannot compute them."""
     n_tris = len(mesh.loop_triangles)
     layer = mesh.uv_layers.active
     if n_tris == 0 or layer is None:
         if n_tris:
-            messages.add(f"Object '{name}': no UV map for its normal maps; they are ignored")
+            messages.add(f"Object '{name}': no UV map for {user}; {fallback}")
         return None
     try:
         mesh.calc_tangents(uvmap=layer.name)
     except RuntimeError as err:
-        messages.add(f"Object '{name}': tangents for its normal maps could not be computed "
-                     f"({str(err).strip()}); normal maps ignored")
+        messages.add(f"Object '{name}': tangents for {user} could not be computed "
+                     f"({str(err).strip()}); {fallback}")
         return None
     n_loops = len(mesh.loops)
     tangent = np.empty(n_loops * 3, np.float32)

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..accel import Hits
 from ..camera import generate_rays
 from ..materials.bsdf import LOBE_DIFFUSE, LOBE_TRANSMIT
+from ..materials.frame import to_local
 from ..bump import bump_mapped
 from ..normal_maps import normal_mapped
 from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
@@ -238,6 +239,10 @@ class Interaction:
     wo : (k, 3) float64
         Unit direction back along the incoming ray.
     prim : (k,) int32
+    n_bump : (k, 3) float64 or None
+        Bump Map Correction (:func:`bump_reference_normals`): the smooth normal before normal
+        maps and bumps, flipped as ``ns``, at hits whose material corrects; zero elsewhere.
+        None when no material of the scene corrects.
     """
 
     p: np.ndarray
@@ -245,6 +250,7 @@ class Interaction:
     ns: np.ndarray
     wo: np.ndarray
     prim: np.ndarray
+    n_bump: np.ndarray = None
 
 
 def surface_interaction(prep, hits, d, rows):
@@ -258,7 +264,38 @@ def surface_interaction(prep, hits, d, rows):
     np.negative(wo, out=wo)
     side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
     ns = shading_normals(prep, prim, u, v, ng, wo)
-    return Interaction(p, ng, ns * side[:, None], wo, prim)
+    n_bump = bump_reference_normals(prep, prim, u, v, ng)
+    if n_bump is not None:
+        n_bump *= side[:, None]
+    return Interaction(p, ng, ns * side[:, None], wo, prim, n_bump)
+
+
+def bump_reference_normals(prep, prim, u, v, ng):
+    """The smooth normals ``(k, 3)`` before normal maps and bumps (on ``ng``'s side) at the
+    hits whose triangle's own material row has ``bump_correction``, zero at the others; None
+    when no row of the scene has it (:mod:`core.materials.bump_correction`)."""
+    flags = prep.scene.materials.bump_correction
+    corner = prep.scene.corner_normals
+    if corner is None or not flags.any():
+        return None
+    on = flags[prep.scene.material[prim]]
+    if not on.any():
+        return None
+    c = corner[prim].astype(np.float64)
+    w1, w2 = np.asarray(u, np.float64)[:, None], np.asarray(v, np.float64)[:, None]
+    raw = (1.0 - w1 - w2) * c[:, 0] + w1 * c[:, 1] + w2 * c[:, 2]
+    raw *= np.where(np.einsum("ij,ij->i", raw, ng) < 0, -1.0, 1.0)[:, None]
+    length = np.linalg.norm(raw, axis=1)
+    n = np.where((length > 1e-12)[:, None], raw / np.maximum(length, 1e-12)[:, None], ng)
+    return np.where(on[:, None], n, 0.0)
+
+
+def with_bump_normals(params, si, frame):
+    """``params`` with their ``bump_normal`` column: ``si.n_bump`` in the local ``frame =
+    (s, t, n)`` (unchanged when ``si.n_bump`` is None)."""
+    if si.n_bump is None:
+        return params
+    return replace(params, bump_normal=to_local(si.n_bump, *frame))
 
 
 def shading_tangents(prep, si):

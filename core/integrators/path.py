@@ -65,7 +65,7 @@ from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows
                      geometric_side_valid, intersect_by_class, max_component, next_1d_if,
                      ray_class, roulette_at, russian_roulette, shading_tangents,
                      surface_hits, surface_interaction, take_rows,
-                     valid_reflection_normals)
+                     valid_reflection_normals, with_bump_normals)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -134,6 +134,7 @@ class _BSDFShading:
             self.s, self.t, self.n = shading_frame(ns * front[:, None], tangent)
             self.ng, self.wo_world = si.ng, si.wo
         self.wo = to_local(si.wo, self.s, self.t, self.n)
+        self.params = with_bump_normals(self.params, si, (self.s, self.t, self.n))
         # Next-event estimation cannot contribute through smooth mirrors and glass.
         self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None
 

@@ -18,7 +18,7 @@ from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample
 from ..materials.frame import shading_frame, to_local, to_world
 from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
                      next_1d_if, ray_class, roulette_at, russian_roulette, shading_tangents,
-                     surface_hits, surface_interaction, take_rows)
+                     surface_hits, surface_interaction, take_rows, with_bump_normals)
 
 
 def dot(a, b):
@@ -260,6 +260,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         else:
             fs, ft, fn = shading_frame(si.ng, tangent)
         wo_l = to_local(si.wo, fs, ft, fn)
+        params = with_bump_normals(params, si, (fs, ft, fn))
         beta = take_rows(beta, live)
         if on_vertex is not None:
             on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta)

@@ -91,7 +91,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import coat, dielectric, sheen
+from . import bump_correction, coat, dielectric, sheen
 from .coat import DEFAULT_COAT_IOR, DEFAULT_COAT_ROUGHNESS, coat_rows
 from .dielectric import IMPORTANCE, RADIANCE, TRANSPORT_MODES, _check_mode, is_smooth_dielectric
 from .families import (FAMILIES, KIND_CONDUCTOR, KIND_CONDUCTOR_MS, KIND_DIELECTRIC,
@@ -151,6 +151,10 @@ class BSDFParams:
         ``alpha_y = alpha / k`` for the scale ``k > 0`` (1: isotropic), in the shading frame's
         tangent turned by ``aniso_rotation`` radians about the normal. None when every row is
         isotropic.
+    bump_normal : (k, 3) float64 or None
+        Bump Map Correction (:mod:`.bump_correction`): the smooth, unmapped normal in the
+        row's local frame, whose diffuse part is then shadowed; zero rows: no correction.
+        None when no row has it (set by the integrators at normal-mapped hits).
     """
 
     kind: np.ndarray
@@ -166,6 +170,7 @@ class BSDFParams:
     sheen_roughness: np.ndarray = None
     aniso_scale: np.ndarray = None
     aniso_rotation: np.ndarray = None
+    bump_normal: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
@@ -403,6 +408,7 @@ _GROUPS = {
              ("coat_tint", 1.0, (3,))),
     "sheen": (("sheen_color", 0.0, (3,)), ("sheen_roughness", 1.0, ())),
     "aniso": (("aniso_scale", 1.0, ()), ("aniso_rotation", 0.0, ())),
+    "bump": (("bump_normal", 0.0, (3,)),),
 }
 
 
@@ -457,12 +463,18 @@ def eval_bsdf(params, wo, wi, mode=RADIANCE):
     out = _eval_below_sheen(params, wo, wi, mode)
     rows = sheen.sheen_rows(params)
     if rows.size:
-        out[rows] = sheen.eval_sheened(params.take(rows), wo[rows], wi[rows], out[rows], mode)
+        p = params.take(rows)
+        out[rows] = sheen.eval_sheened(p, wo[rows], wi[rows], out[rows], mode)
+        if p.bump_normal is not None:
+            # The sheen is a diffuse closure in Cycles: its lobe gets the correction too.
+            lobe = sheen.eval_sheened(p, wo[rows], wi[rows], np.zeros((rows.size, 3)), mode)
+            out[rows] = bump_correction.correct_sheen(p, wo[rows], wi[rows], mode,
+                                                      out[rows], lobe)
     return out
 
 
-def _eval_below_sheen(params, wo, wi, mode):
-    """:func:`eval_bsdf` of the coat over the kinds, without any sheen."""
+def _eval_kinds(params, wo, wi, mode):
+    """:func:`eval_bsdf` of the rows' own kinds, without coat, sheen or bump correction."""
     out = np.zeros((len(params), 3))
     for kind, rows in _groups(params):
         fn = FAMILIES[kind][0]
@@ -470,6 +482,14 @@ def _eval_below_sheen(params, wo, wi, mode):
             out = fn(params, wo, wi, mode)
         else:
             out[rows] = fn(params.take(rows), wo[rows], wi[rows], mode)
+    return out
+
+
+def _eval_below_sheen(params, wo, wi, mode):
+    """:func:`eval_bsdf` of the coat over the (bump-corrected) kinds, without any sheen."""
+    out = _eval_kinds(params, wo, wi, mode)
+    if params.bump_normal is not None:
+        out = bump_correction.correct_eval(params, wo, wi, mode, out, _eval_kinds)
     coated = coat_rows(params)
     if coated.size:
         out[coated] = coat.eval_coated(params.take(coated), wo[coated], wi[coated],
@@ -525,9 +545,25 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
     u = np.asarray(u, np.float64)
     rows = sheen.sheen_rows(params)
     if rows.size:
-        return BSDFSample(*sheen.sample_sheened(params, rows, wo, u_lobe, u, mode,
-                                                _sample_below_sheen, eval_bsdf, pdf_bsdf))
-    return _sample_below_sheen(params, wo, u_lobe, u, mode)
+        smp = BSDFSample(*sheen.sample_sheened(params, rows, wo, u_lobe, u, mode,
+                                               _sample_below_sheen, eval_bsdf, pdf_bsdf))
+    else:
+        smp = _sample_below_sheen(params, wo, u_lobe, u, mode)
+    return _bump_corrected_weight(params, wo, smp, mode)
+
+
+def _bump_corrected_weight(params, wo, smp, mode):
+    """``smp`` with the weight of bump-corrected rows' non-delta samples recomputed as
+    ``eval_bsdf / pdf`` (the correction scales eval, not the pdf, as in Cycles)."""
+    rows = bump_correction.bumped_rows(params)
+    if rows.size:
+        rows = rows[~smp.delta[rows] & (smp.pdf[rows] > 0.0)]
+    if rows.size == 0:
+        return smp
+    f = eval_bsdf(params.take(rows), wo[rows], smp.wi[rows], mode)
+    weight = smp.weight.copy()
+    weight[rows] = f / smp.pdf[rows][:, None]
+    return smp._replace(weight=weight)
 
 
 def _sample_below_sheen(params, wo, u_lobe, u, mode):

@@ -25,7 +25,8 @@ import numpy as np
 
 from ..integrators.base import Counters
 from ..integrators.common import (intersect_by_class, max_component, ray_class,
-                                  shading_tangents, surface_hits, surface_interaction)
+                                  shading_tangents, surface_hits, surface_interaction,
+                                  with_bump_normals)
 from ..integrators.subpaths import smooth_factor
 from ..materials.bsdf import IMPORTANCE, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
@@ -195,6 +196,7 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
         else:
             fs, ft, fn = shading_frame(si.ng, tangent)
         wo_l = to_local(si.wo, fs, ft, fn)
+        params = with_bump_normals(params, si, (fs, ft, fn))
         smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, IMPORTANCE)
         wi = to_world(smp.wi, fs, ft, fn)
         weight = smp.weight

@@ -22,7 +22,7 @@ from ..camera import camera_position
 from ..integrators.common import (add_emitters_along_rays, add_rows, camera_rays,
                                   intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
-                                  take_rows)
+                                  take_rows, with_bump_normals)
 from ..materials.bsdf import RADIANCE, BSDFParams, eval_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..sampling.mis import MIS
@@ -174,6 +174,7 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
                                                       hits.v[live])
         fs, ft, fn = _frame(prep, si)
         wo_l = to_local(si.wo, fs, ft, fn)
+        params = with_bump_normals(params, si, (fs, ft, fn))
         vp = np.nonzero(~delta_only)[0]
         if vp.size:
             point = VisiblePoints(rows[vp], si.p[vp], si.ng[vp], (fs[vp], ft[vp], fn[vp]),

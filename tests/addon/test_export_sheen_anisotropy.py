@@ -88,10 +88,32 @@ def test_anisotropic_metals_get_cycles_scales_and_only_approximations_are_report
     np.testing.assert_allclose(m.aniso_scale[row["Plastic"]], 1 / math.sqrt(1 - 0.45),
                                rtol=1e-6)
     assert m.kind[row["Plastic"]] == 3
-    assert s.messages == [
-        "Material 'UV': the tangent of node 'Glossy BSDF' from a UV map tangent is not "
-        "supported yet; approximated by the radial tangent about Z"], s.messages
+    # The quads have no UV map: the UV Map tangent falls back to the radial one, reported.
+    assert s.messages == ["Object 'Q3': no UV map for its UV Map tangent nodes; the radial "
+                          "tangent about Z is used"], s.messages
     assert s.aniso_tangents is not None
+
+
+def test_uv_map_tangent_node_gives_the_uv_tangents_in_world_space(empty_scene, export):
+    from test_cycles_textures import add_uv_quad
+
+    mat, node = _node_material("UV", "ShaderNodeBsdfAnisotropic", Anisotropy=0.5)
+    tangent = mat.node_tree.nodes.new("ShaderNodeTangent")
+    tangent.direction_type = 'UV_MAP'
+    mat.node_tree.links.new(tangent.outputs["Tangent"], node.inputs["Tangent"])
+    quad = add_uv_quad(empty_scene, "Quad", 1.0, mat)  # u along the object's +X
+    quad.rotation_euler = (0.0, 0.0, math.radians(90.0))  # ... now along world +Y
+    radial, _ = _principled("Radial", **{"Metallic": 1.0, "Anisotropic": 0.5})
+    scenes.add_uv_sphere(empty_scene, "Ball", (0.0, 0.0, 3.0), 0.5, radial)
+    s, row = _export(empty_scene, export)
+    assert s.messages == [], s.messages
+    uv = s.material == row["UV"]
+    t = s.aniso_tangents[uv].reshape(-1, 3).astype(np.float64)
+    np.testing.assert_allclose(t / np.linalg.norm(t, axis=1, keepdims=True),
+                               np.tile([0.0, 1.0, 0.0], (len(t), 1)), atol=1e-5)
+    # The radial tangent (about the object's Z) stays on the other mesh: never along Z.
+    ball = s.aniso_tangents[s.material == row["Radial"]].reshape(-1, 3)
+    assert np.abs(ball[:, 2]).max() < 1e-6 and np.abs(ball).max() > 0
 
 
 def test_default_tangent_is_radial_about_the_objects_z_axis_in_world_space(empty_scene, export):
