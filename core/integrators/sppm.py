@@ -41,8 +41,8 @@ Render loop: a pass is one call of :meth:`SPPM.render_pass` (``whole_passes``): 
 shared by every pixel and the per-pixel state changes between passes, so the image is not a
 mean of independent samples; the film shows the current estimate after each pass, and its
 variance pass is zero (not estimated). Within a pass the camera paths and the photons are cut
-into one chunk per worker thread at least and run in one batch of chunks, then the lookups;
-cancel is polled between chunks. Photons straight from a light are not stored (direct light
+into one chunk per worker thread at least and run in one batch of chunks, then the lookups
+in chunks of ``QUERY_CHUNK`` visible points; cancel is polled between chunks. Photons straight from a light are not stored (direct light
 comes from next-event estimation).
 """
 
@@ -52,7 +52,7 @@ import time
 
 import numpy as np
 
-from ..photons.lookup import PhotonTree
+from ..photons.lookup import QUERY_CHUNK, PhotonTree
 from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, Photons, photon_chunk, photon_setup,
                                spans, sppm_auto_radius)
 from ..photons.visible import join_points, trace_visible_points
@@ -110,7 +110,7 @@ class SPPM(Integrator):
         direct, points, photons = traced
         tree = PhotonTree(photons.p, origin=np.zeros(3))
         found = map_chunks(lambda span: self._gather(points.take(slice(*span)), photons, tree),
-                           spans(points.rows.size, self.workers))
+                           spans(points.rows.size, self.workers, QUERY_CHUNK))
         if found is None:
             return None
         phi = np.concatenate([f for f, _ in found]) if found else np.zeros((0, 3))

@@ -17,6 +17,11 @@ import importlib.util
 
 import numpy as np
 
+QUERY_CHUNK = 4096
+"""Query points per lookup task: a task cannot stop half-way, so this bounds the work between
+two polls of cancel (4096 SPPM visible points: at most 0.05 s on a loaded 2-core machine,
+0.28 s for the 32 k points of a whole chunk of camera paths)."""
+
 
 def require_scipy():
     """Raise ``ValueError`` naming the missing module unless scipy can be imported (it is
