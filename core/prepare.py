@@ -15,6 +15,7 @@ from .lights import Emission, LightSampler
 from .materials.bsdf import KIND_DIELECTRIC, BSDFParams, is_delta_only
 from .materials.microfacet import alpha_from_roughness
 from .sampling.distributions import Segmented1D
+from .sampling.stream import Aborted
 from .scene import Scene
 from .textures import material_base_color, material_roughness, textured_base_color
 
@@ -228,7 +229,7 @@ class PreparedScene:
 
 
 def prepare(scene: Scene, light_selection="power", light_sampling="area",
-            distribution="cdf") -> PreparedScene:
+            distribution="cdf", cancel=None) -> PreparedScene:
     """Build the acceleration structure and light tables for ``scene`` (in a recentred frame).
 
     ``light_selection`` (``'power' | 'uniform' | 'tree'``), ``light_sampling`` (``'area' |
@@ -236,10 +237,18 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     :class:`core.lights.LightSampler` (and the :class:`core.lights.Emission` of light paths over
     it; with ``'tree'`` the light tree is built here, once per render); ``distribution`` also
     draws mixed materials' components.
-    Unknown values raise ``ValueError``.
+    Unknown values raise ``ValueError``. ``cancel`` (a callable, or None) is polled between
+    the stages (each a few seconds at 10 M triangles; Embree's BVH build cannot stop half-way):
+    once it says so, ``core.sampling.stream.Aborted`` is raised.
     """
+    def stage_done():
+        if cancel is not None and cancel():
+            raise Aborted("cancelled while preparing the scene")
+
     scene, notes = drop_nonfinite(scene)
+    stage_done()
     scene, shift = recentred(scene)
+    stage_done()
     v = scene.vertices.astype(np.float64)
     tri = v[scene.triangles] if scene.n_triangles else np.zeros((0, 3, 3))
     v0 = np.ascontiguousarray(tri[:, 0])
@@ -249,12 +258,15 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     length = np.linalg.norm(cross, axis=1)
     normal = np.where(length[:, None] > 0, cross / np.maximum(length, 1e-300)[:, None], 0.0)
     area = 0.5 * length
+    stage_done()
     accel = Accel(scene.vertices, scene.triangles, scene.visibility)
+    stage_done()
     mats = scene.materials
     albedo = np.clip(mats.base_color[scene.material].astype(np.float64), 0.0, 1.0)
     emission = np.maximum(mats.emission[scene.material].astype(np.float64), 0.0)
     lights = LightSampler(scene, area, normal, v0, e1, e2, selection=light_selection,
                           sampling=light_sampling, method=distribution)
+    stage_done()
     # BSDF parameters per material, gathered by triangle at shading time.
     bsdf = BSDFParams.from_materials(mats, np.arange(len(mats.kind)))
     mix_rows, mix_weights = mixture_table(mats.mix_weights, mats.mix_rows)

@@ -111,3 +111,31 @@ def test_sppm_image_does_not_depend_on_the_lookup_chunk(monkeypatch):
     whole, cut = images
     assert whole.max() > 0
     np.testing.assert_allclose(cut, whole, rtol=0, atol=1e-12 * whole.max())
+
+
+@pytest.mark.parametrize("stages_before_cancel", [0, 3, 4])
+def test_cancel_while_preparing_stops_between_stages(stages_before_cancel, monkeypatch):
+    """Cancel is polled between the stages of preparing a scene (the 16 s of a 10 M triangle
+    scene): a render cancelled there returns at the next stage, without samples, with an
+    empty film. Embree's BVH is built between the third and the fourth poll."""
+    from sampling_lab.core import prepare as prepare_module
+
+    built = []
+    accel_class = prepare_module.Accel
+
+    def counting_accel(*args):
+        built.append(1)
+        return accel_class(*args)
+
+    monkeypatch.setattr(prepare_module, "Accel", counting_accel)
+    polls = []
+
+    def cancel():
+        polls.append(1)
+        return len(polls) > stages_before_cancel
+
+    result = render(scenes.cornell_box(16, 12, "point"), _settings("path"), cancel=cancel)
+    assert result.cancelled and result.stats["spp"] == 0
+    assert len(polls) == stages_before_cancel + 1  # stopped at the first poll that said so
+    assert len(built) == (stages_before_cancel >= 3)
+    assert result.sample_count().max() == 0 and np.isfinite(result.combined()).all()
