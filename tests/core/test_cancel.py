@@ -156,3 +156,28 @@ def test_triangle_tables_do_not_depend_on_the_chunk_size():
     for a, b in zip(whole, cut):
         assert np.array_equal(a, b)
     assert whole[4].sum() > 0
+
+
+@pytest.mark.parametrize("lookup", ["knn", "radius"])
+def test_photon_mapping_image_does_not_depend_on_the_lookup_step(lookup, monkeypatch):
+    """Photon mapping's density estimates run in steps with a cancel poll before each
+    (``LOOKUP_PAIRS // k`` points for k-nearest, ``QUERY_CHUNK`` for a fixed radius). Each
+    point's estimate is its own: k-nearest gives the same bits with any step; a fixed radius's
+    pairs come in another order, so its sums agree to rounding (1e-12 of the brightest pixel;
+    a point counted twice or lost changes its pixel by a whole photon's share)."""
+    from sampling_lab.core.photons import estimate
+
+    scene = scenes.cornell_box(24, 18, "point")
+    settings = plain_settings(integrator="photon", spp=1, photons=4000, threads=2,
+                              photon_lookup=lookup, photon_k=20, photon_radius=0.1)
+    images = []
+    for pairs, chunk in ((1 << 40, 1 << 30), (20 * 7, 37)):
+        monkeypatch.setattr(estimate, "LOOKUP_PAIRS", pairs)
+        monkeypatch.setattr(estimate, "QUERY_CHUNK", chunk)
+        images.append(render(scene, settings).combined()[..., :3])
+    whole, cut = images
+    assert whole.max() > 0
+    if lookup == "knn":
+        assert np.array_equal(cut, whole)
+    else:
+        np.testing.assert_allclose(cut, whole, rtol=0, atol=1e-12 * whole.max())
