@@ -342,7 +342,8 @@ def check_settings(scene, settings):
         x0, y0, x1, y1 = settings.region
         if not (0 <= x0 < x1 <= scene.camera.width and 0 <= y0 < y1 <= scene.camera.height):
             raise RenderRefused(f"the render region {tuple(settings.region)} is not a "
-                                f"non-empty window of the {scene.camera.width} x {scene.camera.height} frame")
+                                f"non-empty window of the {scene.camera.width} x "
+                                f"{scene.camera.height} frame")
     check_film_memory(scene.camera.width, scene.camera.height, settings.region)
     if settings.integrator == "bdpt" and settings.mis_heuristic not in HEURISTICS:
         raise RenderRefused(f"BDPT weighs all its strategies with one heuristic: choose "
