@@ -273,10 +273,14 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     Unknown values raise ``ValueError``. ``cancel`` (a callable, or None) is polled between
     the stages and every :data:`TABLE_CHUNK` triangles of the tables (Embree's BVH build cannot
     stop half-way: 8 to 11 s for 3 M triangles on a loaded machine): once it says so,
-    ``core.sampling.stream.Aborted`` is raised.
+    ``core.sampling.stream.Aborted`` is raised. A scene of at most :data:`TABLE_CHUNK`
+    triangles is prepared in milliseconds and not polled (so the polls a render makes are
+    its work units', as before, for such scenes).
     """
+    polled = cancel is not None and scene.n_triangles > TABLE_CHUNK
+
     def stage_done():
-        if cancel is not None and cancel():
+        if polled and cancel():
             raise Aborted("cancelled while preparing the scene")
 
     scene, notes = drop_nonfinite(scene)

@@ -113,13 +113,19 @@ def test_sppm_image_does_not_depend_on_the_lookup_chunk(monkeypatch):
     np.testing.assert_allclose(cut, whole, rtol=0, atol=1e-12 * whole.max())
 
 
-@pytest.mark.parametrize("stages_before_cancel", [0, 3, 4])
-def test_cancel_while_preparing_stops_between_stages(stages_before_cancel, monkeypatch):
-    """Cancel is polled between the stages of preparing a scene (the 16 s of a 10 M triangle
-    scene): a render cancelled there returns at the next stage, without samples, with an
-    empty film. Embree's BVH is built between the third and the fourth poll."""
+@pytest.mark.parametrize("polls_before_cancel", [0, 6, 7])
+def test_cancel_while_preparing_stops_between_stages(polls_before_cancel, monkeypatch):
+    """Cancel is polled while a scene of more than ``TABLE_CHUNK`` triangles is prepared
+    (a 10 M triangle scene took 16 s): after leaving out non-finite triangles, after
+    recentring, after each chunk of the triangle tables (5 here), after Embree's BVH and
+    after the light tables. A render cancelled there returns at that poll, without samples,
+    with an empty film; the BVH is built only when cancel comes after the tables."""
     from sampling_lab.core import prepare as prepare_module
+    from sampling_lab.core.hard_cases import many_triangles
 
+    scene = many_triangles(300_000, 8, 6)
+    chunks = -(-scene.n_triangles // prepare_module.TABLE_CHUNK)
+    assert chunks == 5
     built = []
     accel_class = prepare_module.Accel
 
@@ -132,13 +138,21 @@ def test_cancel_while_preparing_stops_between_stages(stages_before_cancel, monke
 
     def cancel():
         polls.append(1)
-        return len(polls) > stages_before_cancel
+        return len(polls) > polls_before_cancel
 
-    result = render(scenes.cornell_box(16, 12, "point"), _settings("path"), cancel=cancel)
+    result = render(scene, _settings("path"), cancel=cancel)
     assert result.cancelled and result.stats["spp"] == 0
-    assert len(polls) == stages_before_cancel + 1  # stopped at the first poll that said so
-    assert len(built) == (stages_before_cancel >= 3)
+    assert len(polls) == polls_before_cancel + 1  # stopped at the first poll that said so
+    assert len(built) == (polls_before_cancel >= 2 + chunks)
     assert result.sample_count().max() == 0 and np.isfinite(result.combined()).all()
+
+
+def test_a_small_scene_is_prepared_without_polling_cancel():
+    polls = []
+    result = render(scenes.cornell_box(16, 12, "point"), _settings("path"),
+                    cancel=lambda: polls.append(1) or True)
+    # Preparing finished (its result is kept); the first poll was the render loop's.
+    assert result.cancelled and result.prepared is not None and result.stats["spp"] == 0
 
 
 def test_triangle_tables_do_not_depend_on_the_chunk_size():

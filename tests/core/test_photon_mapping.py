@@ -69,10 +69,8 @@ def test_cancel_answers_while_the_photon_maps_are_built():
         polls.append(1)
         return True
 
-    # The scene prepared beforehand: preparing polls cancel too (tests/core/test_cancel.py).
-    scene, settings = scenes.cornell_box(8, 8), _settings(spp=4, photons=300_000)
-    prepared = render.prepare(scene, settings.light_selection, "area", settings.distribution)
-    result = render.render(scene, settings, cancel=cancel, prepared=prepared)
+    result = render.render(scenes.cornell_box(8, 8), _settings(spp=4, photons=300_000),
+                           cancel=cancel)
     assert result.cancelled and result.stats["spp"] == 0 and len(polls) == 1
     assert result.stats["photons_emitted"] == 0
 
