@@ -250,6 +250,8 @@ def test_a_render_failing_half_way_keeps_its_samples_and_says_so(empty_scene, tm
                                                                  monkeypatch, capfd):
     scenes.cornell_box_point_light(empty_scene, resolution=(160, 120))
     scenes.set_sampling_lab(empty_scene, samples=4)
+    # One worker thread: the second call is the second unit, after the first has finished.
+    empty_scene.render.threads_mode, empty_scene.render.threads = 'FIXED', 1
     path = importlib.import_module(f"{ADDON_MODULE}.core.integrators.path")
     original, calls = path.PathTracer.render_samples, []
 
@@ -336,6 +338,8 @@ def test_a_bug_half_way_keeps_the_samples_and_prints_its_traceback(empty_scene, 
                                                                     monkeypatch, capfd):
     scenes.cornell_box_point_light(empty_scene, resolution=(160, 120))
     scenes.set_sampling_lab(empty_scene, samples=4)
+    # One worker thread: the second call is the second unit, after the first has finished.
+    empty_scene.render.threads_mode, empty_scene.render.threads = 'FIXED', 1
     path = importlib.import_module(f"{ADDON_MODULE}.core.integrators.path")
     original, calls = path.PathTracer.render_samples, []
 
