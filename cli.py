@@ -364,8 +364,6 @@ def cmd_render(args):
     for message in result.messages:
         if message not in scene.messages:  # those were printed before rendering
             print(f"note: {message}", file=sys.stderr)
-    if result.traceback:  # not a refusal but a bug: where it happened
-        print(result.traceback, file=sys.stderr, end="")
     if result.error:
         print(f"{PROG}: error: the render failed ({result.error}); writing the samples taken",
               file=sys.stderr)
