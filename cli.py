@@ -25,6 +25,7 @@ import sys
 import tempfile
 
 from .core import scenes as builtin_scenes
+from .core.errors import RenderRefused
 from .core.options import OPTIONS
 from .core.render import RenderSettings, render, unused_options
 
@@ -355,7 +356,7 @@ def cmd_render(args):
     previous = signal.signal(signal.SIGINT, lambda *_: interrupted.append(True))
     try:
         result = render(scene, settings, progress=bar, cancel=lambda: bool(interrupted))
-    except ValueError as exc:
+    except RenderRefused as exc:
         raise UsageError(str(exc)) from None
     finally:
         signal.signal(signal.SIGINT, previous)

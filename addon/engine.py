@@ -3,10 +3,13 @@
 This is a thin adapter: :mod:`.export` turns the depsgraph into a :class:`core.scene.Scene`,
 :func:`core.render.render` does all the work, and :mod:`.passes` copies its images into the
 render result. Nothing raised here may escape into Blender: every error becomes an ``ERROR``
-report (which also makes ``bpy.ops.render.render`` raise ``RuntimeError`` for scripts).
+report (which also makes ``bpy.ops.render.render`` raise ``RuntimeError`` for scripts): a
+refusal (:class:`core.errors.RenderRefused`, an export error) as one line naming the cause,
+anything else as a failure with its traceback printed to the console.
 """
 
 import importlib.util
+import sys
 import time
 import traceback
 
@@ -80,6 +83,18 @@ def estimator_text(stats):
     return ""
 
 
+def film_window(render, width, height):
+    """The window ``(x0, y0, x1, y1)`` of the frame whose memory a render takes, or None for
+    the whole frame, before Blender allocates the result: the Render Region when it is cropped
+    to; without Crop to Render Region Blender pastes the region into a full-frame image, so the
+    whole frame's memory is needed. Blender truncates the region's corners to whole pixels."""
+    if not (render.use_border and render.use_crop_to_border):
+        return None
+    x0, x1 = int(render.border_min_x * width), int(render.border_max_x * width)
+    y0, y1 = int(render.border_min_y * height), int(render.border_max_y * height)
+    return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
+
+
 def render_region(render, width, height, result_width, result_height):
     """The window of the full frame that Blender's result covers (Render Region).
 
@@ -151,6 +166,7 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
         try:
             self._render(depsgraph)
         except Exception as ex:  # noqa: BLE001 - nothing may take Blender down
+            from ..core.errors import RenderRefused
             from .export import ExportError
 
             if isinstance(ex, ExportError):
@@ -158,13 +174,14 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
             elif isinstance(ex, MemoryError):
                 self.report({'ERROR'}, "Sampling Lab: out of memory: lower the resolution or "
                                        "the photon count")
-            elif isinstance(ex, ValueError):
-                # core.render refuses settings it cannot render with a message for the user
-                # (as the command line prints it): one line, no traceback.
+            elif isinstance(ex, RenderRefused):
+                # The core refuses what it cannot render with a message for the user (as the
+                # command line prints it): one line, no traceback.
                 self.report({'ERROR'}, f"Sampling Lab: {ex}")
-            else:
+            else:  # a bug (a NumPy ValueError too): its traceback goes to the console
                 traceback.print_exc()
-                self.report({'ERROR'}, f"Sampling Lab: render failed: {type(ex).__name__}: {ex}")
+                self.report({'ERROR'}, f"Sampling Lab: render failed: {type(ex).__name__}: {ex} "
+                                       f"(traceback in the console)")
 
     def _render(self, depsgraph):
         from . import export
@@ -184,13 +201,16 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
         t0 = time.perf_counter()
         sl_scene = export.export_scene(depsgraph, self.camera_override)
         export_s = time.perf_counter() - t0
+        if self.test_break():  # Esc while exporting: nothing rendered, nothing to keep
+            self.update_stats("", "Sampling Lab | cancelled while exporting")
+            return
         for message in sl_scene.messages:
             self.report({'WARNING'}, f"Sampling Lab: {message}")
         reported = set(sl_scene.messages)
 
         width, height = sl_scene.camera.width, sl_scene.camera.height
         # Before Blender allocates the result: a huge image is refused, not half allocated.
-        check_film_memory(width, height)
+        check_film_memory(width, height, film_window(scene.render, width, height))
         result = self.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
         layer = result.layers[0]
         settings = render_settings(scene.sampling_lab)
@@ -226,6 +246,8 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
             self.end_result(result)
         self._prepared = (key, out.prepared) if persistent else None
 
+        if out.traceback:
+            print(out.traceback, file=sys.stderr)
         for message in out.messages:
             if message not in reported:
                 self.report({'WARNING'}, f"Sampling Lab: {message}")

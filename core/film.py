@@ -22,6 +22,8 @@ import os
 
 import numpy as np
 
+from .errors import RenderRefused
+
 FILTER_TABLE_SIZE = 1024
 # Steps of u in the guide table of the filter's inverse CDF (PixelFilter.sample).
 GUIDE = 4 * FILTER_TABLE_SIZE
@@ -324,13 +326,13 @@ def physical_memory():
 
 
 def check_film_memory(width, height, region=None, memory=None):
-    """Refuse (``ValueError``) an image whose film would take more than half of the machine's
+    """Refuse (:class:`core.errors.RenderRefused`) an image whose film would take more than half of the machine's
     ``memory`` (default: :func:`physical_memory`), before anything is allocated: a huge
     resolution then says so instead of failing deep inside NumPy or exhausting the machine."""
     n = (region[2] - region[0]) * (region[3] - region[1]) if region else width * height
     memory = physical_memory() if memory is None else memory
     need = n * FILM_BYTES_PER_PIXEL
     if memory and need > memory / 2:
-        raise ValueError(f"a {width} x {height} image needs about {need / 2 ** 30:.0f} GB for "
+        raise RenderRefused(f"a {width} x {height} image needs about {need / 2 ** 30:.0f} GB for "
                          f"its film, more than half of the {memory / 2 ** 30:.0f} GB of memory "
                          f"here: lower the resolution or render a region")

@@ -31,11 +31,13 @@ import hashlib
 import os
 import threading
 import time
+import traceback
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .errors import RenderRefused
 from .film import Film, PixelFilter, check_film_memory, to_float32
 from .integrators import integrator_class
 from .integrators.base import UNIT_PATHS, Counters
@@ -149,6 +151,9 @@ class RenderResult:
         Why a render failed part-way (``"TypeName: message"``); the film keeps every work
         unit finished before it.
     messages : list of str
+    traceback : str or None
+        The traceback of the exception behind ``error`` when it was not a
+        :class:`core.errors.RenderRefused` (a bug, for the console).
     prepared : core.prepare.PreparedScene or None
         What the render derived from the scene (acceleration structure, light tables), to
         pass as ``prepared`` to the next render of the same scene (see :func:`render`).
@@ -160,6 +165,7 @@ class RenderResult:
     error: str = None
     messages: list = field(default_factory=list)
     layer_names: list = field(default_factory=list)
+    traceback: str = None
     prepared: PreparedScene = None
 
     def combined(self):
@@ -329,27 +335,32 @@ def unused_options(settings):
 
 
 def check_settings(scene, settings):
-    """Raise ``ValueError`` with a user-facing message for settings that cannot render."""
+    """Raise :class:`core.errors.RenderRefused` (a ``ValueError``) with a user-facing message
+    for settings that cannot render."""
     if scene.camera is None:
-        raise ValueError("the scene has no camera: add one and make it the scene camera")
+        raise RenderRefused("the scene has no camera: add one and make it the scene camera")
     # Each option against its menu or range (core.options), then what options need together.
-    validate(settings)
+    try:
+        validate(settings)
+    except ValueError as exc:
+        raise RenderRefused(str(exc)) from None
     if settings.spp <= 0 and settings.time_limit <= 0:
-        raise ValueError("set a sample count or a time limit")
+        raise RenderRefused("set a sample count or a time limit")
     if scene.camera.width <= 0 or scene.camera.height <= 0:
-        raise ValueError("the resolution must be at least 1 x 1 pixel")
+        raise RenderRefused("the resolution must be at least 1 x 1 pixel")
     if settings.region is not None:
         x0, y0, x1, y1 = settings.region
         if not (0 <= x0 < x1 <= scene.camera.width and 0 <= y0 < y1 <= scene.camera.height):
-            raise ValueError(f"the render region {tuple(settings.region)} is not a non-empty "
-                             f"window of the {scene.camera.width} x {scene.camera.height} frame")
+            raise RenderRefused(f"the render region {tuple(settings.region)} is not a "
+                                f"non-empty window of the {scene.camera.width} x "
+                                f"{scene.camera.height} frame")
     check_film_memory(scene.camera.width, scene.camera.height, settings.region)
     if settings.integrator == "bdpt" and settings.mis_heuristic not in HEURISTICS:
-        raise ValueError(f"BDPT weighs all its strategies with one heuristic: choose from "
-                         f"{', '.join(HEURISTICS)}, not {settings.mis_heuristic!r}")
+        raise RenderRefused(f"BDPT weighs all its strategies with one heuristic: choose "
+                            f"from {', '.join(HEURISTICS)}, not {settings.mis_heuristic!r}")
     if settings.integrator in ("light", "bdpt") and scene.camera.type != "PERSP":
-        raise ValueError(f"{settings.integrator} needs a perspective camera: light paths "
-                         f"cannot reach an orthographic one")
+        raise RenderRefused(f"{settings.integrator} needs a perspective camera: light "
+                            f"paths cannot reach an orthographic one")
 
 
 def render(scene, settings: RenderSettings, progress=None, cancel=None, on_update=None,
@@ -363,7 +374,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     progress : callable(fraction: float, text: str) or None
         Called after every work unit.
     cancel : callable() -> bool or None
-        Polled between work units; True stops the render, keeping finished samples.
+        Polled between the stages of preparing the scene and between work units; True stops
+        the render, keeping finished samples (none when it stops while preparing).
     on_update : callable(RenderResult) or None
         Called after every pass (to show the image so far).
     prepared : core.prepare.PreparedScene or None
@@ -384,16 +396,20 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     check_settings(scene, settings)
     t0 = time.perf_counter()
     used = used_settings(settings)
+    cam = scene.camera
+    x0, y0, x1, y1 = region_bounds(cam, settings.region)
     if prepared is not None:
         prep = with_camera(prepared, scene.camera)
     else:
-        # Light and BDPT paths start by area whatever the setting (see used_settings).
-        prep = prepare(scene, settings.light_selection,
-                       "solid_angle" if used["light_sampling"] == "solid_angle" else "area",
-                       settings.distribution)
+        try:
+            # Light and BDPT paths start by area whatever the setting (see used_settings).
+            prep = prepare(scene, settings.light_selection,
+                           "solid_angle" if used["light_sampling"] == "solid_angle" else "area",
+                           settings.distribution, cancel=cancel)
+        except Aborted:
+            return _cancelled_while_preparing(scene, Film(x1 - x0, y1 - y0, x0, y0), used,
+                                              time.perf_counter() - t0)
     prepare_s = time.perf_counter() - t0
-    cam = scene.camera
-    x0, y0, x1, y1 = region_bounds(cam, settings.region)
     film = Film(x1 - x0, y1 - y0, x0, y0)
     sampler = make_sampler(settings.sampler, seed=settings.seed,
                            spp=settings.spp if settings.spp > 0 else None, width=cam.width)
@@ -411,6 +427,8 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     except Exception as exc:  # noqa: BLE001 - a failed unit must not lose the finished ones
         result.cancelled = True
         result.error = f"{type(exc).__name__}: {exc}"
+        if not isinstance(exc, RenderRefused):
+            result.traceback = traceback.format_exc()
     t = passes.elapsed()
     counters = passes.counters
     result.stats = {
@@ -436,6 +454,14 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     if integrator.whole_passes:
         result.stats.update(integrator.render_stats(t))
     return result
+
+
+def _cancelled_while_preparing(scene, film, used, seconds):
+    """The result of a render cancelled before its first sample: an empty ``film``."""
+    stats = {"time_s": seconds, "prepare_s": seconds, "prepared_reused": False, "threads": 0,
+             "spp": 0, "samples": 0, "samples_per_s": 0.0, "rays": 0, "rays_per_s": 0.0,
+             "triangles": scene.n_triangles, **used}
+    return RenderResult(film, stats=stats, cancelled=True, messages=list(scene.messages))
 
 
 def _scene_notes(scene, prep):

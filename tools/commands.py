@@ -179,7 +179,8 @@ def _add_bench_limits(sub, **kw):
 def _bench_soak(args):
     from .soak import run
 
-    run(minutes=args.minutes, size=args.size, spp=args.spp, output=args.output)
+    run(minutes=args.minutes, size=args.size, spp=args.spp, output=args.output,
+        new_file=args.new_file)
     return 0
 
 
@@ -191,6 +192,9 @@ def _add_bench_soak(sub, **kw):
                    help="how long to keep rendering (whole rounds)")
     _size(p, (96, 72))
     p.add_argument("--spp", type=_positive_int, default=8, help="samples per pixel")
+    p.add_argument("--new-file", action="store_true",
+                   help="build every job in a new file (read_homefile) instead of emptying the "
+                        "scene: adds Blender's own few kB per file read and rendered")
     add_output_arguments(p, "bench-soak")
 
 

@@ -150,11 +150,13 @@ class PhotonMapping(Integrator):
         points = trace_visible_points(self.prep, stream, pixel_filter, bounces, counters, L)
         caustic, global_map = self.maps
         limit = bounces + 1 - points.bounces
-        add_rows(L, points.rows, points.beta * caustic.radiance(points, limit, **self._lookup()))
+        poll = stream.check_abort  # between lookup steps: a cancelled render stops there
+        add_rows(L, points.rows, points.beta * caustic.radiance(points, limit, poll=poll,
+                                                                **self._lookup()))
         if self.settings.gather_rays == 0:
             # No gather: the global map's other indirect photons, read here.
             indirect = global_map.radiance(points, limit, min_hit=2, skip_caustic=True,
-                                           **self._lookup())
+                                           poll=poll, **self._lookup())
             add_rows(L, points.rows, points.beta * indirect)
         else:
             self._final_gather(stream, points, L, counters)
@@ -189,8 +191,9 @@ class PhotonMapping(Integrator):
         # Paths within the bounce limit: camera + visible point + gather chain + photon hit.
         limit = (self.settings.max_bounces - points.bounces[vp] - hits.bounces)
         _, global_map = self.maps
-        stream.check_abort()  # the lookups below are most of a chunk's time
-        found = hits.beta * global_map.radiance(hits, limit, **self._lookup())
+        # The lookups are most of a chunk's time: cancel is polled between their steps.
+        found = hits.beta * global_map.radiance(hits, limit, poll=stream.check_abort,
+                                                **self._lookup())
         # Several gather rays per point: sum them per point first (add_rows needs unique rows).
         per_point = np.stack([np.bincount(vp, found[:, c], minlength=k) for c in range(3)],
                              axis=1)

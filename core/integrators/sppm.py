@@ -51,8 +51,8 @@ is, however, the mean of per-pass estimates ``direct_k + phi_k / (photons pi r_k
 and Zwicker 2011), whose spread gives the Variance pass (:meth:`SPPM.pass_sum_sq`): the
 variance of this biased estimate, not its mean squared error. Within a pass the camera paths
 and the photons are cut into one chunk per worker thread at least and run in one batch of
-chunks, then the lookups;
-cancel is polled between chunks. Photons straight from a light are not stored (direct light
+chunks, then the lookups in chunks of ``QUERY_CHUNK`` visible points; cancel is polled
+between chunks. Photons straight from a light are not stored (direct light
 comes from next-event estimation).
 """
 
@@ -66,7 +66,7 @@ from ..camera import view_extent
 from ..materials.frame import to_world
 from ..photons.compatible import compatible
 from ..photons.coverage import disk_coverage
-from ..photons.lookup import PhotonTree
+from ..photons.lookup import QUERY_CHUNK, PhotonTree
 from ..photons.tracing import (BYTES_PER_PHOTON, CHUNK, Photons, photon_chunk, photon_setup,
                                spans, sppm_auto_radius)
 from ..photons.visible import join_points, trace_visible_points
@@ -150,7 +150,7 @@ class SPPM(Integrator):
             self._first_radii(points)
         tree = PhotonTree(photons.p, origin=np.zeros(3))
         found = map_chunks(lambda span: self._gather(points.take(slice(*span)), photons, tree),
-                           spans(points.rows.size, self.workers))
+                           spans(points.rows.size, self.workers, QUERY_CHUNK))
         if found is None:
             return None
         phi = np.concatenate([f for f, _ in found]) if found else np.zeros((0, 3))

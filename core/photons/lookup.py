@@ -17,12 +17,19 @@ import importlib.util
 
 import numpy as np
 
+from ..errors import RenderRefused
+
+QUERY_CHUNK = 4096
+"""Query points per lookup task: a task cannot stop half-way, so this bounds the work between
+two polls of cancel (4096 SPPM visible points: at most 0.05 s on a loaded 2-core machine,
+0.28 s for the 32 k points of a whole chunk of camera paths)."""
+
 
 def require_scipy():
-    """Raise ``ValueError`` naming the missing module unless scipy can be imported (it is
+    """Raise ``RenderRefused`` naming the missing module unless scipy can be imported (it is
     imported lazily: the add-on and the other integrators work without it)."""
     if importlib.util.find_spec("scipy") is None:
-        raise ValueError("Photon Mapping and SPPM need the Python module scipy (its kd-tree, "
+        raise RenderRefused("Photon Mapping and SPPM need the Python module scipy (its kd-tree, "
                          "scipy.spatial.cKDTree), which is not installed; install the extension "
                          "build that bundles it, or pip install scipy==1.14.1 into Blender's "
                          "Python")

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import RenderRefused
 from ..integrators.base import Counters
 from ..integrators.common import (intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
@@ -103,11 +104,11 @@ def worst_case_bytes(photons, max_bounces):
 
 
 def check_memory(photons, max_bounces, cap_mb):
-    """Raise ``ValueError`` if ``photons`` photons with ``max_bounces`` could need more than
+    """Raise ``RenderRefused`` if ``photons`` photons with ``max_bounces`` could need more than
     ``cap_mb`` megabytes of photon storage (the message names the settings to change)."""
     need = worst_case_bytes(photons, max_bounces)
     if need > cap_mb * (1 << 20):
-        raise ValueError(
+        raise RenderRefused(
             f"photon storage: {photons:,} photons x up to {max_bounces + 1} stored hits each "
             f"may need {need / (1 << 20):,.0f} MB, more than the Photon Memory cap of "
             f"{cap_mb:,.0f} MB: lower Photons or Max Bounces, or raise Photon Memory")

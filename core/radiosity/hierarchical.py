@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import RenderRefused
 from . import form_factors as ff
 from .mesh import build_mesh, local_index
 
@@ -238,9 +239,9 @@ def solve_hierarchical(prep, params, progress=None, cancel=None):
 
     t0 = time.perf_counter()
     if prep.scene.n_triangles > MAX_ROOTS:
-        raise ValueError(f"radiosity: hierarchical radiosity links every pair of input "
-                         f"triangles first; {prep.scene.n_triangles:,} are more than "
-                         f"{MAX_ROOTS:,}: choose the Progressive solver")
+        raise RenderRefused(f"radiosity: hierarchical radiosity links every pair of input "
+                            f"triangles first; {prep.scene.n_triangles:,} are more than "
+                            f"{MAX_ROOTS:,}: choose the Progressive solver")
     mesh = build_mesh(prep, params.patch_size, MAX_PATCHES, power_of_two=True)
     el = build_elements(prep, mesh)
     check = progress_check(progress, cancel, 0.0, 1.0, "hierarchical")

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import RenderRefused
+
 # Patches meeting at a point are averaged for Gouraud display when their normals differ by less.
 CREASE_DEGREES = 30.0
 
@@ -193,7 +195,7 @@ def build_mesh(prep, patch_size, max_patches=None, power_of_two=False):
     PatchMesh
     """
     if not patch_size > 0:
-        raise ValueError(f"radiosity patch size must be positive, got {patch_size!r}")
+        raise RenderRefused(f"radiosity patch size must be positive, got {patch_size!r}")
     e1, e2 = prep.tri_e1, prep.tri_e2
     longest = np.sqrt(np.max([np.einsum("ij,ij->i", e, e) for e in (e1, e2, e2 - e1)], axis=0))
     n = np.where(prep.tri_area > 0, np.ceil(longest / patch_size - 1e-9), 0).astype(np.int64)
@@ -202,9 +204,10 @@ def build_mesh(prep, patch_size, max_patches=None, power_of_two=False):
         n = np.where(n > 0, 1 << np.ceil(np.log2(np.maximum(n, 1))).astype(np.int64), 0)
     count = int(2 * np.sum(n * n))
     if max_patches is not None and count > max_patches:
-        raise ValueError(f"radiosity: a patch size of {patch_size:g} gives {count:,} patches, "
-                         f"more than the {max_patches:,} this solver can hold; raise the patch "
-                         f"size or choose the Progressive or Hierarchical solver")
+        raise RenderRefused(f"radiosity: a patch size of {patch_size:g} gives {count:,} "
+                            f"patches, more than the {max_patches:,} this solver can hold; "
+                            f"raise the patch size or choose the Progressive or Hierarchical "
+                            f"solver")
     first = np.concatenate([[0], np.cumsum(n * n)[:-1]]).astype(np.int64)
     m = int(np.sum(n * n))
     corners = np.zeros((m, 3, 3))

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import RenderRefused
 from . import adaptive
 from . import form_factors as ff
 from .mesh import build_mesh
@@ -146,8 +147,8 @@ def _solve_mesh(prep, params, progress, cancel, mesh):
         mesh = build_mesh(prep, params.patch_size,
                           MAX_DENSE_PATCHES if dense else MAX_PATCHES)
     elif dense and mesh.n_patches > MAX_DENSE_PATCHES:
-        raise ValueError(f"radiosity: {mesh.n_patches:,} patches are more than the "
-                         f"{MAX_DENSE_PATCHES:,} a dense solver can hold")
+        raise RenderRefused(f"radiosity: {mesh.n_patches:,} patches are more than the "
+                            f"{MAX_DENSE_PATCHES:,} a dense solver can hold")
     E, lamp_se = source_term(mesh, prep, params,
                              progress_check(progress, cancel, 0.0, 0.05, "lamps"))
     t_mesh = time.perf_counter()

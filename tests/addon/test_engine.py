@@ -301,6 +301,61 @@ def test_a_huge_resolution_is_refused_before_blender_allocates_it(empty_scene):
         bpy.ops.render.render()
 
 
+def test_a_small_cropped_region_of_a_huge_frame_is_not_refused(empty_scene, tmp_path):
+    """The film-memory check counts the pixels Blender allocates: a cropped Render Region's
+    (8 x 8 of a 65536 x 65536 frame, whose full film the check above refuses)."""
+    scenes.cornell_box_point_light(empty_scene, resolution=(8, 8))
+    scenes.set_sampling_lab(empty_scene, samples=1)
+    scenes.set_resolution(empty_scene, 65536, 65536)
+    render = empty_scene.render
+    render.use_border, render.use_crop_to_border = True, True
+    render.border_min_x, render.border_min_y = 0.5, 0.5
+    render.border_max_x = render.border_max_y = 0.5 + 8 / 65536
+    passes = scenes.render_to_exr(empty_scene, tmp_path / "region.exr")
+    assert passes["Combined"].shape[:2] == (8, 8)
+    assert np.isfinite(passes["Combined"]).all()
+
+
+def test_a_bug_is_reported_as_a_failure_with_its_traceback(empty_scene, monkeypatch, capfd):
+    """A ValueError that is not a refusal (a NumPy error inside the core) is a render failure
+    with its traceback in the console, not a one-line refusal."""
+    scenes.cornell_box_point_light(empty_scene, resolution=(8, 8))
+    core_render = importlib.import_module(f"{ADDON_MODULE}.core.render")
+
+    def broken_prepare(*args, **kw):
+        raise ValueError("operands could not be broadcast together")
+
+    monkeypatch.setattr(core_render, "prepare", broken_prepare)
+    capfd.readouterr()
+    with pytest.raises(RuntimeError, match="render failed: ValueError: operands") as err:
+        bpy.ops.render.render()
+    assert "traceback in the console" in str(err.value)
+    assert "Traceback" in capfd.readouterr().err
+
+
+def test_a_bug_half_way_keeps_the_samples_and_prints_its_traceback(empty_scene, tmp_path,
+                                                                    monkeypatch, capfd):
+    scenes.cornell_box_point_light(empty_scene, resolution=(160, 120))
+    scenes.set_sampling_lab(empty_scene, samples=4)
+    # One worker thread: the second call is the second unit, after the first has finished.
+    empty_scene.render.threads_mode, empty_scene.render.threads = 'FIXED', 1
+    path = importlib.import_module(f"{ADDON_MODULE}.core.integrators.path")
+    original, calls = path.PathTracer.render_samples, []
+
+    def render_samples(self, *args):  # the second work unit meets a NumPy-style ValueError
+        calls.append(1)
+        if len(calls) == 2:
+            raise ValueError("shapes (3,) and (4,) not aligned")
+        return original(self, *args)
+
+    monkeypatch.setattr(path.PathTracer, "render_samples", render_samples)
+    passes = scenes.render_to_exr(empty_scene, tmp_path / "failed.exr")
+    assert passes["Sample Count"].sum() == 160 * 120 * 4 / 2
+    out = capfd.readouterr()
+    assert "render failed part-way: ValueError: shapes" in out.out
+    assert "Traceback" in out.err and "render_samples" in out.err
+
+
 # --------------------------------------------------------------------------- settings and UI
 
 

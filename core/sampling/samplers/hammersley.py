@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...errors import RenderRefused
 from ..lowdiscrepancy import (
     hash_combine, owen_scramble, permutation_element, reverse_bits, sub_key, unit_from_u32,
 )
@@ -85,7 +86,7 @@ class HammersleySampler:
 
     def __init__(self, seed=0, spp=None):
         if spp is None or int(spp) < 1:
-            raise ValueError(
+            raise RenderRefused(
                 "Hammersley points are defined for a known sample count N (the first coordinate "
                 "is i/N), so the sampler cannot be used without one (a render that only stops at "
                 "a time limit): set a sample count or choose Halton/Sobol")
