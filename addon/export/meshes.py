@@ -248,20 +248,19 @@ def _concat_corner_normals(chunks, vertices, triangles):
         return None
     tri = vertices.astype(np.float64)[triangles]
     face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float32)
-    out = np.repeat(face[:, None, :], 3, axis=1)
-    start = 0
-    for c, count in chunks:
-        if c is not None:
-            out[start:start + count] = c
-        start += count
-    return out
+    return _fill_rows(np.repeat(face[:, None, :], 3, axis=1), chunks)
 
 
 def _concat_aniso_tangents(chunks):
     """One ``(t, 3, 3)`` corner-tangent table (zero for isotropic objects), or None."""
     if all(c is None for c, _ in chunks):
         return None
-    out = np.zeros((sum(count for _, count in chunks), 3, 3), np.float32)
+    return _fill_rows(np.zeros((sum(count for _, count in chunks), 3, 3), np.float32), chunks)
+
+
+def _fill_rows(out, chunks):
+    """``out`` with each ``(rows, count)`` chunk of ``chunks`` written over its own run of
+    ``count`` rows, in order (None chunks keep ``out``'s rows)."""
     start = 0
     for c, count in chunks:
         if c is not None:
