@@ -38,6 +38,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import microfacet as mf
+from ..sampling.warps import remap_after_choice
 from .dielectric import RADIANCE
 from .families import LOBE_GLOSSY, LOBE_REFLECT, LOBE_SINGULAR
 from .frame import flip_to_upper, reflect, reflect_z, side_of
@@ -123,12 +124,6 @@ def pdf_coated(p, wo, wi, base_pdf):
     return prob * coat_pdf + (1.0 - prob) * base_pdf
 
 
-def _remap(u_lobe, prob, chosen):
-    """The lobe number left uniform in [0, 1) after choosing the coat (or not) with it."""
-    u = np.where(chosen, u_lobe / np.where(prob > 0.0, prob, 1.0),
-                 (u_lobe - prob) / np.where(prob < 1.0, 1.0 - prob, 1.0))
-    return np.clip(u, 0.0, np.nextafter(1.0, 0.0))
-
 
 def sample_coated(params, rows, wo, u_lobe, u, mode, sample_base, eval_fn, pdf_fn):
     """Sample every row of ``params``, those in ``rows`` (:func:`coat_rows`) with their coat.
@@ -142,7 +137,7 @@ def sample_coated(params, rows, wo, u_lobe, u, mode, sample_base, eval_fn, pdf_f
     prob = coat_probability(p, wo_c)
     chosen = u_lobe[rows] < prob
     u_base = u_lobe.copy()
-    u_base[rows] = _remap(u_lobe[rows], prob, chosen)
+    u_base[rows] = remap_after_choice(u_lobe[rows], prob, chosen)
     base = sample_base(params, wo, u_base, u, mode)
     wi, weight, pdf = base.wi.copy(), base.weight.copy(), base.pdf.copy()
     delta, lobe = base.delta.copy(), base.lobe.copy()

@@ -38,6 +38,7 @@ import base64
 import numpy as np
 
 from ..sampling import warps
+from ..sampling.warps import remap_after_choice
 from .dielectric import RADIANCE
 from .families import LOBE_DIFFUSE, LOBE_REFLECT
 from .frame import flip_to_upper, side_of
@@ -213,12 +214,6 @@ def pdf_sheened(p, wo, wi, below_pdf):
     return prob * _sheen_lobe(p, wo, wi, RADIANCE)[1] + (1.0 - prob) * below_pdf
 
 
-def _remap(u_lobe, prob, chosen):
-    """The lobe number left uniform in [0, 1) after choosing the sheen (or not) with it."""
-    u = np.where(chosen, u_lobe / np.where(prob > 0.0, prob, 1.0),
-                 (u_lobe - prob) / np.where(prob < 1.0, 1.0 - prob, 1.0))
-    return np.clip(u, 0.0, np.nextafter(1.0, 0.0))
-
 
 def sample_sheened(params, rows, wo, u_lobe, u, mode, sample_below, eval_fn, pdf_fn):
     """Sample every row of ``params``, those in ``rows`` (:func:`sheen_rows`) with their sheen.
@@ -232,7 +227,7 @@ def sample_sheened(params, rows, wo, u_lobe, u, mode, sample_below, eval_fn, pdf
     prob = sheen_probability(p, wo_s)
     chosen = u_lobe[rows] < prob
     u_below = u_lobe.copy()
-    u_below[rows] = _remap(u_lobe[rows], prob, chosen)
+    u_below[rows] = remap_after_choice(u_lobe[rows], prob, chosen)
     below = sample_below(params, wo, u_below, u, mode)
     wi, weight, pdf = below.wi.copy(), below.weight.copy(), below.pdf.copy()
     delta, lobe = below.delta.copy(), below.lobe.copy()

@@ -14,6 +14,15 @@ INV_PI = 1.0 / np.pi
 _ONE_MINUS = np.nextafter(1.0, 0.0)
 
 
+def remap_after_choice(u, prob, chosen):
+    """The number ``u (n,)`` left uniform in [0, 1) after it chose ``chosen (n,) bool`` as
+    ``u < prob (n,)``: ``u / prob`` if chosen, else ``(u - prob) / (1 - prob)`` (so one random
+    number picks a layer and then samples it)."""
+    out = np.where(chosen, u / np.where(prob > 0.0, prob, 1.0),
+                   (u - prob) / np.where(prob < 1.0, 1.0 - prob, 1.0))
+    return np.clip(out, 0.0, _ONE_MINUS)
+
+
 def sample_uniform_disk_concentric(u):
     """Shirley-Chiu concentric map of the square onto the unit disk.
 
