@@ -20,6 +20,8 @@ from ...core.scene import (
     MAT_LAYERED,
     Materials,
 )
+from .alpha import (LAYOUT, emission_note, mean_opacity, mix_fac_texture,
+                    principled_alpha_texture)
 from .anisotropy import AXES, glossy_anisotropy, principled_anisotropy
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
 from .normal_maps import bump_map_correction, mixed_normal_input, normal_input
@@ -78,6 +80,10 @@ class Surface(NamedTuple):
     metallic_texture: tuple = None
     # Cycles' Bump Map Correction on this row's diffuse lobes (core.materials.bump_correction).
     bump_correction: bool = False
+    # (pixels, mode, invert) of a textured alpha (its mixture laid out for opacity 0.5, see
+    # core.alpha and .alpha), or None; alpha_clear marks the components on its clear side.
+    alpha_texture: tuple = None
+    alpha_clear: bool = False
 
 
 def _diffuse(color, emission=None):
@@ -137,14 +143,7 @@ def _shader_surface(source, owner, messages, depth=0):
     read = NodeReader(owner, messages)
     kind = node.bl_idname
     if kind == 'ShaderNodeMixShader' and depth < 16:
-        # Cycles weighs input 1 by 1 - Fac and input 2 by Fac (nested mixes multiply).
-        fac = min(max(read.value(node, "Fac", 0.5), 0.0), 1.0)
-        parts = [(1.0 - fac, _shader_surface(follow_link(node.inputs[1]), owner, messages,
-                                             depth + 1)),
-                 (fac, _shader_surface(follow_link(node.inputs[2]), owner, messages,
-                                       depth + 1))]
-        return mix_surfaces(parts, owner, messages)._replace(
-            **mixed_normal_input(parts, owner, messages))
+        return _mix_shader(node, read, owner, messages, depth)
     normal, bump = (normal_input(node, owner, messages)
                     if kind != 'ShaderNodeEmission' else (None, None))
     texture = surface_texture(node, owner, messages)
@@ -153,12 +152,41 @@ def _shader_surface(source, owner, messages, depth=0):
                                       "roughness_texture_mode": rough[1]}
     if kind == 'ShaderNodeBsdfPrincipled':
         metal = _metallic_texture(node, owner, messages, depth)
-        surface = _principled_surface(node, read, owner, texture, rough, metal)
+        alpha = principled_alpha_texture(node, owner, messages, depth)
+        surface = _principled_surface(node, read, owner, texture, rough, metal, alpha)
         return surface._replace(normal_map=normal, bump=bump, metallic_texture=metal)
     surface = _node_surface(node, read, owner, messages)
     if texture is not None:
         surface = surface._replace(texture=texture[0], texture_mode=texture[1])
     return surface._replace(normal_map=normal, bump=bump, **rough)
+
+
+def _mix_shader(node, read, owner, messages, depth):
+    """A Mix Shader: Cycles weighs input 1 by 1 - Fac and input 2 by Fac (nested mixes
+    multiply). An Image Texture into the Fac with a Transparent BSDF on one side is a textured
+    alpha (:mod:`.alpha`): laid out for Fac 0.5, the Transparent side marked clear."""
+    textured = mix_fac_texture(node, owner, messages, depth)
+    if textured is None:
+        fac = min(max(read.value(node, "Fac", 0.5), 0.0), 1.0)
+    elif textured[0] is None:  # reported by the texture reader
+        fac = min(max(float(node.inputs[0].default_value), 0.0), 1.0)
+    else:
+        fac = LAYOUT
+    parts = [(1.0 - fac, _shader_surface(follow_link(node.inputs[1]), owner, messages,
+                                         depth + 1)),
+             (fac, _shader_surface(follow_link(node.inputs[2]), owner, messages, depth + 1))]
+    if textured is None or textured[0] is None:
+        return mix_surfaces(parts, owner, messages)._replace(
+            **mixed_normal_input(parts, owner, messages))
+    pixels, mode, clear = textured
+    parts[clear - 1] = (parts[clear - 1][0], parts[clear - 1][1]._replace(alpha_clear=True))
+    opaque = parts[2 - clear][1]
+    emission = mean_opacity(pixels, clear == 2) * np.asarray(opaque.emission, np.float64)
+    if np.any(emission > 0):
+        emission_note(owner, node, messages)
+    return mix_surfaces(parts, owner, messages)._replace(
+        emission=emission, alpha_texture=(pixels, mode, clear == 2),
+        **mixed_normal_input(parts, owner, messages))
 
 
 def _metallic_texture(node, owner, messages, depth):
@@ -250,7 +278,7 @@ def _surface_key(surface):
             tuple(np.round(surface.coat_tint, 9)), id(surface.roughness_texture),
             surface.roughness_texture_mode, surface.sheen_weight, surface.sheen_roughness,
             tuple(np.round(surface.sheen_tint, 9)), surface.aniso_scale,
-            surface.aniso_rotation, surface.tangent_axis)
+            surface.aniso_rotation, surface.tangent_axis, surface.alpha_clear)
 
 
 def mix_surfaces(parts, owner, messages):
@@ -268,9 +296,10 @@ def mix_surfaces(parts, owner, messages):
         inner = surface.components or ((1.0, surface),)
         for w, component in inner:
             if weight * w > 0:
-                flat.append((weight * w, component._replace(emission=np.zeros(3),
-                                                            components=(), normal_map=None,
-                                                            bump=None, metallic_texture=None)))
+                flat.append((weight * w, component._replace(
+                    emission=np.zeros(3), components=(), normal_map=None, bump=None,
+                    metallic_texture=None, alpha_texture=None,
+                    alpha_clear=surface.alpha_clear or component.alpha_clear)))
     merged = {}
     for w, component in flat:
         key = _surface_key(component)
@@ -292,10 +321,11 @@ def mix_surfaces(parts, owner, messages):
     total = sum(w for w, _ in flat)
     components = tuple((w / total, c) for w, c in flat)
     main = components[0][1]
-    return main._replace(emission=emission, texture=None, components=components)
+    return main._replace(emission=emission, texture=None, components=components,
+                         alpha_clear=False)
 
 
-def _principled_surface(node, read, owner, texture=None, rough=None, metal=None):
+def _principled_surface(node, read, owner, texture=None, rough=None, metal=None, alpha_tex=None):
     """Principled BSDF -> a mixture of conductor (metallic), dielectric (transmission), coat
     over diffuse and, for Alpha < 1, a transparent pass-through.
 
@@ -304,7 +334,8 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None)
     ``a`` too. ``texture`` (pixels, modes) drives the base colour of every component but the
     transparent one, ``rough`` (the :class:`Surface` fields of a roughness texture) their
     roughness. With ``metal`` (a metallic texture) the mixture is laid out for Metallic 0.5
-    and re-weighted at every hit (:mod:`core.metallic`).
+    and re-weighted at every hit (:mod:`core.metallic`); with ``alpha_tex`` (an alpha texture)
+    the same for Alpha 0.5, the pass-through marked clear (:mod:`core.alpha`).
     """
     messages = read.messages
     name = node_name(node)
@@ -328,7 +359,8 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None)
         messages.add(f"{owner}: emission under the coat of node '{name}' is attenuated by the "
                      f"coat everywhere; Cycles' light sampling leaves out the coat's reflection, "
                      f"so what it lights is darker than in Cycles")
-    alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
+    alpha = (LAYOUT if alpha_tex is not None
+             else min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0))
     aniso = principled_anisotropy(node, read, owner)
     weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
                MAT_LAYERED: (1 - metallic) * (1 - transmission)}
@@ -362,8 +394,14 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None)
                                           **(aniso if surface.kind != MAT_DIELECTRIC else {})))
              for w, surface in parts]
     if alpha < 1.0:
-        parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
+        parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))._replace(
+            alpha_clear=alpha_tex is not None)))
     surface = mix_surfaces(parts, owner, messages)
+    if alpha_tex is not None:
+        alpha = mean_opacity(alpha_tex[0])
+        if np.any(emission > 0):
+            emission_note(owner, node, messages)
+        surface = surface._replace(alpha_texture=(*alpha_tex, False))
     return surface._replace(emission=alpha * emission, metallic=metallic,
                             transmission=transmission)
 
@@ -474,24 +512,29 @@ class MaterialTable:
             bump_distance=[1.0 if s.bump is None else s.bump.distance for s in self.surfaces],
             bump_strength=[1.0 if s.bump is None else s.bump.strength for s in self.surfaces],
             metallic_texture=self._texture_index()[5], bump_correction=col["bump_correction"],
-            mix_rows=mix_rows, mix_weights=mix_weights)
+            alpha_texture=self._texture_index()[6],
+            alpha_invert=[s.alpha_texture is not None and bool(s.alpha_texture[2])
+                          for s in self.surfaces],
+            alpha_clear=col["alpha_clear"], mix_rows=mix_rows, mix_weights=mix_weights)
 
     def _texture_index(self):
         """``(m,) int32`` indices into the distinct textures per row for the base colour and
         for the roughness (-1 for none), those textures as
         ``[(pixels, (interpolation, extension)), ...]``, and the indices for the normal map and
         the bump height."""
-        columns, distinct, found = ([], [], [], [], []), [], {}
+        columns, distinct, found = ([], [], [], [], [], []), [], {}
         for s in self.surfaces:
             normal = s.normal_map or (None, None, None)
             bump = s.bump or (None, None)
             metal = s.metallic_texture or (None, None)
+            alpha = s.alpha_texture or (None, None)
             for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
                                          (columns[1], s.roughness_texture,
                                           s.roughness_texture_mode),
                                          (columns[2], normal[0], normal[1]),
                                          (columns[3], bump[0], bump[1]),
-                                         (columns[4], metal[0], metal[1])):
+                                         (columns[4], metal[0], metal[1]),
+                                         (columns[5], alpha[0], alpha[1])):
                 if pixels is None:
                     column.append(-1)
                     continue
@@ -502,7 +545,7 @@ class MaterialTable:
                 column.append(found[key])
         return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct,
                 np.asarray(columns[2], np.int32), np.asarray(columns[3], np.int32),
-                np.asarray(columns[4], np.int32))
+                np.asarray(columns[4], np.int32), np.asarray(columns[5], np.int32))
 
     @property
     def textures(self):
@@ -540,7 +583,8 @@ class MaterialTable:
         return any(self.surfaces[int(r)].normal_map is not None for r in np.unique(rows))
 
     def _bumped(self, rows):
-        """Whether any of the material rows ``rows`` has a Bump node or a Metallic on an
-        image (textures of the row itself, not of its components)."""
+        """Whether any of the material rows ``rows`` has a Bump node, a Metallic or an alpha
+        on an image (textures of the row itself, not of its components)."""
         return any(self.surfaces[int(r)].bump is not None
-                   or self.surfaces[int(r)].metallic_texture is not None for r in np.unique(rows))
+                   or self.surfaces[int(r)].metallic_texture is not None
+                   or self.surfaces[int(r)].alpha_texture is not None for r in np.unique(rows))
