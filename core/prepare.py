@@ -17,6 +17,7 @@ from .materials.microfacet import alpha_from_roughness
 from .alpha import AlphaTextures, alpha_textures
 from .metallic import MetallicTextures, metallic_textures
 from .reweighting import choose_reweighted
+from .scalar_textures import apply_scalar_textures
 from .sampling.distributions import Segmented1D
 from .sampling.stream import Aborted
 from .scene import Scene
@@ -229,8 +230,8 @@ class PreparedScene:
         ``f_k`` is the mixture, so estimates stay unbiased.
 
         Given the hits' barycentrics ``u, v (k,)``, textured components get their looked-up
-        base colour and roughness (a texture belongs to the component it feeds, so mixtures
-        need this rather than :meth:`textured_base_color`).
+        base colour, roughness, Specular IOR Level and Coat Weight (a texture belongs to the
+        component it feeds, so mixtures need this rather than :meth:`textured_base_color`).
 
         Returns
         -------
@@ -251,6 +252,7 @@ class PreparedScene:
                 params.alpha[rows] = alpha_from_roughness(roughness)
                 delta_only = delta_only.copy()
                 delta_only[rows] = is_delta_only(params.take(rows))
+            apply_scalar_textures(self.scene, params, material, prim, u, v)
         return params, delta_only, u_lobe
 
     def textured_base_color(self, prim, u, v):

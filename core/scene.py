@@ -188,6 +188,11 @@ class Materials:
         Row of :attr:`Scene.textures` whose luminance is a Principled mixture row's Metallic
         (:mod:`core.metallic`: the row's components are re-weighted at each hit from the
         ``metallic`` the mixture was laid out for); -1 (the default) for none.
+    specular_level_texture, coat_weight_texture : (m,) int32
+        Rows of :attr:`Scene.textures` whose luminance (Non-Color data as stored) replaces
+        the row's ``specular_ior_level`` or ``coat_weight`` at each hit, as ``roughness_texture``
+        does the roughness (the exporter sets ``coat_weight`` 1 so that the coat exists);
+        -1 (the default) for none.
     alpha_texture : (m,) int32
         Row of :attr:`Scene.textures` whose luminance (a one-channel image: its value) is a
         mixture row's opacity per hit (:mod:`core.alpha`: Principled Alpha, or a Mix Shader
@@ -243,6 +248,8 @@ class Materials:
     normal_strength: np.ndarray = None
     bump_texture: np.ndarray = None
     metallic_texture: np.ndarray = None
+    specular_level_texture: np.ndarray = None
+    coat_weight_texture: np.ndarray = None
     alpha_texture: np.ndarray = None
     alpha_invert: np.ndarray = None
     alpha_clear: np.ndarray = None
@@ -285,6 +292,8 @@ class Materials:
         self.bump_texture = texture_column(self.bump_texture, m)
         self.metallic_texture = texture_column(self.metallic_texture, m)
         self.alpha_texture = texture_column(self.alpha_texture, m)
+        self.specular_level_texture = texture_column(self.specular_level_texture, m)
+        self.coat_weight_texture = texture_column(self.coat_weight_texture, m)
         self.alpha_invert = bool_column(self.alpha_invert, m)
         self.alpha_clear = bool_column(self.alpha_clear, m)
         self.bump_distance = column(self.bump_distance, 1.0)
@@ -334,7 +343,8 @@ class Materials:
                    normal_texture=None, normal_strength=None, bump_texture=None,
                    bump_distance=None, bump_strength=None,
                    metallic_texture=None, bump_correction=None, alpha_texture=None,
-                   alpha_invert=None, alpha_clear=None) -> "Materials":
+                   alpha_invert=None, alpha_clear=None, specular_level_texture=None,
+                   coat_weight_texture=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -353,6 +363,8 @@ class Materials:
             bump_texture=bump_texture, bump_distance=bump_distance, bump_strength=bump_strength,
             bump_correction=bump_correction, metallic_texture=metallic_texture,
             alpha_texture=alpha_texture, alpha_invert=alpha_invert, alpha_clear=alpha_clear,
+            specular_level_texture=specular_level_texture,
+            coat_weight_texture=coat_weight_texture,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
             sheen_weight=sheen_weight, sheen_roughness=sheen_roughness,
@@ -562,7 +574,9 @@ class Scene:
         m = self.materials
         if max(m.texture.max(initial=-1), m.roughness_texture.max(initial=-1),
                m.normal_texture.max(initial=-1), m.bump_texture.max(initial=-1),
-               m.metallic_texture.max(initial=-1), m.alpha_texture.max(initial=-1)) >= n:
+               m.metallic_texture.max(initial=-1), m.alpha_texture.max(initial=-1),
+               m.specular_level_texture.max(initial=-1),
+               m.coat_weight_texture.max(initial=-1)) >= n:
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:
             raise ValueError("textured scenes need corner_uvs")

@@ -84,6 +84,10 @@ class Surface(NamedTuple):
     # core.alpha and .alpha), or None; alpha_clear marks the components on its clear side.
     alpha_texture: tuple = None
     alpha_clear: bool = False
+    # (pixels, mode) whose luminance is this row's Specular IOR Level or Coat Weight per hit
+    # (core.scalar_textures), or None.
+    specular_level_texture: tuple = None
+    coat_weight_texture: tuple = None
 
 
 def _diffuse(color, emission=None):
@@ -278,7 +282,14 @@ def _surface_key(surface):
             tuple(np.round(surface.coat_tint, 9)), id(surface.roughness_texture),
             surface.roughness_texture_mode, surface.sheen_weight, surface.sheen_roughness,
             tuple(np.round(surface.sheen_tint, 9)), surface.aniso_scale,
-            surface.aniso_rotation, surface.tangent_axis, surface.alpha_clear)
+            surface.aniso_rotation, surface.tangent_axis, surface.alpha_clear,
+            _texture_key(surface.specular_level_texture),
+            _texture_key(surface.coat_weight_texture))
+
+
+def _texture_key(texture):
+    """What identifies a ``(pixels, mode)`` texture field (None: none)."""
+    return None if texture is None else (id(texture[0]), texture[1])
 
 
 def mix_surfaces(parts, owner, messages):
@@ -350,11 +361,15 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None,
     if read.value(node, "Subsurface Weight") > 0:
         messages.add(f"{owner}: subsurface scattering of node '{name}' is approximated as "
                      f"diffuse reflection of the base colour")
-    coat = _principled_coat(node, read, owner)
+    layer_textures = _principled_layer_textures(node, owner, messages)
+    coat = _principled_coat(node, read, owner, layer_textures["coat_weight_texture"])
     sheen = _principled_sheen(node, read)
     if sheen["sheen_weight"] > 0 and np.any(emission > 0):
         messages.add(f"{owner}: emission under the sheen of node '{name}' is not attenuated "
                      f"by the sheen yet")
+    if layer_textures["coat_weight_texture"] is not None and np.any(emission > 0):
+        messages.add(f"{owner}: emission under the coat weight texture of node '{name}' is "
+                     f"attenuated by a full coat, not per hit")
     if coat["coat_weight"] > 0 and np.any(emission > 0):
         messages.add(f"{owner}: emission under the coat of node '{name}' is attenuated by the "
                      f"coat everywhere; Cycles' light sampling leaves out the coat's reflection, "
@@ -374,7 +389,8 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None,
     if metallic > 0 and np.any(tint != 1.0):
         messages.add(f"{owner}: metallic specular tint (F82) of node '{name}' is not "
                      f"supported yet; ignored")
-    if weights[MAT_DIELECTRIC] > 0 and level != 0.5:
+    if weights[MAT_DIELECTRIC] > 0 and (level != 0.5
+                                        or layer_textures["specular_level_texture"] is not None):
         messages.add(f"{owner}: specular IOR level of transmissive node '{name}' is not "
                      f"supported yet; ignored")
     pixels, mode = texture if texture is not None else (None, ("Linear", "REPEAT"))
@@ -390,7 +406,7 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None,
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
                          tint, multiscatter and compensated[kind], pixels, mode))
              for kind, w in weights.items() if w > 0]
-    parts = [(alpha * w, surface._replace(**coat, **sheen, **(rough or {}),
+    parts = [(alpha * w, surface._replace(**coat, **sheen, **(rough or {}), **layer_textures,
                                           **(aniso if surface.kind != MAT_DIELECTRIC else {})))
              for w, surface in parts]
     if alpha < 1.0:
@@ -406,10 +422,20 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None,
                             transmission=transmission)
 
 
-def _principled_coat(node, read, owner):
-    """The Coat inputs of Principled ``node`` as :class:`Surface` fields (weight 0: no coat);
-    a linked Coat Normal is reported (the coat uses the shading normal)."""
-    weight = min(max(read.value(node, "Coat Weight"), 0.0), 1.0)
+def _principled_layer_textures(node, owner, messages):
+    """The Image Textures into the Specular IOR Level and Coat Weight of Principled ``node``
+    as :class:`Surface` fields (None: the socket's value)."""
+    return {"specular_level_texture": scalar_texture(node, "Specular IOR Level", owner,
+                                                     messages),
+            "coat_weight_texture": scalar_texture(node, "Coat Weight", owner, messages)}
+
+
+def _principled_coat(node, read, owner, weight_texture=None):
+    """The Coat inputs of Principled ``node`` as :class:`Surface` fields (weight 0: no coat;
+    1 with ``weight_texture``, which gives the weight per hit); a linked Coat Normal is
+    reported (the coat uses the shading normal)."""
+    weight = (1.0 if weight_texture is not None
+              else min(max(read.value(node, "Coat Weight"), 0.0), 1.0))
     if weight <= 0:
         return {"coat_weight": 0.0}
     read.ignored_if_linked(node, "Coat Normal", "the coat normal input")
@@ -444,6 +470,11 @@ def _principled_distribution_note(distribution, weights, roughness, owner, name,
     if weights[MAT_DIELECTRIC] > 0 and not white_glass:
         messages.add(f"{owner}: Multiscatter GGX on the coloured transmission of node "
                      f"'{name}' is not supported yet; rendered as single-scattering GGX")
+
+
+# Textures a mixture's components carry (the mesh needs UVs when any is set).
+_COMPONENT_TEXTURES = ("texture", "roughness_texture", "specular_level_texture",
+                       "coat_weight_texture")
 
 
 class MaterialTable:
@@ -515,26 +546,32 @@ class MaterialTable:
             alpha_texture=self._texture_index()[6],
             alpha_invert=[s.alpha_texture is not None and bool(s.alpha_texture[2])
                           for s in self.surfaces],
-            alpha_clear=col["alpha_clear"], mix_rows=mix_rows, mix_weights=mix_weights)
+            alpha_clear=col["alpha_clear"], specular_level_texture=self._texture_index()[7],
+            coat_weight_texture=self._texture_index()[8], mix_rows=mix_rows,
+            mix_weights=mix_weights)
 
     def _texture_index(self):
         """``(m,) int32`` indices into the distinct textures per row for the base colour and
         for the roughness (-1 for none), those textures as
         ``[(pixels, (interpolation, extension)), ...]``, and the indices for the normal map and
         the bump height."""
-        columns, distinct, found = ([], [], [], [], [], []), [], {}
+        columns, distinct, found = tuple([] for _ in range(8)), [], {}
         for s in self.surfaces:
             normal = s.normal_map or (None, None, None)
             bump = s.bump or (None, None)
             metal = s.metallic_texture or (None, None)
             alpha = s.alpha_texture or (None, None)
+            level = s.specular_level_texture or (None, None)
+            coat = s.coat_weight_texture or (None, None)
             for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
                                          (columns[1], s.roughness_texture,
                                           s.roughness_texture_mode),
                                          (columns[2], normal[0], normal[1]),
                                          (columns[3], bump[0], bump[1]),
                                          (columns[4], metal[0], metal[1]),
-                                         (columns[5], alpha[0], alpha[1])):
+                                         (columns[5], alpha[0], alpha[1]),
+                                         (columns[6], level[0], level[1]),
+                                         (columns[7], coat[0], coat[1])):
                 if pixels is None:
                     column.append(-1)
                     continue
@@ -545,7 +582,7 @@ class MaterialTable:
                 column.append(found[key])
         return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct,
                 np.asarray(columns[2], np.int32), np.asarray(columns[3], np.int32),
-                np.asarray(columns[4], np.int32), np.asarray(columns[5], np.int32))
+                *(np.asarray(c, np.int32) for c in columns[4:]))
 
     @property
     def textures(self):
@@ -575,7 +612,7 @@ class MaterialTable:
     def textured(self, rows):
         """Whether any of the material rows ``rows`` (or their components) has a texture."""
         return self.normal_mapped(rows) or self._bumped(rows) or any(
-            self.surfaces[c].texture is not None or self.surfaces[c].roughness_texture is not None
+            any(getattr(self.surfaces[c], field) is not None for field in _COMPONENT_TEXTURES)
             for r in np.unique(rows) for c, _ in self.mixes[int(r)])
 
     def normal_mapped(self, rows):
