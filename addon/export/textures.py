@@ -92,7 +92,22 @@ def _image_texture_pixels(node, out, owner, messages, alpha_output=False):
         return None
     if out.identifier == "Alpha":
         return image_alpha(image)[..., None], (interpolation, extension)
+    if interpolation == 'Linear':
+        _note_unassociated_blend(node, image, owner, messages)
     return _image_rgb(image, owner, messages, node), (interpolation, extension)
+
+
+def _note_unassociated_blend(node, image, owner, messages):
+    """Report a Linear lookup of colour whose Alpha output is used, in an image whose alpha
+    varies: Cycles blends the premultiplied colour between texels and divides by the blended
+    alpha, we blend the colour itself (the texels agree, the blend between them differs)."""
+    if not (_associates_alpha(image) and node.outputs["Alpha"].is_linked):
+        return
+    alpha = image_alpha(image)
+    if alpha.min() < alpha.max():
+        messages.add(f"{owner}: the colour of image '{image.name}' (with alpha) is blended "
+                     f"between texels without premultiplying it by alpha, as Cycles does; "
+                     f"texels agree, the blend between texels of different alpha differs")
 
 
 def _default_uv_vector(node, owner, fallback, messages):

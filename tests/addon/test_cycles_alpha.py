@@ -210,3 +210,14 @@ def test_mix_transparent_fac_texture_agrees_with_cycles(empty_scene, tmp_path):
     ours, cycles = S.render_ours_and_cycles(empty_scene, tmp_path, 256, 64, 4, 3,
                                             our_seed=19, cycles_seed=601)
     S.assert_ours_agree_with_cycles(ours, cycles, "mix transparent fac texture")
+
+
+@pytest.mark.parametrize("interpolation,reported", [('Linear', True), ('Closest', False)])
+def test_linear_blend_of_colour_with_varying_alpha_is_reported(empty_scene, export,
+                                                               interpolation, reported):
+    mat, tex, bsdf = principled_alpha_material("Decal", rgba_image("Decal", checker_alpha()))
+    tex.interpolation = interpolation
+    mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    s, _ = exported(empty_scene, export, mat)
+    notes = [msg for msg in s.messages if "blended between texels" in msg]
+    assert len(notes) == int(reported), s.messages
