@@ -61,7 +61,8 @@ class AlphaTextures:
         ``hit (j,)`` (the hits on alpha-textured rows) and their ``(j,)`` opacity in [0, 1]."""
         mats = scene.materials
         hit, color = material_texture_values(scene, mats.alpha_texture, rows, prim, u, v)
-        a = np.clip(color @ LUMINANCE, 0.0, 1.0)
+        # A NaN texel reads as transparent (the exporter zeroes non-finite pixels already).
+        a = np.clip(np.nan_to_num(color @ LUMINANCE, nan=0.0), 0.0, 1.0)
         return hit, np.where(mats.alpha_invert[rows[hit]], 1.0 - a, a)
 
     def factors(self, scene, rows, prim, u, v):

@@ -114,7 +114,8 @@ def material_scalar(scene, column, material, prim, u, v):
     ``rows (j,)`` into ``prim`` and the luminance of the lookup ``(j,)``, clipped to [0, 1]
     (see :func:`material_base_color` for the parameters)."""
     rows, color = material_texture_values(scene, column, material, prim, u, v)
-    return rows, np.clip(color @ LUMINANCE, 0.0, 1.0)
+    # A NaN texel reads as 0 (the exporter zeroes non-finite pixels already).
+    return rows, np.clip(np.nan_to_num(color @ LUMINANCE, nan=0.0), 0.0, 1.0)
 
 
 def material_roughness(scene, material, prim, u, v):

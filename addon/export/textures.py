@@ -180,12 +180,15 @@ def _interpolation(node, what, name, owner, messages, supported=("Linear",)):
 
 
 def _read_pixels(image):
-    """The pixels of ``image`` as ``(h, w, channels)`` float32 (row 0 at the bottom)."""
+    """The pixels of ``image`` as ``(h, w, channels)`` float32 (row 0 at the bottom); a pixel
+    with a non-finite channel is zero in all, as Cycles loads float images."""
     w, h = (int(x) for x in image.size)
     channels = int(image.channels)
     buf = np.empty(w * h * channels, np.float32)
     image.pixels.foreach_get(buf)
-    return buf.reshape(h, w, channels)
+    buf = buf.reshape(h, w, channels)
+    buf[~np.isfinite(buf).all(axis=2)] = 0.0
+    return buf
 
 
 def _associates_alpha(image):

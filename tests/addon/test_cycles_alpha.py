@@ -221,3 +221,18 @@ def test_linear_blend_of_colour_with_varying_alpha_is_reported(empty_scene, expo
     s, _ = exported(empty_scene, export, mat)
     notes = [msg for msg in s.messages if "blended between texels" in msg]
     assert len(notes) == int(reported), s.messages
+
+
+def test_non_finite_pixels_are_transparent_black(empty_scene, export):
+    alpha = checker_alpha()
+    alpha[0, 0], alpha[1, 1] = np.nan, np.inf
+    mat, tex, bsdf = principled_alpha_material("Broken", rgba_image("Broken", alpha,
+                                                                    float_buffer=True))
+    mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    s, row = exported(empty_scene, export, mat)
+    m = s.materials
+    opacity = s.textures[m.alpha_texture[row]][..., 0]
+    color = s.textures[m.texture[m.mix_rows[row][0]]]
+    assert np.isfinite(opacity).all() and np.isfinite(color).all()
+    assert opacity[0, 0] == 0.0 and opacity[1, 1] == 0.0
+    np.testing.assert_array_equal(color[[0, 1], [0, 1]], 0.0)

@@ -208,3 +208,15 @@ def test_metallic_and_alpha_textures_multiply_their_factors():
                                        np.zeros(n), np.zeros(n))
     chi_square_counts(np.bincount(material, minlength=4)[1:],
                       np.array([a * m, a * (1 - m), 1 - a]) * n, what="components")
+
+
+def test_non_finite_alpha_texels_are_transparent_and_never_reach_the_film():
+    opacity = np.array([[np.nan, np.inf], [-np.inf, 0.5]], np.float32)
+    res = render(alpha_sheet_scene(opacity=opacity), plain_settings(
+        spp=8, max_bounces=0, transparent_max_bounces=4, seed=2))
+    image = res.combined()
+    assert np.isfinite(image).all()
+    # The core reads NaN as 0 (transparent) and clips infinities (the exporter zeroes
+    # non-finite pixels first, as Cycles loads them).
+    expected = seen_through_sheet(np.array([[0.0, 1.0], [0.0, 0.5]]))
+    assert_quadrants(image[..., 0], expected, "non-finite texels", rtol=1e-5)
