@@ -480,8 +480,9 @@ class Scene:
         both axes (Cycles' default Linear interpolation and Repeat extension); see
         :func:`core.lights.environment_lookup`.
     textures : list of (h, w, 3) or (h, w, 1) float32
-        Images (one channel: an Image Texture's Alpha output, :mod:`core.alpha`) (row 0 at the bottom, v = 0), indexed by ``Materials.texture``,
-        looked up at the hit's interpolated UV as Cycles' Image Texture node does with
+        Images (row 0 at the bottom, v = 0; one channel: an Image Texture's Alpha output,
+        :mod:`core.alpha`), indexed by the ``Materials.*texture`` columns, looked up at the
+        hit's interpolated UV as Cycles' Image Texture node does with
         ``texture_interpolation`` and ``texture_extension``, see
         :func:`core.textures.texture_lookup`.
     texture_interpolation : list of str
