@@ -14,7 +14,10 @@ from .accel import Accel
 from .lights import Emission, LightSampler
 from .materials.bsdf import KIND_DIELECTRIC, BSDFParams, is_delta_only
 from .materials.microfacet import alpha_from_roughness
-from .metallic import MetallicTextures, choose_metallic, metallic_textures
+from .alpha import AlphaTextures, alpha_textures
+from .metallic import MetallicTextures, metallic_textures
+from .reweighting import choose_reweighted
+from .scalar_textures import apply_scalar_textures
 from .sampling.distributions import Segmented1D
 from .sampling.stream import Aborted
 from .scene import Scene
@@ -128,6 +131,10 @@ class PreparedScene:
         How light paths leave the same emitters (light tracing, BDPT).
     metallic : core.metallic.MetallicTextures or None
         Re-weighting of the mixtures whose Metallic is a texture; None when none is.
+    alpha : core.alpha.AlphaTextures or None
+        Per-hit transparency of the mixtures whose alpha is a texture; None when none is.
+    material_mix_weights : (m, c) float64
+        The mixing weights of ``material_mix_rows`` (what textures re-weight per hit).
     material_transparency : (m, 3) float64 or None
         What a shadow ray keeps when it crosses each material: the summed weight times colour
         of its transparent components (:func:`transparency_table`); None when no material a
@@ -161,6 +168,8 @@ class PreparedScene:
     material_transparency: np.ndarray = None
     notes: list = dataclasses.field(default_factory=list)
     metallic: MetallicTextures = None
+    alpha: AlphaTextures = None
+    material_mix_weights: np.ndarray = None
 
     def bsdf(self, prim):
         """BSDF parameters of the hit triangles' own material rows ``(k,)`` and whether each
@@ -172,7 +181,8 @@ class PreparedScene:
     def choose_material(self, prim, u_lobe, u=None, v=None):
         """Material row shading each hit ``prim (k,)``: a mixture's component, chosen with
         probability its weight by ``u_lobe (k,)`` in [0, 1) (weights re-computed from the
-        metallic texture at barycentrics ``u, v (k,)`` where a row has one).
+        metallic and alpha textures at barycentrics ``u, v (k,)`` where a row has one,
+        :mod:`core.reweighting`).
 
         Returns
         -------
@@ -192,10 +202,22 @@ class PreparedScene:
         # Zero-weight components (and the padding) are never chosen, by either method.
         index, _, out[mixed] = self.material_mix.sample(rows[mixed], out[mixed])
         material[mixed] = self.material_mix_rows.reshape(-1)[index]
-        if self.metallic is not None and u is not None:
-            choose_metallic(self.metallic, self.scene, self.material_mix_rows, rows, prim, u, v,
-                            u_in, material, out)
+        sources = [s for s in (self.metallic, self.alpha) if s is not None]
+        if sources and u is not None:
+            choose_reweighted(sources, self.scene, self.material_mix_rows,
+                              self.material_mix_weights, rows, prim, u, v, u_in, material, out)
         return material, out
+
+    def transparency(self, prim, u, v):
+        """What a shadow ray keeps crossing hits ``prim, u, v (k,)``: ``(k, 3)``, the
+        material's transparency (:func:`transparency_table`), per hit where its alpha is a
+        texture (:mod:`core.alpha`). Requires ``material_transparency``."""
+        rows = self.tri_material[prim]
+        value = self.material_transparency[rows]
+        if self.alpha is not None:
+            hit, per_hit = self.alpha.transparency(self.scene, rows, prim, u, v)
+            value[hit] = per_hit
+        return value
 
     def choose_bsdf(self, prim, u_lobe, u=None, v=None):
         """BSDF of the hit triangles ``prim (k,)`` for one path vertex each.
@@ -208,8 +230,8 @@ class PreparedScene:
         ``f_k`` is the mixture, so estimates stay unbiased.
 
         Given the hits' barycentrics ``u, v (k,)``, textured components get their looked-up
-        base colour and roughness (a texture belongs to the component it feeds, so mixtures
-        need this rather than :meth:`textured_base_color`).
+        base colour, roughness, Specular IOR Level and Coat Weight (a texture belongs to the
+        component it feeds, so mixtures need this rather than :meth:`textured_base_color`).
 
         Returns
         -------
@@ -230,6 +252,7 @@ class PreparedScene:
                 params.alpha[rows] = alpha_from_roughness(roughness)
                 delta_only = delta_only.copy()
                 delta_only[rows] = is_delta_only(params.take(rows))
+            apply_scalar_textures(self.scene, params, material, prim, u, v)
         return params, delta_only, u_lobe
 
     def textured_base_color(self, prim, u, v):
@@ -318,12 +341,21 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
                         and not np.any(mats.sheen_weight[used] > 0)
                         and not np.any(mats.bump_correction[used]))
     transparency = transparency_table(bsdf, mix_rows, mix_weights)
+    alpha = alpha_textures(mats, mix_rows, mix_weights, pass_colors(bsdf))
     return PreparedScene(scene, accel, v0, e1, e2, normal, area, albedo, emission, lights, shift,
                          np.asarray(scene.material, np.int64), bsdf, is_delta_only(bsdf),
                          mix_rows, mix, (mix_weights > 0).sum(axis=1), lambert_only,
                          Emission(lights, scene.vertices),
                          transparency if np.any(transparency[used] > 0) else None, notes,
-                         metallic_textures(mats, bsdf, mix_rows, mix_weights))
+                         metallic_textures(mats, bsdf, mix_rows, mix_weights), alpha,
+                         mix_weights)
+
+
+def pass_colors(bsdf):
+    """``(m, 3)`` colour of every row that passes rays straight through (a smooth dielectric
+    of IOR exactly 1: Transparent BSDF, Principled Alpha's pass-through), zero for others."""
+    passes = (bsdf.kind == KIND_DIELECTRIC) & (bsdf.eta == 1.0)
+    return bsdf.color * passes[:, None]
 
 
 def transparency_table(bsdf, mix_rows, mix_weights):
@@ -331,9 +363,7 @@ def transparency_table(bsdf, mix_rows, mix_weights):
     that pass rays straight through (smooth dielectrics of IOR exactly 1: Transparent BSDF,
     Principled Alpha), as Cycles' transparent shadows attenuate by the transparent closures'
     weight. Zero for opaque materials."""
-    passes = (bsdf.kind == KIND_DIELECTRIC) & (bsdf.eta == 1.0)
-    per_row = bsdf.color * passes[:, None]
-    return np.einsum("mc,mcj->mj", mix_weights, per_row[mix_rows])
+    return np.einsum("mc,mcj->mj", mix_weights, pass_colors(bsdf)[mix_rows])
 
 
 def mixture_table(weights, rows):

@@ -87,6 +87,13 @@ class Camera:
     pixel_aspect_y: float = 1.0
 
 
+def bool_column(values, m):
+    """An ``(m,) bool`` column of a material table (default False)."""
+    if values is None:
+        return np.zeros(m, bool)
+    return np.broadcast_to(np.asarray(values, bool), (m,)).copy()
+
+
 def texture_column(values, m):
     """The ``(m,) int32`` texture index column of a material table (-1 = untextured)."""
     if values is None:
@@ -181,6 +188,21 @@ class Materials:
         Row of :attr:`Scene.textures` whose luminance is a Principled mixture row's Metallic
         (:mod:`core.metallic`: the row's components are re-weighted at each hit from the
         ``metallic`` the mixture was laid out for); -1 (the default) for none.
+    specular_level_texture, coat_weight_texture : (m,) int32
+        Rows of :attr:`Scene.textures` whose luminance (Non-Color data as stored) replaces
+        the row's ``specular_ior_level`` or ``coat_weight`` at each hit, as ``roughness_texture``
+        does the roughness (the exporter sets ``coat_weight`` 1 so that the coat exists);
+        -1 (the default) for none.
+    alpha_texture : (m,) int32
+        Row of :attr:`Scene.textures` whose luminance (a one-channel image: its value) is a
+        mixture row's opacity per hit (:mod:`core.alpha`: Principled Alpha, or a Mix Shader
+        with Transparent BSDF whose Fac is a texture); -1 (the default) for none.
+    alpha_invert : (m,) bool
+        The opacity is one minus the lookup (a Mix Shader whose second input is the Transparent
+        BSDF); default False.
+    alpha_clear : (m,) bool
+        Component rows on the transparent side of their mixture's textured alpha: their weight
+        follows ``1 - opacity``, the other components' ``opacity``; default False.
     bump_distance, bump_strength : (m,) float32
         The Bump node's Distance (negated when Invert is on) and Strength; defaults 1, 1.
     bump_correction : (m,) bool
@@ -226,6 +248,11 @@ class Materials:
     normal_strength: np.ndarray = None
     bump_texture: np.ndarray = None
     metallic_texture: np.ndarray = None
+    specular_level_texture: np.ndarray = None
+    coat_weight_texture: np.ndarray = None
+    alpha_texture: np.ndarray = None
+    alpha_invert: np.ndarray = None
+    alpha_clear: np.ndarray = None
     bump_distance: np.ndarray = None
     bump_strength: np.ndarray = None
     bump_correction: np.ndarray = None
@@ -264,6 +291,11 @@ class Materials:
         self.normal_strength = column(self.normal_strength, 1.0)
         self.bump_texture = texture_column(self.bump_texture, m)
         self.metallic_texture = texture_column(self.metallic_texture, m)
+        self.alpha_texture = texture_column(self.alpha_texture, m)
+        self.specular_level_texture = texture_column(self.specular_level_texture, m)
+        self.coat_weight_texture = texture_column(self.coat_weight_texture, m)
+        self.alpha_invert = bool_column(self.alpha_invert, m)
+        self.alpha_clear = bool_column(self.alpha_clear, m)
         self.bump_distance = column(self.bump_distance, 1.0)
         self.bump_strength = column(self.bump_strength, 1.0)
         self.bump_correction = (np.zeros(m, bool) if self.bump_correction is None else
@@ -310,7 +342,9 @@ class Materials:
                    sheen_tint=None, aniso_scale=None, aniso_rotation=None,
                    normal_texture=None, normal_strength=None, bump_texture=None,
                    bump_distance=None, bump_strength=None,
-                   metallic_texture=None, bump_correction=None) -> "Materials":
+                   metallic_texture=None, bump_correction=None, alpha_texture=None,
+                   alpha_invert=None, alpha_clear=None, specular_level_texture=None,
+                   coat_weight_texture=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -328,6 +362,9 @@ class Materials:
             normal_texture=normal_texture, normal_strength=normal_strength,
             bump_texture=bump_texture, bump_distance=bump_distance, bump_strength=bump_strength,
             bump_correction=bump_correction, metallic_texture=metallic_texture,
+            alpha_texture=alpha_texture, alpha_invert=alpha_invert, alpha_clear=alpha_clear,
+            specular_level_texture=specular_level_texture,
+            coat_weight_texture=coat_weight_texture,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
             sheen_weight=sheen_weight, sheen_roughness=sheen_roughness,
@@ -442,9 +479,10 @@ class Scene:
         v = 1 is the zenith), with bilinear interpolation between pixel centres, wrapping on
         both axes (Cycles' default Linear interpolation and Repeat extension); see
         :func:`core.lights.environment_lookup`.
-    textures : list of (h, w, 3) float32
-        Base colour images (row 0 at the bottom, v = 0), indexed by ``Materials.texture``,
-        looked up at the hit's interpolated UV as Cycles' Image Texture node does with
+    textures : list of (h, w, 3) or (h, w, 1) float32
+        Images (row 0 at the bottom, v = 0; one channel: an Image Texture's Alpha output,
+        :mod:`core.alpha`), indexed by the ``Materials.*texture`` columns, looked up at the
+        hit's interpolated UV as Cycles' Image Texture node does with
         ``texture_interpolation`` and ``texture_extension``, see
         :func:`core.textures.texture_lookup`.
     texture_interpolation : list of str
@@ -523,8 +561,9 @@ class Scene:
         """Normalise ``textures`` and ``corner_uvs`` (textured scenes need both)."""
         self.textures = [np.ascontiguousarray(t, np.float32) for t in self.textures]
         for t in self.textures:
-            if t.ndim != 3 or t.shape[2] != 3 or 0 in t.shape:
-                raise ValueError(f"textures must be non-empty (h, w, 3) arrays, got {t.shape}")
+            if t.ndim != 3 or t.shape[2] not in (1, 3) or 0 in t.shape:
+                raise ValueError(f"textures must be non-empty (h, w, 3) or (h, w, 1) arrays, "
+                                 f"got {t.shape}")
         if self.corner_uvs is not None:
             self.corner_uvs = np.ascontiguousarray(self.corner_uvs, np.float32).reshape(
                 self.triangles.shape[0], 3, 2)
@@ -536,7 +575,9 @@ class Scene:
         m = self.materials
         if max(m.texture.max(initial=-1), m.roughness_texture.max(initial=-1),
                m.normal_texture.max(initial=-1), m.bump_texture.max(initial=-1),
-               m.metallic_texture.max(initial=-1)) >= n:
+               m.metallic_texture.max(initial=-1), m.alpha_texture.max(initial=-1),
+               m.specular_level_texture.max(initial=-1),
+               m.coat_weight_texture.max(initial=-1)) >= n:
             raise ValueError("a material's texture index is past the end of textures")
         if self.textures and self.corner_uvs is None:
             raise ValueError("textured scenes need corner_uvs")

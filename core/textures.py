@@ -1,5 +1,5 @@
-"""Image textures on surfaces: the base colour and roughness of a material looked up at the
-hit's UV.
+"""Image textures on surfaces: the base colour, roughness, Specular IOR Level and Coat Weight
+of a material looked up at the hit's UV.
 
 What Cycles' Image Texture node computes (``kernel/device/cpu/image.h``) on the active UV map:
 Linear (bilinear between texel centres) or Closest (the texel containing the point)
@@ -109,13 +109,19 @@ def material_texture_values(scene, column, material, prim, u, v):
     return rows, color
 
 
+def material_scalar(scene, column, material, prim, u, v):
+    """A scalar input of the hits whose material row has a texture in ``column (m,)``:
+    ``rows (j,)`` into ``prim`` and the luminance of the lookup ``(j,)``, clipped to [0, 1]
+    (see :func:`material_base_color` for the parameters)."""
+    rows, color = material_texture_values(scene, column, material, prim, u, v)
+    # A NaN texel reads as 0 (the exporter zeroes non-finite pixels already).
+    return rows, np.clip(np.nan_to_num(color @ LUMINANCE, nan=0.0), 0.0, 1.0)
+
+
 def material_roughness(scene, material, prim, u, v):
-    """Roughness of the hits whose material row has a roughness texture: ``rows (j,)`` into
-    ``prim`` and the luminance of the lookup ``(j,)``, clipped to [0, 1] (see
-    :func:`material_base_color` for the parameters)."""
-    rows, color = material_texture_values(scene, scene.materials.roughness_texture, material,
-                                          prim, u, v)
-    return rows, np.clip(color @ LUMINANCE, 0.0, 1.0)
+    """Roughness of the hits whose material row has a roughness texture (see
+    :func:`material_scalar`)."""
+    return material_scalar(scene, scene.materials.roughness_texture, material, prim, u, v)
 
 
 def material_base_color(scene, material, prim, u, v):

@@ -13,7 +13,8 @@ values. :func:`export_scene` walks the depsgraph and hands each part to its modu
 
 - :mod:`.camera`: the render camera;
 - :mod:`.meshes`: triangles, material rows, visibility, corner normals and UVs per instance;
-- :mod:`.materials`: shader nodes -> core materials and mixtures, and the material table;
+- :mod:`.materials`: shader nodes -> core materials and mixtures (:mod:`.alpha`: textured
+  alpha); :mod:`.material_table`: the material table;
 - :mod:`.textures`: Image and Environment Texture pixels;
 - :mod:`.nodes`: reading node trees (links, active outputs, constant socket values);
 - :mod:`.lights`: light objects -> core light rows;
@@ -28,11 +29,11 @@ import numpy as np
 from ...core.scene import Lights, Scene
 from .camera import NO_CAMERA_MESSAGE, export_camera, render_camera
 from .lights import light_row
+from .material_table import MaterialTable
 from .materials import (
     DEFAULT_SURFACE_COLOR,
     DEFAULT_SURFACE_NAME,
     MAX_COMPONENTS,
-    MaterialTable,
     Surface,
     material_surface,
     mix_surfaces,

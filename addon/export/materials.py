@@ -4,7 +4,8 @@ A material's surface shader becomes a :class:`Surface`: one of the core's closed
 (diffuse, conductor, dielectric, layered coat over diffuse) or a mixture of them. The Principled
 BSDF becomes the mixture Cycles' Principled weighs; Mix Shaders are flattened into mixtures;
 the other BSDF nodes map one to one; anything else is reported and rendered as diffuse.
-:class:`MaterialTable` numbers the materials a scene uses and lays out their rows.
+:class:`.material_table.MaterialTable` numbers the materials a scene uses and lays out their
+rows.
 """
 
 from __future__ import annotations
@@ -18,9 +19,10 @@ from ...core.scene import (
     MAT_DIELECTRIC,
     MAT_DIFFUSE,
     MAT_LAYERED,
-    Materials,
 )
-from .anisotropy import AXES, glossy_anisotropy, principled_anisotropy
+from .alpha import (LAYOUT, emission_note, mean_opacity, mix_fac_texture,
+                    principled_alpha_texture)
+from .anisotropy import glossy_anisotropy, principled_anisotropy
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
 from .normal_maps import bump_map_correction, mixed_normal_input, normal_input
 from .textures import roughness_texture, scalar_texture, surface_texture
@@ -78,6 +80,14 @@ class Surface(NamedTuple):
     metallic_texture: tuple = None
     # Cycles' Bump Map Correction on this row's diffuse lobes (core.materials.bump_correction).
     bump_correction: bool = False
+    # (pixels, mode, invert) of a textured alpha (its mixture laid out for opacity 0.5, see
+    # core.alpha and .alpha), or None; alpha_clear marks the components on its clear side.
+    alpha_texture: tuple = None
+    alpha_clear: bool = False
+    # (pixels, mode) whose luminance is this row's Specular IOR Level or Coat Weight per hit
+    # (core.scalar_textures), or None.
+    specular_level_texture: tuple = None
+    coat_weight_texture: tuple = None
 
 
 def _diffuse(color, emission=None):
@@ -137,14 +147,7 @@ def _shader_surface(source, owner, messages, depth=0):
     read = NodeReader(owner, messages)
     kind = node.bl_idname
     if kind == 'ShaderNodeMixShader' and depth < 16:
-        # Cycles weighs input 1 by 1 - Fac and input 2 by Fac (nested mixes multiply).
-        fac = min(max(read.value(node, "Fac", 0.5), 0.0), 1.0)
-        parts = [(1.0 - fac, _shader_surface(follow_link(node.inputs[1]), owner, messages,
-                                             depth + 1)),
-                 (fac, _shader_surface(follow_link(node.inputs[2]), owner, messages,
-                                       depth + 1))]
-        return mix_surfaces(parts, owner, messages)._replace(
-            **mixed_normal_input(parts, owner, messages))
+        return _mix_shader(node, read, owner, messages, depth)
     normal, bump = (normal_input(node, owner, messages)
                     if kind != 'ShaderNodeEmission' else (None, None))
     texture = surface_texture(node, owner, messages)
@@ -153,12 +156,41 @@ def _shader_surface(source, owner, messages, depth=0):
                                       "roughness_texture_mode": rough[1]}
     if kind == 'ShaderNodeBsdfPrincipled':
         metal = _metallic_texture(node, owner, messages, depth)
-        surface = _principled_surface(node, read, owner, texture, rough, metal)
+        alpha = principled_alpha_texture(node, owner, messages, depth)
+        surface = _principled_surface(node, read, owner, texture, rough, metal, alpha)
         return surface._replace(normal_map=normal, bump=bump, metallic_texture=metal)
     surface = _node_surface(node, read, owner, messages)
     if texture is not None:
         surface = surface._replace(texture=texture[0], texture_mode=texture[1])
     return surface._replace(normal_map=normal, bump=bump, **rough)
+
+
+def _mix_shader(node, read, owner, messages, depth):
+    """A Mix Shader: Cycles weighs input 1 by 1 - Fac and input 2 by Fac (nested mixes
+    multiply). An Image Texture into the Fac with a Transparent BSDF on one side is a textured
+    alpha (:mod:`.alpha`): laid out for Fac 0.5, the Transparent side marked clear."""
+    textured = mix_fac_texture(node, owner, messages, depth)
+    if textured is None:
+        fac = min(max(read.value(node, "Fac", 0.5), 0.0), 1.0)
+    elif textured[0] is None:  # reported by the texture reader
+        fac = min(max(float(node.inputs[0].default_value), 0.0), 1.0)
+    else:
+        fac = LAYOUT
+    parts = [(1.0 - fac, _shader_surface(follow_link(node.inputs[1]), owner, messages,
+                                         depth + 1)),
+             (fac, _shader_surface(follow_link(node.inputs[2]), owner, messages, depth + 1))]
+    if textured is None or textured[0] is None:
+        return mix_surfaces(parts, owner, messages)._replace(
+            **mixed_normal_input(parts, owner, messages))
+    pixels, mode, clear = textured
+    parts[clear - 1] = (parts[clear - 1][0], parts[clear - 1][1]._replace(alpha_clear=True))
+    opaque = parts[2 - clear][1]
+    emission = mean_opacity(pixels, clear == 2) * np.asarray(opaque.emission, np.float64)
+    if np.any(emission > 0):
+        emission_note(owner, node, messages)
+    return mix_surfaces(parts, owner, messages)._replace(
+        emission=emission, alpha_texture=(pixels, mode, clear == 2),
+        **mixed_normal_input(parts, owner, messages))
 
 
 def _metallic_texture(node, owner, messages, depth):
@@ -250,7 +282,14 @@ def _surface_key(surface):
             tuple(np.round(surface.coat_tint, 9)), id(surface.roughness_texture),
             surface.roughness_texture_mode, surface.sheen_weight, surface.sheen_roughness,
             tuple(np.round(surface.sheen_tint, 9)), surface.aniso_scale,
-            surface.aniso_rotation, surface.tangent_axis)
+            surface.aniso_rotation, surface.tangent_axis, surface.alpha_clear,
+            _texture_key(surface.specular_level_texture),
+            _texture_key(surface.coat_weight_texture))
+
+
+def _texture_key(texture):
+    """What identifies a ``(pixels, mode)`` texture field (None: none)."""
+    return None if texture is None else (id(texture[0]), texture[1])
 
 
 def mix_surfaces(parts, owner, messages):
@@ -268,9 +307,10 @@ def mix_surfaces(parts, owner, messages):
         inner = surface.components or ((1.0, surface),)
         for w, component in inner:
             if weight * w > 0:
-                flat.append((weight * w, component._replace(emission=np.zeros(3),
-                                                            components=(), normal_map=None,
-                                                            bump=None, metallic_texture=None)))
+                flat.append((weight * w, component._replace(
+                    emission=np.zeros(3), components=(), normal_map=None, bump=None,
+                    metallic_texture=None, alpha_texture=None,
+                    alpha_clear=surface.alpha_clear or component.alpha_clear)))
     merged = {}
     for w, component in flat:
         key = _surface_key(component)
@@ -292,10 +332,11 @@ def mix_surfaces(parts, owner, messages):
     total = sum(w for w, _ in flat)
     components = tuple((w / total, c) for w, c in flat)
     main = components[0][1]
-    return main._replace(emission=emission, texture=None, components=components)
+    return main._replace(emission=emission, texture=None, components=components,
+                         alpha_clear=False)
 
 
-def _principled_surface(node, read, owner, texture=None, rough=None, metal=None):
+def _principled_surface(node, read, owner, texture=None, rough=None, metal=None, alpha_tex=None):
     """Principled BSDF -> a mixture of conductor (metallic), dielectric (transmission), coat
     over diffuse and, for Alpha < 1, a transparent pass-through.
 
@@ -304,7 +345,8 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None)
     ``a`` too. ``texture`` (pixels, modes) drives the base colour of every component but the
     transparent one, ``rough`` (the :class:`Surface` fields of a roughness texture) their
     roughness. With ``metal`` (a metallic texture) the mixture is laid out for Metallic 0.5
-    and re-weighted at every hit (:mod:`core.metallic`).
+    and re-weighted at every hit (:mod:`core.metallic`); with ``alpha_tex`` (an alpha texture)
+    the same for Alpha 0.5, the pass-through marked clear (:mod:`core.alpha`).
     """
     messages = read.messages
     name = node_name(node)
@@ -319,16 +361,21 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None)
     if read.value(node, "Subsurface Weight") > 0:
         messages.add(f"{owner}: subsurface scattering of node '{name}' is approximated as "
                      f"diffuse reflection of the base colour")
-    coat = _principled_coat(node, read, owner)
+    layer_textures = _principled_layer_textures(node, owner, messages)
+    coat = _principled_coat(node, read, owner, layer_textures["coat_weight_texture"])
     sheen = _principled_sheen(node, read)
     if sheen["sheen_weight"] > 0 and np.any(emission > 0):
         messages.add(f"{owner}: emission under the sheen of node '{name}' is not attenuated "
                      f"by the sheen yet")
+    if layer_textures["coat_weight_texture"] is not None and np.any(emission > 0):
+        messages.add(f"{owner}: emission under the coat weight texture of node '{name}' is "
+                     f"attenuated by a full coat, not per hit")
     if coat["coat_weight"] > 0 and np.any(emission > 0):
         messages.add(f"{owner}: emission under the coat of node '{name}' is attenuated by the "
                      f"coat everywhere; Cycles' light sampling leaves out the coat's reflection, "
                      f"so what it lights is darker than in Cycles")
-    alpha = min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0)
+    alpha = (LAYOUT if alpha_tex is not None
+             else min(max(read.value(node, "Alpha", 1.0), 0.0), 1.0))
     aniso = principled_anisotropy(node, read, owner)
     weights = {MAT_CONDUCTOR: metallic, MAT_DIELECTRIC: (1 - metallic) * transmission,
                MAT_LAYERED: (1 - metallic) * (1 - transmission)}
@@ -342,7 +389,8 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None)
     if metallic > 0 and np.any(tint != 1.0):
         messages.add(f"{owner}: metallic specular tint (F82) of node '{name}' is not "
                      f"supported yet; ignored")
-    if weights[MAT_DIELECTRIC] > 0 and level != 0.5:
+    if weights[MAT_DIELECTRIC] > 0 and (level != 0.5
+                                        or layer_textures["specular_level_texture"] is not None):
         messages.add(f"{owner}: specular IOR level of transmissive node '{name}' is not "
                      f"supported yet; ignored")
     pixels, mode = texture if texture is not None else (None, ("Linear", "REPEAT"))
@@ -358,20 +406,36 @@ def _principled_surface(node, read, owner, texture=None, rough=None, metal=None)
                          float(kind == MAT_CONDUCTOR), float(kind == MAT_DIELECTRIC), level,
                          tint, multiscatter and compensated[kind], pixels, mode))
              for kind, w in weights.items() if w > 0]
-    parts = [(alpha * w, surface._replace(**coat, **sheen, **(rough or {}),
+    parts = [(alpha * w, surface._replace(**coat, **sheen, **(rough or {}), **layer_textures,
                                           **(aniso if surface.kind != MAT_DIELECTRIC else {})))
              for w, surface in parts]
     if alpha < 1.0:
-        parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))))
+        parts.append((1.0 - alpha, _transparent((1.0, 1.0, 1.0))._replace(
+            alpha_clear=alpha_tex is not None)))
     surface = mix_surfaces(parts, owner, messages)
+    if alpha_tex is not None:
+        alpha = mean_opacity(alpha_tex[0])
+        if np.any(emission > 0):
+            emission_note(owner, node, messages)
+        surface = surface._replace(alpha_texture=(*alpha_tex, False))
     return surface._replace(emission=alpha * emission, metallic=metallic,
                             transmission=transmission)
 
 
-def _principled_coat(node, read, owner):
-    """The Coat inputs of Principled ``node`` as :class:`Surface` fields (weight 0: no coat);
-    a linked Coat Normal is reported (the coat uses the shading normal)."""
-    weight = min(max(read.value(node, "Coat Weight"), 0.0), 1.0)
+def _principled_layer_textures(node, owner, messages):
+    """The Image Textures into the Specular IOR Level and Coat Weight of Principled ``node``
+    as :class:`Surface` fields (None: the socket's value)."""
+    return {"specular_level_texture": scalar_texture(node, "Specular IOR Level", owner,
+                                                     messages),
+            "coat_weight_texture": scalar_texture(node, "Coat Weight", owner, messages)}
+
+
+def _principled_coat(node, read, owner, weight_texture=None):
+    """The Coat inputs of Principled ``node`` as :class:`Surface` fields (weight 0: no coat;
+    1 with ``weight_texture``, which gives the weight per hit); a linked Coat Normal is
+    reported (the coat uses the shading normal)."""
+    weight = (1.0 if weight_texture is not None
+              else min(max(read.value(node, "Coat Weight"), 0.0), 1.0))
     if weight <= 0:
         return {"coat_weight": 0.0}
     read.ignored_if_linked(node, "Coat Normal", "the coat normal input")
@@ -406,141 +470,3 @@ def _principled_distribution_note(distribution, weights, roughness, owner, name,
     if weights[MAT_DIELECTRIC] > 0 and not white_glass:
         messages.add(f"{owner}: Multiscatter GGX on the coloured transmission of node "
                      f"'{name}' is not supported yet; rendered as single-scattering GGX")
-
-
-class MaterialTable:
-    """Rows of :class:`core.scene.Materials`: one per distinct Blender material used, plus the
-    component rows of the mixtures among them (after their mixture row)."""
-
-    def __init__(self, messages):
-        self.messages = messages
-        self._rows = {}
-        self.names = []
-        self.surfaces = []
-        self.mixes = []  # per row: ((component row, weight), ...)
-
-    def row(self, material):
-        """Row index of ``material`` (None: Cycles' default surface), adding it if new."""
-        key = material.original.as_pointer() if material is not None else 0
-        index = self._rows.get(key)
-        if index is None:
-            surface = material_surface(material, self.messages)
-            name = material.name if material is not None else DEFAULT_SURFACE_NAME
-            index = self._add(name, surface)
-            self._rows[key] = index
-            if surface.components:
-                self.mixes[index] = tuple(
-                    (self._add(f"{name} [{i}]", component), weight)
-                    for i, (weight, component) in enumerate(surface.components))
-        return index
-
-    def _add(self, name, surface):
-        index = len(self.names)
-        self.names.append(name)
-        self.surfaces.append(surface._replace(
-            base_color=np.clip(surface.base_color, 0.0, 1.0),
-            emission=np.maximum(surface.emission, 0.0),
-            specular_tint=np.clip(surface.specular_tint, 0.0, 1.0)))
-        self.mixes.append(((index, 1.0),))
-        return index
-
-    def build(self):
-        if not self.names:
-            return Materials.from_lists([], np.zeros((0, 3)), np.zeros((0, 3)))
-        col = {field: [getattr(s, field) for s in self.surfaces] for field in Surface._fields}
-        width = max(len(mix) for mix in self.mixes)
-        mix_rows = np.zeros((len(self.names), width), np.int32)
-        mix_weights = np.zeros((len(self.names), width), np.float32)
-        for index, mix in enumerate(self.mixes):
-            rows, weights = zip(*mix)
-            mix_rows[index] = rows[0]  # padding: the first component, of weight 0
-            mix_rows[index, :len(rows)] = rows
-            mix_weights[index, :len(rows)] = np.asarray(weights) / np.sum(weights)
-        return Materials.from_lists(
-            self.names, col["base_color"], col["emission"], kinds=col["kind"],
-            roughness=col["roughness"], ior=col["ior"], metallic=col["metallic"],
-            transmission=col["transmission"], specular_ior_level=col["specular_ior_level"],
-            specular_tint=col["specular_tint"], multiscatter=col["multiscatter"],
-            coat_weight=col["coat_weight"], coat_roughness=col["coat_roughness"],
-            coat_ior=col["coat_ior"], coat_tint=col["coat_tint"],
-            sheen_weight=col["sheen_weight"], sheen_roughness=col["sheen_roughness"],
-            sheen_tint=col["sheen_tint"], aniso_scale=col["aniso_scale"],
-            aniso_rotation=col["aniso_rotation"],
-            texture=self._texture_index()[0], roughness_texture=self._texture_index()[1],
-            normal_texture=self._texture_index()[3],
-            normal_strength=[1.0 if s.normal_map is None else s.normal_map.strength
-                             for s in self.surfaces],
-            bump_texture=self._texture_index()[4],
-            bump_distance=[1.0 if s.bump is None else s.bump.distance for s in self.surfaces],
-            bump_strength=[1.0 if s.bump is None else s.bump.strength for s in self.surfaces],
-            metallic_texture=self._texture_index()[5], bump_correction=col["bump_correction"],
-            mix_rows=mix_rows, mix_weights=mix_weights)
-
-    def _texture_index(self):
-        """``(m,) int32`` indices into the distinct textures per row for the base colour and
-        for the roughness (-1 for none), those textures as
-        ``[(pixels, (interpolation, extension)), ...]``, and the indices for the normal map and
-        the bump height."""
-        columns, distinct, found = ([], [], [], [], []), [], {}
-        for s in self.surfaces:
-            normal = s.normal_map or (None, None, None)
-            bump = s.bump or (None, None)
-            metal = s.metallic_texture or (None, None)
-            for column, pixels, mode in ((columns[0], s.texture, s.texture_mode),
-                                         (columns[1], s.roughness_texture,
-                                          s.roughness_texture_mode),
-                                         (columns[2], normal[0], normal[1]),
-                                         (columns[3], bump[0], bump[1]),
-                                         (columns[4], metal[0], metal[1])):
-                if pixels is None:
-                    column.append(-1)
-                    continue
-                key = (id(pixels), mode)
-                if key not in found:
-                    found[key] = len(distinct)
-                    distinct.append((pixels, mode))
-                column.append(found[key])
-        return (np.asarray(columns[0], np.int32), np.asarray(columns[1], np.int32), distinct,
-                np.asarray(columns[2], np.int32), np.asarray(columns[3], np.int32),
-                np.asarray(columns[4], np.int32))
-
-    @property
-    def textures(self):
-        """Distinct images in order of first use (``Scene.textures``)."""
-        return [pixels for pixels, _ in self._texture_index()[2]]
-
-    @property
-    def texture_modes(self):
-        """``(interpolations, extensions)`` of :attr:`textures` (``Scene.texture_*``)."""
-        modes = [mode for _, mode in self._texture_index()[2]]
-        return [m[0] for m in modes], [m[1] for m in modes]
-
-    def texture_rows(self):
-        """``(m,) int32`` index into :attr:`textures` per row, -1 for untextured rows."""
-        return self._texture_index()[0]
-
-    def tangent_axes(self, rows):
-        """``(t,) int8`` axis code (:data:`.anisotropy.AXES`) of the radial tangent each
-        triangle of material rows ``rows (t,)`` needs: its first anisotropic component's."""
-        codes = np.zeros(len(self.names), np.int8)
-        for r, mix in enumerate(self.mixes):
-            axes = [self.surfaces[c].tangent_axis for c, _ in mix
-                    if self.surfaces[c].tangent_axis is not None]
-            codes[r] = AXES[axes[0]] if axes else 0
-        return codes[np.asarray(rows, np.int64)]
-
-    def textured(self, rows):
-        """Whether any of the material rows ``rows`` (or their components) has a texture."""
-        return self.normal_mapped(rows) or self._bumped(rows) or any(
-            self.surfaces[c].texture is not None or self.surfaces[c].roughness_texture is not None
-            for r in np.unique(rows) for c, _ in self.mixes[int(r)])
-
-    def normal_mapped(self, rows):
-        """Whether any of the material rows ``rows`` has a normal map."""
-        return any(self.surfaces[int(r)].normal_map is not None for r in np.unique(rows))
-
-    def _bumped(self, rows):
-        """Whether any of the material rows ``rows`` has a Bump node or a Metallic on an
-        image (textures of the row itself, not of its components)."""
-        return any(self.surfaces[int(r)].bump is not None
-                   or self.surfaces[int(r)].metallic_texture is not None for r in np.unique(rows))

@@ -30,7 +30,7 @@ ROUGHNESS_SOCKETS = {
 
 # Scalar inputs an Image Texture may drive (its luminance), read by textures.scalar_texture.
 SCALAR_TEXTURE_SOCKETS = {
-    'ShaderNodeBsdfPrincipled': ("Metallic",),
+    'ShaderNodeBsdfPrincipled': ("Metallic", "Alpha", "Specular IOR Level", "Coat Weight"),
 }
 
 

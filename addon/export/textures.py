@@ -40,22 +40,26 @@ def roughness_texture(node, owner, messages):
     return _image_texture_pixels(link[0], link[1], owner, messages)
 
 
-def scalar_texture(node, name, owner, messages):
+def scalar_texture(node, name, owner, messages, alpha_output=False):
     """``(pixels, (interpolation, extension))`` of the Image Texture driving the scalar input
     ``name`` of ``node`` (one of ``nodes.SCALAR_TEXTURE_SOCKETS``; its luminance is the value,
-    the image's colour space honoured as for colours), or None (unsupported ones reported)."""
+    the image's colour space honoured as for colours), or None (unsupported ones reported).
+    With ``alpha_output`` the node's Alpha output may drive it too (pixels ``(h, w, 1)``, see
+    :func:`image_alpha`)."""
     socket = node.inputs.get(name)
     link = follow_link(socket) if socket is not None else None
     if link is None or link[0].bl_idname != 'ShaderNodeTexImage':
         return None
-    return _image_texture_pixels(link[0], link[1], owner, messages)
+    return _image_texture_pixels(link[0], link[1], owner, messages, alpha_output)
 
 
-def _image_texture_pixels(node, out, owner, messages):
+def _image_texture_pixels(node, out, owner, messages, alpha_output=False):
     """``(pixels, (interpolation, extension))`` of an Image Texture node: RGB ``(h, w, 3)``
-    float32 and the lookup modes, or None (reported).
+    float32 (with ``alpha_output`` and its Alpha output: the alpha ``(h, w, 1)``) and the
+    lookup modes, or None (reported).
 
-    What the core's lookup models: the Color output, flat projection of the active UV map
+    What the core's lookup models: the Color output (and the Alpha output where a socket takes
+    it), flat projection of the active UV map
     (Vector unlinked, or from a UV Map node of the default map or a Texture Coordinate's UV),
     Linear or Closest interpolation (Cubic and Smart are reported and rendered as Linear),
     every extension (Repeat, Extend, Clip, Mirror); anything else falls back to the socket's
@@ -67,7 +71,7 @@ def _image_texture_pixels(node, out, owner, messages):
     if image is None:
         messages.add(f"{owner}: image texture '{name}' has no image{fallback}")
         return None
-    if out.identifier != "Color":
+    if out.identifier != "Color" and not (alpha_output and out.identifier == "Alpha"):
         messages.add(f"{owner}: the {out.name} output of image texture '{name}' is not "
                      f"supported yet{fallback}")
         return None
@@ -86,7 +90,24 @@ def _image_texture_pixels(node, out, owner, messages):
         messages.add(f"{owner}: {extension.lower()} extension of image texture '{name}' is "
                      f"not supported yet{fallback}")
         return None
-    return _image_rgb(image, owner, messages), (interpolation, extension)
+    if out.identifier == "Alpha":
+        return image_alpha(image)[..., None], (interpolation, extension)
+    if interpolation == 'Linear':
+        _note_unassociated_blend(node, image, owner, messages)
+    return _image_rgb(image, owner, messages, node), (interpolation, extension)
+
+
+def _note_unassociated_blend(node, image, owner, messages):
+    """Report a Linear lookup of colour whose Alpha output is used, in an image whose alpha
+    varies: Cycles blends the premultiplied colour between texels and divides by the blended
+    alpha, we blend the colour itself (the texels agree, the blend between them differs)."""
+    if not (_associates_alpha(image) and node.outputs["Alpha"].is_linked):
+        return
+    alpha = image_alpha(image)
+    if alpha.min() < alpha.max():
+        messages.add(f"{owner}: the colour of image '{image.name}' (with alpha) is blended "
+                     f"between texels without premultiplying it by alpha, as Cycles does; "
+                     f"texels agree, the blend between texels of different alpha differs")
 
 
 def _default_uv_vector(node, owner, fallback, messages):
@@ -158,17 +179,61 @@ def _interpolation(node, what, name, owner, messages, supported=("Linear",)):
     return 'Linear'
 
 
-def _image_rgb(image, owner, messages):
-    """Linear RGB ``(h, w, 3)`` float32 of an image (row 0 at the bottom), read with
-    ``foreach_get``: float images and 8-bit linear colour spaces as they are, 8-bit sRGB
-    decoded, others reported."""
+def _read_pixels(image):
+    """The pixels of ``image`` as ``(h, w, channels)`` float32 (row 0 at the bottom); a pixel
+    with a non-finite channel is zero in all, as Cycles loads float images."""
     w, h = (int(x) for x in image.size)
     channels = int(image.channels)
     buf = np.empty(w * h * channels, np.float32)
     image.pixels.foreach_get(buf)
     buf = buf.reshape(h, w, channels)
+    buf[~np.isfinite(buf).all(axis=2)] = 0.0
+    return buf
+
+
+def _associates_alpha(image):
+    """Whether Cycles associates the image's colour with its alpha (Cycles'
+    ``image_associate_alpha``): not for Non-Color data, Channel Packed or no alpha."""
+    return (int(image.channels) == 4 and image.colorspace_settings.name != 'Non-Color'
+            and getattr(image, "alpha_mode", 'STRAIGHT') not in ('CHANNEL_PACKED', 'NONE'))
+
+
+def image_alpha(image):
+    """The Alpha output of an Image Texture of ``image`` per texel: ``(h, w)`` float32, as
+    Cycles loads it (the alpha channel as stored, in no colour space; 1 for images without
+    one and for Alpha mode None)."""
+    w, h = (int(x) for x in image.size)
+    if int(image.channels) < 4 or getattr(image, "alpha_mode", 'STRAIGHT') == 'NONE':
+        return np.ones((h, w), np.float32)
+    return np.ascontiguousarray(_read_pixels(image)[..., 3])
+
+
+def _associated_rgb(rgb, buf, image, node):
+    """The colour Cycles' Image Texture ``node`` gives per texel, before decoding (see
+    :func:`_image_rgb`): with its Alpha output unused, an 8-bit image's colour premultiplied
+    by alpha (a float image's pixels are premultiplied already); with it used, a float
+    image's colour divided by alpha where it is neither 0 nor 1 (Cycles'
+    ``NODE_IMAGE_ALPHA_UNASSOCIATE``)."""
+    if node is None or not _associates_alpha(image):
+        return rgb
+    alpha = buf[..., 3:4]
+    if not node.outputs["Alpha"].is_linked:
+        return rgb if image.is_float else (rgb * alpha).astype(np.float32)
+    if not image.is_float:
+        return rgb
+    keep = (alpha == 0.0) | (alpha == 1.0)
+    return np.where(keep, rgb, rgb / np.where(keep, 1.0, alpha)).astype(np.float32)
+
+
+def _image_rgb(image, owner, messages, node=None):
+    """Linear RGB ``(h, w, 3)`` float32 of an image (row 0 at the bottom), read with
+    ``foreach_get``: float images and 8-bit linear colour spaces as they are, 8-bit sRGB
+    decoded, others reported; for an Image Texture ``node``, associated with alpha as Cycles
+    does (:func:`_associated_rgb`)."""
+    buf = _read_pixels(image)
+    channels = buf.shape[2]
     rgb = buf[..., :3] if channels >= 3 else np.repeat(buf[..., :1], 3, axis=2)
-    rgb = np.ascontiguousarray(rgb)
+    rgb = np.ascontiguousarray(_associated_rgb(rgb, buf, image, node))
     space = image.colorspace_settings.name
     if image.is_float:
         # Blender converts a float image to scene-linear Rec.709 as it loads it, whatever its

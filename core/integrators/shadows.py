@@ -2,7 +2,8 @@
 
 A shadow ray that meets a surface with transparent components (Transparent BSDF, a Principled
 BSDF's Alpha, a Mix with a Transparent BSDF) goes on through it, its throughput multiplied by
-the surface's transparency ``sum_c w_c color_c`` (:func:`core.prepare.transparency_table`), as
+the surface's transparency ``sum_c w_c color_c`` (:func:`core.prepare.transparency_table`;
+per hit where the alpha is a texture, :mod:`core.alpha`), as
 Cycles' shadow rays do with the weight of the transparent closures. An opaque surface, or one
 more transparent surface than the ray's budget (the Transparent bounce limit minus the
 transparent surfaces its path passed, see :mod:`.bounces`), blocks it.
@@ -48,9 +49,8 @@ def shadow_transmittance(prep, origins, directions, tmax, budget, counters=None,
     n = origins.shape[0]
     blocked = prep.accel.occluded(origins, directions, tmax, mask)
     out = np.where(blocked, 0.0, 1.0)[:, None] * np.ones((1, 3))
-    table = prep.material_transparency
     rows = np.nonzero(blocked)[0]
-    if table is None or rows.size == 0:
+    if prep.material_transparency is None or rows.size == 0:
         return out
     budget = np.broadcast_to(np.asarray(budget, np.int64), (n,))
     o, d = take_rows(origins, rows), take_rows(directions, rows)
@@ -67,7 +67,9 @@ def shadow_transmittance(prep, origins, directions, tmax, budget, counters=None,
         hit = hits.hit
         passes = np.zeros((rows.size, 3))
         prim = hits.prim[hit]
-        passes[hit] = table[prep.tri_material[prim]] * (prep.tri_area[prim] > 0)[:, None]
+        # Per hit: a textured alpha makes the transparency vary over a surface.
+        passes[hit] = (prep.transparency(prim, hits.u[hit], hits.v[hit])
+                       * (prep.tri_area[prim] > 0)[:, None])
         passes[left <= 0] = 0.0
         value = value * np.where(hit[:, None], passes, 1.0)
         # The occlusion query and a closest hit may disagree at a grazing edge: a ray that
