@@ -101,10 +101,14 @@ class VertexNormals:
 
     def _in(self, use_m):
         """Frame and params of each row: ``nm``'s where ``use_m (k,)``, else ``ng``'s."""
-        frame = tuple(_pick(use_m, a, b) for a, b in zip(self.frame_m, self.frame_g))
-        params = self.params
-        if self.bump is not None:
-            params = replace(params, bump_normal=_pick(use_m, *self.bump))
+        every = use_m.all()
+        if every or not use_m.any():
+            frame = self.frame_m if every else self.frame_g
+            bump = None if self.bump is None else self.bump[0 if every else 1]
+        else:
+            frame = tuple(_pick(use_m, a, b) for a, b in zip(self.frame_m, self.frame_g))
+            bump = None if self.bump is None else _pick(use_m, *self.bump)
+        params = self.params if bump is None else replace(self.params, bump_normal=bump)
         return frame, params
 
     def camera_normal_is_nm(self, wc):

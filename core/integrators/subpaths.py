@@ -161,11 +161,14 @@ class Gathered:
 
     def take(self, idx):
         """The rows ``idx`` of this gather (after shadow rays removed some)."""
-        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
-                           [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
-                           None if self.wo is None else take_rows(self.wo, idx),
-                           take_rows(self.wo_l, idx), take_rows(self.ng, idx),
-                           None if self.nm is None else take_rows(self.nm, idx))
+        out = Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
+                          [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
+                          None if self.wo is None else take_rows(self.wo, idx),
+                          take_rows(self.wo_l, idx), take_rows(self.ng, idx),
+                          None if self.nm is None else take_rows(self.nm, idx))
+        if self.normals is not None:
+            out.normals = self.normals.take(idx)
+        return out
 
     def for_densities(self, idx):
         """The rows ``idx`` for densities only: :meth:`pdf_toward`, :meth:`pdf_back` and
