@@ -172,16 +172,36 @@ class VertexNormals:
         smp = sample_bsdf(params, wl_l, u_lobe, u, IMPORTANCE)
         wc = to_world(smp.wi, *frame)
         chance = np.where(use_g, self.q, 1.0 - self.q)
-        # Delta samples: only where their frame is the camera side's, over that frame's chance.
+        # The sample counts as drawn in N(wc)'s frame only where that is the frame it was
+        # drawn in (always for delta samples; other rows are evaluated in N(wc)'s frame).
         same = self.camera_normal_is_nm(wc) != use_g
         factor = self._factor(frame[2], wl, wc, wl_l, smp.wi) * same
         weight = smp.weight * (factor / np.where(chance > 0, chance, 1.0))[:, None]
         pdf = smp.pdf * chance
-        smooth = np.nonzero(~smp.delta & (smp.pdf > 0))[0]
-        if smooth.size:
-            part = self.take(smooth)
-            p = part.pdf_light(wl[smooth], wc[smooth])
-            f = part.f_importance(wl[smooth], wc[smooth])
-            weight[smooth] = f / np.where(p > 0, p, np.inf)[:, None]
-            pdf[smooth] = p
+        smooth = ~smp.delta & (smp.pdf > 0)
+        if smooth.any():
+            self._mixture_weights(wl, wc, smp, smooth, same, factor, use_g, weight, pdf)
         return wc, weight, pdf, smp.delta, smp.lobe
+
+    def _mixture_weights(self, wl, wc, smp, smooth, same, factor, use_g, weight, pdf):
+        """Set ``weight`` and ``pdf`` of the non-delta samples ``smooth (k,)`` to ``f / mixture``
+        and the mixture, in place: ``f`` is the sample's own ``eval`` (``weight x pdf``) where
+        it was drawn in ``N(wc)``'s frame (``same``), else evaluated in the other frame."""
+        f = smp.weight * (smp.pdf * factor)[:, None]
+        mix = smp.pdf.copy()  # rows of q = 0: one frame, drawn with chance one
+        mixed = np.nonzero(smooth & (self.q > 0))[0]
+        if mixed.size:
+            part = self.take(mixed)
+            other, other_params = part._in(use_g[mixed])
+            p_other = pdf_bsdf(other_params, to_local(wl[mixed], *other),
+                               to_local(wc[mixed], *other))
+            q = self.q[mixed]
+            mix[mixed] = np.where(use_g[mixed], q * smp.pdf[mixed] + (1.0 - q) * p_other,
+                                  (1.0 - q) * smp.pdf[mixed] + q * p_other)
+            moved = np.nonzero(~same[mixed])[0]
+            if moved.size:
+                rows = mixed[moved]
+                f[rows] = part.take(moved).f_importance(wl[rows], wc[rows])
+        rows = np.nonzero(smooth)[0]
+        weight[rows] = f[rows] / np.where(mix[rows] > 0, mix[rows], np.inf)[:, None]
+        pdf[rows] = mix[rows]
