@@ -243,6 +243,11 @@ class Interaction:
         Bump Map Correction (:func:`bump_reference_normals`): the smooth normal before normal
         maps and bumps, flipped as ``ns``, at hits whose material corrects; zero elsewhere.
         None when no material of the scene corrects.
+    nm : (k, 3) float64 or None
+        The shading normal before the view's fallback (:func:`perturbed_normals`), on the
+        stored ``ng``'s front side (not flipped); None when the scene has no corner normals.
+        Light paths choose their normal by the direction they leave in
+        (:mod:`.adjoint_normals`).
     """
 
     p: np.ndarray
@@ -251,6 +256,7 @@ class Interaction:
     wo: np.ndarray
     prim: np.ndarray
     n_bump: np.ndarray = None
+    nm: np.ndarray = None
 
 
 def surface_interaction(prep, hits, d, rows):
@@ -263,11 +269,12 @@ def surface_interaction(prep, hits, d, rows):
     wo = take_rows(d, rows)
     np.negative(wo, out=wo)
     side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
-    ns = shading_normals(prep, prim, u, v, ng, wo)
+    nm = perturbed_normals(prep, prim, u, v, ng)
+    ns = ng if nm is None else view_fallback(nm, ng, wo)
     n_bump = bump_reference_normals(prep, prim, u, v, ng)
     if n_bump is not None:
         n_bump *= side[:, None]
-    return Interaction(p, ng, ns * side[:, None], wo, prim, n_bump)
+    return Interaction(p, ng, ns * side[:, None], wo, prim, n_bump, nm)
 
 
 def bump_reference_normals(prep, prim, u, v, ng):
@@ -348,9 +355,19 @@ def shading_normals(prep, prim, u, v, ng, wo):
     (k, 3) float64
         Unit normals ``n`` with ``n . ng >= 0``.
     """
+    n = perturbed_normals(prep, prim, u, v, ng)
+    if n is None:
+        return ng
+    return view_fallback(n, ng, wo)
+
+
+def perturbed_normals(prep, prim, u, v, ng):
+    """The shading normals of :func:`shading_normals` before the fallback that depends on the
+    view: unit, on ``ng``'s front side, ``ng`` where the interpolation vanishes or the
+    perturbed normal points behind ``ng``; None when the scene has no corner normals."""
     corner = prep.scene.corner_normals
     if corner is None:
-        return ng
+        return None
     c = corner[prim].astype(np.float64)
     u = np.asarray(u, np.float64)[:, None]
     v = np.asarray(v, np.float64)[:, None]
@@ -361,10 +378,17 @@ def shading_normals(prep, prim, u, v, ng, wo):
     n = raw / np.where(good, length, 1.0)[:, None]
     n = normal_mapped(prep.scene, prim, u[:, 0], v[:, 0], raw, n)
     n = bump_mapped(prep.scene, prim, u[:, 0], v[:, 0], n)
-    cos_g = np.einsum("ij,ij->i", ng, wo)
-    cos_s = np.einsum("ij,ij->i", n, wo)
-    good &= (cos_g * cos_s > 0) & (np.einsum("ij,ij->i", n, ng) >= 0)
+    good &= np.einsum("ij,ij->i", n, ng) >= 0
     return np.where(good[:, None], n, ng)
+
+
+def view_fallback(n, ng, w):
+    """``n (k, 3)`` where ``w (k, 3)`` sees ``n`` and ``ng`` from the same side, else ``ng``: the
+    camera side's choice of shading normal (``w`` toward the camera;
+    :mod:`.adjoint_normals` gives light paths its adjoint)."""
+    cos_g = np.einsum("ij,ij->i", ng, w)
+    cos_s = np.einsum("ij,ij->i", n, w)
+    return np.where((cos_g * cos_s > 0)[:, None], n, ng)
 
 
 def add_emitters_along_rays(prep, L, beta, o, d, hits, rows_of, pdf_prev, use_mis, camera, mis,

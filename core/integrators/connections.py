@@ -229,7 +229,8 @@ def camera_splatter(ctx, out):
             idx = ok[seen]
             return Gathered.of(ctx.smooth, IMPORTANCE, take_params(params, idx),
                                [take_rows(a, idx) for a in frame], take_rows(si.wo, idx),
-                               take_rows(wo_l, idx), take_rows(si.ng, idx))
+                               take_rows(wo_l, idx), take_rows(si.ng, idx),
+                               None if si.nm is None else take_rows(si.nm, idx))
 
         splat_vertices(ctx, j + 1, rows[ok], take_rows(si.p, ok), si.prim[ok], gather,
                        lambda seen: take_rows(beta, ok[seen]), out)

@@ -14,8 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
+from ..materials.bsdf import (IMPORTANCE, BSDFParams, BSDFSample, eval_bsdf, pdf_bsdf,
+                              sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
+from .adjoint_normals import VertexNormals
 from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
                      next_1d_if, ray_class, roulette_at, russian_roulette, shading_tangents,
                      surface_hits, surface_interaction, take_rows, with_bump_normals)
@@ -59,6 +61,8 @@ class Subpath:
     ``d_prev`` and ``cos_prev`` are the distance to the previous vertex and the cosine there
     (along the edge, geometric normal; one for points, the pinhole and infinite endpoints),
     used to turn solid-angle densities at this vertex into area densities at the previous one.
+    ``nm`` is the perturbed shading normal before the view's fallback, for light paths' choice
+    of normal (:mod:`.adjoint_normals`; smooth-shaded scenes only).
     """
 
     valid: np.ndarray
@@ -79,6 +83,7 @@ class Subpath:
     d_prev: np.ndarray
     cos_prev: np.ndarray
     all_params: BSDFParams = None
+    nm: np.ndarray = None
 
     @staticmethod
     def empty(depth, n):
@@ -92,7 +97,7 @@ class Subpath:
                        z3(), z3(), z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
-                       np.ones((depth, n)), table)
+                       np.ones((depth, n)), table, z3())
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
@@ -101,7 +106,7 @@ class Subpath:
                             ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
                             ("d_prev", np.inf), ("cos_prev", 1.0)):
             getattr(self, name).fill(value)
-        for name in ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta"):
+        for name in ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm"):
             getattr(self, name).fill(0.0)
         table = self.all_params
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
@@ -129,6 +134,8 @@ class Gathered:
         self.wo, self.wo_l, self.ng = (take_rows(sub.wo[j], rows),
                                        take_rows(sub.wo_local[j], rows),
                                        take_rows(sub.ng[j], rows))
+        self.nm = take_rows(sub.nm[j], rows) if self.smooth else None
+        self.normals = None
 
     @staticmethod
     def at(ctx, sub, index, mode):
@@ -138,30 +145,49 @@ class Gathered:
                            [take_rows(sub.flat(a), index) for a in ("fs", "ft", "fn")],
                            take_rows(sub.flat("wo"), index) if ctx.smooth else None,
                            take_rows(sub.flat("wo_local"), index),
-                           take_rows(sub.flat("ng"), index))
+                           take_rows(sub.flat("ng"), index),
+                           take_rows(sub.flat("nm"), index) if ctx.smooth else None)
 
     @staticmethod
-    def of(smooth, mode, params, frame, wo, wo_l, ng):
+    def of(smooth, mode, params, frame, wo, wo_l, ng, nm=None):
         """Vertices from arrays already gathered: BSDF ``params``, shading ``frame`` (three
-        (m, 3) axes), ``wo``, ``wo_l`` (in the frame) and ``ng``."""
+        (m, 3) axes), ``wo``, ``wo_l`` (in the frame), ``ng`` and (smooth shading) ``nm``."""
         out = object.__new__(Gathered)
         out.smooth, out.mode, out.params = smooth, mode, params
         out.fs, out.ft, out.fn = frame
-        out.wo, out.wo_l, out.ng = wo, wo_l, ng
+        out.wo, out.wo_l, out.ng, out.nm = wo, wo_l, ng, nm
+        out.normals = None
         return out
 
     def take(self, idx):
         """The rows ``idx`` of this gather (after shadow rays removed some)."""
-        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
-                           [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
-                           None if self.wo is None else take_rows(self.wo, idx),
-                           take_rows(self.wo_l, idx), take_rows(self.ng, idx))
+        out = Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
+                          [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
+                          None if self.wo is None else take_rows(self.wo, idx),
+                          take_rows(self.wo_l, idx), take_rows(self.ng, idx),
+                          None if self.nm is None else take_rows(self.nm, idx))
+        if self.normals is not None:
+            out.normals = self.normals.take(idx)
+        return out
 
     def for_densities(self, idx):
         """The rows ``idx`` for densities only: :meth:`pdf_toward`, :meth:`pdf_back` and
-        ``ng`` (no frame: no :meth:`local` or :meth:`f`); fewer gathers than :meth:`take`."""
+        ``ng`` (no frame: no :meth:`local` or :meth:`f`); fewer gathers than :meth:`take`.
+        With smooth shading the densities need the frames (:mod:`.adjoint_normals`)."""
+        if self.smooth:
+            return self.take(idx)
         return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
                            [None] * 3, None, take_rows(self.wo_l, idx), take_rows(self.ng, idx))
+
+    def _adjoint(self):
+        """The rows' :class:`.adjoint_normals.VertexNormals` (smooth shading), made once."""
+        if self.normals is None:
+            self.normals = VertexNormals(self.params, (self.fs, self.ft, self.fn), self.ng,
+                                         self.nm)
+        return self.normals
+
+    def _world(self, w_l):
+        return to_world(w_l, self.fs, self.ft, self.fn)
 
     def local(self, w):
         """World directions ``w (m, 3)`` in the vertices' shading frames."""
@@ -169,18 +195,30 @@ class Gathered:
 
     def f(self, w, w_l):
         """``f |cos|`` toward ``w`` (world) / ``w_l`` (local), with the geometric-side rule and,
-        in importance mode, the shading-normal correction (Veach 5.3)."""
+        in importance mode, the shading normal of the camera side's direction ``w`` and
+        Veach's correction (:mod:`.adjoint_normals`)."""
+        if self.smooth and self.mode == IMPORTANCE:
+            return self._adjoint().f_importance(self.wo, w)
         f = eval_bsdf(self.params, self.wo_l, w_l, self.mode)
         if self.smooth:
             f *= smooth_factor(self.ng, self.fn, self.wo, w, self.wo_l, w_l, self.mode)[:, None]
         return f
 
     def pdf_toward(self, w_l):
-        """Solid-angle density of sampling ``w_l`` given the incoming direction."""
+        """Solid-angle density of sampling ``w_l`` given the incoming direction (this side's
+        sampling: the mixture of :mod:`.adjoint_normals` on smooth light vertices)."""
+        if self.smooth and self.mode == IMPORTANCE:
+            return self._adjoint().pdf_light(self.wo, self._world(w_l))
         return pdf_bsdf(self.params, self.wo_l, w_l)
 
     def pdf_back(self, w_l):
-        """Solid-angle density of sampling the incoming direction given ``w_l``."""
+        """Solid-angle density of sampling the incoming direction given ``w_l`` (the other
+        side's sampling)."""
+        if self.smooth:
+            w = self._world(w_l)
+            if self.mode == IMPORTANCE:
+                return self._adjoint().pdf_camera(w, self.wo)
+            return self._adjoint().pdf_light(w, self.wo)
         return pdf_bsdf(self.params, w_l, self.wo_l)
 
 
@@ -271,13 +309,10 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             break
 
         # Sample the BSDF for the next vertex; the reverse density goes to vertex j - 1.
-        smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode)
-        wi = to_world(smp.wi, fs, ft, fn)
-        weight = smp.weight
-        if ctx.smooth:
-            weight = weight * smooth_factor(si.ng, fn, si.wo, wi, wo_l, smp.wi, mode)[:, None]
+        smp, wi, weight, back = _scatter(ctx.smooth, mode, si, (fs, ft, fn), wo_l, params,
+                                         u_lobe, u_bsdf, sub is not None)
         if sub is not None:
-            back = to_area(pdf_bsdf(params, smp.wi, wo_l), sub.cos_prev[j, r], dist)
+            back = to_area(back, sub.cos_prev[j, r], dist)
             sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
             sub.delta[j, r] = smp.delta
         beta = beta * weight
@@ -298,6 +333,29 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         pdf_prev = smp.pdf[keep]
         prev_delta = smp.delta[keep]
         vis = ray_class(smp.lobe[keep])
+
+
+def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse):
+    """Stage *sample BSDF* of a walk: the sample, its world direction ``wi``, its weight and
+    (``reverse``) the other side's solid-angle density of ``si.wo`` given ``wi``. With smooth
+    shading, light paths sample and weigh as the adjoint of the camera side's choice of
+    normal, and camera paths report that side's density (:mod:`.adjoint_normals`)."""
+    normals = VertexNormals(params, frame, si.ng, si.nm) if smooth else None
+    if normals is not None and mode == IMPORTANCE:
+        wi, weight, pdf, delta, lobe = normals.sample_importance(si.wo, u_lobe, u_bsdf)
+        smp = BSDFSample(to_local(wi, *frame), weight, pdf, delta, lobe)
+        back = normals.pdf_camera(wi, si.wo) if reverse else None
+        return smp, wi, weight, back
+    smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode)
+    wi = to_world(smp.wi, *frame)
+    weight = smp.weight
+    if smooth:
+        weight = weight * smooth_factor(si.ng, frame[2], si.wo, wi, wo_l, smp.wi, mode)[:, None]
+    back = None
+    if reverse:
+        back = (normals.pdf_light(wi, si.wo) if normals is not None
+                else pdf_bsdf(params, smp.wi, wo_l))
+    return smp, wi, weight, back
 
 
 def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, beta, pdf_prev,
@@ -326,6 +384,8 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
         getattr(sub, name)[j][r] = value
+    if si.nm is not None:
+        sub.nm[j][r] = si.nm
     if sub.params[j] is None:
         sub.params[j] = _empty_params(sub.valid.shape[1])
     _scatter_params(sub.params[j], r, params)

@@ -75,6 +75,8 @@ def test_shadowing_term_limits():
     np.testing.assert_allclose(bc.shadowing(n, w), [1.0, 1.0, 0.0, 1.0])
 
 
+DETECTS_LIGHT = (0.05, 0.18)
+DETECTS_BDPT = (0.04, 0.14)
 SHEENED_METAL = "sheened metal"  # a conductor under a sheen: only the sheen is corrected
 
 
@@ -123,13 +125,12 @@ def test_importance_mode_is_the_adjoint(kind):
     np.testing.assert_allclose(rad, imp, rtol=1e-9, atol=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason="light tracing already disagrees with path tracing on "
-                   "this tilted normal-mapped box with the correction OFF (4 of 30 blocks 16-24 % "
-                   "brighter, measured), so this cannot isolate the correction yet; image means "
-                   "light/path 0.984 corrected vs 0.982 uncorrected, bdpt/path 0.982 vs 0.982")
 def test_light_tracing_and_bdpt_agree_with_path_tracing_with_the_correction():
     """A Cornell box whose every surface has a normal map tilted 40 degrees, corrected: light
-    paths apply the term to the light-side direction too, so the three estimate one image."""
+    paths choose the shading normal by the direction toward the camera, as camera paths do
+    (:mod:`core.integrators.adjoint_normals`), and apply the term to the light-side direction,
+    so the three estimate one image. Choosing the normal by the light's direction instead made
+    4 of 30 blocks 16-24 % brighter in light tracing (measured; this check failed then)."""
     from sampling_lab.core.scenes import cornell_box
     from tests.core.test_bdpt import _replicates
     from tests.helpers import assert_replicates_agree
@@ -140,13 +141,22 @@ def test_light_tracing_and_bdpt_agree_with_path_tracing_with_the_correction():
     box = dataclasses.replace(box, materials=dataclasses.replace(
         box.materials, bump_correction=np.ones(len(rows), bool)))
     kw = dict(max_bounces=3)
-    pt = _replicates(box, "path", 16, 8, **kw)
+    pt = _replicates(box, "path", 24, 8, **kw)
     off = dataclasses.replace(box, materials=dataclasses.replace(
         box.materials, bump_correction=np.zeros(len(rows), bool)))
     print("uncorrected / corrected image mean:",
           _replicates(off, "path", 4, 8, **kw).mean() / pt.mean())
-    for integrator, detect in (("light", (0.1, 0.2)), ("bdpt", (0.1, 0.2))):
-        imgs = _replicates(box, integrator, 16, 4 if integrator == "bdpt" else 8, seed0=5, **kw)
-        found = assert_replicates_agree(imgs, pt, detect=detect,
+    # The lamp seen by the camera (and a pixel around it) holds most of the variance and is
+    # drawn by camera rays alike in all three: left out, the check is five times sharper.
+    lamp = pt.mean(0).sum(-1) > 5.0
+    lamp[:-1] |= lamp[1:]
+    lamp[1:] |= lamp[:-1]
+    lamp[:, :-1] |= lamp[:, 1:]
+    lamp[:, 1:] |= lamp[:, :-1]
+    # Smallest (image mean, block) errors detected with 99 % power, measured: light
+    # tracing DETECTS_LIGHT, BDPT DETECTS_BDPT (the checker asserts them).
+    for integrator, detect in (("light", DETECTS_LIGHT), ("bdpt", DETECTS_BDPT)):
+        imgs = _replicates(box, integrator, 24, 4 if integrator == "bdpt" else 8, seed0=5, **kw)
+        found = assert_replicates_agree(imgs, pt, mask=~lamp, detect=detect,
                                         what=f"{integrator} vs path (corrected normal maps)")
         print(f"{integrator}/path: image mean ratio {np.round(found.ratio, 4)}")

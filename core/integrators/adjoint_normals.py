@@ -1,0 +1,207 @@
+"""Shading normals on light paths: the adjoint of the camera side's choice of normal.
+
+The camera side (:func:`.common.shading_normals`) shades a hit with its perturbed normal
+``nm`` (interpolated corner normals, Normal Map, Bump) unless the direction toward the camera
+``wc`` sees ``nm`` and the geometric normal ``ng`` from different sides; then with ``ng``
+(:func:`.common.view_fallback`). The scene's BSDF is therefore
+
+    f(wc, wl) = f_N(wc)(wc, wl),     N(wc) = nm if (wc . nm) (wc . ng) > 0 else ng,
+
+with a normal that depends on the camera-side direction. A light path arrives from ``wl`` and
+does not know ``wc`` before it samples it, so it cannot choose the frame first; choosing it by
+``wl`` (as light paths did) is another BSDF: on a plane whose map tilts 60 degrees, light
+tracing left black the pixels that see the plane below its mapped normal, which the path
+tracer lights through ``ng``, and a sun below the mapped normal lit the pixels the path tracer
+leaves black (``tests/core/test_adjoint_normals.py``). So light paths (light tracing, BDPT's
+light subpaths):
+
+- evaluate ``f`` in the frame of ``N(wc)``, in importance mode, times Veach's shading-normal
+  factor ``|wl . N| |wc . ng| / (|wl . ng| |wc . N|)`` with that ``N`` (thesis section 5.3;
+  pbrt-v4's ``CorrectShadingNormal``) and the geometric-side rule;
+- sample ``wc`` from the mixture ``(1 - q) p_nm(wl -> wc) + q p_ng(wl -> wc)`` of the BSDF
+  sampled in either frame, ``q = min(1/2, |nm x ng|)`` (zero where the two agree): the
+  support of ``f(., wl)`` lies in the union of the two lobes. A non-delta sample weighs
+  ``f / mixture``; a delta sample counts only where the frame it was sampled in is ``N(wc)``,
+  divided by the chance of that frame;
+- give BDPT's MIS the mixture as the light side's density and ``p_N(wc)(wc -> wl)`` as the
+  camera side's, at light and camera vertices alike.
+
+Both frames are rebuilt from the stored frame of a vertex (its ``s`` axis is the tangent of
+anisotropic rows; exact for the stored normal, the other frame's tangent is that ``s``
+projected). The path tracer's bending of glossy normals for valid reflections
+(:func:`.common.valid_reflection_normals`) is no part of either subpath (see
+``docs/INTEGRATORS.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..materials.bsdf import IMPORTANCE, eval_bsdf, pdf_bsdf, sample_bsdf
+from ..materials.frame import shading_frame, to_local, to_world
+from ..sampling.warps import remap_after_choice
+from .common import geometric_side_valid
+
+# The largest share of light-path samples drawn in the geometric normal's frame.
+MAX_NG_SHARE = 0.5
+
+
+def dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def mixture_share(nm, ng):
+    """``q (k,)``: the share of light-path samples drawn in ``ng``'s frame, ``min(1/2,
+    |nm x ng|)`` (zero where the normals agree, so that nothing changes there)."""
+    return np.minimum(MAX_NG_SHARE, np.linalg.norm(np.cross(nm, ng), axis=1))
+
+
+def _pick(mask, a, b):
+    return np.where(mask[:, None], a, b)
+
+
+class VertexNormals:
+    """Hits with both candidate frames: the BSDF of their rows as light paths see it.
+
+    Parameters
+    ----------
+    params : BSDFParams
+        ``k`` rows, ``bump_normal`` (if any) in the local ``frame``.
+    frame : tuple of three (k, 3) float64
+        The frame the rows were stored in (around ``nm`` or ``ng``).
+    ng : (k, 3) float64
+        Stored geometric normals (not flipped).
+    nm : (k, 3) float64
+        Perturbed normals on ``ng``'s front side (:attr:`.common.Interaction.nm`).
+    """
+
+    def __init__(self, params, frame, ng, nm):
+        tangent = frame[0] if params.aniso_scale is not None else None
+        self.ng, self.nm = ng, nm
+        self.q = mixture_share(nm, ng)
+        self.frame_m = shading_frame(nm, tangent)
+        self.frame_g = shading_frame(ng, tangent)
+        self.params = params
+        self.bump = None
+        if params.bump_normal is not None:
+            world = to_world(params.bump_normal, *frame)
+            self.bump = (to_local(world, *self.frame_m), to_local(world, *self.frame_g))
+
+    def take(self, rows):
+        """The rows ``rows`` (an index array)."""
+        out = object.__new__(VertexNormals)
+        out.ng, out.nm, out.q = self.ng[rows], self.nm[rows], self.q[rows]
+        out.frame_m = tuple(a[rows] for a in self.frame_m)
+        out.frame_g = tuple(a[rows] for a in self.frame_g)
+        out.params = self.params.take(rows)
+        out.bump = None if self.bump is None else tuple(b[rows] for b in self.bump)
+        return out
+
+    def _in(self, use_m):
+        """Frame and params of each row: ``nm``'s where ``use_m (k,)``, else ``ng``'s."""
+        every = use_m.all()
+        if every or not use_m.any():
+            frame = self.frame_m if every else self.frame_g
+            bump = None if self.bump is None else self.bump[0 if every else 1]
+        else:
+            frame = tuple(_pick(use_m, a, b) for a, b in zip(self.frame_m, self.frame_g))
+            bump = None if self.bump is None else _pick(use_m, *self.bump)
+        params = self.params if bump is None else replace(self.params, bump_normal=bump)
+        return frame, params
+
+    def camera_normal_is_nm(self, wc):
+        """Whether ``N(wc)`` is ``nm`` for camera-side directions ``wc (k, 3)``."""
+        return dot(wc, self.nm) * dot(wc, self.ng) > 0
+
+    def f_importance(self, wl, wc):
+        """``f(wc, wl) |cos|`` read from the light side (toward ``wc``, world directions), with
+        the geometric-side rule and Veach's factor. ``(k, 3)``."""
+        use_m = self.camera_normal_is_nm(wc)
+        frame, params = self._in(use_m)
+        wl_l, wc_l = to_local(wl, *frame), to_local(wc, *frame)
+        f = eval_bsdf(params, wl_l, wc_l, IMPORTANCE)
+        return f * self._factor(frame[2], wl, wc, wl_l, wc_l)[:, None]
+
+    def _factor(self, n, wl, wc, wl_l, wc_l):
+        """Geometric-side rule times Veach's shading-normal factor for normals ``n``."""
+        transmit = wl_l[:, 2] * wc_l[:, 2] < 0
+        ok = geometric_side_valid(self.ng, wl, wc, transmit).astype(np.float64)
+        num = np.abs(dot(wl, n)) * np.abs(dot(wc, self.ng))
+        den = np.abs(dot(wl, self.ng)) * np.abs(dot(wc, n))
+        return ok * np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+
+    def pdf_light(self, wl, wc):
+        """The light side's solid-angle density of sampling ``wc`` from ``wl``: the mixture."""
+        pm = pdf_bsdf(self.params, to_local(wl, *self.frame_m), to_local(wc, *self.frame_m))
+        rows = np.nonzero(self.q > 0)[0]
+        if rows.size == 0:
+            return pm
+        g = tuple(a[rows] for a in self.frame_g)
+        pg = pdf_bsdf(self.params.take(rows), to_local(wl[rows], *g), to_local(wc[rows], *g))
+        out = pm.copy()
+        out[rows] = (1.0 - self.q[rows]) * pm[rows] + self.q[rows] * pg
+        return out
+
+    def pdf_camera(self, wc, wl):
+        """The camera side's solid-angle density of sampling ``wl`` from ``wc`` (frame
+        ``N(wc)``)."""
+        frame, params = self._in(self.camera_normal_is_nm(wc))
+        return pdf_bsdf(params, to_local(wc, *frame), to_local(wl, *frame))
+
+    def sample_importance(self, wl, u_lobe, u):
+        """Sample ``wc`` from the mixture, given ``wl (k, 3)`` (world, toward the light side).
+
+        Returns
+        -------
+        wc : (k, 3) float64
+            World directions (zero where the sample failed).
+        weight : (k, 3) float64
+            ``f |cos| / pdf`` with the factors of :meth:`f_importance` (zero where invalid).
+        pdf : (k,) float64
+            The mixture density (non-delta samples), or the chance of the delta lobe times
+            the chance of its frame.
+        delta : (k,) bool
+        lobe : (k,) uint8
+        """
+        use_g = u_lobe < self.q
+        u_lobe = remap_after_choice(u_lobe, self.q, use_g)
+        frame, params = self._in(~use_g)
+        wl_l = to_local(wl, *frame)
+        smp = sample_bsdf(params, wl_l, u_lobe, u, IMPORTANCE)
+        wc = to_world(smp.wi, *frame)
+        chance = np.where(use_g, self.q, 1.0 - self.q)
+        # The sample counts as drawn in N(wc)'s frame only where that is the frame it was
+        # drawn in (always for delta samples; other rows are evaluated in N(wc)'s frame).
+        same = self.camera_normal_is_nm(wc) != use_g
+        factor = self._factor(frame[2], wl, wc, wl_l, smp.wi) * same
+        weight = smp.weight * (factor / np.where(chance > 0, chance, 1.0))[:, None]
+        pdf = smp.pdf * chance
+        smooth = ~smp.delta & (smp.pdf > 0)
+        if smooth.any():
+            self._mixture_weights(wl, wc, smp, smooth, same, factor, use_g, weight, pdf)
+        return wc, weight, pdf, smp.delta, smp.lobe
+
+    def _mixture_weights(self, wl, wc, smp, smooth, same, factor, use_g, weight, pdf):
+        """Set ``weight`` and ``pdf`` of the non-delta samples ``smooth (k,)`` to ``f / mixture``
+        and the mixture, in place: ``f`` is the sample's own ``eval`` (``weight x pdf``) where
+        it was drawn in ``N(wc)``'s frame (``same``), else evaluated in the other frame."""
+        f = smp.weight * (smp.pdf * factor)[:, None]
+        mix = smp.pdf.copy()  # rows of q = 0: one frame, drawn with chance one
+        mixed = np.nonzero(smooth & (self.q > 0))[0]
+        if mixed.size:
+            part = self.take(mixed)
+            other, other_params = part._in(use_g[mixed])
+            p_other = pdf_bsdf(other_params, to_local(wl[mixed], *other),
+                               to_local(wc[mixed], *other))
+            q = self.q[mixed]
+            mix[mixed] = np.where(use_g[mixed], q * smp.pdf[mixed] + (1.0 - q) * p_other,
+                                  (1.0 - q) * smp.pdf[mixed] + q * p_other)
+            moved = np.nonzero(~same[mixed])[0]
+            if moved.size:
+                rows = mixed[moved]
+                f[rows] = part.take(moved).f_importance(wl[rows], wc[rows])
+        rows = np.nonzero(smooth)[0]
+        weight[rows] = f[rows] / np.where(mix[rows] > 0, mix[rows], np.inf)[:, None]
+        pdf[rows] = mix[rows]
