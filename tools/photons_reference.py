@@ -97,8 +97,8 @@ class ReferenceSPPM(SPPM):
 
 def sppm_reference(scene, bounces, seconds, seed, threads=2, photon_radius=0.0, passes=None,
                    photons=None):
-    """Render ``scene`` with :class:`ReferenceSPPM` for ``seconds`` (whole passes; at most
-    ``passes``). Returns a dict of ``(h, w, 3)`` arrays ``image`` and ``missing``, their
+    """Render ``scene`` (every light a delta light, seen through a pinhole) with
+    :class:`ReferenceSPPM` for ``seconds`` (whole passes; at most ``passes``). Returns a dict of ``(h, w, 3)`` arrays ``image`` and ``missing``, their
     per-pass estimates ``image_passes`` and ``missing_passes`` (``(passes, h, w, 3)``) and the
     figures ``passes``, ``radius0``, ``radius_mean`` (final) and ``seconds``."""
     extra = {"photons": int(photons)} if photons else {}
@@ -106,6 +106,9 @@ def sppm_reference(scene, bounces, seconds, seed, threads=2, photon_radius=0.0, 
                               threads=threads, photon_radius=photon_radius,
                               **uniform_limits(bounces), **PLAIN, **extra)
     prep = prepare(scene, settings.light_selection)
+    if not (prep.lights.n_emitters and prep.lights.delta.all()):
+        raise ValueError("the missing part is the light BDPT cannot sample only when every "
+                         "light is a delta light (a point of radius 0 or a sun of angle 0)")
     cam = scene.camera
     n = cam.width * cam.height
     integ = ReferenceSPPM(prep, settings)

@@ -5,6 +5,7 @@ reference (a closed form agrees), while BDPT alone is caught as lacking light.""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from sampling_lab.core import scenes
 from sampling_lab.core.integrators.base import Counters
@@ -67,3 +68,6 @@ def test_bdpt_plus_sppm_of_the_missing_paths_is_complete_and_bdpt_alone_is_caugh
     floor = pr.sppm_reference(scenes.mirror_point_light(16, 16), 1, 1e9, seed=5, passes=2,
                               photons=20_000)
     assert floor["image"].sum() > 0 and not floor["missing"].any()
+    # With an area light the camera path can hit the light through the mirror: refused.
+    with pytest.raises(ValueError, match="delta light"):
+        pr.sppm_reference(scenes.cornell_box(8, 8), 1, 1e9, seed=5, passes=1, photons=1000)
