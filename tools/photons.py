@@ -97,7 +97,8 @@ def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.
     for name in scenes:
         scene = BUILTIN[name](w, h)
         bounces = SCENES[name]
-        full = _reference(name, scene, bounces, reference_seconds, threads, cache=output)
+        full = _reference(name, scene, bounces, reference_seconds, threads, cache=output,
+                          photons=photons)
         ref = full["image"]
         mask = direct_pixels(scene, bounces)
         summary[f"reference_{name}"] = _reference_report(full, mask)
@@ -270,12 +271,13 @@ def error_breakdown(img, ref):
     return median, float(worst / total) if total > 0 else 0.0
 
 
-def _reference(name, scene, bounces, seconds, threads, cache=None):
+def _reference(name, scene, bounces, seconds, threads, cache=None, photons=None):
     """The scene's reference: a dict with ``image`` ``(h, w, 3)``, its ``noise`` and ``bias``
     (relMSE against the truth: expected from its variance; the missing part's difference
     between two radii), ``uncertainty`` (their sum), ``notes`` and, for the glass scenes, the
     parts of :func:`.photons_reference.complete_reference` (kept in the folder ``cache`` when
-    given, and read from there by the next run with the same size and time)."""
+    given, and read from there by the next run with the same size and time). ``photons``:
+    the SPPM part's photons per pass (None: the default)."""
     if name in ("point_mirror", "point_mirror_seen"):
         direct, reflected, _ = mirror_point_light_reference(scene)
         return dict(image=np.repeat((direct + reflected)[..., None], 3, axis=2), noise=0.0,
@@ -289,7 +291,8 @@ def _reference(name, scene, bounces, seconds, threads, cache=None):
             ref = {key: (f[key].item() if f[key].ndim == 0 else f[key]) for key in f.files}
     else:
         stage(f"{name}: complete reference, BDPT {seconds:g} s + SPPM 2 x {seconds / 2:g} s")
-        ref = complete_reference(scene, bounces, seconds, seconds / 2, threads, log=stage)
+        ref = complete_reference(scene, bounces, seconds, seconds / 2, threads, log=stage,
+                                 photons=photons)
         if path:
             os.makedirs(cache, exist_ok=True)
             np.savez(path, **ref)

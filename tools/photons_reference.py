@@ -137,20 +137,22 @@ def bdpt_reference(scene, bounces, seconds, seed=999, threads=2, spp=0):
     return res.film.mean(), res.film.variance(), res.stats["spp"]
 
 
-def complete_reference(scene, bounces, bdpt_seconds, sppm_seconds, threads=2, log=print):
+def complete_reference(scene, bounces, bdpt_seconds, sppm_seconds, threads=2, log=print,
+                       photons=None):
     """The complete reference of a point-light scene (see the module docstring): a dict with
     ``image`` (``(h, w, 3)``: BDPT plus the missing paths) with its noise (``variance``, BDPT's
     per pixel, and ``passes``, the missing part's per-pass estimates: :func:`group_se`), the
     parts (``bdpt``, ``missing``, ``missing_half``: the missing paths with half the initial
     radius), the full SPPM image ``sppm`` with ``sppm_passes`` for :func:`reference_check`,
     and the figures ``bias`` (relative difference of the missing light between the two radii,
-    over the whole image) and ``notes``."""
+    over the whole image) and ``notes``. ``photons``: SPPM's photons per pass (None: the
+    default)."""
     bdpt, var_bdpt, spp = bdpt_reference(scene, bounces, bdpt_seconds, threads=threads)
     log(f"reference: BDPT {spp} spp in {bdpt_seconds:g} s")
     r0 = sppm_auto_radius(prepare(scene))
-    a = sppm_reference(scene, bounces, sppm_seconds, seed=998, threads=threads)
+    a = sppm_reference(scene, bounces, sppm_seconds, seed=998, threads=threads, photons=photons)
     b = sppm_reference(scene, bounces, sppm_seconds, seed=997, threads=threads,
-                       photon_radius=0.5 * r0)
+                       photon_radius=0.5 * r0, photons=photons)
     total = a["missing"].sum()
     bias = float((a["missing"].sum() - b["missing"].sum()) / total) if total > 0 else 0.0
     notes = (f"BDPT {spp} spp ({bdpt_seconds:g} s) + SPPM of the paths BDPT cannot sample "
