@@ -77,7 +77,7 @@ REFERENCES = {
     "point_mirror": "closed form: direct light and the light's mirror image (every path "
                     "within one bounce; exact but for 8x8 rays per pixel)",
     "point_mirror_seen": "closed form traced through the mirror (every path within two "
-                         "bounces: the camera sees only the mirror)",
+                         "bounces: the camera sees the mirror or nothing)",
     "point_glass": "complete: BDPT + SPPM of the paths BDPT cannot sample",
     "point_mirror_glass": "complete: BDPT + SPPM of the paths BDPT cannot sample",
 }
