@@ -3,7 +3,8 @@
 ``python -m sampling_lab bench-caustic`` calls :func:`run`: the built-in ``glass_caustic`` scene
 (a glass ball under a 2 cm sphere light in the Cornell box: the lecture's hard case, light
 reaching a diffuse floor only through glass from a small source) is rendered by each integrator
-for the same wall-clock time, and by BDPT for much longer (another seed) as the reference;
+for the same wall-clock time, and by BDPT for much longer (another seed) as the reference (it
+holds every light path: the light is a small sphere, not a point, so no path is beyond BDPT);
 Cycles is not in this one (see ``bench-scenes`` for Cycles on a large-light glass scene).
 relMSE = mean over pixels and RGB of (x - ref)^2 / (ref^2 + 0.01), raw (the reference's noise
 is part of every figure alike). The markdown table ``CAUSTIC.md`` goes into ``output`` (default
@@ -67,7 +68,10 @@ def run(size=(64, 64), seconds=8.0, reference_seconds=120.0, integrators=("path"
                          f"{r['mean_ratio']:.4f} |")
         lines += ["", "Light tracing cannot show the ball's own reflections and refractions (a "
                   "pinhole cannot be reached through glass): that missing light is part of its "
-                  "error.", ""]
+                  "error. The reference holds every path: the light is a sphere, not a point, "
+                  "so BDPT samples even the caustic seen through the ball (`L S D S E`, a "
+                  "camera path through the ball that hits the light), rarely: that is part of "
+                  "the reference's noise.", ""]
         os.makedirs(output, exist_ok=True)
         path = os.path.join(output, DOCS_FILES[0])
         with open(path + ".tmp", "w") as f:

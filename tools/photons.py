@@ -11,19 +11,22 @@ point light (radius 0) and seen through a pinhole:
   reaches the camera through the mirror twice (``L S D S E``), which neither path tracing nor
   BDPT can sample. Reference: the same closed form, through the mirror.
 - ``point_glass`` (:func:`core.scenes.cornell_sphere` with a glass ball and a point light, 8
-  bounces): a refracted caustic on the floor. Reference: BDPT for ``reference_seconds``
-  (another seed). BDPT finds the caustic seen directly (light-path vertices joined to the
-  pinhole) but not light that reached the floor through the ball *and is seen through it*
-  (a point light and a pinhole both behind specular bounces): that light is in SPPM's and
-  photon mapping's images and counts as their "error" here.
+  bounces): a refracted caustic on the floor.
 - ``point_mirror_glass`` (:func:`core.scenes.mirror_point_light` with ``glass=True``, 8
   bounces): the mirror scene with a glass ball (radius 0.3) on the floor: the mirror's
   reflected light and the ball's caustic on one floor, part of the caustic seen through the
-  ball. Reference: BDPT as for ``point_glass``, with the same gap.
+  ball.
 
-Because the BDPT references lack the light seen through specular surfaces, the table also gives
-relMSE over the *pixels seen directly* (:func:`direct_pixels`: no specular bounce before the
-first rough surface in any of 16 samples of the pixel), where every reference is complete.
+The glass scenes' reference is complete (:func:`.photons_reference.complete_reference`): BDPT
+for ``reference_seconds`` (another seed) finds every path but ``L S+ (D S+)* D S+ E`` (light
+that reached a diffuse surface through the ball and is seen through it: a point light and a
+pinhole both behind specular bounces), which a long SPPM render of those paths alone adds
+(``reference_seconds / 2`` for each of two initial radii, whose difference bounds its bias).
+The run reports each reference's noise and bias as relMSE against the truth, checks it per
+pixel group against the full SPPM image of the same long run (and shows BDPT alone failing
+that check), and flags rows whose error is not well above the reference's uncertainty. The
+table also gives relMSE over the *pixels seen directly* (:func:`direct_pixels`: no specular
+bounce before the first rough surface in any of 16 samples of the pixel).
 
 Every renderer gets the same wall-clock budget: ours with ``RenderSettings(spp=0,
 time_limit=seconds)`` (SPPM and photon mapping finish the pass under way), Cycles the sample
@@ -62,20 +65,24 @@ from ..core.render import RenderSettings, render
 from ..core.scenes import BUILTIN, mirror_point_light_reference
 from .common import loadavg, machine_summary, stage, write_csv
 from .outputs import publish
+from .photons_reference import complete_reference, group_se, reference_check
 from ..core.integrators.bounces import uniform_limits
 
 DOCS_FILES = ("PHOTONS_BENCH.md",)
 # scene -> max bounces (the mirror's closed form holds for one bounce).
 SCENES = {"point_mirror": 1, "point_mirror_seen": 2, "point_glass": 8, "point_mirror_glass": 8}
 INTEGRATORS = ("sppm", "photon", "path", "bdpt")
-# What each scene's reference holds.
+# What each scene's reference holds (the glass scenes' notes add the figures of the run).
 REFERENCES = {
-    "point_mirror": "closed form (every light path)",
-    "point_mirror_seen": "closed form through the mirror (every light path)",
-    "point_glass": "BDPT (no light seen through the ball from the point light: L S D S E)",
-    "point_mirror_glass": "BDPT (no light seen through the ball from the point light: "
-                          "L S D S E)",
+    "point_mirror": "closed form: direct light and the light's mirror image (every path "
+                    "within one bounce; exact but for 8x8 rays per pixel)",
+    "point_mirror_seen": "closed form traced through the mirror (every path within two "
+                         "bounces: the camera sees the mirror or nothing)",
+    "point_glass": "complete: BDPT + SPPM of the paths BDPT cannot sample",
+    "point_mirror_glass": "complete: BDPT + SPPM of the paths BDPT cannot sample",
 }
+# A row whose relMSE is below this many times its reference's uncertainty is flagged.
+UNCERTAIN = 5.0
 
 
 def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.0,
@@ -90,16 +97,21 @@ def run(scenes=tuple(SCENES), integrators=INTEGRATORS, size=(64, 64), seconds=8.
     for name in scenes:
         scene = BUILTIN[name](w, h)
         bounces = SCENES[name]
-        ref = _reference(name, scene, bounces, reference_seconds, threads, cache=output)
+        full = _reference(name, scene, bounces, reference_seconds, threads, cache=output,
+                          photons=photons)
+        ref = full["image"]
         mask = direct_pixels(scene, bounces)
-        for integ in integrators:
-            rows.append(_ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask))
-            print(_line(rows[-1]))
+        summary[f"reference_{name}"] = _reference_report(full, mask)
+        print(f"{name}: reference {summary[f'reference_{name}']}")
+        scene_rows = [_ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask)
+                      for integ in integrators]
         if cycles:
-            row = _cycles(name, scene, bounces, seconds, threads, ref, mask)
-            if row is not None:
-                rows.append(row)
-                print(_line(row))
+            scene_rows.append(_cycles(name, scene, bounces, seconds, threads, ref, mask))
+        for row in filter(None, scene_rows):
+            row.update(ref_uncertainty=full["uncertainty"],
+                       uncertain=row["rel_mse"] < UNCERTAIN * full["uncertainty"])
+            rows.append(row)
+            print(_line(row))
     for name in scenes:
         timing = lookup_timing(BUILTIN[name](w, h), SCENES[name], photons)
         summary[f"lookup_{name}"] = timing
@@ -128,7 +140,7 @@ def sweep(scenes=tuple(SCENES), size=(64, 64), seconds=6.0, reference_seconds=12
     for name in scenes:
         scene = BUILTIN[name](w, h)
         bounces = SCENES[name]
-        ref = _reference(name, scene, bounces, reference_seconds, threads)
+        ref = _reference(name, scene, bounces, reference_seconds, threads)["image"]
         mask = direct_pixels(scene, bounces)
         unit = scene_diagonal(prepare(scene)) / max(w, h)
         runs = [dict(integrator="bdpt")]
@@ -178,7 +190,7 @@ def variants(scenes=tuple(SCENES), names=tuple(VARIANTS), size=(64, 64), seconds
     for name in scenes:
         scene = BUILTIN[name](w, h)
         bounces = SCENES[name]
-        ref = _reference(name, scene, bounces, reference_seconds, threads, cache=output)
+        ref = _reference(name, scene, bounces, reference_seconds, threads, cache=output)["image"]
         mask = direct_pixels(scene, bounces)
         for label in (("bdpt",) + tuple(names)) * rounds:
             extra = dict(VARIANTS.get(label, {}))
@@ -259,32 +271,63 @@ def error_breakdown(img, ref):
     return median, float(worst / total) if total > 0 else 0.0
 
 
-def _reference(name, scene, bounces, seconds, threads, cache=None):
-    """``(h, w, 3)`` reference image: the closed form, or a long BDPT render (kept in the
-    folder ``cache`` when given, and read from there by the next run with the same size and
-    time)."""
+def _reference(name, scene, bounces, seconds, threads, cache=None, photons=None):
+    """The scene's reference: a dict with ``image`` ``(h, w, 3)``, its ``noise`` and ``bias``
+    (relMSE against the truth: expected from its variance; the missing part's difference
+    between two radii), ``uncertainty`` (their sum), ``notes`` and, for the glass scenes, the
+    parts of :func:`.photons_reference.complete_reference` (kept in the folder ``cache`` when
+    given, and read from there by the next run with the same size and time). ``photons``:
+    the SPPM part's photons per pass (None: the default)."""
     if name in ("point_mirror", "point_mirror_seen"):
         direct, reflected, _ = mirror_point_light_reference(scene)
-        return np.repeat((direct + reflected)[..., None], 3, axis=2)
+        return dict(image=np.repeat((direct + reflected)[..., None], 3, axis=2), noise=0.0,
+                    bias=0.0, uncertainty=0.0, notes=REFERENCES[name])
     cam = scene.camera
-    path = (os.path.join(cache, f"reference_{name}_{cam.width}x{cam.height}_{seconds:g}s.npy")
+    path = (os.path.join(cache, f"reference_{name}_{cam.width}x{cam.height}_{seconds:g}s.npz")
             if cache else None)
     if path and os.path.exists(path):
-        stage(f"{name}: BDPT reference from {path}")
-        return np.load(path)
-    stage(f"{name}: BDPT reference, {seconds:g} s")
-    ref = _bdpt_reference(scene, bounces, seconds, threads)
-    if path:
-        os.makedirs(cache, exist_ok=True)
-        np.save(path, ref)
+        stage(f"{name}: complete reference from {path}")
+        with np.load(path) as f:
+            ref = {key: (f[key].item() if f[key].ndim == 0 else f[key]) for key in f.files}
+    else:
+        stage(f"{name}: complete reference, BDPT {seconds:g} s + SPPM 2 x {seconds / 2:g} s")
+        ref = complete_reference(scene, bounces, seconds, seconds / 2, threads, log=stage,
+                                 photons=photons)
+        if path:
+            os.makedirs(cache, exist_ok=True)
+            np.savez(path, **ref)
+    img, k = ref["image"], len(ref["passes"])
+    var = ref["variance"] + (ref["passes"].var(axis=0, ddof=1) / k if k > 1 else 0.0)
+    ref["noise"] = rel_mse_expected(var, img)
+    # The missing part with two radii: their difference holds its bias (and both noises).
+    ref["bias"] = (float(np.mean((ref["missing"] - ref["missing_half"]) ** 2 / (img ** 2 + 1e-2)))
+                   if "missing_half" in ref else 0.0)
+    ref["uncertainty"] = ref["noise"] + ref["bias"]
     return ref
 
 
-def _bdpt_reference(scene, bounces, seconds, threads):
-    res = render(scene, RenderSettings(integrator="bdpt", spp=0, time_limit=seconds,
-                                       **uniform_limits(bounces), seed=999, threads=threads,
-                                       filter_type="box", filter_width=1.0))
-    return res.film.mean()
+def rel_mse_expected(variance, ref):
+    """Expected relMSE of an unbiased image with per-pixel ``variance`` around ``ref``."""
+    return float(np.mean(variance / (ref ** 2 + 1e-2)))
+
+
+def _reference_report(ref, mask):
+    """One line on a reference: what it holds, its noise and bias (relMSE), and, for the
+    complete ones, :func:`.photons_reference.reference_check` of it and of BDPT alone against
+    the full SPPM image of the same long run, over the pixels seen directly and the rest."""
+    text = f"{ref['notes']}; noise relMSE {ref['noise']:.2g}, bias relMSE {ref['bias']:.2g}"
+    if "sppm" not in ref:
+        return text
+    groups = {"seen directly": mask, "through specular surfaces": ~mask}
+    se_sppm = {k: group_se(m, passes=ref["sppm_passes"]) for k, m in groups.items()}
+    for label, img, se in (
+            ("this reference", ref["image"],
+             {k: group_se(m, ref["variance"], ref["passes"]) for k, m in groups.items()}),
+            ("BDPT alone", ref["bdpt"], {k: group_se(m, ref["variance"]) for k, m in groups.items()})):
+        found = reference_check(img, ref["sppm"], groups, se, se_sppm)
+        text += f"; {label} against the long SPPM image: " + ", ".join(
+            f"{k} {d:+.2%} ({'ok' if ok else 'FAILS'})" for k, (d, ok) in found.items())
+    return text
 
 
 def _ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask, **settings):
@@ -362,26 +405,32 @@ def _write_markdown(path, rows, summary, size, seconds, reference_seconds, photo
         f"{summary['date']}: {size[0]}x{size[1]}, box filter, {threads} threads, "
         f"{seconds:g} s per render, {photons:,} photons per SPPM pass (and in photon "
         f"mapping's maps); references: closed form (point_mirror, point_mirror_seen), BDPT for "
-        f"{reference_seconds:g} s (point_glass, point_mirror_glass: they lack the light seen "
-        f"through specular surfaces, hence the column over the pixels seen directly). "
+        f"{reference_seconds:g} s plus SPPM of the paths BDPT cannot sample for 2 x "
+        f"{reference_seconds / 2:g} s (point_glass, point_mirror_glass). "
         f"CPU {summary['cpu']}, load average "
         f"{summary['load_start']} at the start, {summary['load_end']} at the end.",
         "",
+        "References (uncertainty: relMSE of the reference against the truth, its expected "
+        "noise plus its bias bound; a row is marked *uncertain* when its relMSE is below "
+        f"{UNCERTAIN:g} times that):",
+        "",
+        *[f"- {k.removeprefix('reference_')}: {v}" for k, v in summary.items()
+          if k.startswith("reference_")],
+        "",
         f"relMSE as the issue asks; beside it the median of the per-pixel relMSE over the lit "
         f"pixels and the share of the relMSE held by the {WORST_PIXELS} worst pixels (near "
-        f"100 %: a handful of pixels decide it). Reference of each scene: "
-        + ", ".join(f"{name} {REFERENCES[name]}" for name in dict.fromkeys(
-            r["scene"] for r in rows)) + ".",
+        f"100 %: a handful of pixels decide it).",
         "",
         "| scene | renderer | spp | time s | relMSE | relMSE / SPPM's | relMSE, pixels seen "
         "directly | its / SPPM's | median | worst px share | mean / ref | M photons/s "
-        "| photon MB |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| photon MB | ref. uncertainty / relMSE |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for row in rows:
         sppm = next((r for r in rows if r["scene"] == row["scene"] and r["renderer"] == "sppm"),
                     None)
-        base = (sppm["rel_mse"], sppm["rel_mse_direct"]) if sppm else (np.nan, np.nan)
+        base = ((sppm["rel_mse"] or np.nan, sppm["rel_mse_direct"] or np.nan) if sppm
+                else (np.nan, np.nan))
         mps = row["m_photons_per_s"]
         mb = row["photon_memory_peak_mb"]
         lines.append(
@@ -390,7 +439,9 @@ def _write_markdown(path, rows, summary, size, seconds, reference_seconds, photo
             f"| {row['rel_mse_direct']:.4g} | {row['rel_mse_direct'] / base[1]:.2f} "
             f"| {row['median']:.2g} | {100 * row['worst_share']:.0f} % "
             f"| {row['mean_ratio']:.4f} "
-            f"| {'' if mps == '' else f'{mps:.2f}'} | {'' if mb == '' else f'{mb:.1f}'} |")
+            f"| {'' if mps == '' else f'{mps:.2f}'} | {'' if mb == '' else f'{mb:.1f}'} "
+            f"| {row['ref_uncertainty'] / row['rel_mse']:.1%}"
+            f"{' uncertain' if row['uncertain'] else ''} |")
     lines += ["", "SPPM's lookup on one pass (best of 3, building included; SPPM uses the "
               "kd-tree):", ""]
     lines += [f"- {k.removeprefix('lookup_')}: {v}" for k, v in summary.items()

@@ -241,7 +241,15 @@ class SPPM(Integrator):
         """Flux ``phi (k, 3)`` (times the points' throughput) and photon counts ``m (k,)`` of
         every visible point from the photons (``tree`` over their positions) within its
         pixel's radius."""
-        k = points.rows.size
+        i, j, live, radii = self._pairs(points, photons, tree)
+        phi, m = self._flux(points, photons, i, j)
+        if self.coverage:
+            phi[live] /= self._coverage(points.take(live), radii[live])[:, None]
+        return phi * points.beta, m
+
+    def _pairs(self, points, photons, tree):
+        """``(i, j, live, radii)``: the (point, photon) pairs that count, the points with a
+        radius and every point's radius."""
         radii = self.state["r"][points.rows]
         live = np.nonzero(np.isfinite(radii))[0]  # a footprint radius is set for each point
         i, j, _ = tree.pairs_within(points.p[live], radii[live])
@@ -250,15 +258,17 @@ class SPPM(Integrator):
         ok = points.bounces[i] + photons.hit[j] <= self.settings.max_bounces + 1
         if self.surface_test:
             ok &= compatible(points.p[i], points.ng[i], photons.p[j], photons.n[j], radii[i])
-        i, j = i[ok], j[ok]
+        return i[ok], j[ok], live, radii
+
+    @staticmethod
+    def _flux(points, photons, i, j):
+        """Per point, the sum of ``f power`` over the pairs ``(i, j)`` and their count."""
+        k = points.rows.size
         contrib = (points.f(i, photons.wi[j].astype(np.float64))
                    * photons.power[j].astype(np.float64))
         phi = np.stack([np.bincount(i, contrib[:, c], minlength=k) for c in range(3)],
                        axis=1).astype(np.float64)  # (no pairs: bincount gives integers)
-        m = np.bincount(i, minlength=k).astype(np.float64)
-        if self.coverage:
-            phi[live] /= self._coverage(points.take(live), radii[live])[:, None]
-        return phi * points.beta, m
+        return phi, np.bincount(i, minlength=k).astype(np.float64)
 
     def _coverage(self, points, radii):
         """Share of each point's disk on a compatible surface (:mod:`core.photons.coverage`),

@@ -11,8 +11,10 @@ keep roughly the power they had (Jensen's photon tracing) and the estimate stays
 Every hit on a surface that is not purely specular (a delta BSDF cannot be density-estimated)
 is a stored photon: its position, the geometric normal of the surface it landed on, the
 direction back toward where it came from, its power, the number of the hit along the path (1:
-direct from the light) and whether every earlier bounce was specular (``caustic``: a path
-``L S+ D``). Storage is float32 (positions relative to the
+direct from the light), whether every earlier bounce was specular (``caustic``: a path
+``L S+ D``) and whether no two neighbours on the path so far are both non-specular
+(``unconnectable``: ``L S+ (D S+)* D``, the light subpaths no connection of BDPT can join when
+the light is a point). Storage is float32 (positions relative to the
 prepared scene's origin, which :func:`core.prepare.recentred` puts at the scene's centre), and
 the number of photons a setting may store is bounded by a memory cap (:func:`check_memory`).
 """
@@ -40,8 +42,10 @@ from .lookup import require_scipy
 DIMS_START = 5
 DIMS_PER_HIT = 4
 # Bytes per stored photon: float32 position, normal, direction and power, int16 hit number, bool
-# caustic flag; plus the kd-tree's float64 copy of the position and its int64 index.
-BYTES_PER_PHOTON = 4 * 12 + 2 + 1 + 24 + 8
+# caustic and unconnectable flags; plus the kd-tree's float64 copy of the position and its int64
+# index.
+BYTES_PER_PHOTON = 4 * 12 + 2 + 2 + 24 + 8
+FIELDS = ("p", "n", "wi", "power", "hit", "caustic", "unconnectable")
 
 
 @dataclass
@@ -63,6 +67,13 @@ class Photons:
         Number of the hit along the light path (1: straight from the emitter).
     caustic : (m,) bool
         Every earlier bounce was specular, and there was at least one (``L S+ D``).
+    unconnectable : (m,) bool
+        No two consecutive vertices of the path from the light up to here (the light and this
+        photon's surface included) are both non-specular: ``L S+ (D S+)* D``. With a delta
+        light (a point) and a camera path ``E S+`` to the same point through a pinhole, the
+        whole path has no edge between two non-delta vertices, so no strategy of BDPT (nor
+        path or light tracing) can sample it: SPPM's reference tool
+        (``tools/photons_reference.py``) adds this light to a BDPT reference.
     """
 
     p: np.ndarray
@@ -71,6 +82,7 @@ class Photons:
     power: np.ndarray
     hit: np.ndarray
     caustic: np.ndarray
+    unconnectable: np.ndarray
 
     @staticmethod
     def join(parts):
@@ -78,14 +90,13 @@ class Photons:
         parts = list(parts)
         if not parts:
             z3 = np.zeros((0, 3), np.float32)
-            return Photons(z3, z3, z3, z3, np.zeros(0, np.int16), np.zeros(0, bool))
-        return Photons(*(np.concatenate([getattr(p, name) for p in parts])
-                         for name in ("p", "n", "wi", "power", "hit", "caustic")))
+            return Photons(z3, z3, z3, z3, np.zeros(0, np.int16), np.zeros(0, bool),
+                           np.zeros(0, bool))
+        return Photons(*(np.concatenate([getattr(p, name) for p in parts]) for name in FIELDS))
 
     def take(self, rows):
         """The photons ``rows`` (index array or mask)."""
-        return Photons(self.p[rows], self.n[rows], self.wi[rows], self.power[rows],
-                       self.hit[rows], self.caustic[rows])
+        return Photons(*(getattr(self, name)[rows] for name in FIELDS))
 
     def __len__(self):
         return self.p.shape[0]
@@ -93,8 +104,7 @@ class Photons:
     @property
     def nbytes(self):
         """Bytes the arrays hold (without a kd-tree)."""
-        return sum(a.nbytes for a in (self.p, self.n, self.wi, self.power, self.hit,
-                                      self.caustic))
+        return sum(getattr(self, name).nbytes for name in FIELDS)
 
 
 def worst_case_bytes(photons, max_bounces):
@@ -168,6 +178,8 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
     n = beta.shape[0]
     vis = np.full(n, VIS_SHADOW, np.int32)
     specular = np.zeros(n, bool)  # every bounce so far was specular (and one happened)
+    unconnectable = np.ones(n, bool)  # no two non-specular neighbours so far (light: delta)
+    last_rough = np.zeros(n, bool)  # the previous hit was not purely specular
     parts = []
     for hit in range(1, max_bounces + 2):
         if beta.shape[0] == 0:
@@ -182,11 +194,17 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
         beta, specular = beta[live], specular[live]
-        store = np.nonzero(~delta_only)[0] if hit >= min_hit else np.zeros(0, np.int64)
+        # A rough hit straight from the light (NEE's edge) or after a rough hit is an edge
+        # BDPT can connect.
+        rough = ~delta_only
+        unconnectable = unconnectable[live] & ~(rough & (last_rough[live] | (hit == 1)))
+        last_rough = rough
+        store = np.nonzero(rough)[0] if hit >= min_hit else np.zeros(0, np.int64)
         parts.append(Photons(si.p[store].astype(np.float32), si.ng[store].astype(np.float32),
                              si.wo[store].astype(np.float32),
                              beta[store].astype(np.float32),
-                             np.full(store.size, hit, np.int16), specular[store]))
+                             np.full(store.size, hit, np.int16), specular[store],
+                             unconnectable[store]))
         if hit == max_bounces + 1:
             break
         # Importance-mode BSDF sampling in the shading frame, then roulette by albedo.
@@ -212,6 +230,7 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
         stream.compact(keep)
         beta = new[keep] / q[keep, None]
         specular = np.where(hit == 1, smp.delta, specular & smp.delta)[keep]
+        unconnectable, last_rough = unconnectable[keep], last_rough[keep]
         o = prep.accel.offset_origin(si.p[keep], si.ng[keep], si.prim[keep], wi[keep])
         d = wi[keep]
         vis = ray_class(smp.lobe[keep])

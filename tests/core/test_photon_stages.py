@@ -167,8 +167,8 @@ def test_photon_integrators_without_scipy_stop_with_a_message_naming_it(monkeypa
 
 
 def test_bench_scores_apart_the_pixels_seen_through_a_mirror_or_glass():
-    """bench-photons scores the pixels seen directly apart (its BDPT references lack the light
-    seen through specular surfaces): the floor view of the mirror scene sees no mirror, the
+    """bench-photons scores the pixels seen directly apart (and checks its references per
+    group: BDPT alone lacks the light seen through specular surfaces): the floor view of the mirror scene sees no mirror, the
     mirror view sees the floor through it, and the glass ball of point_mirror_glass hides a
     patch of floor that is seen through it."""
     from sampling_lab.tools.photons import SCENES, direct_pixels
