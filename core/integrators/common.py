@@ -164,6 +164,24 @@ def valid_reflection_normals(ng, wo, ns):
     return out
 
 
+def bends_normals(scene, prim):
+    """Whether the glossy closures at hits on triangles ``prim (k,)`` bend their normal for a
+    valid reflection (:func:`valid_reflection_normals`): ``(k,)`` bool. Cycles bends only
+    where the material's Bump Map Correction is on (``maybe_ensure_valid_specular_reflection``);
+    the exporter records that setting for materials with a normal map or bump
+    (``materials.bump_correction``), so only those can turn it off here (a plain smooth
+    material with the setting off is bent all the same)."""
+    m = scene.materials
+    material = scene.material[prim]
+    mapped = np.zeros(prim.shape[0], bool)
+    for column in ("normal_texture", "bump_texture"):
+        values = getattr(m, column, None)
+        if values is not None:
+            mapped |= np.asarray(values)[material] >= 0
+    corrected = np.asarray(m.bump_correction, bool)[material]
+    return ~mapped | corrected
+
+
 def strategies(max_length):
     """BDPT strategies ``(s, t)`` shown as images, for path lengths 1..``max_length`` segments.
 
@@ -235,7 +253,9 @@ class Interaction:
     ns : (k, 3) float64
         Shading normals, flipped toward the side the ray came from (two-sided surfaces):
         ``ng`` itself for flat meshes, else the interpolated corner normals
-        (:func:`shading_normals`). ``ns . wo > 0`` wherever ``ng . wo != 0``.
+        (:func:`shading_normals`). ``ns . wo > 0`` wherever ``ng . wo != 0``, unless the
+        interaction was built with ``keep_below`` (the path tracer's: Cycles' rule, see
+        :mod:`core.materials.lower_view`).
     wo : (k, 3) float64
         Unit direction back along the incoming ray.
     prim : (k,) int32
@@ -253,8 +273,9 @@ class Interaction:
     n_bump: np.ndarray = None
 
 
-def surface_interaction(prep, hits, d, rows):
-    """Build the :class:`Interaction` of the hit rays ``rows`` for directions ``d (n, 3)``."""
+def surface_interaction(prep, hits, d, rows, keep_below=False):
+    """Build the :class:`Interaction` of the hit rays ``rows`` for directions ``d (n, 3)``
+    (``keep_below``: see :func:`shading_normals`)."""
     prim = hits.prim[rows]
     u, v = hits.u[rows], hits.v[rows]
     p = (take_rows(prep.tri_v0, prim) + u[:, None] * take_rows(prep.tri_e1, prim)
@@ -263,7 +284,7 @@ def surface_interaction(prep, hits, d, rows):
     wo = take_rows(d, rows)
     np.negative(wo, out=wo)
     side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
-    ns = shading_normals(prep, prim, u, v, ng, wo)
+    ns = shading_normals(prep, prim, u, v, ng, wo, keep_below)
     n_bump = bump_reference_normals(prep, prim, u, v, ng)
     if n_bump is not None:
         n_bump *= side[:, None]
@@ -319,7 +340,7 @@ def shading_tangents(prep, si):
     return (1.0 - u - v)[:, None] * t[:, 0] + u[:, None] * t[:, 1] + v[:, None] * t[:, 2]
 
 
-def shading_normals(prep, prim, u, v, ng, wo):
+def shading_normals(prep, prim, u, v, ng, wo, keep_below=False):
     """Smooth-shading normals at hits, on the front side of the stored geometric normal.
 
     The corner normals of ``prep.scene.corner_normals`` are interpolated with the hit
@@ -331,9 +352,11 @@ def shading_normals(prep, prim, u, v, ng, wo):
     integrators (see :mod:`.path`) keeps shading normals from leaking light through surfaces.
     Materials with a Normal Map or Bump node perturb the normal first
     (:func:`core.normal_maps.normal_mapped`, then :func:`core.bump.bump_mapped`), and the
-    same fallbacks apply to the perturbed normal (where the view falls below it, or it points
-    behind ``ng``; Cycles keeps it there). Returns ``ng`` itself when the scene has no corner
-    normals (every face flat; a scene with normal maps or bumps always has them).
+    same fallbacks apply to the perturbed normal. With ``keep_below`` (the path tracer) a
+    normal that the view falls below is kept, as Cycles keeps it: the BSDF then shades those
+    rows by Cycles' rule (:mod:`core.materials.lower_view`); light paths (BDPT, light tracing,
+    photons) keep the fallback. Returns ``ng`` itself when the scene has no corner normals
+    (every face flat; a scene with normal maps or bumps always has them).
 
     Parameters
     ----------
@@ -342,6 +365,8 @@ def shading_normals(prep, prim, u, v, ng, wo):
     ng : (k, 3) float64
         Unit geometric normals as stored (not flipped).
     wo : (k, 3) float64
+    keep_below : bool
+        Keep normals the view falls below (see above).
 
     Returns
     -------
@@ -363,7 +388,9 @@ def shading_normals(prep, prim, u, v, ng, wo):
     n = bump_mapped(prep.scene, prim, u[:, 0], v[:, 0], n)
     cos_g = np.einsum("ij,ij->i", ng, wo)
     cos_s = np.einsum("ij,ij->i", n, wo)
-    good &= (cos_g * cos_s > 0) & (np.einsum("ij,ij->i", n, ng) >= 0)
+    good &= np.isfinite(cos_s) & (np.einsum("ij,ij->i", n, ng) >= 0)
+    if not keep_below:
+        good &= cos_g * cos_s > 0
     return np.where(good[:, None], n, ng)
 
 
