@@ -8,7 +8,7 @@ import numpy as np
 
 from ..accel import Hits
 from ..camera import generate_rays
-from ..materials.bsdf import LOBE_DIFFUSE, LOBE_TRANSMIT
+from ..materials.bsdf import KIND_LAYERED, KIND_LAYERED_MS, LOBE_DIFFUSE, LOBE_TRANSMIT
 from ..materials.frame import to_local
 from ..bump import bump_mapped
 from ..normal_maps import normal_mapped
@@ -317,6 +317,20 @@ def with_bump_normals(params, si, frame):
     if si.n_bump is None:
         return params
     return replace(params, bump_normal=to_local(si.n_bump, *frame))
+
+
+def with_base_normals(params, unbent, frame):
+    """``params`` with a ``base_normal`` column (:mod:`core.materials.layered`) on the layered
+    rows whose frame ``frame = (s, t, n)`` was bent away from their shading normal ``unbent
+    (k, 3)`` (on the frame's side of the surface) for a valid specular reflection: Cycles
+    bends the specular closure's normal only, the diffuse base keeps ``unbent``. Unchanged
+    when no such row exists."""
+    layered = np.isin(params.kind, (KIND_LAYERED, KIND_LAYERED_MS))
+    bent = layered & np.any(unbent != frame[2], axis=1)
+    if not bent.any():
+        return params
+    local = np.where(bent[:, None], to_local(unbent, *frame), 0.0)
+    return replace(params, base_normal=local)
 
 
 def shading_tangents(prep, si):

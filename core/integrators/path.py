@@ -66,7 +66,8 @@ from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows
                      geometric_side_valid, intersect_by_class, max_component, next_1d_if,
                      ray_class, roulette_at, russian_roulette, shading_tangents,
                      surface_hits, surface_interaction, take_rows,
-                     valid_reflection_normals, with_bump_normals, bends_normals)
+                     valid_reflection_normals, with_base_normals, with_bump_normals,
+                     bends_normals)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -138,6 +139,8 @@ class _BSDFShading:
             self.ng, self.wo_world = si.ng, si.wo
         self.wo = to_local(si.wo, self.s, self.t, self.n)
         if self.ng is not None:
+            self.params = with_base_normals(self.params, si.ns * front[:, None],
+                                            (self.s, self.t, self.n))
             self.params, self.wo = lower_view_params(self.params, self.wo,
                                                      view_below(si.wo, si.ng, self.n))
         self.params = with_bump_normals(self.params, si, (self.s, self.t, self.n))

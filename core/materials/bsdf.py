@@ -155,6 +155,10 @@ class BSDFParams:
         Bump Map Correction (:mod:`.bump_correction`): the smooth, unmapped normal in the
         row's local frame, whose diffuse part is then shadowed; zero rows: no correction.
         None when no row has it (set by the integrators at normal-mapped hits).
+    base_normal : (k, 3) float64 or None
+        Layered kinds: the unit normal of the diffuse base in the row's local frame, when the
+        frame was bent for the specular layer only (:mod:`.layered`, "base normal"); zero
+        rows: the base keeps +Z. None when no row has it.
     """
 
     kind: np.ndarray
@@ -171,6 +175,7 @@ class BSDFParams:
     aniso_scale: np.ndarray = None
     aniso_rotation: np.ndarray = None
     bump_normal: np.ndarray = None
+    base_normal: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
@@ -409,6 +414,7 @@ _GROUPS = {
     "sheen": (("sheen_color", 0.0, (3,)), ("sheen_roughness", 1.0, ())),
     "aniso": (("aniso_scale", 1.0, ()), ("aniso_rotation", 0.0, ())),
     "bump": (("bump_normal", 0.0, (3,)),),
+    "base": (("base_normal", 0.0, (3,)),),
 }
 
 
