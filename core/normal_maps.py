@@ -9,7 +9,7 @@ smooth normal ``n`` (the geometric normal on flat faces)::
     B = s (n x T),    N = normalize(m_x T + m_y B + m_z n)
 
 with the node's Strength ``k`` applied to the decoded colour first, in tangent space (Blender
-5.0; earlier versions blended the world normals linearly)::
+4.0 and later, checked in the 5.0 source; 3.x blended the world normals linearly)::
 
     m_x <- k m_x,    m_y <- k m_y,    m_z <- 1 + (m_z - 1) clamp(k, 0, 1)
 
@@ -88,7 +88,7 @@ def tangent_space_normals(color, tangent, sign, normal, strength=None):
 
 
 def apply_strength(m, strength):
-    """Blender 5.0's Strength ``k (k,)`` of a tangent-space map on decoded colours ``m (k, 3)``:
+    """Blender 4.0+'s Strength ``k (k,)`` of a tangent-space map on decoded colours ``m (k, 3)``:
     ``(k m_x, k m_y, 1 + (m_z - 1) clamp(k, 0, 1))`` (Cycles' ``svm_node_normal_map``)."""
     k = np.asarray(strength, np.float64)
     out = np.array(m, np.float64)

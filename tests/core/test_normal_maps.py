@@ -44,7 +44,7 @@ def test_tangent_space_decoding_follows_tangent_bitangent_and_normal():
     sign = np.array([1.0, 1.0, -1.0])
     got = tangent_space_normals(color, t, sign, n)
     np.testing.assert_allclose(got, [[1, 0, 0], [0, 1, 0], [0, -1, 0]], atol=1e-12)
-    # Blender 5.0 applies Strength to the decoded colour (m_x, m_y scaled by k, m_z moved
+    # Blender 4.0+ applies Strength to the decoded colour (m_x, m_y scaled by k, m_z moved
     # toward 1 by clamp(k, 0, 1)): 0 keeps n, 1 the map, 0.5 of a 90-degree tilt (1, 0, 0)
     # gives (0.5, 0, 0.5) -> 45 degrees, and 2 gives (2, 0, 0) -> +X.
     t1 = np.tile([1.0, 0.0, 0.0], (4, 1))
@@ -54,7 +54,7 @@ def test_tangent_space_decoding_follows_tangent_bitangent_and_normal():
     h = 0.5 ** 0.5
     np.testing.assert_allclose(out, [[0, 0, 1], [1, 0, 0], [h, 0, h], [1, 0, 0]], atol=1e-12)
     # Where the frame is not orthonormal the rule is not the old linear blend of world
-    # normals (normalize(n + k (N - n)), Blender 4.x): a tangent of length 2 and k = 0.5.
+    # normals (normalize(n + k (N - n)), Blender 3.x): a tangent of length 2 and k = 0.5.
     t2 = np.tile([2.0, 0.0, 0.0], (1, 1))
     got = tangent_space_normals(np.array([[1.0, 0.5, 0.5]]), t2, np.ones(1), n1[:1],
                                 np.array([0.5]))
