@@ -53,7 +53,8 @@ import numpy as np
 
 from ..accel import Hits
 from ..materials.bsdf import (KIND_DIELECTRIC, KIND_DIFFUSE, LOBE_DIFFUSE, LOBE_REFLECT,
-                              LOBE_TRANSMIT, RADIANCE, eval_bsdf, pdf_bsdf, sample_bsdf)
+                              LOBE_TRANSMIT, RADIANCE, crosses_surface, eval_bsdf, pdf_bsdf,
+                              sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..materials.lower_view import lower_view_params, view_below
@@ -154,7 +155,7 @@ class _BSDFShading:
         wi_local = to_local(wi, _rows(self.s, rows), _rows(self.t, rows), _rows(self.n, rows))
         f = eval_bsdf(p, wo, wi_local, RADIANCE)
         if self.ng is not None:
-            transmit = wo[:, 2] * wi_local[:, 2] < 0
+            transmit = crosses_surface(p, wo, wi_local)
             f *= geometric_side_valid(_rows(self.ng, rows), _rows(self.wo_world, rows), wi,
                                       transmit)[:, None]
         return f, pdf_bsdf(p, wo, wi_local)

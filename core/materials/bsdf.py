@@ -600,9 +600,20 @@ def _sample_bases(params, wo, u_lobe, u, mode):
             wi[rows], weight[rows], pdf[rows], delta[rows] = sample(p, wo[rows], u_lobe[rows],
                                                                     u[rows], mode)
             kind_bits[rows] = label(p, wo[rows], u_lobe[rows], delta[rows])
-    side = np.where(wi[:, 2] * wo[:, 2] < 0.0, LOBE_TRANSMIT, LOBE_REFLECT).astype(np.uint8)
+    side = np.where(crosses_surface(params, wo, wi), LOBE_TRANSMIT,
+                    LOBE_REFLECT).astype(np.uint8)
     lobe = np.where(pdf > 0.0, side | kind_bits, 0).astype(np.uint8)
     return BSDFSample(wi, weight, pdf, np.asarray(delta, bool), lobe)
+
+
+def crosses_surface(params, wo, wi):
+    """Whether ``wi`` leaves on the other side of the surface than ``wo`` (a transmission):
+    ``(k,)`` bool, from the sides of the local frame, except on layered rows with a base
+    normal (:mod:`.layered`), reflections whose base lobe may dip below the bent frame."""
+    crossed = wi[:, 2] * wo[:, 2] < 0.0
+    if params.base_normal is not None:
+        crossed &= ~np.any(params.base_normal != 0.0, axis=1)
+    return crossed
 
 
 def is_delta_only(params):
