@@ -18,7 +18,9 @@ Here a row whose view lies below its frame's +Z is shaded by a Lambert BSDF arou
 kind with its own albedo, a layered (Principled) row with its base albedo times
 ``1 - max_c E_t(0)`` (:func:`.layered.specular_albedo` at grazing), and conductors and
 dielectrics with albedo 0. Each is an ordinary Lambert lobe, so sampling, evaluation and pdf
-stay consistent. Not modelled: a Coat or Sheen layer on such a row keeps its own lobe at the
+stay consistent. A Transparent BSDF (a smooth dielectric of index 1, which passes light
+straight through whatever its normal, as Cycles' transparent closure) is left as it is. Not
+modelled: a Coat or Sheen layer on such a row keeps its own lobe at the
 mirrored view (Cycles: the coat's closure is zero there too).
 """
 
@@ -28,8 +30,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .families import KIND_DIFFUSE, KIND_LAYERED, KIND_LAYERED_MS
+from .families import KIND_DIELECTRIC, KIND_DIFFUSE, KIND_LAYERED, KIND_LAYERED_MS
 from .layered import specular_albedo
+from .microfacet import is_smooth
 
 
 def view_below(wo, ng, n):
@@ -59,6 +62,7 @@ def lower_view_params(params, wo, below):
     wo : (k, 3) float64
         ``wo`` mirrored through the tangent plane on the rows ``below`` (a copy).
     """
+    below = below & ~_pass_through(params)
     if not below.any():
         return params, wo
     wo = wo.copy()
@@ -74,3 +78,8 @@ def lower_view_params(params, wo, below):
     color = np.where(below[:, None], params.color * scale[:, None], params.color)
     kind = np.where(below, KIND_DIFFUSE, params.kind).astype(params.kind.dtype)
     return replace(params, kind=kind, color=color), wo
+
+
+def _pass_through(params):
+    """Rows of a Transparent BSDF (smooth dielectric of index 1): ``(k,)`` bool."""
+    return (params.kind == KIND_DIELECTRIC) & (params.eta == 1.0) & is_smooth(params.alpha)

@@ -107,6 +107,16 @@ def test_rows_seen_from_below_shade_as_cycles_closures():
     np.testing.assert_allclose(f[0], p.color[0] * wi[0, 2] / np.pi, rtol=1e-12)
 
 
+def test_a_transparent_bsdf_seen_from_below_still_passes_light_straight_through():
+    p = B.make_params(B.KIND_DIELECTRIC, 1.0, 0.0, 1.0, k=1)
+    wo = np.array([_unit([0.8, 0.0, -0.1])])
+    q, wo2 = lower_view_params(p, wo, np.array([True]))
+    assert q.kind[0] == B.KIND_DIELECTRIC and (wo2 == wo).all()
+    smp = B.sample_bsdf(q, wo2, np.array([0.5]), np.array([[0.5, 0.5]]))
+    np.testing.assert_allclose(smp.wi, -wo, atol=1e-12)
+    np.testing.assert_allclose(smp.weight, 1.0, atol=1e-12)
+
+
 def test_view_below_is_relative_to_the_viewers_geometric_side():
     ng = np.tile([0.0, 0.0, 1.0], (4, 1))
     n = np.tile(_unit([0.6, 0.0, 0.8]), (4, 1))
