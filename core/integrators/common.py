@@ -172,14 +172,13 @@ def bends_normals(scene, prim):
     (``materials.bump_correction``), so only those can turn it off here (a plain smooth
     material with the setting off is bent all the same)."""
     m = scene.materials
-    material = scene.material[prim]
-    mapped = np.zeros(prim.shape[0], bool)
+    mapped = np.zeros(len(m.bump_correction), bool)
     for column in ("normal_texture", "bump_texture"):
         values = getattr(m, column, None)
         if values is not None:
-            mapped |= np.asarray(values)[material] >= 0
-    corrected = np.asarray(m.bump_correction, bool)[material]
-    return ~mapped | corrected
+            mapped |= np.asarray(values) >= 0
+    allowed = ~mapped | np.asarray(m.bump_correction, bool)
+    return allowed[scene.material[prim]]
 
 
 def strategies(max_length):
@@ -325,11 +324,13 @@ def with_base_normals(params, unbent, frame):
     (k, 3)`` (on the frame's side of the surface) for a valid specular reflection: Cycles
     bends the specular closure's normal only, the diffuse base keeps ``unbent``. Unchanged
     when no such row exists."""
-    layered = np.isin(params.kind, (KIND_LAYERED, KIND_LAYERED_MS))
-    bent = layered & np.any(unbent != frame[2], axis=1)
-    if not bent.any():
+    layered = (params.kind == KIND_LAYERED) | (params.kind == KIND_LAYERED_MS)
+    rows = np.nonzero(layered)[0]
+    rows = rows[np.any(unbent[rows] != frame[2][rows], axis=1)]
+    if rows.size == 0:
         return params
-    local = np.where(bent[:, None], to_local(unbent, *frame), 0.0)
+    local = np.zeros((len(params), 3))
+    local[rows] = to_local(unbent[rows], *(f[rows] for f in frame))
     return replace(params, base_normal=local)
 
 

@@ -142,8 +142,8 @@ class _BSDFShading:
         if self.ng is not None:
             self.params = with_base_normals(self.params, si.ns * front[:, None],
                                             (self.s, self.t, self.n))
-            self.params, self.wo = lower_view_params(self.params, self.wo,
-                                                     view_below(si.wo, si.ng, self.n))
+            below = view_below(np.einsum("ij,ij->i", si.wo, si.ng), self.wo[:, 2])
+            self.params, self.wo = lower_view_params(self.params, self.wo, below)
         self.params = with_bump_normals(self.params, si, (self.s, self.t, self.n))
         # Next-event estimation cannot contribute through smooth mirrors and glass.
         self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None

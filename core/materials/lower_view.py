@@ -35,12 +35,10 @@ from .layered import specular_albedo
 from .microfacet import is_smooth
 
 
-def view_below(wo, ng, n):
-    """Rows whose view ``wo (k, 3)`` (world, unit) lies on one side of the geometric normal
-    ``ng (k, 3)`` and on the other side of, or in the plane of, the shading normal ``n (k,
-    3)``: ``(k,)`` bool (False where the view grazes the geometry)."""
-    cos_g = np.einsum("ij,ij->i", wo, ng)
-    cos_s = np.einsum("ij,ij->i", wo, n)
+def view_below(cos_g, cos_s):
+    """Rows whose view lies on one side of the geometric normal and on the other side of, or
+    in the plane of, the shading normal: ``(k,)`` bool from the view's cosines with the two,
+    ``cos_g, cos_s (k,)`` (False where the view grazes the geometry)."""
     return (cos_g != 0.0) & (cos_g * cos_s <= 0.0)
 
 

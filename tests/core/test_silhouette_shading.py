@@ -122,8 +122,9 @@ def test_view_below_is_relative_to_the_viewers_geometric_side():
     n = np.tile(_unit([0.6, 0.0, 0.8]), (4, 1))
     wo = np.array([_unit([-0.9, 0.0, 0.2]), _unit([0.2, 0.0, 0.9]),
                    _unit([0.9, 0.0, -0.2]), _unit([1.0, 0.0, 0.0])])
+    cos_g, cos_s = np.einsum("ij,ij->i", wo, ng), np.einsum("ij,ij->i", wo, n)
     # front, below n | front, above | back side, above n's plane from below | grazing
-    np.testing.assert_array_equal(view_below(wo, ng, n), [True, False, True, False])
+    np.testing.assert_array_equal(view_below(cos_g, cos_s), [True, False, True, False])
 
 
 def test_bump_correction_reads_the_deviation_from_the_closure_normal():
