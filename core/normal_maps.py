@@ -8,8 +8,13 @@ smooth normal ``n`` (the geometric normal on flat faces)::
 
     B = s (n x T),    N = normalize(m_x T + m_y B + m_z n)
 
-then blends with the unperturbed shading normal ``ns`` by the node's Strength ``k`` (only when
-``k != 1``, clamped at 0): ``N = normalize(ns + k (N - ns))``; a zero result keeps ``ns``.
+with the node's Strength ``k`` applied to the decoded colour first, in tangent space (Blender
+4.0 and later, checked in the 5.0 source; 3.x blended the world normals linearly)::
+
+    m_x <- k m_x,    m_y <- k m_y,    m_z <- 1 + (m_z - 1) clamp(k, 0, 1)
+
+so that ``k = 0`` gives the unperturbed ``n`` and ``k = 1`` the map; a zero or non-finite
+result keeps the unmapped shading normal ``ns``.
 Everything is in world space here: the exporter moves tangents to world space with the
 object's matrix, which is what Cycles' object-space construction gives for rotations, uniform
 scales and translations (not under a non-uniform scale, where Cycles' normal transform and our
@@ -52,7 +57,7 @@ def _normalize(x):
     return x / np.where(good, length, 1.0)[:, None], good
 
 
-def tangent_space_normals(color, tangent, sign, normal):
+def tangent_space_normals(color, tangent, sign, normal, strength=None):
     """Cycles' tangent-space decoding: ``normalize(m_x T + m_y s (n x T) + m_z n)``.
 
     Parameters
@@ -65,6 +70,8 @@ def tangent_space_normals(color, tangent, sign, normal):
         Interpolated bitangent signs ``s``.
     normal : (k, 3) float64
         Interpolated smooth normals ``n`` (not normalised), or the geometric normal.
+    strength : (k,) float64, optional
+        The node's Strength ``k``, applied to ``m`` as :func:`apply_strength` (None: 1).
 
     Returns
     -------
@@ -72,20 +79,23 @@ def tangent_space_normals(color, tangent, sign, normal):
         Unit normals; zero rows where the combination vanishes.
     """
     m = 2.0 * np.asarray(color, np.float64) - 1.0
+    if strength is not None:
+        m = apply_strength(m, strength)
     bitangent = sign[:, None] * np.cross(normal, tangent)
     n = m[:, :1] * tangent + m[:, 1:2] * bitangent + m[:, 2:] * normal
     n, good = _normalize(n)
     return n * good[:, None]
 
 
-def blend_strength(mapped, ns, strength):
-    """The Normal Map node's Strength: ``normalize(ns + k (N - ns))`` with ``k = max(k, 0)``,
-    ``N`` itself where ``k == 1``; rows that end up zero keep ``ns (k, 3)``."""
-    k = np.maximum(np.asarray(strength, np.float64), 0.0)[:, None]
-    blended, _ = _normalize(ns + k * (mapped - ns))
-    out = np.where(k == 1.0, mapped, blended)
-    zero = np.linalg.norm(out, axis=1) <= 1e-12
-    return np.where(zero[:, None], ns, out)
+def apply_strength(m, strength):
+    """Blender 4.0+'s Strength ``k (k,)`` of a tangent-space map on decoded colours ``m (k, 3)``:
+    ``(k m_x, k m_y, 1 + (m_z - 1) clamp(k, 0, 1))`` (Cycles' ``svm_node_normal_map``)."""
+    k = np.asarray(strength, np.float64)
+    out = np.array(m, np.float64)
+    out[:, 0] *= k
+    out[:, 1] *= k
+    out[:, 2] = 1.0 + (out[:, 2] - 1.0) * np.clip(k, 0.0, 1.0)
+    return out
 
 
 def normal_mapped(scene, prim, u, v, normal, ns):
@@ -117,8 +127,9 @@ def normal_mapped(scene, prim, u, v, normal, ns):
     if rows.size == 0:
         return ns
     tangent, sign = hit_tangents(tangents, prim[rows], u[rows], v[rows])
-    mapped = tangent_space_normals(color, tangent, sign, normal[rows])
+    mapped = tangent_space_normals(color, tangent, sign, normal[rows],
+                                   scene.materials.normal_strength[material[rows]])
+    good = np.all(np.isfinite(mapped), axis=1) & (np.linalg.norm(mapped, axis=1) > 0.5)
     out = ns.copy()
-    out[rows] = blend_strength(mapped, ns[rows],
-                               scene.materials.normal_strength[material[rows]])
+    out[rows] = np.where(good[:, None], mapped, ns[rows])
     return out

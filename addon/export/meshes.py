@@ -22,8 +22,7 @@ from ...core.scene import (
 )
 from .anisotropy import AXES, object_tangents, texture_space
 from .anisotropy import tangents_to_world as aniso_tangents_to_world
-from .normal_maps import (concat_tangents, mesh_corner_tangents, report_smooth_normal_maps,
-                          tangents_to_world)
+from .normal_maps import concat_tangents, mesh_corner_tangents, tangents_to_world
 
 # Object types Blender can turn into a triangle mesh.
 MESH_TYPES = {'MESH', 'CURVE', 'SURFACE', 'FONT', 'META'}
@@ -103,8 +102,6 @@ class Geometry:
             aniso = (object_tangents(verts, tris, axes, texture_space(mesh, verts), uv_tangents)
                      if axes.any() else None)
             corner = mesh_corner_normals(mesh)
-            if tangents is not None and corner is not None:
-                report_smooth_normal_maps(ob.name, self.messages)
             return verts, tris, tri_mat, corner, uvs, aniso, tangents
 
     def _triangle_materials(self, ob, slot):

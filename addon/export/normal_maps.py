@@ -138,13 +138,6 @@ def bump_map_correction(material, surface):
     return bool(getattr(getattr(material, "cycles", None), "use_bump_map_correction", False))
 
 
-def report_smooth_normal_maps(name, messages):
-    """Report what differs from Cycles on smooth-shaded normal-mapped meshes."""
-    messages.add(f"Object '{name}': where the view falls below a mapped normal (near the "
-                 f"silhouettes of smooth faces) the facet normal is used, not the mapped one as "
-                 f"in Cycles")
-
-
 def _pass_through(surface):
     """Whether ``surface`` is a Transparent BSDF (an IOR 1 smooth dielectric)."""
     return (surface.kind == MAT_DIELECTRIC and surface.ior == 1.0 and surface.roughness == 0.0

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..accel import Hits
 from ..camera import generate_rays
-from ..materials.bsdf import LOBE_DIFFUSE, LOBE_TRANSMIT
+from ..materials.bsdf import KIND_LAYERED, KIND_LAYERED_MS, LOBE_DIFFUSE, LOBE_TRANSMIT
 from ..materials.frame import to_local
 from ..bump import bump_mapped
 from ..normal_maps import normal_mapped
@@ -164,6 +164,23 @@ def valid_reflection_normals(ng, wo, ns):
     return out
 
 
+def bends_normals(scene, prim):
+    """Whether the glossy closures at hits on triangles ``prim (k,)`` bend their normal for a
+    valid reflection (:func:`valid_reflection_normals`): ``(k,)`` bool. Cycles bends only
+    where the material's Bump Map Correction is on (``maybe_ensure_valid_specular_reflection``);
+    the exporter records that setting for materials with a normal map or bump
+    (``materials.bump_correction``), so only those can turn it off here (a plain smooth
+    material with the setting off is bent all the same)."""
+    m = scene.materials
+    mapped = np.zeros(len(m.bump_correction), bool)
+    for column in ("normal_texture", "bump_texture"):
+        values = getattr(m, column, None)
+        if values is not None:
+            mapped |= np.asarray(values) >= 0
+    allowed = ~mapped | np.asarray(m.bump_correction, bool)
+    return allowed[scene.material[prim]]
+
+
 def strategies(max_length):
     """BDPT strategies ``(s, t)`` shown as images, for path lengths 1..``max_length`` segments.
 
@@ -235,7 +252,9 @@ class Interaction:
     ns : (k, 3) float64
         Shading normals, flipped toward the side the ray came from (two-sided surfaces):
         ``ng`` itself for flat meshes, else the interpolated corner normals
-        (:func:`shading_normals`). ``ns . wo > 0`` wherever ``ng . wo != 0``.
+        (:func:`shading_normals`). ``ns . wo > 0`` wherever ``ng . wo != 0``, unless the
+        interaction was built with ``keep_below`` (the path tracer's: Cycles' rule, see
+        :mod:`core.materials.lower_view`).
     wo : (k, 3) float64
         Unit direction back along the incoming ray.
     prim : (k,) int32
@@ -259,8 +278,9 @@ class Interaction:
     nm: np.ndarray = None
 
 
-def surface_interaction(prep, hits, d, rows):
-    """Build the :class:`Interaction` of the hit rays ``rows`` for directions ``d (n, 3)``."""
+def surface_interaction(prep, hits, d, rows, keep_below=False):
+    """Build the :class:`Interaction` of the hit rays ``rows`` for directions ``d (n, 3)``
+    (``keep_below``: see :func:`shading_normals`)."""
     prim = hits.prim[rows]
     u, v = hits.u[rows], hits.v[rows]
     p = (take_rows(prep.tri_v0, prim) + u[:, None] * take_rows(prep.tri_e1, prim)
@@ -270,7 +290,7 @@ def surface_interaction(prep, hits, d, rows):
     np.negative(wo, out=wo)
     side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
     nm = perturbed_normals(prep, prim, u, v, ng)
-    ns = ng if nm is None else view_fallback(nm, ng, wo)
+    ns = ng if nm is None else nm if keep_below else view_fallback(nm, ng, wo)
     n_bump = bump_reference_normals(prep, prim, u, v, ng)
     if n_bump is not None:
         n_bump *= side[:, None]
@@ -305,6 +325,22 @@ def with_bump_normals(params, si, frame):
     return replace(params, bump_normal=to_local(si.n_bump, *frame))
 
 
+def with_base_normals(params, unbent, frame):
+    """``params`` with a ``base_normal`` column (:mod:`core.materials.layered`) on the layered
+    rows whose frame ``frame = (s, t, n)`` was bent away from their shading normal ``unbent
+    (k, 3)`` (on the frame's side of the surface) for a valid specular reflection: Cycles
+    bends the specular closure's normal only, the diffuse base keeps ``unbent``. Unchanged
+    when no such row exists."""
+    layered = (params.kind == KIND_LAYERED) | (params.kind == KIND_LAYERED_MS)
+    rows = np.nonzero(layered)[0]
+    rows = rows[np.any(unbent[rows] != frame[2][rows], axis=1)]
+    if rows.size == 0:
+        return params
+    local = np.zeros((len(params), 3))
+    local[rows] = to_local(unbent[rows], *(f[rows] for f in frame))
+    return replace(params, base_normal=local)
+
+
 def shading_tangents(prep, si):
     """Tangents ``(k, 3)`` at the hits of ``si`` for anisotropic BSDFs, or None when the
     scene has none (``prep.scene.aniso_tangents``): the corner tangents interpolated with the
@@ -326,7 +362,7 @@ def shading_tangents(prep, si):
     return (1.0 - u - v)[:, None] * t[:, 0] + u[:, None] * t[:, 1] + v[:, None] * t[:, 2]
 
 
-def shading_normals(prep, prim, u, v, ng, wo):
+def shading_normals(prep, prim, u, v, ng, wo, keep_below=False):
     """Smooth-shading normals at hits, on the front side of the stored geometric normal.
 
     The corner normals of ``prep.scene.corner_normals`` are interpolated with the hit
@@ -338,9 +374,11 @@ def shading_normals(prep, prim, u, v, ng, wo):
     integrators (see :mod:`.path`) keeps shading normals from leaking light through surfaces.
     Materials with a Normal Map or Bump node perturb the normal first
     (:func:`core.normal_maps.normal_mapped`, then :func:`core.bump.bump_mapped`), and the
-    same fallbacks apply to the perturbed normal (where the view falls below it, or it points
-    behind ``ng``; Cycles keeps it there). Returns ``ng`` itself when the scene has no corner
-    normals (every face flat; a scene with normal maps or bumps always has them).
+    same fallbacks apply to the perturbed normal. With ``keep_below`` (the path tracer) a
+    normal that the view falls below is kept, as Cycles keeps it: the BSDF then shades those
+    rows by Cycles' rule (:mod:`core.materials.lower_view`); light paths (BDPT, light tracing,
+    photons) keep the fallback. Returns ``ng`` itself when the scene has no corner normals
+    (every face flat; a scene with normal maps or bumps always has them).
 
     Parameters
     ----------
@@ -349,6 +387,8 @@ def shading_normals(prep, prim, u, v, ng, wo):
     ng : (k, 3) float64
         Unit geometric normals as stored (not flipped).
     wo : (k, 3) float64
+    keep_below : bool
+        Keep normals the view falls below (see above).
 
     Returns
     -------
@@ -358,7 +398,7 @@ def shading_normals(prep, prim, u, v, ng, wo):
     n = perturbed_normals(prep, prim, u, v, ng)
     if n is None:
         return ng
-    return view_fallback(n, ng, wo)
+    return n if keep_below else view_fallback(n, ng, wo)
 
 
 def perturbed_normals(prep, prim, u, v, ng):
@@ -378,7 +418,7 @@ def perturbed_normals(prep, prim, u, v, ng):
     n = raw / np.where(good, length, 1.0)[:, None]
     n = normal_mapped(prep.scene, prim, u[:, 0], v[:, 0], raw, n)
     n = bump_mapped(prep.scene, prim, u[:, 0], v[:, 0], n)
-    good &= np.einsum("ij,ij->i", n, ng) >= 0
+    good &= np.isfinite(n).all(axis=1) & (np.einsum("ij,ij->i", n, ng) >= 0)
     return np.where(good[:, None], n, ng)
 
 

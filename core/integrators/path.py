@@ -53,9 +53,11 @@ import numpy as np
 
 from ..accel import Hits
 from ..materials.bsdf import (KIND_DIELECTRIC, KIND_DIFFUSE, LOBE_DIFFUSE, LOBE_REFLECT,
-                              LOBE_TRANSMIT, RADIANCE, eval_bsdf, pdf_bsdf, sample_bsdf)
+                              LOBE_TRANSMIT, RADIANCE, crosses_surface, eval_bsdf, pdf_bsdf,
+                              sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
+from ..materials.lower_view import lower_view_params, view_below
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
 from .base import BatchOutput, Integrator
@@ -65,7 +67,8 @@ from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows
                      geometric_side_valid, intersect_by_class, max_component, next_1d_if,
                      ray_class, roulette_at, russian_roulette, shading_tangents,
                      surface_hits, surface_interaction, take_rows,
-                     valid_reflection_normals, with_bump_normals)
+                     valid_reflection_normals, with_base_normals, with_bump_normals,
+                     bends_normals)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
 # light position 2-D, BSDF lobe, BSDF direction 2-D, Russian roulette).
@@ -125,15 +128,22 @@ class _BSDFShading:
             # Smooth shading: the frame's +Z is the shading normal on the stored front side
             # (si.ns is flipped toward wo exactly when ng is), plus the geometric-side test.
             # Glossy and glass rows bend it so that their mirror reflection stays above the
-            # geometry, as Cycles' glossy closures (diffuse ones keep it).
+            # geometry, as Cycles' glossy closures (diffuse ones keep it) where the material's
+            # Bump Map Correction allows; rows the view still falls below are shaded by
+            # Cycles' rule for that case (lower_view).
             ns = si.ns
-            glossy = self.params.kind != KIND_DIFFUSE
+            glossy = (self.params.kind != KIND_DIFFUSE) & bends_normals(prep.scene, si.prim)
             if glossy.any():
                 ns = np.where(glossy[:, None], valid_reflection_normals(si.ng, si.wo, ns), ns)
             front = np.where(np.einsum("ij,ij->i", ns, si.ng) < 0, -1.0, 1.0)
             self.s, self.t, self.n = shading_frame(ns * front[:, None], tangent)
             self.ng, self.wo_world = si.ng, si.wo
         self.wo = to_local(si.wo, self.s, self.t, self.n)
+        if self.ng is not None:
+            self.params = with_base_normals(self.params, si.ns * front[:, None],
+                                            (self.s, self.t, self.n))
+            below = view_below(np.einsum("ij,ij->i", si.wo, si.ng), self.wo[:, 2])
+            self.params, self.wo = lower_view_params(self.params, self.wo, below)
         self.params = with_bump_normals(self.params, si, (self.s, self.t, self.n))
         # Next-event estimation cannot contribute through smooth mirrors and glass.
         self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None
@@ -145,7 +155,7 @@ class _BSDFShading:
         wi_local = to_local(wi, _rows(self.s, rows), _rows(self.t, rows), _rows(self.n, rows))
         f = eval_bsdf(p, wo, wi_local, RADIANCE)
         if self.ng is not None:
-            transmit = wo[:, 2] * wi_local[:, 2] < 0
+            transmit = crosses_surface(p, wo, wi_local)
             f *= geometric_side_valid(_rows(self.ng, rows), _rows(self.wo_world, rows), wi,
                                       transmit)[:, None]
         return f, pdf_bsdf(p, wo, wi_local)
@@ -228,7 +238,7 @@ class PathTracer(Integrator):
             live = live[~path.stop_next[live]]
             if live.size == 0:
                 break
-            si = surface_interaction(prep, hits, d, live)
+            si = surface_interaction(prep, hits, d, live, keep_below=True)
             if live.size < len(path):
                 stream.compact(live)
                 path.take(live)

@@ -155,6 +155,10 @@ class BSDFParams:
         Bump Map Correction (:mod:`.bump_correction`): the smooth, unmapped normal in the
         row's local frame, whose diffuse part is then shadowed; zero rows: no correction.
         None when no row has it (set by the integrators at normal-mapped hits).
+    base_normal : (k, 3) float64 or None
+        Layered kinds: the unit normal of the diffuse base in the row's local frame, when the
+        frame was bent for the specular layer only (:mod:`.layered`, "base normal"); zero
+        rows: the base keeps +Z. None when no row has it.
     """
 
     kind: np.ndarray
@@ -171,6 +175,7 @@ class BSDFParams:
     aniso_scale: np.ndarray = None
     aniso_rotation: np.ndarray = None
     bump_normal: np.ndarray = None
+    base_normal: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
@@ -409,6 +414,7 @@ _GROUPS = {
     "sheen": (("sheen_color", 0.0, (3,)), ("sheen_roughness", 1.0, ())),
     "aniso": (("aniso_scale", 1.0, ()), ("aniso_rotation", 0.0, ())),
     "bump": (("bump_normal", 0.0, (3,)),),
+    "base": (("base_normal", 0.0, (3,)),),
 }
 
 
@@ -594,9 +600,20 @@ def _sample_bases(params, wo, u_lobe, u, mode):
             wi[rows], weight[rows], pdf[rows], delta[rows] = sample(p, wo[rows], u_lobe[rows],
                                                                     u[rows], mode)
             kind_bits[rows] = label(p, wo[rows], u_lobe[rows], delta[rows])
-    side = np.where(wi[:, 2] * wo[:, 2] < 0.0, LOBE_TRANSMIT, LOBE_REFLECT).astype(np.uint8)
+    side = np.where(crosses_surface(params, wo, wi), LOBE_TRANSMIT,
+                    LOBE_REFLECT).astype(np.uint8)
     lobe = np.where(pdf > 0.0, side | kind_bits, 0).astype(np.uint8)
     return BSDFSample(wi, weight, pdf, np.asarray(delta, bool), lobe)
+
+
+def crosses_surface(params, wo, wi):
+    """Whether ``wi`` leaves on the other side of the surface than ``wo`` (a transmission):
+    ``(k,)`` bool, from the sides of the local frame, except on layered rows with a base
+    normal (:mod:`.layered`), reflections whose base lobe may dip below the bent frame."""
+    crossed = wi[:, 2] * wo[:, 2] < 0.0
+    if params.base_normal is not None:
+        crossed &= ~np.any(params.base_normal != 0.0, axis=1)
+    return crossed
 
 
 def is_delta_only(params):

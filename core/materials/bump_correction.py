@@ -38,7 +38,7 @@ ALPHA2_PER_TAN2 = 0.125
 COS_MIN = 1e-6
 
 
-def shadowing(bump_normal, w):
+def shadowing(bump_normal, w, closure_normal=None):
     """The shadowing factor ``G1 (k,)`` in [0, 1] for light-side directions ``w``.
 
     Parameters
@@ -48,6 +48,9 @@ def shadowing(bump_normal, w):
         get 1 (no correction).
     w : (k, 3) float
         Unit local light-side directions.
+    closure_normal : (k, 3) float, optional
+        The diffuse closure's own unit normal in the local frame where it is not +Z (a
+        layered row's base normal, :mod:`.layered`); zero rows and None mean +Z.
 
     Returns
     -------
@@ -55,7 +58,12 @@ def shadowing(bump_normal, w):
     """
     n = np.asarray(bump_normal, np.float64)
     active = np.einsum("ij,ij->i", n, n) > 0.0
-    cos_d = np.minimum(np.abs(n[:, 2]), 1.0)
+    cos_d = np.abs(n[:, 2])
+    if closure_normal is not None:
+        c = np.asarray(closure_normal, np.float64)
+        own = np.any(c != 0.0, axis=1)
+        cos_d = np.where(own, np.abs(np.einsum("ij,ij->i", n, c)), cos_d)
+    cos_d = np.minimum(cos_d, 1.0)
     cos_i = np.minimum(np.abs(np.einsum("ij,ij->i", n, w)), 1.0)
     tan2_d = 1.0 / np.maximum(cos_d * cos_d, 1e-300) - 1.0
     alpha2 = np.clip(ALPHA2_PER_TAN2 * tan2_d, 0.0, 1.0)
@@ -98,7 +106,7 @@ def correct_eval(params, wo, wi, mode, out, eval_kinds):
     if rows.size == 0:
         return out
     p = params.take(rows)
-    g = shadowing(p.bump_normal, (wi if mode == RADIANCE else wo)[rows])
+    g = shadowing(p.bump_normal, (wi if mode == RADIANCE else wo)[rows], p.base_normal)
     diffuse = out[rows]
     layered = p.kind != KIND_DIFFUSE
     if layered.any():

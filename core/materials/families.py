@@ -170,30 +170,64 @@ def _dielectric_sample(p, wo, u_lobe, u, mode):
 
 
 def _layered_eval(p, wo, wi, mode, ms=False):
-    return _split_eval(
+    out = _split_eval(
         p, wo, wi,
         lambda q, a, b: layered.eval_layered(q.color, q.alpha, q.eta, q.tint, a, b, mode,
                                              multiscatter=ms),
         lambda q, ax, ay, a, b: layered.eval_layered(q.color, ax, q.eta, q.tint, a, b, mode,
                                                      multiscatter=ms, alpha_y=ay))
+    rows = _base_rows(p)
+    if rows.size:
+        q = p.take(rows)
+        out[rows] = layered.base_normal_eval(out[rows], q.color, q.alpha, q.eta, q.tint,
+                                             wo[rows], wi[rows], q.base_normal, mode, ms)
+    return out
 
 
 def _layered_pdf(p, wo, wi, ms=False):
-    return _split_eval(
+    out = _split_eval(
         p, wo, wi,
         lambda q, a, b: layered.pdf_layered(q.color, q.alpha, q.eta, q.tint, a, b,
                                             multiscatter=ms),
         lambda q, ax, ay, a, b: layered.pdf_layered(q.color, ax, q.eta, q.tint, a, b,
                                                     multiscatter=ms, alpha_y=ay))
+    rows = _base_rows(p)
+    if rows.size:
+        q = p.take(rows)
+        out[rows] = layered.base_normal_pdf(out[rows], q.color, q.alpha, q.eta, q.tint,
+                                            wo[rows], wi[rows], q.base_normal, ms)
+    return out
 
 
 def _layered_sample(p, wo, u_lobe, u, mode, ms=False):
-    return _split_sample(
+    wi, weight, pdf, delta = _split_sample(
         p, wo, u_lobe, u,
         lambda q, a, ul, uu: layered.sample_layered(q.color, q.alpha, q.eta, q.tint, a, ul, uu,
                                                     mode, multiscatter=ms),
         lambda q, ax, ay, a, ul, uu: layered.sample_layered(
             q.color, ax, q.eta, q.tint, a, ul, uu, mode, multiscatter=ms, alpha_y=ay))
+    rows = _base_rows(p)
+    rows = rows[~delta[rows]]
+    if rows.size:
+        # Base-normal rows: the base's directions around its own normal, and every non-delta
+        # weight from the changed mixture (eval / pdf at the sampled direction).
+        q, w = p.take(rows), wo[rows]
+        d = layered.base_normal_sample(wi[rows], q.color, q.alpha, q.eta, q.tint, w,
+                                       u_lobe[rows], u[rows], q.base_normal, ms)
+        f = _layered_eval(q, w, d, mode, ms)
+        density = _layered_pdf(q, w, d, ms)
+        good = density > 0.0
+        wi[rows] = np.where(good[:, None], d, 0.0)
+        weight[rows] = np.where(good[:, None], f / np.where(good, density, 1.0)[:, None], 0.0)
+        pdf[rows] = np.where(good, density, 0.0)
+    return wi, weight, pdf, delta
+
+
+def _base_rows(p):
+    """Rows ``(j,)`` of layered kinds with a base normal (:mod:`.layered`)."""
+    if getattr(p, "base_normal", None) is None:
+        return np.zeros(0, np.int64)
+    return np.nonzero(np.any(p.base_normal != 0.0, axis=1))[0]
 
 
 def _dielectric_ms_eval(p, wo, wi, mode):

@@ -47,6 +47,13 @@ hemisphere. For rough lobes the pdf is the mixture ``p pdf_spec + (1 - p) cos / 
 ones ``eval`` and ``pdf`` hold the diffuse part only (``(1 - p) cos / pi``), the delta lobe
 appears only through ``sample``.
 
+A *base normal* (:func:`base_normal_eval`, :func:`base_normal_pdf`,
+:func:`base_normal_sample`) turns the diffuse base around its own unit normal ``n_d`` (local
+coordinates) while the specular lobe keeps +Z: Cycles bends the specular closure's normal
+for a valid reflection under Bump Map Correction but keeps the diffuse closure's
+(``svm/closure.h``). The base lobe is then ``albedo (1 - max_c E_t(mu_o)) max(n_d . wi, 0) /
+pi`` (zero where ``wo`` is below +Z, like the rest), sampled around ``n_d``.
+
 Regenerate the table with ``python -m sampling_lab.core.materials.layered``.
 """
 
@@ -422,6 +429,58 @@ def sample_layered(albedo, alpha, eta, tint, wo, u_lobe, u, mode=RADIANCE, multi
     good = np.where(delta, ok & (p > 0.0), good)
     return (np.where(good[:, None], wi, 0.0), np.where(good[:, None], weight, 0.0),
             np.where(good, pdf, 0.0), delta & good)
+
+
+def _base_parts(albedo, alpha, eta, tint, wo, wi, mode, multiscatter, n):
+    """``(diffuse f cos (k, 3), its pdf share (k,))`` of the base around the local normal
+    ``n (k, 3)`` (+Z when None), two-sided like the rest (mirrored to ``wo``'s side)."""
+    side = side_of(wo)
+    wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
+    co = wo_[:, 2]
+    cos = wi_[:, 2] if n is None else dot(flip_to_upper(n, side), wi_)
+    up = co > 0.0
+    if n is None:
+        up &= cos > 0.0
+    cos = np.where(up, np.maximum(cos, 0.0), 0.0)
+    mu = co if mode == RADIANCE else wi_[:, 2]
+    e = specular_albedo(mu, alpha, eta, tint, multiscatter)
+    scale = np.maximum(0.0, 1.0 - np.max(e, axis=1))
+    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
+    return albedo * (scale * cos * warps.INV_PI)[:, None], (1.0 - p) * cos * warps.INV_PI
+
+
+def base_normal_eval(f, albedo, alpha, eta, tint, wo, wi, n, mode=RADIANCE,
+                     multiscatter=False):
+    """:func:`eval_layered`'s ``f (k, 3)`` with the base turned to the local normal ``n``.
+
+    ``alpha`` is the mean alpha (``sqrt(ax ay)``), the other parameters as
+    :func:`eval_layered`; rows whose ``n`` is +Z are unchanged up to rounding.
+    """
+    old, _ = _base_parts(albedo, alpha, eta, tint, wo, wi, mode, multiscatter, None)
+    new, _ = _base_parts(albedo, alpha, eta, tint, wo, wi, mode, multiscatter, n)
+    return np.maximum(f - old, 0.0) + new
+
+
+def base_normal_pdf(pdf, albedo, alpha, eta, tint, wo, wi, n, multiscatter=False):
+    """:func:`pdf_layered`'s ``pdf (k,)`` with the base sampled around the local normal ``n``."""
+    _, old = _base_parts(albedo, alpha, eta, tint, wo, wi, RADIANCE, multiscatter, None)
+    _, new = _base_parts(albedo, alpha, eta, tint, wo, wi, RADIANCE, multiscatter, n)
+    return np.maximum(pdf - old, 0.0) + new
+
+
+def base_normal_sample(wi, albedo, alpha, eta, tint, wo, u_lobe, u, n, multiscatter=False):
+    """Directions ``(k, 3)``: :func:`sample_layered`'s ``wi`` where it chose the coat, and a
+    cosine-distributed direction around the local normal ``n`` (mirrored to ``wo``'s side)
+    where it chose the base (``u_lobe >= p``, the same choice). The caller recomputes weights
+    and pdfs of the non-delta samples from :func:`base_normal_eval` and
+    :func:`base_normal_pdf`."""
+    side = side_of(wo)
+    co = flip_to_upper(wo, side)[:, 2]
+    p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
+    nd = flip_to_upper(n, side)
+    s, t = warps.frame_from_normal(nd)
+    base = flip_to_upper(warps.to_world(warps.sample_cosine_hemisphere(u), s, t, nd), side)
+    return np.where((u_lobe >= p)[:, None], base, wi)
 
 
 if __name__ == "__main__":

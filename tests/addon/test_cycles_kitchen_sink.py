@@ -30,14 +30,6 @@ MEAN_RTOL = 0.01
 # error per engine). Asserted so that a noisier render cannot weaken the test unnoticed.
 DETECTS = 0.02
 
-# The one approximation left in the scene: the smooth normal-mapped sphere, where the view
-# falls below the mapped normal near its silhouette (tests/addon/test_cycles_normal_maps.py,
-# test_normal_mapped_sphere_agrees_with_cycles, an expected failure until it is matched).
-KNOWN_REPORTS = [
-    "Object 'Bumpy': where the view falls below a mapped normal (near the silhouettes of "
-    "smooth faces) the facet normal is used, not the mapped one as in Cycles",
-]
-
 LIMITS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
           "transparent_max_bounces")
 
@@ -96,7 +88,7 @@ def test_kitchen_sink_reports_no_approximation(sink, export):
     assert bpy.data.materials["Metal"].node_tree.nodes["Principled BSDF"].distribution \
         == 'MULTI_GGX'
     messages = list(export.export_scene(bpy.context.evaluated_depsgraph_get()).messages)
-    assert messages == KNOWN_REPORTS
+    assert messages == []
     assert bpy.data.materials["Bumpy"].cycles.use_bump_map_correction  # rendered with it
     assert len(bpy.data.objects["Bumpy"].data.uv_layers) == 1
 

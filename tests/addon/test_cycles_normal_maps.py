@@ -135,14 +135,15 @@ def test_normal_mapped_plane_agrees_with_cycles(empty_scene, tmp_path):
     S.assert_ours_agree_with_cycles(ours, cycles, "normal-mapped plane")
 
 
-def test_normal_map_approximations_are_reported(empty_scene, export):
+def test_smooth_normal_mapped_meshes_are_not_reported(empty_scene, export):
+    """Smooth normal-mapped meshes are shaded as Cycles shades them where the view falls below
+    the mapped normal (core/materials/lower_view.py): nothing to report."""
     mat, _, _ = normal_mapped_material("Bumpy", wave_normal_map("Waves"))
     add_uv_quad(empty_scene, "Quad", 1.0, mat)
     add_smooth_uv_sphere(empty_scene, "Ball", (0.0, 0.0, 2.0), 0.5, mat)
     S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
     s = export.export_scene(bpy.context.evaluated_depsgraph_get())
-    smooth = [m for m in s.messages if "falls below a mapped normal" in m]
-    assert len(smooth) == 1 and smooth[0].startswith("Object 'Ball'"), s.messages
+    assert s.messages == [] and s.corner_normals is not None and s.corner_tangents is not None
 
 
 @pytest.mark.parametrize("on", [True, False])
@@ -207,13 +208,20 @@ def test_bump_map_correction_agrees_with_cycles(empty_scene, tmp_path, node_type
     S.assert_ours_agree_with_cycles(ours, cycles, "tilted normal map, Bump Map Correction on")
 
 
-@pytest.mark.xfail(strict=True, reason="measured: image mean ours / Cycles 1.005, but blocks near "
-                   "the silhouettes up to 12 % brighter (where the view falls below the mapped "
-                   "normal we shade with the facet normal; reported)")
-def test_normal_mapped_sphere_agrees_with_cycles(empty_scene, tmp_path):
+@pytest.mark.parametrize("case", ["mapped", "mapped_corrected", "smooth"])
+def test_smooth_sphere_silhouettes_agree_with_cycles(empty_scene, tmp_path, case):
+    """A smooth sphere, normal-mapped (Bump Map Correction off, then on) or not, under an area
+    lamp: near its silhouettes the view falls below the shading normal, and the diffuse base
+    keeps it there while the specular layer gives nothing or is bent (Cycles' closures;
+    core/materials/lower_view.py and the layered base normal)."""
     scene = empty_scene
-    mat, bsdf, _ = normal_mapped_material("Bumpy", wave_normal_map("Waves", slope=1.2),
-                                          strength=0.8)
+    if case == "smooth":
+        mat = S.shader_material("Plain", "ShaderNodeBsdfPrincipled")
+        bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    else:
+        mat, bsdf, _ = normal_mapped_material("Bumpy", wave_normal_map("Waves", slope=1.2),
+                                              strength=0.8)
+        mat.cycles.use_bump_map_correction = case == "mapped_corrected"
     bsdf.inputs["Base Color"].default_value = (0.3, 0.6, 0.8, 1.0)
     ob = add_smooth_uv_sphere(scene, "Ball", (0.0, 0.0, 0.0), 0.8, mat)
     ob.rotation_euler = (math.radians(30.0), 0.0, math.radians(40.0))
@@ -225,7 +233,13 @@ def test_normal_mapped_sphere_agrees_with_cycles(empty_scene, tmp_path):
     S.set_resolution(scene, 48, 48)
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 256, 64, CYCLES_RUNS, BOUNCES,
                                             our_seed=12, cycles_seed=801)
-    S.assert_ours_agree_with_cycles(ours, cycles, "normal-mapped sphere")
+    # Sized for the default targets (2 % image mean, 5 % blocks, 99 % power): detects
+    # 0.9-1.0 % image-mean and 3.3-4.9 % block errors (measured). Measured ours / Cycles
+    # image mean 0.998 (mapped), 1.000 (corrected), 1.0003 (smooth), every block within
+    # 2 %. Shading with the facet normal where the view falls below the mapped one (the
+    # earlier rule) made silhouette blocks up to 12 % brighter; bending the whole layered
+    # frame with the correction on, 6 % brighter; both fail here.
+    S.assert_ours_agree_with_cycles(ours, cycles, f"smooth sphere ({case})")
 
 
 def wave_height(name, n=16):

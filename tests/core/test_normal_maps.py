@@ -8,7 +8,7 @@ import pytest
 
 from sampling_lab.core import lights as L
 from sampling_lab.core import scenes
-from sampling_lab.core.normal_maps import blend_strength, tangent_space_normals
+from sampling_lab.core.normal_maps import tangent_space_normals
 from sampling_lab.core.render import render
 from sampling_lab.core.scene import Camera, Materials, Scene
 from tests.helpers import plain_settings
@@ -44,12 +44,21 @@ def test_tangent_space_decoding_follows_tangent_bitangent_and_normal():
     sign = np.array([1.0, 1.0, -1.0])
     got = tangent_space_normals(color, t, sign, n)
     np.testing.assert_allclose(got, [[1, 0, 0], [0, 1, 0], [0, -1, 0]], atol=1e-12)
-    # Strength 0 keeps the old normal, 1 the mapped one, 0.5 the normalised midpoint.
-    ns = np.tile([0.0, 0.0, 1.0], (3, 1))
-    mapped = np.tile([1.0, 0.0, 0.0], (3, 1))
-    out = blend_strength(mapped, ns, np.array([0.0, 1.0, 0.5]))
-    np.testing.assert_allclose(out, [[0, 0, 1], [1, 0, 0], [0.5 ** 0.5, 0, 0.5 ** 0.5]],
-                               atol=1e-12)
+    # Blender 4.0+ applies Strength to the decoded colour (m_x, m_y scaled by k, m_z moved
+    # toward 1 by clamp(k, 0, 1)): 0 keeps n, 1 the map, 0.5 of a 90-degree tilt (1, 0, 0)
+    # gives (0.5, 0, 0.5) -> 45 degrees, and 2 gives (2, 0, 0) -> +X.
+    t1 = np.tile([1.0, 0.0, 0.0], (4, 1))
+    n1 = np.tile([0.0, 0.0, 1.0], (4, 1))
+    tilt = np.tile([1.0, 0.5, 0.5], (4, 1))  # m = (1, 0, 0)
+    out = tangent_space_normals(tilt, t1, np.ones(4), n1, np.array([0.0, 1.0, 0.5, 2.0]))
+    h = 0.5 ** 0.5
+    np.testing.assert_allclose(out, [[0, 0, 1], [1, 0, 0], [h, 0, h], [1, 0, 0]], atol=1e-12)
+    # Where the frame is not orthonormal the rule is not the old linear blend of world
+    # normals (normalize(n + k (N - n)), Blender 3.x): a tangent of length 2 and k = 0.5.
+    t2 = np.tile([2.0, 0.0, 0.0], (1, 1))
+    got = tangent_space_normals(np.array([[1.0, 0.5, 0.5]]), t2, np.ones(1), n1[:1],
+                                np.array([0.5]))
+    np.testing.assert_allclose(got, [[2 / 5 ** 0.5, 0, 1 / 5 ** 0.5]], atol=1e-12)
 
 
 def test_flat_normal_map_leaves_the_image_unchanged():

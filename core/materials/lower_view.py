@@ -1,0 +1,83 @@
+"""Shading from below the shading normal: what Cycles' closures do where the viewer sees the
+front of the geometry but the back of a smooth or normal-mapped shading normal (near the
+silhouettes of smooth faces).
+
+Cycles (Blender 5.0) keeps the shading normal there, closure by closure
+(``kernel/closure/bsdf_diffuse.h``, ``bsdf_microfacet.h``, ``svm/closure.h``; behaviour
+matched, the code is ours; see ``docs/SHADING_NORMALS.md``):
+
+- a diffuse closure ignores the view: ``f cos = albedo max(N . wi, 0) / pi``;
+- a microfacet closure whose normal the view falls below (``cos_NI <= 0``) evaluates and
+  samples nothing (unless Bump Map Correction bent its normal first; the integrators bend the
+  frame of such rows before this rule applies);
+- the Principled BSDF's diffuse base under its specular layer is attenuated by the layer's
+  albedo estimate, read from tables whose cosine axis is clamped to [0, 1]: at ``cos = 0``.
+
+Here a row whose view lies below its frame's +Z is shaded by a Lambert BSDF around that normal
+(the view mirrored through the tangent plane, which a Lambert lobe does not see): the diffuse
+kind with its own albedo, a layered (Principled) row with its base albedo times
+``1 - max_c E_t(0)`` (:func:`.layered.specular_albedo` at grazing), and conductors and
+dielectrics with albedo 0. Each is an ordinary Lambert lobe, so sampling, evaluation and pdf
+stay consistent. A Transparent BSDF (a smooth dielectric of index 1, which passes light
+straight through whatever its normal, as Cycles' transparent closure) is left as it is. Not
+modelled: a Coat or Sheen layer on such a row keeps its own lobe at the
+mirrored view (Cycles: the coat's closure is zero there too).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .families import KIND_DIELECTRIC, KIND_DIFFUSE, KIND_LAYERED, KIND_LAYERED_MS
+from .layered import specular_albedo
+from .microfacet import is_smooth
+
+
+def view_below(cos_g, cos_s):
+    """Rows whose view lies on one side of the geometric normal and on the other side of, or
+    in the plane of, the shading normal: ``(k,)`` bool from the view's cosines with the two,
+    ``cos_g, cos_s (k,)`` (False where the view grazes the geometry)."""
+    return (cos_g != 0.0) & (cos_g * cos_s <= 0.0)
+
+
+def lower_view_params(params, wo, below):
+    """``(params, wo)`` with the rows ``below (k,)`` shaded as seen from below their normal.
+
+    Parameters
+    ----------
+    params : core.materials.bsdf.BSDFParams
+    wo : (k, 3) float64
+        Local view directions (frame +Z = the shading normal on the stored front side).
+    below : (k,) bool
+        Rows to change (:func:`view_below`).
+
+    Returns
+    -------
+    params : BSDFParams
+        Rows ``below`` turned into Lambert rows (module docstring); the others unchanged.
+    wo : (k, 3) float64
+        ``wo`` mirrored through the tangent plane on the rows ``below`` (a copy).
+    """
+    below = below & ~_pass_through(params)
+    if not below.any():
+        return params, wo
+    wo = wo.copy()
+    wo[below, 2] = -wo[below, 2]
+    scale = np.zeros(below.size)
+    scale[params.kind == KIND_DIFFUSE] = 1.0
+    for kind, ms in ((KIND_LAYERED, False), (KIND_LAYERED_MS, True)):
+        rows = np.nonzero(below & (params.kind == kind))[0]
+        if rows.size:
+            grazing = specular_albedo(np.zeros(rows.size), params.alpha[rows],
+                                      params.eta[rows], params.tint[rows], ms)
+            scale[rows] = np.maximum(0.0, 1.0 - grazing.max(axis=1))
+    color = np.where(below[:, None], params.color * scale[:, None], params.color)
+    kind = np.where(below, KIND_DIFFUSE, params.kind).astype(params.kind.dtype)
+    return replace(params, kind=kind, color=color), wo
+
+
+def _pass_through(params):
+    """Rows of a Transparent BSDF (smooth dielectric of index 1): ``(k,)`` bool."""
+    return (params.kind == KIND_DIELECTRIC) & (params.eta == 1.0) & is_smooth(params.alpha)
