@@ -199,7 +199,10 @@ class BSDFParams:
         return tuple(getattr(self, name) for name in _FIELDS)
 
     def take(self, rows):
-        """The rows ``rows`` (index array or mask) as a new :class:`BSDFParams`."""
+        """The rows ``rows`` (index array, mask or slice) as a new :class:`BSDFParams`."""
+        if isinstance(rows, np.ndarray) and rows.dtype.kind in "iu":
+            # np.take gathers rows several times faster than fancy indexing (same values).
+            return self.map_columns(lambda c: np.take(c, rows, axis=0))
         return self.map_columns(lambda c: c[rows])
 
     def scatter(self, rows, src):
