@@ -437,7 +437,9 @@ def _groups(params):
     first = kind[0]
     if lo == hi:
         return [(int(first), None)]
-    return [(int(c), np.nonzero(kind == c)[0]) for c in np.unique(kind)]
+    # Kind by kind in ascending order (as np.unique would give them, without its sort).
+    groups = [(c, np.nonzero(kind == c)[0]) for c in range(lo, hi + 1)]
+    return [(c, rows) for c, rows in groups if rows.size]
 
 
 def _check(params, wo, mode=RADIANCE):
