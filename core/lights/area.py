@@ -123,10 +123,10 @@ class AreaLights(LightFamily):
             disk, local = np.zeros(li.shape[0], bool), u - 0.5
         q = (self._rows(lights.position, li) + local[:, 0:1] * self._rows(lights.axis_x, li)
              + local[:, 1:2] * self._rows(lights.axis_y, li))
-        return q, self._area(li, disk), disk
+        return q, self._area(li), disk
 
-    def _area(self, li, disk=None):
-        """Areas ``(m,)`` of lights ``li`` (``disk`` is not needed: kept for callers)."""
+    def _area(self, li):
+        """Areas ``(m,)`` of lights ``li`` (a disk's or ellipse's is pi / 4 of its square's)."""
         return np.take(self.area, li)
 
     def _rows(self, table, li):
@@ -223,7 +223,7 @@ class AreaLights(LightFamily):
         out[m] = self.lights.radiance[li] * (cos[m] > 0)[:, None]
 
     def pdf_le_origin(self, m, li, sel, w, out):
-        area = self._area(li, self.lights.kind[li] == LIGHT_DISK)
+        area = self._area(li)
         out[m] = np.where(area > 0, sel[m] / np.maximum(area, 1e-300), 0.0)
 
     def pdf_le_direction(self, m, li, cos, w, out):
