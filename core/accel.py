@@ -96,6 +96,15 @@ class Accel:
                                  rows.size > 0)
         return self._scenes[key]
 
+    @property
+    def visible_to_all(self):
+        """Whether every triangle is visible to every ray class (then one Embree scene answers
+        every query, whatever the rays' classes)."""
+        cached = self.__dict__.get("_visible_to_all")
+        if cached is None:
+            cached = self._visible_to_all = bool(np.all(self.visibility == VIS_ALL))
+        return cached
+
     def intersect(self, origins, directions, tmax=None, mask=VIS_ALL):
         """Closest hits of rays ``origins (n, 3)``, unit ``directions (n, 3)``, up to ``tmax (n,)``."""
         n = origins.shape[0]

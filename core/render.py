@@ -58,6 +58,9 @@ POLL_S = 0.05
 # must not depend on the thread count, or the film's sums would be added in another order.
 PASS_UNITS = 8
 
+# Work units submitted per worker thread at a time (see _Passes._run_pass).
+IN_FLIGHT = 2
+
 
 @dataclass
 class RenderSettings:
@@ -684,12 +687,14 @@ class _Passes:
         """Run the ``units`` of one pass of ``k`` samples per pixel. Returns the number of
         units finished and whether the render was cancelled."""
         cancel, total_spp = self.cancel, self.total_spp
-        # Keep at most `threads` units in flight so cancel and time limits answer quickly.
+        # Up to IN_FLIGHT units per thread are submitted: a worker that finishes before the unit
+        # the render loop waits for (units are accumulated in order) starts the next one at once
+        # instead of idling; units not yet started are dropped by a time limit or a cancel.
         pending = []
         finished = 0
         i = 0
         while i < len(units) or pending:
-            while i < len(units) and len(pending) < self.threads:
+            while i < len(units) and len(pending) < IN_FLIGHT * self.threads:
                 pending.append(pool.submit(self.run_unit, units[i]))
                 i += 1
             if self._cancelled_while_waiting(pending[0]):
@@ -704,7 +709,7 @@ class _Passes:
             if cancel is not None and cancel():
                 return finished, self._abort(pending)
             if self.out_of_time():
-                for f in pending:  # finish what is running; its samples are kept
+                for f in _started(pending):  # finish what is running; its samples are kept
                     self.accumulate(*f.result())
                 return finished, False
         return finished, False
@@ -712,11 +717,23 @@ class _Passes:
     def _abort(self, pending):
         """Stop the units in flight at their next bounce; keep those that finished first."""
         self.stop.set()
-        for f in pending:
+        for f in _started(pending):
             out = f.result()
             if out is not None:
                 self.accumulate(*out)
         return True
+
+
+def _started(pending):
+    """The futures of ``pending`` (in submission order) that a worker has started; the rest
+    are cancelled. The pool starts them first in, first out, so the started ones come first
+    and the accumulation order is kept."""
+    for j, f in enumerate(pending):
+        if f.cancel():
+            for rest in pending[j + 1:]:
+                rest.cancel()
+            return pending[:j]
+    return pending
 
 
 class _AbortingSampler:

@@ -68,9 +68,8 @@ def install_timers():
 
 def _scene_and_settings(args):
     from sampling_lab.core.render import RenderSettings
-    from sampling_lab.core.scenes import cornell_box
 
-    scene = cornell_box(args.width, args.height, light="mesh")
+    scene = load_scene(args.scene, args.width, args.height)
     extra = {k: v for k, v in (("sampler", args.sampler),
                                ("light_selection", args.light_selection),
                                ("light_sampling", args.light_sampling)) if v}
@@ -79,12 +78,28 @@ def _scene_and_settings(args):
     return scene, settings
 
 
+def load_scene(name, width, height):
+    """The bench's Cornell box (``bench``: 36 triangles, mesh light) or a scene of
+    ``bench-scenes`` (``tools.hard_scenes.SCENES``: built in ``bpy`` and exported as the add-on
+    exports it, so this needs ``bpy``)."""
+    if name == "bench":
+        from sampling_lab.core.scenes import cornell_box
+
+        return cornell_box(width, height, light="mesh")
+    from sampling_lab.tools.hard_scenes import build_scene
+
+    return build_scene(name, (width, height))[1]
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--spp", type=int, default=16)
     parser.add_argument("--width", type=int, default=256)
     parser.add_argument("--height", type=int, default=256)
+    parser.add_argument("--scene", default="bench",
+                        help="bench (the bench's mesh-light box) or a bench-scenes scene "
+                             "(cornell, glass_sphere, ...; needs bpy)")
     parser.add_argument("--no-profile", action="store_true", help="speed figures only")
     parser.add_argument("--sampler", help="instead of the default (e.g. independent)")
     parser.add_argument("--light-selection", help="instead of the default (e.g. power)")
@@ -123,9 +138,11 @@ def main(argv=None):
     _TOTALS.clear()
     res = render(scene, settings)
     total = sum(_TOTALS.values())
-    print(f"stage profile (exclusive thread CPU seconds, total {total:.2f} s):")
+    n = res.stats["samples"]
+    print(f"stage profile (exclusive thread CPU seconds, total {total:.2f} s, "
+          f"{1e6 * total / n:.3f} us per camera sample):")
     for name, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
-        print(f"  {100 * sec / total:5.1f} %  {name}")
+        print(f"  {100 * sec / total:5.1f} %  {sec:6.3f} s  {1e9 * sec / n:6.1f} ns/sample  {name}")
 
 
 def _timed_render(args, threads, barrier=None):

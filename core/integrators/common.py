@@ -221,7 +221,8 @@ def intersect_by_class(accel, o, d, tmax, vis):
     Rays of one class are traced together against the triangles visible to that class.
     """
     first = vis[0] if vis.size else 0
-    if vis.size == 0 or np.all(vis == first):
+    if vis.size == 0 or accel.visible_to_all or np.all(vis == first):
+        # One class, or one Embree scene for every class: a single query (same hits).
         return accel.intersect(o, d, tmax, int(first) if vis.size else 1)
     n = o.shape[0]
     hits = Hits(np.full(n, -1, np.int32), np.full(n, np.inf), np.zeros(n), np.zeros(n))

@@ -277,9 +277,11 @@ class PathTracer(Integrator):
             nee = np.nonzero(mask)[0] if nee is None else nee[mask]
         if nee is not None and nee.size == 0:
             return
+        # Without transparent materials no shadow ray crosses a surface: no budget to count.
+        budget = (0 if self.prep.material_transparency is None
+                  else path.counts.shadow_budget(self.limits, nee))
         _next_event(self.prep, shading, si, nee, _rows(u_sel, nee), _rows(u_light, nee),
-                    path.beta, L, path.rows_of, self.mis, counters, self.normals,
-                    path.counts.shadow_budget(self.limits, nee))
+                    path.beta, L, path.rows_of, self.mis, counters, self.normals, budget)
 
     def _scatter(self, shading, si, path, u_bsdf, u_rr, step, stream):
         """Stage *sample BSDF + Russian roulette + compact*: the next segment of every path
@@ -440,16 +442,24 @@ def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, mis, 
     # Rows of the shading batch: gathered once, and not at all when every row takes part.
     cand_rows = cand if rows is None else rows[cand]
     counters.rays += cand.size
-    transmit = shadow_transmittance(prep, *prep.accel.shadow_rays(
-        take_rows(p, cand), take_rows(si.ng, cand_rows), si.prim[cand_rows], take_rows(wi, cand),
-        dist[cand], take_rows(light_normal, cand)), np.broadcast_to(budget, ok.shape)[cand],
-        counters, VIS_SHADOW)
-    unblocked = np.nonzero(max_component(transmit) > 0)[0]
+    rays = prep.accel.shadow_rays(take_rows(p, cand), take_rows(si.ng, cand_rows),
+                                  si.prim[cand_rows], take_rows(wi, cand), dist[cand],
+                                  take_rows(light_normal, cand))
+    if prep.material_transparency is None:
+        # Opaque scene: a shadow ray passes whole or not at all (transmittance 1 or 0).
+        unblocked = np.nonzero(~prep.accel.occluded(*rays, VIS_SHADOW))[0]
+        transmit = None
+    else:
+        transmit = shadow_transmittance(prep, *rays, np.broadcast_to(budget, ok.shape)[cand],
+                                        counters, VIS_SHADOW)
+        unblocked = np.nonzero(max_component(transmit) > 0)[0]
     vis, vis_rows = cand[unblocked], cand_rows[unblocked]
     # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
     w = np.where(delta[vis], 1.0, mis.light_weight(pdf_l[vis], pdf_b[vis]))
-    contrib = (take_rows(beta, vis_rows) * take_rows(f, vis) * take_rows(li, vis)
-               * take_rows(transmit, unblocked) * (w / pdf_l[vis])[:, None])
+    contrib = take_rows(beta, vis_rows) * take_rows(f, vis) * take_rows(li, vis)
+    if transmit is not None:
+        contrib *= take_rows(transmit, unblocked)
+    contrib *= (w / pdf_l[vis])[:, None]
     add_rows(L, rows_of[vis_rows], contrib)
 
 

@@ -102,25 +102,48 @@ class AreaLights(LightFamily):
         cross = np.linalg.norm(ax, axis=1) * np.linalg.norm(ay, axis=1)
         self.rect_spherical = (lights.kind == LIGHT_RECT) & (
             np.abs(dot(ax, ay)) <= 1e-6 * cross) & (cross > 0)
+        # Per-lamp tables, so that a batch gathers (or broadcasts) rows instead of recomputing.
+        area = np.linalg.norm(np.cross(ax, ay), axis=1)
+        self.area = np.where(lights.kind == LIGHT_DISK, area * np.pi / 4, area)
+        self.any_disk = bool((lights.kind == LIGHT_DISK).any())
+        self.any_spherical = bool(self.rect_spherical.any()) and sampler.solid_angle
+        is_area = (lights.kind == LIGHT_RECT) | (lights.kind == LIGHT_DISK)
+        # The one area lamp of the scene (then every row of a batch chose it), or None.
+        self.only = int(np.nonzero(is_area)[0][0]) if is_area.sum() == 1 else None
 
     def _points(self, li, u):
         """Uniform points ``(m, 3)`` on lights ``li`` by ``u (m, 2)``, their areas ``(m,)`` and
         which are disks."""
         lights = self.lights
-        disk = lights.kind[li] == LIGHT_DISK
-        local = np.where(disk[:, None], 0.5 * warps.sample_uniform_disk_concentric(u), u - 0.5)
-        q = (lights.position[li] + local[:, 0:1] * lights.axis_x[li]
-             + local[:, 1:2] * lights.axis_y[li])
-        return q, self._area(li, disk), disk
+        if self.any_disk:
+            disk = lights.kind[li] == LIGHT_DISK
+            local = np.where(disk[:, None], 0.5 * warps.sample_uniform_disk_concentric(u),
+                             u - 0.5)
+        else:
+            disk, local = np.zeros(li.shape[0], bool), u - 0.5
+        q = (self._rows(lights.position, li) + local[:, 0:1] * self._rows(lights.axis_x, li)
+             + local[:, 1:2] * self._rows(lights.axis_y, li))
+        return q, self._area(li), disk
 
-    def _area(self, li, disk):
-        area = np.linalg.norm(np.cross(self.lights.axis_x[li], self.lights.axis_y[li]), axis=1)
-        return np.where(disk, area * np.pi / 4, area)
+    def _area(self, li):
+        """Areas ``(m,)`` of lights ``li`` (a disk's or ellipse's is pi / 4 of its square's)."""
+        return np.take(self.area, li)
+
+    def _rows(self, table, li):
+        """``table[li]`` for a per-lamp table ``(k, ...)``: one row broadcast (read-only, no
+        copy) when the scene has a single area lamp, so every ``li`` is that lamp."""
+        if self.only is not None:
+            return np.broadcast_to(table[self.only], (li.shape[0],) + table.shape[1:])
+        return np.take(table, li, axis=0)
 
     def use_spherical(self, li, p):
         """Solid angles ``(n,)`` of lights ``li`` from ``p (n, 3)``, their corners ``(n, 3)``,
         and where the spherical-rectangle warp is used ``(n,)`` bool."""
         lights = self.lights
+        if not self.any_spherical:
+            # No rectangle is sampled by solid angle: nothing below would be used.
+            n = p.shape[0]
+            return np.zeros(n), None, np.zeros(n, bool)
         corner = lights.position[li] - 0.5 * (lights.axis_x[li] + lights.axis_y[li])
         # Only rectangles sampled by solid angle need it; the rest skip the arithmetic.
         use = self.rect_spherical[li] & self.sampler.solid_angle
@@ -146,7 +169,8 @@ class AreaLights(LightFamily):
             q[sph] = warps.sample_spherical_rectangle(uu[sph], corner[sph],
                                                       lights.axis_x[li[sph]],
                                                       lights.axis_y[li[sph]], p[m[sph]])
-        area_point_pdf(m, p, q, lights.direction[li], area, lights.radiance[li], pmf, True, out)
+        area_point_pdf(m, p, q, self._rows(lights.direction, li), area,
+                       self._rows(lights.radiance, li), pmf, True, out)
         solid_angle_pdf(m, sph, omega, pmf, out.pdf)
 
     # ------------------------------------------------------------------ rays that find the lamp
@@ -199,7 +223,7 @@ class AreaLights(LightFamily):
         out[m] = self.lights.radiance[li] * (cos[m] > 0)[:, None]
 
     def pdf_le_origin(self, m, li, sel, w, out):
-        area = self._area(li, self.lights.kind[li] == LIGHT_DISK)
+        area = self._area(li)
         out[m] = np.where(area > 0, sel[m] / np.maximum(area, 1e-300), 0.0)
 
     def pdf_le_direction(self, m, li, cos, w, out):

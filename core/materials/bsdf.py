@@ -204,7 +204,10 @@ class BSDFParams:
         return tuple(getattr(self, name) for name in _FIELDS)
 
     def take(self, rows):
-        """The rows ``rows`` (index array or mask) as a new :class:`BSDFParams`."""
+        """The rows ``rows`` (index array, mask or slice) as a new :class:`BSDFParams`."""
+        if isinstance(rows, np.ndarray) and rows.dtype.kind in "iu":
+            # np.take gathers rows several times faster than fancy indexing (same values).
+            return self.map_columns(lambda c: np.take(c, rows, axis=0))
         return self.map_columns(lambda c: c[rows])
 
     def scatter(self, rows, src):
@@ -440,7 +443,9 @@ def _groups(params):
     first = kind[0]
     if lo == hi:
         return [(int(first), None)]
-    return [(int(c), np.nonzero(kind == c)[0]) for c in np.unique(kind)]
+    # Kind by kind in ascending order (as np.unique would give them, without its sort).
+    groups = [(c, np.nonzero(kind == c)[0]) for c in range(lo, hi + 1)]
+    return [(c, rows) for c, rows in groups if rows.size]
 
 
 def _check(params, wo, mode=RADIANCE):

@@ -222,6 +222,10 @@ def sample_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, u_lobe, u, mo
     delta : (k,) bool
     """
     _check_mode(mode)
+    delta = is_smooth_dielectric(eta, alpha)
+    if delta.all():
+        # Smooth glass only (the usual case): the rough lobe below would be thrown away.
+        return sample_smooth_dielectric(eta, reflect_tint, transmit_tint, wo, u_lobe, mode)
     co = wo[:, 2]
     wm = mf.sample_ggx_visible(wo, alpha, u)
     dwo = dot(wo, wm)
@@ -251,7 +255,6 @@ def sample_dielectric(eta, alpha, reflect_tint, transmit_tint, wo, u_lobe, u, mo
     pdf = np.where(choose_r, p_r, p_t)
     ok &= pdf > 0.0
 
-    delta = is_smooth_dielectric(eta, alpha)
     wi_d, weight_d, pdf_d, _ = sample_smooth_dielectric(eta, reflect_tint, transmit_tint, wo,
                                                         u_lobe, mode)
     wi = np.where(delta[:, None], wi_d, np.where(ok[:, None], wi, 0.0))

@@ -37,6 +37,12 @@ CASES = {
     "path mirror point cutoff": (
         lambda: scenes.cornell_sphere(24, 24, ball="mirror", light="point"),
         dict(integrator="path", spp=4, mis_heuristic="cutoff", mis_alpha=0.2)),
+    "path cornell area defaults": (lambda: scenes.cornell_box(24, 24, "area"),
+                                   dict(integrator="path", spp=4, sampler="sobol",
+                                        light_selection="tree")),
+    "path glass sphere area power": (
+        lambda: scenes.cornell_sphere(24, 24, ball="glass", light="area"),
+        dict(integrator="path", spp=4)),
     "light cornell mesh": (lambda: scenes.cornell_box(24, 24, "mesh"),
                            dict(integrator="light", spp=4)),
     "light glass point": (lambda: scenes.cornell_sphere(24, 24, ball="glass", light="point"),
@@ -58,6 +64,8 @@ PINNED = {
     "light cornell mesh": "336841007cc43b73ad8543a1581b6fbd453d26f1c124e658be4646100f15a83e",
     "light glass point": "4dce5ed3dcd1d0a5021284b0e9a9bc7346021ee9f3a9715316dcc3088dc913fd",
     "path cornell area solid angle sobol": "1f8724ec64ddb022426641a4abb5a283ab1ac11eb4ac546da930a60fed1020f2",
+    "path cornell area defaults": "16cc4bba1560a479394f2845b9f9bc89c8bf1a6e71ea0350ab0f41fc876c5941",
+    "path glass sphere area power": "56b95e41c3debbfe2a6316cef117e8eaa63579c0afcf748032d19516c3e602b6",
     "path cornell mesh power": "ccc104eb8778757a5b1fa5b2eb1759b3a9682cae9899cd8fce4660db98ec7a08",
     "path glass sphere light alias uniform": "f3df55af663f530a7d9e048f312f1a376aeb689ea68c11e382061a905a4ec61a",
     "path mirror point cutoff": "f03fad457978abd7f66f895bcbf19323dda6d82ca39f5338e3f19dab1ae69d6d",
