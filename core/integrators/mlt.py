@@ -1,0 +1,257 @@
+"""Metropolis light transport in primary sample space (Kelemen et al. 2002), over the path tracer.
+
+What it estimates
+    The same pixel measurement as the path tracer, by Markov chains over the path tracer's own
+    random numbers. A path-tracing sample is a deterministic function of its primary vector
+    ``u`` in ``[0, 1)^D`` (:mod:`core.sampling.primary_space`): the first two numbers choose
+    the pixel and the film position inside it (the pixel filter's importance sample, as the
+    path tracer draws it), the rest drive the path tracer (NEE, BSDF sampling, MIS, roulette)
+    unchanged. Its radiance ``L(u)`` (RGB) has luminance ``f(u)``. The chains sample ``u`` with
+    density ``f / b``, ``b = integral of f``: each mutation proposes a large step (all numbers
+    fresh, probability ``mlt_large_step``) or Kelemen's small step of every number, accepted
+    with ``min(1, f' / f)``. Every mutation splats the proposal with weight ``a`` and the
+    current state with ``1 - a`` (Veach's expected values), each as ``L / f``; pixel ``j``'s
+    image is ``b * pixels / mutations`` times the sum of its splats.
+Bias and consistency
+    **Consistent, with b estimated.** ``b`` is the mean of ``f`` over ``mlt_bootstrap``
+    independent uniform paths (unbiased; the stats give it with its standard error), and each
+    chain starts from a bootstrap path chosen in proportion to ``f`` (importance resampling).
+    Because the start states and ``b`` come from the same bootstrap, ``b`` times a chain's
+    average of ``L / f`` has the expectation of the exact measurement (Veach's start-up
+    weighting: no start-up bias, no burn-in thrown away), so renders with different seeds
+    average to the path tracer's image; within one render every pixel is scaled by the same
+    estimate of ``b``, so a whole image is brighter or darker by ``b``'s relative error
+    (``mlt_b_rel_se`` in the stats), and the error vanishes as the bootstrap and the mutations
+    grow. Pixels are correlated (one chain visits many), so the film's Variance pass is zero
+    (not estimated); compare renders with different seeds instead.
+Parameters
+    ``spp`` is mutations per pixel (one pass = as many mutations as the film has pixels);
+    ``mlt_large_step`` (large-step probability, 0.3), ``mlt_bootstrap`` (paths that estimate
+    ``b`` and start the chains), ``mlt_chains`` (chains mutated together as one batch of paths;
+    :data:`CHAIN_BATCHES` batches run side by side on the worker threads, fewer chains when the
+    film has fewer pixels, and fewer per batch when a batch's numbers would pass
+    :data:`STATE_BYTES`). The path tracer's settings (bounces, MIS, light sampling) apply as
+    they do to ``path``.
+When to use it
+    Light that reaches the camera through narrow openings (a room lit through a gap, light
+    around a corner), where uniform paths rarely find the light but a chain that found it keeps
+    exploring its neighbourhood.
+When it fails
+    Brightness is uneven at low mutation counts: chains stay in regions for a while, so the
+    image shows blotches and streaks instead of fine noise, and small, rarely visited
+    features converge late. The samplers' stratification is lost (chains move freely), so on
+    easy scenes path tracing wins at equal time. Every pixel shares ``b``'s error. Film >
+    Transparent is not honoured (the background is opaque).
+
+Render loop: :meth:`MLT.render_pass` (``whole_passes``, like SPPM). The first pass traces the
+bootstrap in chunks on the worker threads; every pass then runs each batch of chains for its
+share of the pass's mutations, the batches in one ``map_chunks`` call (cancel polled between
+them and, through the stream's ``abort``, at every bounce of every mutation).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..sampling.primary_space import (Chains, PrimarySampleStream, chain_random, luminance,
+                                      metropolis_step, resample, uniform_vectors)
+from .base import Counters, Integrator
+
+# Batches of chains: fixed (not the thread count), so the image does not depend on threads.
+CHAIN_BATCHES = 4
+# Largest primary-sample state of one batch of chains (current and proposed vectors).
+STATE_BYTES = 64 << 20
+# Bootstrap paths per task on the worker threads.
+BOOTSTRAP_CHUNK = 1 << 13
+# Keys of the chains' random streams besides (seed, batch, pass).
+_RESAMPLE_KEY = 0x5EED
+
+
+def film_position(u, width, height):
+    """Film pixel and position inside it of the first two primary numbers.
+
+    Parameters
+    ----------
+    u : (n, 2) float64
+        In ``[0, 1)``.
+
+    Returns
+    -------
+    pixel : (n,) int64
+        Window pixel ``y * width + x``.
+    inside : (n, 2) float64
+        Position inside that pixel, in ``[0, 1)`` (the pixel filter's sample).
+    """
+    xy = u * np.array([width, height], np.float64)
+    ij = np.minimum(np.floor(xy), np.array([width - 1, height - 1])).astype(np.int64)
+    inside = np.clip(xy - ij, 0.0, np.nextafter(1.0, 0.0))
+    return ij[:, 1] * width + ij[:, 0], inside
+
+
+class MLT(Integrator):
+    """Primary-sample-space Metropolis light transport (see the module docstring)."""
+
+    whole_passes = True
+
+    def __init__(self, prep, settings):
+        super().__init__(prep, settings)
+        # The path tracer is the estimator the chains explore (no estimator module imports
+        # another: it comes from the registry).
+        from . import INTEGRATORS, integrator_class
+
+        self.path = integrator_class("path")(prep, settings)
+        module = INTEGRATORS["path"]
+        self.dims = module.DIMS_CAMERA + self.path.limits.steps * module.DIMS_PER_BOUNCE
+        self.large_step = float(settings.mlt_large_step)
+        self.n_bootstrap = int(settings.mlt_bootstrap)
+        self.per_batch = max(1, min(int(settings.mlt_chains), STATE_BYTES // (16 * self.dims)))
+        self.seed = int(settings.seed)
+        self.batches = None
+        self.b = self.b_se = 0.0
+        self.sums = None
+        self.mutations = 0
+        self.bootstrap_rays = 0
+
+    # Evaluation of primary vectors ------------------------------------------------------------
+
+    def _evaluate(self, u, window, pixel_filter, counters, abort):
+        """``L (m, 3)`` and window pixel ``(m,)`` of primary vectors ``u (m, D)``."""
+        width, height, frame_pixels = window
+        pixel, inside = film_position(u[:, :2], width, height)
+        v = u.copy()
+        v[:, :2] = inside
+        stream = PrimarySampleStream(v, frame_pixels[pixel], self.seed)
+        stream.abort = abort
+        out = self.path.render_samples(stream, pixel_filter, counters)
+        return out.radiance, pixel
+
+    # Bootstrap ------------------------------------------------------------------------------
+
+    def _bootstrap(self, window, pixel_filter, map_chunks, abort):
+        """Stage *bootstrap*: ``b`` from uniform paths, and each chain's start state resampled
+        from them in proportion to ``f``. False if cancelled."""
+        n = self.n_bootstrap
+        spans = [(i, min(i + BOOTSTRAP_CHUNK, n)) for i in range(0, n, BOOTSTRAP_CHUNK)]
+
+        def trace(span):
+            local = Counters()
+            u = uniform_vectors(self.seed, np.arange(*span), self.dims)
+            L, pixel = self._evaluate(u, window, pixel_filter, local, abort)
+            return L, pixel, local.rays
+
+        parts = map_chunks(trace, spans)
+        if parts is None:
+            return False
+        L = np.concatenate([p[0] for p in parts])
+        pixel = np.concatenate([p[1] for p in parts])
+        self.bootstrap_rays = sum(p[2] for p in parts)
+        f = luminance(L)
+        self.b = float(f.mean())
+        self.b_se = float(f.std(ddof=1) / np.sqrt(n)) if n > 1 else float("inf")
+        n_chains = min(CHAIN_BATCHES * self.per_batch, window[2].size)
+        picks = resample(f, n_chains, chain_random(self.seed, _RESAMPLE_KEY))
+        self.batches = []
+        if picks is None:
+            return True
+        u = uniform_vectors(self.seed, picks, self.dims)
+        for rows in np.array_split(np.arange(n_chains), min(CHAIN_BATCHES, n_chains)):
+            self.batches.append(Chains(u[rows], L[picks[rows]], pixel[picks[rows]]))
+        return True
+
+    # Passes ---------------------------------------------------------------------------------
+
+    def render_pass(self, pass_index, frame_pixels, sampler, pixel_filter, counters,
+                    map_chunks):
+        """One pass: as many mutations as the film has pixels; returns the image ``(n_pixels,
+        3)`` after it, or None if the render was cancelled (the pass is then dropped).
+
+        Parameters are those of :meth:`core.integrators.sppm.SPPM.render_pass`; ``sampler``
+        only lends its ``abort`` (the chains make their own numbers).
+        """
+        n = frame_pixels.size
+        width = int(frame_pixels[-1] % self.prep.scene.camera.width
+                    - frame_pixels[0] % self.prep.scene.camera.width + 1)
+        window = (width, n // width, frame_pixels)
+        abort = getattr(sampler, "abort", None)
+        if self.batches is None:
+            if not self._bootstrap(window, pixel_filter, map_chunks, abort):
+                return None
+            self.sums = np.zeros((n, 3))
+            counters.rays += self.bootstrap_rays
+        if self.batches:
+            tasks = self._schedule(pass_index, n)
+            done = map_chunks(lambda task: self._run_batch(task, window, pixel_filter, abort),
+                              tasks)
+            if done is None:
+                return None
+            for sums, local in done:
+                self.sums += sums
+                counters.add(local)
+        else:
+            counters.camera_samples += n  # no bootstrap path carried light: a black image
+        self.mutations += n
+        return self.image()
+
+    def _schedule(self, pass_index, n):
+        """Tasks ``(batch, pass, steps, extra rows)``: every chain mutates ``n // chains``
+        times, and ``n % chains`` of them (a window that moves every pass) once more, so that
+        the pass makes exactly ``n`` mutations."""
+        total = sum(len(c) for c in self.batches)
+        steps, extra = divmod(n, total)
+        first = (pass_index * extra) % total
+        chosen = (first + np.arange(extra)) % total
+        tasks, start = [], 0
+        for i, chains in enumerate(self.batches):
+            mine = chosen[(chosen >= start) & (chosen < start + len(chains))] - start
+            tasks.append((i, pass_index, steps, np.sort(mine)))
+            start += len(chains)
+        return tasks
+
+    def _run_batch(self, task, window, pixel_filter, abort):
+        """Mutate one batch of chains; its splat sums ``(n_pixels, 3)`` and counters."""
+        i, pass_index, steps, extra = task
+        chains, local = self.batches[i], Counters()
+        rng = chain_random(self.seed, i, pass_index)
+
+        def evaluate(u):
+            return self._evaluate(u, window, pixel_filter, local, abort)
+
+        keys, values = [], []
+        for rows in [None] * steps + ([extra] if extra.size else []):
+            k, v = metropolis_step(chains, evaluate, rng, self.large_step, rows)
+            keys.append(k)
+            values.append(v)
+        n = window[2].size
+        sums = np.zeros((n, 3))
+        if keys:
+            k, v = np.concatenate(keys), np.concatenate(values)
+            v[~np.isfinite(v).all(axis=1)] = 0.0
+            for c in range(3):
+                sums[:, c] = np.bincount(k, v[:, c], minlength=n)
+        return sums, local
+
+    def image(self):
+        """The current estimate ``(n_pixels, 3)``: ``b * pixels / mutations`` times the splat
+        sums; finite and non-negative."""
+        n = self.sums.shape[0]
+        img = self.sums * (self.b * n / max(self.mutations, 1))
+        img[~np.isfinite(img).all(axis=1)] = 0.0
+        return np.maximum(img, 0.0)
+
+    def messages(self):
+        return ["mlt: Metropolis light transport is consistent with b estimated from the "
+                "bootstrap; pixels are correlated, so the Variance pass is zero"]
+
+    def render_stats(self, seconds):
+        """Metropolis figures for the render stats."""
+        chains = self.batches or []
+        proposed = sum(c.proposed for c in chains)
+        return {"estimator_bias": "consistent, b estimated (unbiased over seeds)",
+                "mlt_b": self.b, "mlt_b_se": self.b_se,
+                "mlt_b_rel_se": self.b_se / self.b if self.b > 0 else float("inf"),
+                "mlt_bootstrap_paths": self.n_bootstrap,
+                "mlt_chains": sum(len(c) for c in chains),
+                "mlt_mutations": self.mutations,
+                "mlt_acceptance": (sum(c.accepted for c in chains) / proposed
+                                   if proposed else 0.0),
+                "variance_pass": "zero: MLT's pixels are correlated (compare seeds instead)"}
