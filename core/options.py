@@ -579,7 +579,7 @@ OPTIONS = {o.name: o for o in (
     Option("mlt_chains", int, "Chains per Batch",
            "Metropolis only: Markov chains mutated together as one batch of paths (four "
            "batches run side by side). More chains use the CPU better and spread over the "
-           "image; fewer chains each take more steps. Never more chains than pixels", 4096,
+           "image; fewer chains each take more steps. Never more chains than pixels", 8192,
            minimum=1, maximum=1 << 20),
     Option("radiosity_patches", bool, "Patches Pass",
            "Radiosity only: write a Radiosity Patches pass that shows the mesh, one colour per "

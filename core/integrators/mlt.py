@@ -28,8 +28,9 @@ Parameters
     ``spp`` is mutations per pixel (one pass = as many mutations as the film has pixels);
     ``mlt_large_step`` (large-step probability, 0.3), ``mlt_bootstrap`` (paths that estimate
     ``b`` and start the chains), ``mlt_chains`` (chains mutated together as one batch of paths;
-    :data:`CHAIN_BATCHES` batches run side by side on the worker threads, fewer chains when the
-    film has fewer pixels, and fewer per batch when a batch's numbers would pass
+    :data:`CHAIN_BATCHES` batches run side by side on the worker threads; never more chains
+    than pixels, fewer batches when they would hold under :data:`MIN_BATCH` chains, and fewer
+    chains per batch when a batch's numbers would pass
     :data:`STATE_BYTES`). The path tracer's settings (bounces, MIS, light sampling) apply as
     they do to ``path``.
 When to use it
@@ -54,11 +55,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..sampling.primary_space import (Chains, PrimarySampleStream, chain_random, luminance,
-                                      metropolis_step, resample, uniform_vectors)
+                                      metropolis_step, normalisation, resample,
+                                      uniform_vectors)
 from .base import Counters, Integrator
 
 # Batches of chains: fixed (not the thread count), so the image does not depend on threads.
 CHAIN_BATCHES = 4
+# Fewest chains worth a batch of their own: the path tracer's per-call cost dominates below.
+MIN_BATCH = 1024
 # Largest primary-sample state of one batch of chains (current and proposed vectors).
 STATE_BYTES = 64 << 20
 # Bootstrap paths per task on the worker threads.
@@ -146,15 +150,15 @@ class MLT(Integrator):
         pixel = np.concatenate([p[1] for p in parts])
         self.bootstrap_rays = sum(p[2] for p in parts)
         f = luminance(L)
-        self.b = float(f.mean())
-        self.b_se = float(f.std(ddof=1) / np.sqrt(n)) if n > 1 else float("inf")
+        self.b, self.b_se = normalisation(f)
         n_chains = min(CHAIN_BATCHES * self.per_batch, window[2].size)
         picks = resample(f, n_chains, chain_random(self.seed, _RESAMPLE_KEY))
         self.batches = []
         if picks is None:
             return True
         u = uniform_vectors(self.seed, picks, self.dims)
-        for rows in np.array_split(np.arange(n_chains), min(CHAIN_BATCHES, n_chains)):
+        batches = min(CHAIN_BATCHES, max(1, n_chains // MIN_BATCH))
+        for rows in np.array_split(np.arange(n_chains), batches):
             self.batches.append(Chains(u[rows], L[picks[rows]], pixel[picks[rows]]))
         return True
 

@@ -146,6 +146,15 @@ def acceptance(f_current, f_proposed):
     return np.clip(np.nan_to_num(a, nan=0.0, posinf=1.0), 0.0, 1.0)
 
 
+def normalisation(f):
+    """``(b, standard error)`` of the bootstrap targets ``f (n,)``: ``b``, their mean, is an
+    unbiased estimate of ``integral of f`` over the unit cube (the vectors are uniform)."""
+    f = np.asarray(f, np.float64)
+    b = float(f.mean()) if f.size else 0.0
+    se = float(f.std(ddof=1) / np.sqrt(f.size)) if f.size > 1 else float("inf")
+    return b, se
+
+
 def resample(f, count, rng):
     """Indices ``(count,)`` drawn with replacement in proportion to ``f (n,)`` (importance
     resampling of bootstrap samples); None if ``f`` is zero everywhere."""
