@@ -491,7 +491,7 @@ def _messages(scene, settings, integrator):
     integrator itself reports, :meth:`core.integrators.base.Integrator.messages`)."""
     messages = list(integrator.messages())
     # Photon mapping's photons leave the lamps as light paths do.
-    if (integrator.splats or integrator.whole_passes) and len(scene.lights):
+    if (integrator.splats or settings.integrator in PHOTON_INTEGRATORS) and len(scene.lights):
         soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
         if soft:
             messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
