@@ -565,6 +565,9 @@ OPTIONS = {o.name: o for o in (
     _menu("radiosity_display", "Display",
           "Radiosity only: how camera rays read the solved radiosity", "gouraud",
           _choices(RADIOSITY_DISPLAYS, _RADIOSITY_DISPLAY_TEXT)),
+    Option("radiosity_patches", bool, "Patches Pass",
+           "Radiosity only: write a Radiosity Patches pass that shows the mesh, one colour per "
+           "patch", False, prop="use_radiosity_patches"),
     Option("mlt_large_step", float, "Large Step Probability",
            "Metropolis only: probability that a mutation draws all of a path's numbers afresh "
            "(a large step, which lets a chain jump anywhere: ergodicity) instead of nudging "
@@ -581,9 +584,6 @@ OPTIONS = {o.name: o for o in (
            "batches run side by side). More chains use the CPU better and spread over the "
            "image; fewer chains each take more steps. Never more chains than pixels", 8192,
            minimum=1, maximum=1 << 20),
-    Option("radiosity_patches", bool, "Patches Pass",
-           "Radiosity only: write a Radiosity Patches pass that shows the mesh, one colour per "
-           "patch", False, prop="use_radiosity_patches"),
 )}
 
 DEFAULTS = {name: option.default for name, option in OPTIONS.items()}
