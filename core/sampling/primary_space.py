@@ -44,15 +44,16 @@ _BELOW_ONE = np.nextafter(1.0, 0.0)
 def luminance(rgb):
     """``f (n,)`` of contributions ``rgb (n, 3)``: positive wherever any channel is (the weights
     are all positive), so no light is lost to a zero target."""
-    return rgb @ LUMINANCE
+    w = LUMINANCE
+    return w[0] * rgb[:, 0] + w[1] * rgb[:, 1] + w[2] * rgb[:, 2]
 
 
 def _wrap(v):
-    """``v mod 1`` in ``[0, 1)`` for ``v`` in ``(-1, 2)``: ``1 - tiny`` rounds to 1.0 in floating
-    point, which is the point 0 of the torus."""
-    v = np.where(v < 0.0, v + 1.0, v)
-    v = np.where(v >= 1.0, v - 1.0, v)
-    return np.where(v >= 1.0, 0.0, v)
+    """``v mod 1`` in ``[0, 1)`` (``v`` is modified): a value just below 0 wraps to ``1 - tiny``,
+    which may round to 1.0, the point 0 of the torus."""
+    v -= np.floor(v)
+    v[v >= 1.0] = 0.0
+    return v
 
 
 def sample_small_step(u, xi, s1=S1, s2=S2):
@@ -71,10 +72,14 @@ def sample_small_step(u, xi, s1=S1, s2=S2):
     (...) float64
         Moved numbers, in ``[0, 1)``.
     """
-    add = xi < 0.5
-    t = np.where(add, 2.0 * xi, 2.0 * xi - 1.0)
-    dv = s2 * np.exp(-np.log(s2 / s1) * t)
-    return _wrap(np.where(add, u + dv, u - dv))
+    sign = np.where(xi < 0.5, 1.0, -1.0)
+    t = 2.0 * xi
+    t -= sign < 0  # [0, 1) on both halves
+    t *= -np.log(s2 / s1)
+    dv = np.exp(t, out=t)
+    dv *= s2 * sign
+    dv += u
+    return _wrap(dv)
 
 
 def small_step_pdf(u, v, s1=S1, s2=S2):
