@@ -30,9 +30,11 @@ Parameters
     ``b`` and start the chains), ``mlt_chains`` (chains mutated together as one batch of paths;
     :data:`CHAIN_BATCHES` batches run side by side on the worker threads; never more chains
     than pixels, fewer batches when they would hold under :data:`MIN_BATCH` chains, and fewer
-    chains per batch when a batch's numbers would pass
-    :data:`STATE_BYTES`). The path tracer's settings (bounces, MIS, light sampling) apply as
-    they do to ``path``.
+    chains per batch when a batch's numbers could pass :data:`STATE_BYTES`). The path tracer's
+    settings (bounces, MIS, light sampling) apply as they do to ``path``. A chain stores only
+    the dimensions some path has read (:data:`START_WIDTH` at first, more on demand,
+    :class:`core.sampling.primary_space.Chains`), so long bounce limits cost memory only where
+    paths are long.
 When to use it
     Light that reaches the camera through narrow openings (a room lit through a gap, light
     around a corner), where uniform paths rarely find the light but a chain that found it keeps
@@ -64,9 +66,11 @@ CHAIN_BATCHES = 4
 # Fewest chains worth a batch of their own: the path tracer's per-call cost dominates below.
 MIN_BATCH = 1024
 # Largest primary-sample state of one batch of chains (current and proposed vectors).
-STATE_BYTES = 64 << 20
+STATE_BYTES = 32 << 20
 # Bootstrap paths per task on the worker threads.
 BOOTSTRAP_CHUNK = 1 << 13
+# Dimensions stored at first (the camera's and four bounces'); more as paths read them.
+START_WIDTH = 30
 # Keys of the chains' random streams besides (seed, batch, pass).
 _RESAMPLE_KEY = 0x5EED
 
@@ -118,13 +122,12 @@ class MLT(Integrator):
 
     # Evaluation of primary vectors ------------------------------------------------------------
 
-    def _evaluate(self, u, window, pixel_filter, counters, abort):
-        """``L (m, 3)`` and window pixel ``(m,)`` of primary vectors ``u (m, D)``."""
+    def _evaluate(self, u, grow, window, pixel_filter, counters, abort):
+        """``L (m, 3)`` and window pixel ``(m,)`` of primary vectors ``u (m, width)``;
+        ``grow(w)``: the vectors with ``w`` dimensions, when a path reads past ``width``."""
         width, height, frame_pixels = window
         pixel, inside = film_position(u[:, :2], width, height)
-        v = u.copy()
-        v[:, :2] = inside
-        stream = PrimarySampleStream(v, frame_pixels[pixel], self.seed)
+        stream = PrimarySampleStream(u, inside, frame_pixels[pixel], grow, self.dims, self.seed)
         stream.abort = abort
         out = self.path.render_samples(stream, pixel_filter, counters)
         return out.radiance, pixel
@@ -135,13 +138,23 @@ class MLT(Integrator):
         """Stage *bootstrap*: ``b`` from uniform paths, and each chain's start state resampled
         from them in proportion to ``f``. False if cancelled."""
         n = self.n_bootstrap
-        spans = [(i, min(i + BOOTSTRAP_CHUNK, n)) for i in range(0, n, BOOTSTRAP_CHUNK)]
+        # Fewer paths per task when their vectors could pass STATE_BYTES (long bounce limits).
+        chunk = max(1, min(BOOTSTRAP_CHUNK, STATE_BYTES // (8 * self.dims)))
+        spans = [(i, min(i + chunk, n)) for i in range(0, n, chunk)]
 
         def trace(span):
             local = Counters()
-            u = uniform_vectors(self.seed, np.arange(*span), self.dims)
-            L, pixel = self._evaluate(u, window, pixel_filter, local, abort)
-            return L, pixel, local.rays
+            index = np.arange(*span)
+            vectors = [uniform_vectors(self.seed, index, min(self.dims, START_WIDTH))]
+
+            def grow(w):
+                have = vectors[-1].shape[1]
+                vectors.append(np.concatenate(
+                    [vectors[-1], uniform_vectors(self.seed, index, w - have, have)], axis=1))
+                return vectors[-1]
+
+            L, pixel = self._evaluate(vectors[0], grow, window, pixel_filter, local, abort)
+            return L, pixel, local.rays, vectors[-1].shape[1]
 
         parts = map_chunks(trace, spans)
         if parts is None:
@@ -149,6 +162,7 @@ class MLT(Integrator):
         L = np.concatenate([p[0] for p in parts])
         pixel = np.concatenate([p[1] for p in parts])
         self.bootstrap_rays = sum(p[2] for p in parts)
+        width = max(p[3] for p in parts)
         f = luminance(L)
         self.b, self.b_se = normalisation(f)
         n_chains = min(CHAIN_BATCHES * self.per_batch, window[2].size)
@@ -156,10 +170,10 @@ class MLT(Integrator):
         self.batches = []
         if picks is None:
             return True
-        u = uniform_vectors(self.seed, picks, self.dims)
         batches = min(CHAIN_BATCHES, max(1, n_chains // MIN_BATCH))
-        for rows in np.array_split(np.arange(n_chains), batches):
-            self.batches.append(Chains(u[rows], L[picks[rows]], pixel[picks[rows]]))
+        for rows in np.array_split(picks, batches):
+            self.batches.append(Chains(uniform_vectors(self.seed, rows, width), L[rows],
+                                       pixel[rows]))
         return True
 
     # Passes ---------------------------------------------------------------------------------
@@ -217,8 +231,8 @@ class MLT(Integrator):
         chains, local = self.batches[i], Counters()
         rng = chain_random(self.seed, i, pass_index)
 
-        def evaluate(u):
-            return self._evaluate(u, window, pixel_filter, local, abort)
+        def evaluate(u, grow):
+            return self._evaluate(u, grow, window, pixel_filter, local, abort)
 
         keys, values = [], []
         for rows in [None] * steps + ([extra] if extra.size else []):

@@ -112,14 +112,15 @@ def invert_small_step(u, v, s1=S1, s2=S2):
     return np.where(ok, np.clip(xi, 0.0, _BELOW_ONE), np.nan)
 
 
-def uniform_vectors(seed, index, dims):
-    """Uniform vectors ``(k, dims)`` in ``[0, 1)`` for the integer ``index (k,)``: a hash of
-    (seed, index, dimension), so bootstrap vector ``i`` can be rebuilt from ``i`` alone."""
+def uniform_vectors(seed, index, dims, first=0):
+    """Uniform numbers ``(k, dims)`` in ``[0, 1)``: dimensions ``first .. first + dims - 1`` of
+    the vectors of the integers ``index (k,)``, a hash of (seed, index, dimension), so bootstrap
+    vector ``i`` can be rebuilt, or extended, from ``i`` alone."""
     index = np.asarray(index, np.int64)
     key = hash_u32(np.uint32(int(seed) & 0xFFFFFFFF) ^ np.uint32(0x6A09E667))
     row = hash_u32((index & 0xFFFFFFFF).astype(np.uint32) ^ key)
     row = hash_u32(row ^ (index >> 32).astype(np.uint32) ^ np.uint32(0xBB67AE85))
-    dim = hash_u32(np.arange(dims, dtype=np.uint32) * np.uint32(0x9E3779B9)
+    dim = hash_u32(np.arange(first, first + dims, dtype=np.uint32) * np.uint32(0x9E3779B9)
                    + np.uint32(0x3C6EF372))
     return u32_to_unit_float(hash_u32(row[:, None] ^ dim[None, :]))
 
@@ -174,10 +175,15 @@ def resample(f, count, rng):
 class Chains:
     """A batch of Markov chains, one row each.
 
+    Only the dimensions some path has read are stored (``u`` has ``width`` columns): a
+    dimension no path has read is, for every chain, an independent uniform number that the
+    target ignores, so it is drawn when a path first reads it (:meth:`proposal_columns`), as
+    pbrt-v3's ``MLTSampler`` creates its numbers on first use.
+
     Attributes
     ----------
-    u : (k, D) float64
-        Primary numbers of each chain's current state.
+    u : (k, width) float64
+        Primary numbers of each chain's current state, the dimensions read so far.
     L : (k, 3) float64
         Its contribution (RGB).
     f : (k,) float64
@@ -199,6 +205,43 @@ class Chains:
     def __len__(self):
         return self.f.size
 
+    @property
+    def width(self):
+        return self.u.shape[1]
+
+    def proposal_columns(self, width, rows, large, rng):
+        """Grow the chains to ``width`` dimensions; the new columns ``(m, width - old)`` of the
+        proposals of the chains ``rows`` (None: all).
+
+        Every chain's new numbers are fresh uniforms (what they would be after any number of
+        symmetric steps from a uniform start, since no target has read them); the proposal's
+        are the mutation of them that the proposal's kind makes (a fresh uniform for a large
+        step, a small step otherwise): together, the same joint law as if every dimension had
+        been stored and mutated all along."""
+        extra = width - self.width
+        current = rng.random((len(self), extra))
+        self.u = np.concatenate([self.u, current], axis=1)
+        mine = current if rows is None else current[rows]
+        moved = sample_small_step(mine.copy(), rng.random(mine.shape))
+        if large.any():
+            moved[large] = rng.random((int(large.sum()), extra))
+        return moved
+
+
+class Proposal:
+    """The proposed vectors of one mutation ``(m, width)``, grown with the chains on demand
+    (:meth:`grow`, which :class:`PrimarySampleStream` calls)."""
+
+    def __init__(self, chains, rows, v, large, rng):
+        self.chains, self.rows, self.v, self.large, self.rng = chains, rows, v, large, rng
+
+    def grow(self, width):
+        """The proposals with at least ``width`` dimensions (the chains grow with them)."""
+        if width > self.v.shape[1]:
+            new = self.chains.proposal_columns(width, self.rows, self.large, self.rng)
+            self.v = np.concatenate([self.v, new], axis=1)
+        return self.v
+
 
 def metropolis_step(chains, evaluate, rng, large_step_probability, rows=None):
     """One mutation of the chains ``rows`` (None: all): propose, evaluate, splat, accept.
@@ -206,8 +249,9 @@ def metropolis_step(chains, evaluate, rng, large_step_probability, rows=None):
     Parameters
     ----------
     chains : Chains
-    evaluate : callable((m, D) float64) -> (L (m, 3), key (m,))
-        The contribution of primary vectors and where it goes.
+    evaluate : callable((m, width) float64, grow) -> (L (m, 3), key (m,))
+        The contribution of primary vectors and where it goes; ``grow(w)`` returns the
+        vectors with ``w`` dimensions at least, for a path that reads past ``width``.
     rng : numpy.random.Generator
     large_step_probability : float
     rows : (m,) int or None
@@ -223,8 +267,10 @@ def metropolis_step(chains, evaluate, rng, large_step_probability, rows=None):
     u = chains.u if rows is None else chains.u[rows]
     f, L, key = ((chains.f, chains.L, chains.key) if rows is None
                  else (chains.f[rows], chains.L[rows], chains.key[rows]))
-    v, _ = propose(u, rng, large_step_probability)
-    L_new, key_new = evaluate(v)
+    v, large = propose(u, rng, large_step_probability)
+    proposal = Proposal(chains, rows, v, large, rng)
+    L_new, key_new = evaluate(v, proposal.grow)
+    v = proposal.v
     f_new = luminance(L_new)
     a = acceptance(f, f_new)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -249,23 +295,39 @@ class PrimarySampleStream(SampleStream):
 
     Parameters
     ----------
-    u : (n, D) float64
+    u : (n, width) float64
         One primary vector per path; ``sample(d, c)`` returns columns ``d .. d + c - 1`` of the
-        rows still alive (terminated paths leave by :meth:`compact`).
+        rows still alive (terminated paths leave by :meth:`compact`), but dimensions 0-1,
+        which come from ``inside``.
+    inside : (n, 2) float64
+        The numbers of dimensions 0-1 (the film position inside the pixel).
     pixel : (n,) int64
         Frame pixel of each path (read by the camera stage).
+    grow : callable(int) -> (n, w) float64, or None
+        The vectors with at least that many dimensions, called when a path reads past
+        ``width``; None: reading past it is an error.
+    limit : int
+        Dimensions the integrator may read at most.
     """
 
-    def __init__(self, u, pixel, seed=0):
+    def __init__(self, u, inside, pixel, grow=None, limit=None, seed=0):
         super().__init__(pixel, np.zeros(len(pixel), np.int64), seed)
-        self.u = u
+        self.u, self.inside, self.grow = u, inside, grow
+        self.limit = u.shape[1] if limit is None else int(limit)
         self.rows = np.arange(len(pixel))
 
     def _compact_state(self, keep):
         self.rows = self.rows[keep]
 
     def sample(self, dimension, count):
-        if dimension + count > self.u.shape[1]:
-            raise ValueError(f"primary sample space has {self.u.shape[1]} dimensions; the "
-                             f"integrator asked for dimension {dimension + count - 1}")
-        return self.u[self.rows, dimension:dimension + count]
+        end = dimension + count
+        if end > self.u.shape[1]:
+            if self.grow is None or end > self.limit:
+                raise ValueError(f"primary sample space has {self.limit} dimensions; the "
+                                 f"integrator asked for dimension {end - 1}")
+            self.u = self.grow(min(self.limit, max(end, 2 * self.u.shape[1])))
+        out = self.u[self.rows, dimension:end]
+        if dimension < 2:
+            lo, hi = dimension, min(end, 2)
+            out[:, :hi - lo] = self.inside[self.rows, lo:hi]
+        return out

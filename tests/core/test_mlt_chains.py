@@ -17,28 +17,41 @@ INTEGRAL = 1.5
 
 
 def toy_f(u):
-    """``(0.5 + x) (1 + 2 [y < 1/4])`` on the unit square: integral 1 x 1.5."""
-    return (0.5 + u[:, 0]) * (1.0 + 2.0 * (u[:, 1] < 0.25))
+    """``(0.5 + x) g``, ``x = u_0``: ``g = 1 + 2 [u_3 < 1/4]`` where ``x > 1/2`` (such "paths"
+    read dimension 3), ``g = 1.5`` (its mean) elsewhere (they end before it); integral 1.5."""
+    x = u[:, 0]
+    g = np.full(x.shape, 1.5)
+    far = x > 0.5
+    g[far] = 1.0 + 2.0 * (u[far, 3] < 0.25)
+    return (0.5 + x) * g
 
 
 def toy_density(xy):
-    return toy_f(xy) / INTEGRAL
+    """Density of ``(u_0, u_3)`` under ``f / 1.5``."""
+    return toy_f(np.stack([xy[:, 0], xy[:, 0], xy[:, 0], xy[:, 1]], axis=1)) / INTEGRAL
 
 
-def toy_evaluate(u, bins=4):
-    """Grey contribution ``f`` (luminance ``f``) and its cell in a ``bins x bins`` grid."""
-    f = toy_f(u)
+def toy_evaluate(u, grow=None, bins=4):
+    """Grey contribution ``f`` (luminance ``f``) and its cell in a ``bins x bins`` grid of
+    ``(u_0, u_3)``. Vectors with fewer than four dimensions grow when a row reads dimension 3
+    (as paths grow them when they bounce further than any path before)."""
+    if u.shape[1] < DIMS and (u[:, 0] > 0.5).any():
+        u = grow(DIMS)
+    y = u[:, 3] if u.shape[1] >= DIMS else np.zeros(len(u))
+    f = toy_f(np.stack([u[:, 0], u[:, 0], u[:, 0], y], axis=1))
     cell = (np.minimum((u[:, 0] * bins).astype(np.int64), bins - 1) * bins
-            + np.minimum((u[:, 1] * bins).astype(np.int64), bins - 1))
+            + np.minimum((y * bins).astype(np.int64), bins - 1))
     return np.repeat(f[:, None], 3, axis=1), cell
 
 
-def cell_integrals(bins=4):
-    """``integral of f`` over each cell of :func:`toy_evaluate` (closed form)."""
-    edges = np.arange(bins + 1) / bins
-    fx = 0.5 * (edges[1:] - edges[:-1]) + 0.5 * (edges[1:] ** 2 - edges[:-1] ** 2)
-    gy = (edges[1:] - edges[:-1]) + 2.0 * np.clip(np.minimum(edges[1:], 0.25) - edges[:-1], 0, None)
-    return np.outer(fx, gy).reshape(-1)
+def cell_integrals(bins=4, fine=64):
+    """``integral of f`` over each cell of :func:`toy_evaluate`: midpoints of a 64 x 64 grid,
+    exact (f is linear in x and constant in y between grid lines)."""
+    mid = (np.arange(fine) + 0.5) / fine
+    xy = np.stack(np.meshgrid(mid, mid, indexing="ij"), axis=-1).reshape(-1, 2)
+    f = toy_density(xy) * INTEGRAL / fine ** 2
+    cell = (xy[:, 0] * bins).astype(int) * bins + (xy[:, 1] * bins).astype(int)
+    return np.bincount(cell, f, minlength=bins * bins)
 
 
 def test_small_step_density_is_exactly_symmetric_and_steps_stay_in_the_unit_interval():
@@ -84,20 +97,25 @@ def test_small_step_sample_matches_its_pdf_and_inverts():
 
 
 def _run_chains(n_chains, steps, seed):
-    """Chains from uniform starts, ``steps`` mutations each; their final states ``(n, 2)``."""
+    """Chains from starts with ``u_0 < 1/2`` (which read two dimensions: the chains store
+    two), ``steps`` mutations each; their final states ``(n, 2)`` of ``(u_0, u_3)``. The
+    first proposal past ``u_0 = 1/2`` grows every chain to four dimensions
+    (:meth:`Chains.proposal_columns`), so the growth is checked too."""
     rng = np.random.default_rng(seed)
-    u = rng.random((n_chains, DIMS))
+    u = rng.random((n_chains, 2)) * [0.5, 1.0]
     L, cell = toy_evaluate(u)
     chains = ps.Chains(u, L, cell)
     for _ in range(steps):
         ps.metropolis_step(chains, toy_evaluate, rng, 0.3)
-    return chains.u[:, :2]
+    assert chains.width == DIMS
+    return chains.u[:, [0, 3]]
 
 
 def test_chain_states_are_distributed_as_f_over_its_integral(monkeypatch):
-    """20,000 independent chains, 120 mutations each from uniform starts: their final states
-    are independent draws, and after 120 steps their law is ``f / 1.5`` up to 0.9^120 < 1e-5
-    (a large step is accepted with probability >= 0.3 x 1.5 / 4.5 from any state). Chi-square
+    """20,000 independent chains, 120 mutations each from starts in the left half: their final
+    states are independent draws, and after 120 steps their law is ``f / 1.5`` up to
+    0.9^120 < 1e-5 (a large step is accepted with probability >= 0.3 x 1.5 / 4.5 from any
+    state). Chi-square
     on 16 x 16 cells, alpha 1e-3. The same checker rejects chains that accept with
     ``sqrt(f' / f)`` (stationary law ``sqrt f``): a relative error of 10-30 % per cell."""
     points = _run_chains(20_000, 120, seed=3)
@@ -111,8 +129,8 @@ def test_chain_states_are_distributed_as_f_over_its_integral(monkeypatch):
 
 def test_bootstrap_normalisation_is_unbiased():
     """``b`` of 400 seeds of 500 uniform vectors each, against ``integral f = 1.5``: mean within
-    its Student-t interval (p_false 1e-4). The standard error of that mean is 0.15 % of b: a
-    bias of 0.9 % fails with 99 % power. The reported standard error matches the spread of b
+    its Student-t interval (p_false 1e-4). The standard error of that mean is 0.13 % of b: a
+    bias of 0.8 % fails with 99 % power. The reported standard error matches the spread of b
     over seeds (within 20 %, far outside the fluctuation of 400 samples' spread, about 4 %).
     """
     bs, ses = [], []
@@ -127,13 +145,23 @@ def test_bootstrap_normalisation_is_unbiased():
 
 
 def _estimate(seed, n_boot=400, n_chains=64, steps=20):
-    """One run of the whole estimator on the toy: per-cell ``b * splats / mutations``."""
-    u = ps.uniform_vectors(seed, np.arange(n_boot), DIMS)
-    L, cell = toy_evaluate(u)
+    """One run of the whole estimator on the toy, as MLT runs it (bootstrap vectors stored
+    with two dimensions and grown by their hash when read further, chains rebuilt from the
+    picks' indices): per-cell ``b * splats / mutations``."""
+    index = np.arange(n_boot)
+    vectors = [ps.uniform_vectors(seed, index, 2)]
+
+    def grow(w):
+        vectors.append(np.concatenate(
+            [vectors[-1], ps.uniform_vectors(seed, index, w - 2, first=2)], axis=1))
+        return vectors[-1]
+
+    L, cell = toy_evaluate(vectors[0], grow)
     f = ps.luminance(L)
     b, _ = ps.normalisation(f)
     picks = ps.resample(f, n_chains, ps.chain_random(seed, 7))
-    chains = ps.Chains(u[picks], L[picks], cell[picks])
+    width = vectors[-1].shape[1]
+    chains = ps.Chains(ps.uniform_vectors(seed, picks, width), L[picks], cell[picks])
     rng = ps.chain_random(seed, 8)
     sums = np.zeros(16)
     for _ in range(steps):
@@ -146,8 +174,8 @@ def test_bootstrap_started_chains_estimate_each_cell_without_bias():
     """The estimator as MLT runs it (b and the resampled starts from one bootstrap of 400,
     64 chains x 20 mutations, expected-value splats): over 300 seeds every cell's mean, and
     their total, is its integral within Student-t intervals (Bonferroni over 17 means,
-    p_false 1e-4). Standard errors: 1.2-2.1 % per cell, 0.2 % for the total, so a bias of
-    9-15 % in one cell fails with 99 % power, and a b off by 1.4 % (every cell at once, seen
+    p_false 1e-4). Standard errors: 1.2-1.8 % per cell, 0.17 % for the total, so a bias of
+    9-13 % in one cell fails with 99 % power, and a b off by 1.2 % (every cell at once, seen
     in the total) too; the b off by 5 % below must fail."""
     runs = np.array([_estimate(seed) for seed in range(300)])
     runs = np.concatenate([runs, runs.sum(axis=1, keepdims=True)], axis=1)
