@@ -578,11 +578,13 @@ OPTIONS = {o.name: o for o in (
            "Metropolis only: uniform paths traced first. Their mean luminance estimates the "
            "normalisation b, which scales the whole image (its standard error is in the render "
            "stats), and the chains start from them, chosen in proportion to their luminance. "
-           "More paths: a more accurate b", 100000, minimum=1, maximum=1 << 26),
+           "More paths: a more accurate b", 100000, minimum=2, maximum=1 << 26),
     Option("mlt_chains", int, "Chains per Batch",
            "Metropolis only: Markov chains mutated together as one batch of paths (four "
-           "batches run side by side). More chains use the CPU better and spread over the "
-           "image; fewer chains each take more steps. Never more chains than pixels", 8192,
+           "batches run side by side). More chains use the CPU better (bigger batches), but "
+           "each takes fewer steps: a chain that runs fewer steps than it needs to forget its "
+           "start leaves blotches, and chains that start from the same bootstrap path stay "
+           "alike for a while. Never more chains than pixels", 256,
            minimum=1, maximum=1 << 20),
 )}
 

@@ -42,7 +42,10 @@ When to use it
 When it fails
     Brightness is uneven at low mutation counts: chains stay in regions for a while, so the
     image shows blotches and streaks instead of fine noise, and small, rarely visited
-    features converge late. The samplers' stratification is lost (chains move freely), so on
+    features converge late. Too many chains for the mutation budget make it worse: a chain
+    should take many more steps than it needs to forget its start, so the default batch is
+    small although small batches use the CPU less well. The samplers' stratification
+    is lost (chains move freely), so on
     easy scenes path tracing wins at equal time. Every pixel shares ``b``'s error. Film >
     Transparent is not honoured (the background is opaque).
 
@@ -64,7 +67,7 @@ from .base import Counters, Integrator
 # Batches of chains: fixed (not the thread count), so the image does not depend on threads.
 CHAIN_BATCHES = 4
 # Fewest chains worth a batch of their own: the path tracer's per-call cost dominates below.
-MIN_BATCH = 1024
+MIN_BATCH = 256
 # Largest primary-sample state of one batch of chains (current and proposed vectors).
 STATE_BYTES = 32 << 20
 # Bootstrap paths per task on the worker threads.
@@ -148,13 +151,15 @@ class MLT(Integrator):
             vectors = [uniform_vectors(self.seed, index, min(self.dims, START_WIDTH))]
 
             def grow(w):
-                have = vectors[-1].shape[1]
-                vectors.append(np.concatenate(
-                    [vectors[-1], uniform_vectors(self.seed, index, w - have, have)], axis=1))
-                return vectors[-1]
+                # Dimensions past the stored ones, from the same hash: vector i stays a
+                # function of i, so a chain started from it can rebuild it.
+                have = vectors[0].shape[1]
+                more = uniform_vectors(self.seed, index, w - have, have)
+                vectors[0] = np.concatenate([vectors[0], more], axis=1)
+                return vectors[0]
 
             L, pixel = self._evaluate(vectors[0], grow, window, pixel_filter, local, abort)
-            return L, pixel, local.rays, vectors[-1].shape[1]
+            return L, pixel, local.rays, vectors[0].shape[1]
 
         parts = map_chunks(trace, spans)
         if parts is None:
@@ -266,7 +271,7 @@ class MLT(Integrator):
         proposed = sum(c.proposed for c in chains)
         return {"estimator_bias": "consistent, b estimated (unbiased over seeds)",
                 "mlt_b": self.b, "mlt_b_se": self.b_se,
-                "mlt_b_rel_se": self.b_se / self.b if self.b > 0 else float("inf"),
+                "mlt_b_rel_se": self.b_se / self.b if self.b > 0 else None,
                 "mlt_bootstrap_paths": self.n_bootstrap,
                 "mlt_chains": sum(len(c) for c in chains),
                 "mlt_mutations": self.mutations,

@@ -37,6 +37,9 @@ S2 = 1.0 / 64.0
 # Rec. 709 luminance: the scalar target f of an RGB contribution.
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
+# Dimensions a chain's vectors grow by at least (two bounces of the path tracer).
+GROW_STEP = 14
+
 # The number just below one: a wrapped value never reaches 1.
 _BELOW_ONE = np.nextafter(1.0, 0.0)
 
@@ -157,7 +160,7 @@ def normalisation(f):
     unbiased estimate of ``integral of f`` over the unit cube (the vectors are uniform)."""
     f = np.asarray(f, np.float64)
     b = float(f.mean()) if f.size else 0.0
-    se = float(f.std(ddof=1) / np.sqrt(f.size)) if f.size > 1 else float("inf")
+    se = float(f.std(ddof=1) / np.sqrt(f.size)) if f.size > 1 else float("nan")
     return b, se
 
 
@@ -325,7 +328,8 @@ class PrimarySampleStream(SampleStream):
             if self.grow is None or end > self.limit:
                 raise ValueError(f"primary sample space has {self.limit} dimensions; the "
                                  f"integrator asked for dimension {end - 1}")
-            self.u = self.grow(min(self.limit, max(end, 2 * self.u.shape[1])))
+            # A few dimensions beyond the one asked for: fewer, smaller growths.
+            self.u = self.grow(min(self.limit, max(end, self.u.shape[1] + GROW_STEP)))
         out = self.u[self.rows, dimension:end]
         if dimension < 2:
             lo, hi = dimension, min(end, 2)

@@ -57,3 +57,14 @@ def test_mlt_render_shows_every_pass_and_writes_a_finite_image(empty_scene, tmp_
     assert counts[:3] == [1.0, 2.0, 3.0]
     combined = passes["Combined"] if "Combined" in passes else passes["Image"]
     assert np.isfinite(combined).all() and combined[..., :3].max() > 0
+
+
+def test_stats_line_gives_b_its_error_and_the_acceptance(addon):
+    from importlib import import_module
+    engine = import_module(f"{addon.__name__}.addon.engine")
+    text = engine.estimator_text({"estimator_bias": "consistent, b estimated", "mlt_b": 0.7143,
+                                  "mlt_b_rel_se": 0.0123, "mlt_acceptance": 0.4})
+    assert text == ", consistent, b estimated: b 0.7143 +- 1.2%, acceptance 40%"
+    dark = engine.estimator_text({"estimator_bias": "consistent, b estimated", "mlt_b": 0.0,
+                                  "mlt_b_rel_se": None, "mlt_acceptance": 0.0})
+    assert dark == ", consistent, b estimated: b 0, acceptance 0%"
