@@ -580,11 +580,12 @@ OPTIONS = {o.name: o for o in (
            "stats), and the chains start from them, chosen in proportion to their luminance. "
            "More paths: a more accurate b", 100000, minimum=2, maximum=1 << 26),
     Option("mlt_chains", int, "Chains per Batch",
-           "Metropolis only: Markov chains mutated together as one batch of paths (four "
-           "batches run side by side). More chains use the CPU better (bigger batches), but "
-           "each takes fewer steps: a chain that runs fewer steps than it needs to forget its "
-           "start leaves blotches, and chains that start from the same bootstrap path stay "
-           "alike for a while. Never more chains than pixels", 256,
+           "Metropolis only: the most Markov chains mutated together as one batch of paths "
+           "(four batches run side by side). A render uses enough chains for each to run "
+           "about 512 mutations of its sample budget (64 per pixel under a time limit alone), "
+           "at least 256 per batch, at most this many, never more than pixels: more chains use "
+           "the CPU better, but a chain that runs fewer steps than it needs to forget its start "
+           "leaves blotches", 8192,
            minimum=1, maximum=1 << 20),
 )}
 

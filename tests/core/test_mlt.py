@@ -117,3 +117,22 @@ def test_command_line_renders_with_metropolis(tmp_path, capsys):
     assert cli.main(["render", "cornell", "-o", str(out), "--integrator", "mlt",
                      "--mlt-large-step", "1.5", "--quiet"]) == 2
     assert "mlt_large_step" in capsys.readouterr().err
+
+
+def test_chain_count_gives_each_chain_about_512_mutations_of_the_budget():
+    """Enough chains for each to run ``TARGET_STEPS`` mutations, within [256, mlt_chains] per
+    batch of four, never more than pixels (the gap-room benchmark: many short chains leave
+    blotches)."""
+    from sampling_lab.core.integrators.mlt import MLT
+    from sampling_lab.core.prepare import prepare
+
+    prep = prepare(_scene())
+
+    def count(pixels, **kw):
+        return MLT(prep, plain_settings(integrator="mlt", **kw)).chain_count(pixels)
+
+    assert count(1920 * 1080, spp=16) == 4 * 8192  # 33 M mutations: capped by mlt_chains
+    assert count(1920 * 1080, spp=16, mlt_chains=20000) == 4 * 16200
+    assert count(160 * 120, spp=32) == 4 * 300  # 614,400 mutations / 2,048
+    assert count(160 * 120, spp=0, time_limit=10.0) == 4 * 600  # 64 per pixel planned
+    assert count(32 * 24, spp=16) == 32 * 24  # at least 256 per batch, at most one per pixel
