@@ -94,7 +94,8 @@ def run(size=(160, 120), seconds=15.0, seeds=3, reference_seconds=240.0, max_bou
                        time_s=res.stats["time_s"], samples_per_s=res.stats["samples_per_s"],
                        rel_mse=rel_mse(img, ref) - noise,
                        mean_ratio=float(img.mean() / ref.mean()),
-                       b_rel_se=res.stats.get("mlt_b_rel_se", float("nan")))
+                       b_rel_se=res.stats.get("mlt_b_rel_se", float("nan")),
+                       chains=res.stats.get("mlt_chains", 0))
             rows.append(row)
             progress(f"{name} seed {seed}: {row}")
     load1 = os.getloadavg()
@@ -119,7 +120,8 @@ def _summary(rows):
             rel_mse=float(errs.mean()),
             rel_mse_se=float(errs.std(ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0,
             mean_ratio=float(np.mean([r["mean_ratio"] for r in mine])),
-            b_rel_se=float(np.mean([r["b_rel_se"] for r in mine])))
+            b_rel_se=float(np.mean([r["b_rel_se"] for r in mine])),
+            chains=int(np.mean([r["chains"] for r in mine])))
     return out
 
 
@@ -139,14 +141,15 @@ def _write(output, summary, info):
         f"subtracted. Load average {l0[0]:.2f} at the start, {l1[0]:.2f} at the end.",
         "",
         "| integrator | samples (mutations) per pixel | M samples/s | relMSE (± se over seeds) "
-        "| relMSE / path's | mean / ref | b rel. se |",
-        "|---|---:|---:|---:|---:|---:|---:|",
+        "| relMSE / path's | mean / ref | b rel. se | chains |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for name, s in summary.items():
         lines.append(f"| {name} | {s['spp']:.0f} | {s['samples_per_s'] / 1e6:.3f} | "
                      f"{s['rel_mse']:.3g} ± {s['rel_mse_se']:.2g} | {s['rel_mse'] / base:.3g} "
                      f"| {s['mean_ratio']:.4f} | "
-                     + ("n/a" if name == "path" else f"{s['b_rel_se']:.3%}") + " |")
+                     + ("n/a | n/a" if name == "path"
+                        else f"{s['b_rel_se']:.3%} | {s['chains']}") + " |")
     lines.append("")
     os.makedirs(output, exist_ok=True)
     path = os.path.join(output, "MLT_BENCH.md")
