@@ -254,9 +254,9 @@ _INTEGRATOR_TEXT = {
         "with min(1, f'/f) and splat Veach's expected values. Consistent, with the brightness "
         "normalisation b estimated from bootstrap paths (its error scales the whole image; "
         "renders with different seeds average to the path tracer's image). Samples are "
-        "mutations per pixel. Helps where light comes through narrow openings; at low "
-        "mutation counts brightness is uneven (blotches), and easy scenes converge slower than "
-        "path tracing"),
+        "mutations per pixel. Meant for light through narrow openings, yet on the benchmark's "
+        "gap room it lost to path tracing at equal time (its mutations cost more); at low "
+        "mutation counts brightness is uneven (blotches)"),
 }
 
 _RADIOSITY_SOLVER_TEXT = {
