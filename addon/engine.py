@@ -70,12 +70,18 @@ def used_text(stats):
 
 
 def estimator_text(stats):
-    """What a biased estimator adds to the stats line: photon and radiosity figures (empty for
-    the unbiased integrators, whose stats have neither)."""
+    """What a biased or estimated-normalisation estimator adds to the stats line: photon,
+    radiosity and Metropolis figures (empty for the unbiased integrators, whose stats have
+    none of them)."""
     if "photons_emitted" in stats:
         return (f", {stats.get('estimator_bias')}: {stats['photons_emitted'] / 1e6:.2f} M photons "
                 f"({stats.get('photons_per_s', 0.0) / 1e6:.2f} M/s, peak "
                 f"{stats.get('photon_memory_peak_mb', 0.0):.1f} MB)")
+    if "mlt_b" in stats:
+        rel = stats.get("mlt_b_rel_se")
+        return (f", {stats.get('estimator_bias')}: b {stats['mlt_b']:.4g}"
+                + (f" +- {rel:.1%}" if rel is not None else "")
+                + f", acceptance {stats.get('mlt_acceptance', 0.0):.0%}")
     if "radiosity_patch_count" in stats:
         return (f", biased (radiosity): {stats['radiosity_patch_count']} patches, "
                 f"{stats.get('radiosity_solver')} in {stats.get('radiosity_iterations')} "

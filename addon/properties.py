@@ -113,6 +113,9 @@ class SamplingLabSettings(PropertyGroup):
                                   subtype='FACTOR')
     radiosity_display: _property("radiosity_display")
     use_radiosity_patches: _property("radiosity_patches", update=_update_render_passes)
+    mlt_large_step: _property("mlt_large_step", precision=2, subtype='FACTOR')
+    mlt_bootstrap: _property("mlt_bootstrap", soft_min=1000, soft_max=10_000_000)
+    mlt_chains: _property("mlt_chains", soft_min=64, soft_max=65536)
     filter_type: _property("filter_type")
     filter_width: _property("filter_width", soft_max=5.0, precision=2, subtype='PIXEL')
 

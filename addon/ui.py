@@ -81,9 +81,10 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         sub.prop(settings, "light_selection")
         area = sub.column()
         # The path tracer, photon mapping's direct light and radiosity's final gather sample
-        # emitters toward a receiving point: light and BDPT paths start on emitters sampled
-        # by area (core.render.used_settings).
-        area.active = sub.active and (settings.integrator in {'PATH', 'RADIOSITY'} or photon)
+        # emitters toward a receiving point (Metropolis runs the path tracer): light and BDPT
+        # paths start on emitters sampled by area (core.render.used_settings).
+        area.active = sub.active and (settings.integrator in {'PATH', 'MLT', 'RADIOSITY'}
+                                      or photon)
         area.prop(settings, "light_sampling")
         # Also draws mixed materials' components: active whatever the light sampling.
         col.prop(settings, "distribution")
@@ -151,6 +152,27 @@ class SAMPLINGLAB_RENDER_PT_photons(SamplingLabButtonsPanel, Panel):
         sub.prop(settings, "gather_rays")
 
 
+class SAMPLINGLAB_RENDER_PT_mlt(SamplingLabButtonsPanel, Panel):
+    bl_label = "Metropolis"
+    bl_parent_id = "SAMPLINGLAB_RENDER_PT_sampling"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout, settings = settings_layout(self, context)
+
+        col = layout.column()
+        # Only Metropolis light transport mutates paths (core.render.used_settings).
+        col.active = settings.integrator == 'MLT'
+        col.prop(settings, "mlt_large_step")
+        col.prop(settings, "mlt_bootstrap")
+        col.prop(settings, "mlt_chains")
+        if settings.integrator == 'MLT':
+            note = layout.column(align=True)
+            note.label(text="Consistent; b is estimated (its error is in the stats).",
+                       icon='INFO')
+            note.label(text="Samples are mutations per pixel.")
+
+
 class SAMPLINGLAB_RENDER_PT_radiosity(SamplingLabButtonsPanel, Panel):
     bl_label = "Radiosity"
     bl_options = {'DEFAULT_CLOSED'}
@@ -190,13 +212,13 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         bounces = col.column(align=True, heading="Max Bounces")
         bounces.prop(settings, "max_bounces")
         kinds = col.column(align=True)
-        kinds.active = settings.integrator == 'PATH'
+        kinds.active = settings.integrator in {'PATH', 'MLT'}
         kinds.prop(settings, "diffuse_bounces")
         kinds.prop(settings, "glossy_bounces")
         kinds.prop(settings, "transmission_bounces")
         # Light tracing's camera connections cross at most this many transparent surfaces.
         transparent = col.column(align=True)
-        transparent.active = settings.integrator in {'PATH', 'LIGHT'}
+        transparent.active = settings.integrator in {'PATH', 'MLT', 'LIGHT'}
         transparent.prop(settings, "transparent_max_bounces")
         col.separator()
         rr = col.column()
@@ -267,8 +289,9 @@ class SAMPLINGLAB_OBJECT_PT_ray_visibility(Panel):
         col.prop(ob, "visible_camera", text="Camera", toggle=False)
         bounces = col.column()
         # Light Tracing and Bidirectional trace every segment of a camera path with the camera
-        # rays' visibility and every light path segment with the shadow rays' (core.integrators.bdpt).
-        path_tracing = context.scene.sampling_lab.integrator == 'PATH'
+        # rays' visibility and every light path segment with the shadow rays' (core.integrators.bdpt);
+        # Metropolis runs the path tracer.
+        path_tracing = context.scene.sampling_lab.integrator in {'PATH', 'MLT'}
         bounces.active = path_tracing
         bounces.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
         bounces.prop(ob, "visible_glossy", text="Glossy", toggle=False)
@@ -276,7 +299,8 @@ class SAMPLINGLAB_OBJECT_PT_ray_visibility(Panel):
         col.prop(ob, "visible_shadow", text="Shadow", toggle=False)
         if not path_tracing:
             note = layout.column(align=True)
-            note.label(text="Path Tracing only: Diffuse, Glossy, Transmission.", icon='INFO')
+            note.label(text="Path Tracing and Metropolis only: Diffuse, Glossy, Transmission.",
+                       icon='INFO')
             note.label(text="Camera paths bounce with Camera visibility, light paths with Shadow.")
 
 
@@ -285,6 +309,7 @@ classes = (
     SAMPLINGLAB_RENDER_PT_light_sampling,
     SAMPLINGLAB_RENDER_PT_strategy_views,
     SAMPLINGLAB_RENDER_PT_photons,
+    SAMPLINGLAB_RENDER_PT_mlt,
     SAMPLINGLAB_RENDER_PT_radiosity,
     SAMPLINGLAB_RENDER_PT_light_paths,
     SAMPLINGLAB_RENDER_PT_film,

@@ -130,6 +130,9 @@ class RenderSettings:
     radiosity_adaptive: float = DEFAULTS["radiosity_adaptive"]
     radiosity_display: str = DEFAULTS["radiosity_display"]
     radiosity_patches: bool = DEFAULTS["radiosity_patches"]
+    mlt_large_step: float = DEFAULTS["mlt_large_step"]
+    mlt_bootstrap: int = DEFAULTS["mlt_bootstrap"]
+    mlt_chains: int = DEFAULTS["mlt_chains"]
     region: tuple = None
 
 
@@ -236,6 +239,10 @@ def used_settings(settings):
     """
     if settings.integrator == "radiosity":
         return _radiosity_used(settings)
+    if settings.integrator == "mlt":
+        # Metropolis explores the path tracer's numbers: the path tracer's settings apply.
+        path = used_settings(dataclasses.replace(settings, integrator="path"))
+        return {**path, **{name: getattr(settings, name) for name in MLT_OPTIONS}}
     photon = settings.integrator in PHOTON_INTEGRATORS
     jensen = settings.integrator == "photon"
     # Photon mapping's next-event estimation at visible points samples lights as the path
@@ -272,6 +279,7 @@ def used_settings(settings):
                         and not settings.photon_radius else na),
         "gather_rays": settings.gather_rays if jensen else na,
         **{name: na for name in RADIOSITY_OPTIONS},
+        **{name: na for name in MLT_OPTIONS},
         # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
         # light tracing's camera connections cross at most the Transparent limit's surfaces.
         **{name: getattr(settings, name) if settings.integrator == "path"
@@ -284,6 +292,7 @@ PHOTON_OPTIONS = ("photons", "sppm_alpha", "photon_memory", "photon_lookup", "ph
                   "photon_radius", "photon_kernel", "gather_rays")
 BOUNCE_KIND_OPTIONS = ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
                        "transparent_max_bounces")
+MLT_OPTIONS = ("mlt_large_step", "mlt_bootstrap", "mlt_chains")
 RADIOSITY_OPTIONS = ("radiosity_solver", "radiosity_patch_size", "radiosity_samples",
                      "radiosity_adaptive", "radiosity_display", "radiosity_patches")
 
@@ -300,6 +309,7 @@ def _radiosity_used(settings):
         "distribution": settings.distribution,
         **{name: na for name in PHOTON_OPTIONS},
         **{name: na for name in BOUNCE_KIND_OPTIONS},
+        **{name: na for name in MLT_OPTIONS},
         **{name: getattr(settings, name) for name in RADIOSITY_OPTIONS},
         # Hierarchical radiosity's links adapt instead; its leaves stay uniform.
         "radiosity_adaptive": (settings.radiosity_adaptive
@@ -484,7 +494,7 @@ def _messages(scene, settings, integrator):
     integrator itself reports, :meth:`core.integrators.base.Integrator.messages`)."""
     messages = list(integrator.messages())
     # Photon mapping's photons leave the lamps as light paths do.
-    if (integrator.splats or integrator.whole_passes) and len(scene.lights):
+    if (integrator.splats or settings.integrator in PHOTON_INTEGRATORS) and len(scene.lights):
         soft = [name for name, flag in zip(scene.lights.names, scene.lights.soft_falloff) if flag]
         if soft:
             messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
@@ -498,7 +508,7 @@ def _messages(scene, settings, integrator):
     if scene.film_transparent and settings.integrator != "path":
         messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
                         f"tracing only; the background is rendered opaque")
-    if (settings.integrator not in ("path", "radiosity", "light")
+    if (settings.integrator not in ("path", "radiosity", "light", "mlt")
             and integrator.prep.material_transparency is not None):
         messages.append(f"{settings.integrator}: transparent surfaces (Transparent BSDF, "
                         f"Alpha) block shadow rays and connections, and count as "

@@ -111,6 +111,14 @@ def _add_bench_photons(sub, **kw):
     add_output_arguments(p, "bench-photons", "PHOTONS_BENCH.md")
 
 
+def _bench_mlt(args):
+    from .mlt import run
+
+    run(size=args.size, seconds=args.seconds, seeds=args.seeds,
+        reference_seconds=args.reference_seconds, output=args.output)
+    return 0
+
+
 def _bench_lights(args):
     from .light_tree import run
 
@@ -291,6 +299,16 @@ def add_parsers(sub, **kw):
     g.add_argument("--reference-seconds", type=_positive_float, default=60.0,
                    help="time of the light-tree reference render")
     add_output_arguments(g, "bench-lights")
+    t = _add(sub, "bench-mlt", "equal-time error of Metropolis light transport and path "
+             "tracing on two rooms joined by a narrow slit (a table; docs/INTEGRATORS.md "
+             "quotes a run)", _bench_mlt, **kw)
+    _size(t, (160, 120))
+    t.add_argument("--seconds", type=_positive_float, default=15.0,
+                   help="equal wall-clock budget of every render (MLT's bootstrap included)")
+    t.add_argument("--seeds", type=_positive_int, default=3, help="renders per integrator")
+    t.add_argument("--reference-seconds", type=_positive_float, default=240.0,
+                   help="time of the path-traced reference (two halves of different seeds)")
+    add_output_arguments(t, "bench-mlt")
     _add_bench_gap(sub, **kw)
     _add_bench_limits(sub, **kw)
     _add_bench_soak(sub, **kw)

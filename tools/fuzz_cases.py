@@ -20,7 +20,7 @@ NAN, INF = float("nan"), float("inf")
 # Values that break a number: not a number, infinite, negative, zero, huge, tiny.
 BAD = (NAN, INF, -INF, -1.0, 0.0, 1e30, 1e-30)
 
-INTEGRATORS = ("path", "light", "bdpt", "photon", "sppm", "radiosity")
+INTEGRATORS = ("path", "light", "bdpt", "photon", "sppm", "radiosity", "mlt")
 
 # Scene edits (tools/fuzz_child.py applies them): name -> values.
 EDITS = {
@@ -93,6 +93,9 @@ FLAGS = {
     "--photons": ("0", "1", "1000000000"),
     "--photon-memory": ("0", "1"),
     "--radiosity-patch-size": ("0.001", "nan"),
+    "--mlt-large-step": ("-0.1", "nan", "0", "1"),
+    "--mlt-bootstrap": ("0", "2"),
+    "--mlt-chains": ("0", "1"),
     "--frame": ("-5", "x"),
     "--strategy-views": (None,),
     "--no-such-flag": (None,),

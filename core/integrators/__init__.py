@@ -16,19 +16,21 @@ No estimator module imports another:
   consistent), over the photon stages of :mod:`core.photons`;
 - :mod:`.radiosity`: finite-element radiosity (:class:`.radiosity.Radiosity`), solved once
   per render by :mod:`core.radiosity` and shown by camera rays or one final-gather bounce;
+- :mod:`.mlt`: Metropolis light transport in primary sample space (:class:`.mlt.MLT`,
+  consistent with its normalisation estimated), Markov chains over the path tracer's numbers;
 - :mod:`.common`: stages every estimator shares (camera rays, intersection, surface
   interactions, emitters along rays, Russian roulette).
 """
 
-from . import bdpt, light, path, photon, radiosity, sppm
+from . import bdpt, light, mlt, path, photon, radiosity, sppm
 from .base import Integrator
 
 INTEGRATORS = {"path": path, "light": light, "bdpt": bdpt, "photon": photon, "sppm": sppm,
-               "radiosity": radiosity}
+               "radiosity": radiosity, "mlt": mlt}
 
 _CLASSES = {"path": path.PathTracer, "light": light.LightTracer, "bdpt": bdpt.BDPT,
             "photon": photon.PhotonMapping, "sppm": sppm.SPPM,
-            "radiosity": radiosity.Radiosity}
+            "radiosity": radiosity.Radiosity, "mlt": mlt.MLT}
 
 
 def integrator_class(name) -> type[Integrator]:

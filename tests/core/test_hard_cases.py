@@ -41,7 +41,7 @@ def _settings(scene, integrator, **kw):
     """Small, independent-sampler settings; radiosity with one patch per triangle, one
     form-factor sample and the Jacobi solver (the albedo-1 mirrors of two cases, diffuse to
     radiosity, make systems without a solution: every solver runs its 1,000 sweeps, and
-    Jacobi's are the cheapest)."""
+    Jacobi's are the cheapest); Metropolis with 4,096 bootstrap paths (not 100,000)."""
     if scene.n_triangles:
         v = scene.vertices[np.isfinite(scene.vertices).all(axis=1)].astype(np.float64)
         size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
@@ -49,7 +49,7 @@ def _settings(scene, integrator, **kw):
         size = 1.0
     base = dict(integrator=integrator, spp=4, photons=2000, threads=1,
                 radiosity_patch_size=max(size, 1e-6), radiosity_samples=1,
-                radiosity_solver="jacobi")
+                radiosity_solver="jacobi", mlt_bootstrap=4096)
     return plain_settings(**{**base, **kw})
 
 
