@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..materials.bsdf import IMPORTANCE, BSDFParams, eval_bsdf, pdf_bsdf, sample_bsdf
+from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, eval_bsdf, pdf_bsdf,
+                              sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
                      next_1d_if, ray_class, roulette_at, russian_roulette, shading_tangents,
@@ -26,10 +27,11 @@ def dot(a, b):
 
 
 def _empty_params(n):
-    # With every optional column group (coat, sheen, anisotropy; neutral), so that views of
-    # one table can take rows that use them.
+    # The base columns only: an optional group (coat, sheen, anisotropy, bump) is added when a
+    # stored vertex has it (Subpath.store_params), so that a scene whose materials use none
+    # gathers and evaluates none.
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
-                      np.zeros((n, 3))).with_all_groups()
+                      np.zeros((n, 3)))
 
 
 def take_params(params, rows):
@@ -38,13 +40,9 @@ def take_params(params, rows):
     return params.map_columns(lambda c: take_rows(c, rows) if c.ndim == 2 else np.take(c, rows))
 
 
-def _slice_params(params, part):
-    """Rows ``part`` (a slice) of ``params``, as views."""
-    return params.take(part)
-
-
-def _scatter_params(dst, rows, src):
-    dst.scatter(rows, src)
+def _vertex_views(table, depth, n):
+    """Per vertex ``j``, rows ``j * n .. (j + 1) * n`` of ``table`` as views."""
+    return [table.take(slice(j * n, (j + 1) * n)) for j in range(depth)]
 
 
 @dataclass
@@ -84,10 +82,12 @@ class Subpath:
     def empty(depth, n):
         """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
         views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
-        is row ``j * n + i``, as in :meth:`flat`)."""
+        is row ``j * n + i``, as in :meth:`flat`), with the base columns only: a group of
+        optional columns (coat, sheen, ...) is added by :meth:`store_params` when a vertex
+        has it."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
         table = _empty_params(depth * n)
-        params = [_slice_params(table, slice(j * n, (j + 1) * n)) for j in range(depth)]
+        params = _vertex_views(table, depth, n)
         return Subpath(np.zeros((depth, n), bool), z3(), z3(), np.zeros((depth, n), np.int64),
                        z3(), z3(), z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
@@ -107,8 +107,28 @@ class Subpath:
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
                               (table.eta, 1.0), (table.tint, 0.0)):
             column.fill(value)
-        table.fill_neutral()
+        if any(table.has(group) for group in OPTIONAL_GROUPS):
+            # Back to the base columns, as empty() makes them: the next batch adds what it uses.
+            self._set_table(BSDFParams(table.kind, table.color, table.alpha, table.eta,
+                                       table.tint))
         return self
+
+    def store_params(self, j, rows, params):
+        """Store BSDF ``params`` as vertex ``j`` of the subpaths ``rows (k,)``. An optional
+        column group of ``params`` that the table lacks is added first (neutral elsewhere);
+        rows without a group the table has get its neutral values (:meth:`BSDFParams.scatter`)."""
+        table = self.all_params
+        missing = [g for g in OPTIONAL_GROUPS if params.has(g) and not table.has(g)]
+        if missing:
+            for group in missing:
+                table = table.with_neutral(group)
+            self._set_table(table)
+        self.params[j].scatter(rows, params)
+
+    def _set_table(self, table):
+        depth, n = self.valid.shape
+        self.all_params = table
+        self.params = _vertex_views(table, depth, n)
 
     def flat(self, name):
         """Column ``name`` with vertices and subpaths in one axis: ``(depth * n, ...)``, row
@@ -326,7 +346,5 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
         getattr(sub, name)[j][r] = value
-    if sub.params[j] is None:
-        sub.params[j] = _empty_params(sub.valid.shape[1])
-    _scatter_params(sub.params[j], r, params)
+    sub.store_params(j, r, params)
     return dist
