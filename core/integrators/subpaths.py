@@ -34,6 +34,19 @@ def _empty_params(n):
                       np.zeros((n, 3)))
 
 
+def put_rows(dst, rows, src):
+    """``dst[rows] = src`` for a C-contiguous ``dst (n,)`` or ``(n, c)``; ``src (k,)`` or
+    ``(k, c)`` (or a scalar). Rows of ``(n, c)`` arrays are scattered as single ``c``-element
+    items (``np.put`` on a byte-row view): about 3 x faster than ``dst[rows] = src``, which
+    scatters element by element; the stored values are the same."""
+    if dst.ndim == 1:
+        dst[rows] = src
+        return
+    item = np.dtype((np.void, dst.strides[0]))
+    src = np.ascontiguousarray(np.broadcast_to(src, (rows.size,) + dst.shape[1:]), dst.dtype)
+    np.put(dst.view(item).reshape(-1), rows, src.view(item).reshape(-1))
+
+
 def take_params(params, rows):
     """The rows ``rows (k,)`` of ``params`` (as :meth:`BSDFParams.take`, gathered by
     ``np.take``: several times faster for the ``(n, 3)`` columns)."""
@@ -116,14 +129,21 @@ class Subpath:
     def store_params(self, j, rows, params):
         """Store BSDF ``params`` as vertex ``j`` of the subpaths ``rows (k,)``. An optional
         column group of ``params`` that the table lacks is added first (neutral elsewhere);
-        rows without a group the table has get its neutral values (:meth:`BSDFParams.scatter`)."""
+        rows without a group the table has get its neutral values (as
+        :meth:`BSDFParams.scatter`)."""
         table = self.all_params
         missing = [g for g in OPTIONAL_GROUPS if params.has(g) and not table.has(g)]
         if missing:
             for group in missing:
                 table = table.with_neutral(group)
             self._set_table(table)
-        self.params[j].scatter(rows, params)
+        view = self.params[j]
+        for group in OPTIONAL_GROUPS:
+            if view.has(group) and not params.has(group):
+                params = params.with_neutral(group)
+        for dst, src in zip(view.columns(), params.columns()):
+            if dst is not None:
+                put_rows(dst, rows, src)
 
     def _set_table(self, table):
         depth, n = self.valid.shape
@@ -339,12 +359,12 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     cos_here = np.abs(dot(si.ng, si.wo))
     fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
                    to_area(pdf_prev[live], cos_here, dist))
-    # Stores go through the vertex's own rows (sub.x[j][r]): faster than sub.x[j, r].
+    # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
     for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("fs", frame[0]),
                         ("ft", frame[1]), ("fn", frame[2]), ("wo", si.wo), ("wo_local", wo_l),
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
-        getattr(sub, name)[j][r] = value
+        put_rows(getattr(sub, name)[j], r, value)
     sub.store_params(j, r, params)
     return dist
