@@ -266,8 +266,10 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
         take_rows(y, cand), take_rows(yv.ng, cand), prim[cand], take_rows(w, cand), dist[cand],
         np.zeros((cand.size, 3)))
     ctx.counters.rays += cand.size
-    if ctx.weighs:
-        # BDPT's MIS counts transparent passes as vertices: its connections stop at them.
+    if ctx.weighs or ctx.prep.material_transparency is None:
+        # BDPT's MIS counts transparent passes as vertices: its connections stop at them. In a
+        # scene without transparent surfaces light tracing's transmittance is 0 or 1: the
+        # occlusion query alone gives the same splats.
         through = np.nonzero(~ctx.prep.accel.occluded(o, dirs, tmax, VIS_CAMERA))[0]
         keep = cand[through]
         value = take_rows(value, keep)

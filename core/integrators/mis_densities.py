@@ -52,11 +52,9 @@ def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
     ratio[s] = np.ones(m)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for sp in range(s - 1, -1, -1):
-            num, den = p_camera[sp], p_light[sp]
-            ratio[sp] = np.where(den > 0, ratio[sp + 1] * num / np.where(den > 0, den, 1.0), 0.0)
+            ratio[sp] = _step(ratio[sp + 1], p_camera[sp], p_light[sp])
         for sp in range(s + 1, k + 1):
-            num, den = p_light[sp - 1], p_camera[sp - 1]
-            ratio[sp] = np.where(den > 0, ratio[sp - 1] * num / np.where(den > 0, den, 1.0), 0.0)
+            ratio[sp] = _step(ratio[sp - 1], p_light[sp - 1], p_camera[sp - 1])
     terms, valid = [], []
     for sp in range(k + 1):
         if sp == 0:
@@ -76,6 +74,12 @@ def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
         terms.append(np.where(ok_r, ratio[sp], 0.0))
     w = mis.weight(terms, s, valid)
     return np.where(np.isfinite(w), w, 0.0)
+
+
+def _step(ratio, num, den):
+    """``ratio * num / den`` where ``den > 0``, else zero (one step of the ratio recurrence;
+    the same products and quotients as ``np.where``, in two array operations)."""
+    return np.divide(ratio * num, den, out=np.zeros(den.shape), where=den > 0)
 
 
 def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_delta):
