@@ -1,8 +1,14 @@
-"""BDPT's subpath tables carry only the optional BSDF column groups (coat, sheen, anisotropy,
-bump) that the stored vertices use (issue 12: a diffuse scene pays for none). Property: the
-same image, bit for bit, as tables that carry every group in every batch (the general layout
-before), on a scene without any group and on one that uses three of them on different
-materials; and the tables do hold exactly the groups the scene's materials use.
+"""The fast paths of light tracing and BDPT (issue 12) against the general code they skip.
+
+- BDPT's subpath tables carry only the optional BSDF column groups (coat, sheen, anisotropy,
+  bump) that the stored vertices use, so a diffuse scene pays for none. Property: the same
+  image, bit for bit, as tables that carry every group in every batch (the general layout
+  before), on a scene without any group and on one that uses three of them on different
+  materials; and the tables hold exactly the groups the scene's materials use.
+- Light tracing connects its vertices to the pinhole with the occlusion query alone when no
+  material is transparent. Property: the same image, bit for bit, as the transmittance walk
+  (:func:`core.integrators.shadows.shadow_transmittance`) that a scene with transparent
+  materials takes.
 
 Smallest error detected: any difference at all (the passes are compared for equality).
 """
@@ -86,3 +92,21 @@ def test_subpath_tables_hold_the_groups_the_materials_use(make_scene, expected):
     integ.render_samples(sampler.stream(np.arange(256), np.zeros(256, np.int64)),
                          PixelFilter(settings.filter_type, settings.filter_width), Counters())
     assert integ.seen == expected
+
+
+@pytest.mark.parametrize("make_scene", [_diffuse_scene, _layered_scene],
+                         ids=["diffuse", "coat sheen aniso"])
+def test_light_tracing_image_is_the_same_without_the_transmittance_walk(make_scene):
+    scene = make_scene()
+    settings = plain_settings(integrator="light", spp=2, seed=3, threads=1, max_bounces=4)
+    first = render(scene, settings)
+    prep = first.prepared
+    assert prep.material_transparency is None  # the fast path was taken
+    # Every material opaque, but through the general walk (zero transparency, not None).
+    prep.material_transparency = np.zeros((len(scene.materials.kind), 3))
+    general = render(scene, settings, prepared=prep)
+    np.testing.assert_array_equal(first.combined(), general.combined())
+    np.testing.assert_array_equal(first.variance(), general.variance())
+    # The walk also traces a closest-hit ray per blocked connection, to find the blocker opaque.
+    assert first.stats["rays"] < general.stats["rays"]
+    assert np.isfinite(first.combined()).all() and first.combined().max() > 0
