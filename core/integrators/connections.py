@@ -227,9 +227,11 @@ def camera_splatter(ctx, out):
 
         def gather(seen):
             idx = ok[seen]
-            return Gathered.of(ctx.smooth, IMPORTANCE, take_params(params, idx),
-                               [take_rows(a, idx) for a in frame], take_rows(si.wo, idx),
-                               take_rows(wo_l, idx), take_rows(si.ng, idx))
+            lambert = ctx.prep.lambert_only
+            return Gathered.of(ctx.smooth, IMPORTANCE, take_params(params, idx, lambert),
+                               [take_rows(a, idx) for a in frame],
+                               take_rows(si.wo, idx) if ctx.smooth else None,
+                               take_rows(wo_l, idx), take_rows(si.ng, idx), lambert)
 
         splat_vertices(ctx, j + 1, rows[ok], take_rows(si.p, ok), si.prim[ok], gather,
                        lambda seen: take_rows(beta, ok[seen]), out)

@@ -90,7 +90,7 @@ def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, p
     infinite = em.is_infinite(index)
     p_light = [None] * (k + 1)
     p_camera = [None] * (k + 1)
-    delta = [np.zeros(m, bool) for _ in range(k + 1)]
+    delta = [np.zeros(m, bool)] * (k + 1)  # read only; entries are replaced, not written
     p_light[0] = em.pdf_origin(index, w_travel)
     cos_l = np.where(infinite, 1.0, np.abs(dot(normal, w_travel)))
     p_camera[0] = np.where(prev_delta, 1.0, to_area(pdf_prev, cos_l, t))
@@ -141,7 +141,7 @@ def connection_weight(mis, L, C, s, t, rows, near):
     m = rows.size
     p_light = [None] * (k + 1)
     p_camera = [None] * (k + 1)
-    delta = [np.zeros(m, bool) for _ in range(k + 1)]
+    delta = [np.zeros(m, bool)] * (k + 1)  # read only; entries are replaced, not written
     # Light side: stored densities up to y, then y -> z, then z -> z_{t-2}.
     p_light[0] = near.light_0
     for i in range(1, s):

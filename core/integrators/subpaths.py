@@ -43,17 +43,34 @@ def put_rows(dst, rows, src):
         dst[rows] = src
         return
     item = np.dtype((np.void, dst.strides[0]))
-    src = np.ascontiguousarray(np.broadcast_to(src, (rows.size,) + dst.shape[1:]), dst.dtype)
+    shape = (rows.size,) + dst.shape[1:]
+    src = np.ascontiguousarray(src if np.shape(src) == shape else np.broadcast_to(src, shape),
+                               dst.dtype)
     np.put(dst.view(item).reshape(-1), rows, src.view(item).reshape(-1))
 
 
-def take_params(params, rows):
+# Columns a diffuse BSDF never reads, and the constant stand-ins a Lambert gather gives them.
+_NOT_LAMBERT = {"alpha": 1.0, "eta": 1.0, "tint": 0.0}
+
+
+def take_params(params, rows, lambert=False):
     """The rows ``rows (k,)`` of ``params`` (as :meth:`BSDFParams.take`, gathered by
-    ``np.take``: several times faster for the ``(n, 3)`` columns)."""
+    ``np.take``: several times faster for the ``(n, 3)`` columns).
+
+    ``lambert``: every row is a plain diffuse BSDF (``PreparedScene.lambert_only``, as the
+    path tracer's Lambert shading assumes): ``alpha``, ``eta`` and ``tint``, which Lambert's
+    eval and pdf never read, are not gathered but read-only constant views."""
     # Straight over the instance's columns: BSDFParams.map_columns walks every field by name,
     # a per-call cost that showed in light tracing (several calls per vertex).
-    return BSDFParams(**{name: None if c is None else np.take(c, rows, axis=0)
-                         for name, c in vars(params).items()})
+    out = {}
+    for name, c in vars(params).items():
+        if c is None:
+            out[name] = None
+        elif lambert and name in _NOT_LAMBERT:
+            out[name] = np.broadcast_to(_NOT_LAMBERT[name], (rows.size,) + c.shape[1:])
+        else:
+            out[name] = np.take(c, rows, axis=0)
+    return BSDFParams(**out)
 
 
 def _vertex_views(table, depth, n):
@@ -165,46 +182,48 @@ class Gathered:
     needs, gathered once (parameters, shading frame, incoming direction)."""
 
     def __init__(self, ctx, sub, j, rows, mode):
-        self.smooth, self.mode = ctx.smooth, mode
-        self.params = take_params(sub.params[j], rows)
+        self.smooth, self.mode, self.lambert = ctx.smooth, mode, ctx.prep.lambert_only
+        self.params = take_params(sub.params[j], rows, self.lambert)
         self.fs, self.ft, self.fn = (take_rows(sub.fs[j], rows), take_rows(sub.ft[j], rows),
                                      take_rows(sub.fn[j], rows))
-        self.wo, self.wo_l, self.ng = (take_rows(sub.wo[j], rows),
-                                       take_rows(sub.wo_local[j], rows),
-                                       take_rows(sub.ng[j], rows))
+        self.wo = take_rows(sub.wo[j], rows) if ctx.smooth else None
+        self.wo_l, self.ng = take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows)
 
     @staticmethod
     def at(ctx, sub, index, mode):
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`Subpath.flat` (each any vertex
         of any subpath), gathered once."""
-        return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index),
+        lambert = ctx.prep.lambert_only
+        return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index, lambert),
                            [take_rows(sub.flat(a), index) for a in ("fs", "ft", "fn")],
                            take_rows(sub.flat("wo"), index) if ctx.smooth else None,
                            take_rows(sub.flat("wo_local"), index),
-                           take_rows(sub.flat("ng"), index))
+                           take_rows(sub.flat("ng"), index), lambert)
 
     @staticmethod
-    def of(smooth, mode, params, frame, wo, wo_l, ng):
+    def of(smooth, mode, params, frame, wo, wo_l, ng, lambert=False):
         """Vertices from arrays already gathered: BSDF ``params``, shading ``frame`` (three
-        (m, 3) axes), ``wo``, ``wo_l`` (in the frame) and ``ng``."""
+        (m, 3) axes), ``wo`` (None unless ``smooth``), ``wo_l`` (in the frame) and ``ng``;
+        ``lambert`` as :func:`take_params` (their later gathers take no more than that)."""
         out = object.__new__(Gathered)
-        out.smooth, out.mode, out.params = smooth, mode, params
+        out.smooth, out.mode, out.params, out.lambert = smooth, mode, params, lambert
         out.fs, out.ft, out.fn = frame
         out.wo, out.wo_l, out.ng = wo, wo_l, ng
         return out
 
     def take(self, idx):
         """The rows ``idx`` of this gather (after shadow rays removed some)."""
-        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
+        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx, self.lambert),
                            [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
                            None if self.wo is None else take_rows(self.wo, idx),
-                           take_rows(self.wo_l, idx), take_rows(self.ng, idx))
+                           take_rows(self.wo_l, idx), take_rows(self.ng, idx), self.lambert)
 
     def for_densities(self, idx):
         """The rows ``idx`` for densities only: :meth:`pdf_toward`, :meth:`pdf_back` and
         ``ng`` (no frame: no :meth:`local` or :meth:`f`); fewer gathers than :meth:`take`."""
-        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
-                           [None] * 3, None, take_rows(self.wo_l, idx), take_rows(self.ng, idx))
+        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx, self.lambert),
+                           [None] * 3, None, take_rows(self.wo_l, idx), take_rows(self.ng, idx),
+                           self.lambert)
 
     def local(self, w):
         """World directions ``w (m, 3)`` in the vertices' shading frames."""

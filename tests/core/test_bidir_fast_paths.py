@@ -5,6 +5,9 @@
   image, bit for bit, as tables that carry every group in every batch (the general layout
   before), on a scene without any group and on one that uses three of them on different
   materials; and the tables hold exactly the groups the scene's materials use.
+- In a scene of plain diffuse materials (``PreparedScene.lambert_only``) the connections
+  gather no glossy parameters (alpha, IOR, tint) of their vertices. Property: the same image,
+  bit for bit, as the general gather, for light tracing and BDPT.
 - Light tracing connects its vertices to the pinhole with the occlusion query alone when no
   material is transparent. Property: the same image, bit for bit, as the transmittance walk
   (:func:`core.integrators.shadows.shadow_transmittance`) that a scene with transparent
@@ -110,3 +113,17 @@ def test_light_tracing_image_is_the_same_without_the_transmittance_walk(make_sce
     # The walk also traces a closest-hit ray per blocked connection, to find the blocker opaque.
     assert first.stats["rays"] < general.stats["rays"]
     assert np.isfinite(first.combined()).all() and first.combined().max() > 0
+
+
+@pytest.mark.parametrize("integrator", ["light", "bdpt"])
+def test_lambert_gathers_give_the_same_image_as_the_general_gather(integrator):
+    scene = _diffuse_scene()
+    settings = plain_settings(integrator=integrator, spp=2, seed=3, threads=1, max_bounces=4)
+    lean = render(scene, settings)
+    prep = lean.prepared
+    assert prep.lambert_only
+    prep.lambert_only = False  # gather every parameter column
+    general = render(scene, settings, prepared=prep)
+    np.testing.assert_array_equal(lean.combined(), general.combined())
+    np.testing.assert_array_equal(lean.variance(), general.variance())
+    assert lean.combined().max() > 0
