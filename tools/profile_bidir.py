@@ -14,6 +14,16 @@ Run it from a checkout's parent so that ``sampling_lab`` resolves to the tree to
 
 It imports the package by its absolute name, so the same file profiles an older worktree when
 ``PYTHONPATH`` names that one; stages that a tree lacks are skipped.
+
+``--units N`` measures the work itself instead: the integrator's ``render_samples`` called
+directly on this thread, ``N`` work units of ``--unit-paths`` paths (independent sampler,
+power light selection), CPU microseconds per sample (best of ``--repeats``), without the
+render loop, its threads or the film. With ``--cprofile K`` it then prints the ``K``
+functions of most own time in a ``cProfile`` of those units on a thread-CPU clock (other
+processes' load does not count; a profiler of the render would see only the render loop's
+thread)::
+
+    PYTHONPATH=/path/to/parent python tools/profile_bidir.py --units 4 --repeats 6
 """
 
 from __future__ import annotations
@@ -166,6 +176,53 @@ def speeds(scene, args, integrators=("path", "light", "bdpt")):
     return best, cpu
 
 
+def unit_costs(scene, args):
+    """Per integrator of ``args.integrators``: CPU microseconds per sample of ``args.units``
+    work units called directly (best of ``args.repeats``), and the ``cProfile`` statistics
+    of one more such run when ``args.cprofile`` asks for them."""
+    import cProfile
+
+    import numpy as np
+    from sampling_lab.core.film import PixelFilter
+    from sampling_lab.core.integrators import integrator_class
+    from sampling_lab.core.integrators.base import Counters
+    from sampling_lab.core.prepare import prepare
+    from sampling_lab.core.render import RenderSettings
+    from sampling_lab.core.sampling.samplers import make_sampler
+
+    w, h, n = args.width, args.height, args.unit_paths
+    out = {}
+    for name in args.integrators.split(","):
+        settings = RenderSettings(integrator=name, spp=4, threads=1, seed=0,
+                                  sampler="independent", light_selection="power",
+                                  **_bounces(RenderSettings, 8))
+        integ = integrator_class(name)(prepare(scene, "power"), settings)
+        sampler = make_sampler("independent", seed=0, spp=4, width=w)
+        pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
+
+        def run(units):
+            for u in range(units):
+                pixels = (np.arange(n) + u * n) % (w * h)
+                integ.render_samples(sampler.stream(pixels, np.full(n, u * n // (w * h))),
+                                     pixel_filter, Counters())
+
+        run(1)  # warm-up: per-thread buffers, first-call costs
+        best = float("inf")
+        for _ in range(args.repeats):
+            t0 = time.thread_time()
+            run(args.units)
+            best = min(best, 1e6 * (time.thread_time() - t0) / (args.units * n))
+        out[name] = best
+        print(f"{name:>5}: {best:.3f} CPU us per sample ({args.units} units of {n} paths, "
+              f"best of {args.repeats})")
+        if args.cprofile:
+            import pstats
+            profile = cProfile.Profile(time.thread_time)
+            profile.runcall(run, args.units)
+            pstats.Stats(profile).sort_stats("tottime").print_stats(args.cprofile)
+    return out
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=2)
@@ -176,7 +233,17 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--integrators", default="light,bdpt", help="profiled, comma-separated")
     parser.add_argument("--no-profile", action="store_true", help="speed figures only")
+    parser.add_argument("--units", type=int, default=0,
+                        help="CPU time per sample of this many work units called directly")
+    parser.add_argument("--unit-paths", type=int, default=8192, help="paths per unit")
+    parser.add_argument("--cprofile", type=int, default=0,
+                        help="with --units: print this many functions of a cProfile")
     args = parser.parse_args(argv)
+    if args.units:
+        print(f"load average at start: {os.getloadavg()}")
+        unit_costs(_scene(args), args)
+        print(f"load average at end: {os.getloadavg()}")
+        return
 
     from sampling_lab.core.render import RenderSettings, render
 

@@ -60,6 +60,7 @@ import numpy as np
 
 from ..lights.emission import EmitterPoints
 from .bidir import DIMS_CAMERA, DIMS_PER_CAMERA_VERTEX, Bidirectional
+from .common import take_rows
 from .connections import Fresh, connect_all, connect_emitter_to_camera
 
 
@@ -100,9 +101,11 @@ def _fresh_points(ctx, stream, C):
     if not rows:
         return None
     pts = ctx.emission.sample_points(np.concatenate(u_sel), np.concatenate(u_pos), ctx.counters)
+    zj, rows = np.concatenate(zj), np.concatenate(rows)
     got = np.nonzero(pts.index >= 0)[0]
-    return Fresh(np.concatenate(zj)[got], np.concatenate(rows)[got],
-                 EmitterPoints(*(a[got] for a in pts)))
+    if got.size == rows.size:  # every draw found an emitter (any scene with one)
+        return Fresh(zj, rows, pts)
+    return Fresh(zj[got], rows[got], EmitterPoints(*(take_rows(a, got) for a in pts)))
 
 
 # One work unit without a render loop (tests, one-off use); a render builds BDPT once.

@@ -227,10 +227,12 @@ def camera_splatter(ctx, out):
 
         def gather(seen):
             idx = ok[seen]
-            return Gathered.of(ctx.smooth, IMPORTANCE, take_params(params, idx),
-                               [take_rows(a, idx) for a in frame], take_rows(si.wo, idx),
+            lambert = ctx.prep.lambert_only
+            return Gathered.of(ctx.smooth, IMPORTANCE, take_params(params, idx, lambert),
+                               [take_rows(a, idx) for a in frame],
+                               take_rows(si.wo, idx) if ctx.smooth else None,
                                take_rows(wo_l, idx), take_rows(si.ng, idx),
-                               None if si.nm is None else take_rows(si.nm, idx))
+                               None if si.nm is None else take_rows(si.nm, idx), lambert)
 
         splat_vertices(ctx, j + 1, rows[ok], take_rows(si.p, ok), si.prim[ok], gather,
                        lambda seen: take_rows(beta, ok[seen]), out)
@@ -267,8 +269,10 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
         take_rows(y, cand), take_rows(yv.ng, cand), prim[cand], take_rows(w, cand), dist[cand],
         np.zeros((cand.size, 3)))
     ctx.counters.rays += cand.size
-    if ctx.weighs:
-        # BDPT's MIS counts transparent passes as vertices: its connections stop at them.
+    if ctx.weighs or ctx.prep.material_transparency is None:
+        # BDPT's MIS counts transparent passes as vertices: its connections stop at them. In a
+        # scene without transparent surfaces light tracing's transmittance is 0 or 1: the
+        # occlusion query alone gives the same splats.
         through = np.nonzero(~ctx.prep.accel.occluded(o, dirs, tmax, VIS_CAMERA))[0]
         keep = cand[through]
         value = take_rows(value, keep)

@@ -52,11 +52,9 @@ def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
     ratio[s] = np.ones(m)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for sp in range(s - 1, -1, -1):
-            num, den = p_camera[sp], p_light[sp]
-            ratio[sp] = np.where(den > 0, ratio[sp + 1] * num / np.where(den > 0, den, 1.0), 0.0)
+            ratio[sp] = _step(ratio[sp + 1], p_camera[sp], p_light[sp])
         for sp in range(s + 1, k + 1):
-            num, den = p_light[sp - 1], p_camera[sp - 1]
-            ratio[sp] = np.where(den > 0, ratio[sp - 1] * num / np.where(den > 0, den, 1.0), 0.0)
+            ratio[sp] = _step(ratio[sp - 1], p_light[sp - 1], p_camera[sp - 1])
     terms, valid = [], []
     for sp in range(k + 1):
         if sp == 0:
@@ -78,6 +76,12 @@ def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
     return np.where(np.isfinite(w), w, 0.0)
 
 
+def _step(ratio, num, den):
+    """``ratio * num / den`` where ``den > 0``, else zero (one step of the ratio recurrence;
+    the same products and quotients as ``np.where``, in two array operations)."""
+    return np.divide(ratio * num, den, out=np.zeros(den.shape), where=den > 0)
+
+
 def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_delta):
     """MIS weight of emitters found by the camera subpath's segment from ``z_{j-1}``."""
     em = ctx.emission
@@ -86,7 +90,7 @@ def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, p
     infinite = em.is_infinite(index)
     p_light = [None] * (k + 1)
     p_camera = [None] * (k + 1)
-    delta = [np.zeros(m, bool) for _ in range(k + 1)]
+    delta = [np.zeros(m, bool)] * (k + 1)  # read only; entries are replaced, not written
     p_light[0] = em.pdf_origin(index, w_travel)
     cos_l = np.where(infinite, 1.0, np.abs(dot(normal, w_travel)))
     p_camera[0] = np.where(prev_delta, 1.0, to_area(pdf_prev, cos_l, t))
@@ -137,7 +141,7 @@ def connection_weight(mis, L, C, s, t, rows, near):
     m = rows.size
     p_light = [None] * (k + 1)
     p_camera = [None] * (k + 1)
-    delta = [np.zeros(m, bool) for _ in range(k + 1)]
+    delta = [np.zeros(m, bool)] * (k + 1)  # read only; entries are replaced, not written
     # Light side: stored densities up to y, then y -> z, then z -> z_{t-2}.
     p_light[0] = near.light_0
     for i in range(1, s):

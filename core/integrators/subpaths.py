@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..materials.bsdf import (IMPORTANCE, BSDFParams, BSDFSample, eval_bsdf, pdf_bsdf,
-                              sample_bsdf)
+from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSample, eval_bsdf,
+                              pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from .adjoint_normals import VertexNormals
 from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
@@ -28,25 +28,55 @@ def dot(a, b):
 
 
 def _empty_params(n):
-    # With every optional column group (coat, sheen, anisotropy; neutral), so that views of
-    # one table can take rows that use them.
+    # The base columns only: an optional group (coat, sheen, anisotropy, bump) is added when a
+    # stored vertex has it (Subpath.store_params), so that a scene whose materials use none
+    # gathers and evaluates none.
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
-                      np.zeros((n, 3))).with_all_groups()
+                      np.zeros((n, 3)))
 
 
-def take_params(params, rows):
+def put_rows(dst, rows, src):
+    """``dst[rows] = src`` for a C-contiguous ``dst (n,)`` or ``(n, c)``; ``src (k,)`` or
+    ``(k, c)`` (or a scalar). Rows of ``(n, c)`` arrays are scattered as single ``c``-element
+    items (``np.put`` on a byte-row view): about 3 x faster than ``dst[rows] = src``, which
+    scatters element by element; the stored values are the same."""
+    if dst.ndim == 1:
+        dst[rows] = src
+        return
+    item = np.dtype((np.void, dst.strides[0]))
+    shape = (rows.size,) + dst.shape[1:]
+    src = np.ascontiguousarray(src if np.shape(src) == shape else np.broadcast_to(src, shape),
+                               dst.dtype)
+    np.put(dst.view(item).reshape(-1), rows, src.view(item).reshape(-1))
+
+
+# Columns a diffuse BSDF never reads, and the constant stand-ins a Lambert gather gives them.
+_NOT_LAMBERT = {"alpha": 1.0, "eta": 1.0, "tint": 0.0}
+
+
+def take_params(params, rows, lambert=False):
     """The rows ``rows (k,)`` of ``params`` (as :meth:`BSDFParams.take`, gathered by
-    ``np.take``: several times faster for the ``(n, 3)`` columns)."""
-    return params.map_columns(lambda c: take_rows(c, rows) if c.ndim == 2 else np.take(c, rows))
+    ``np.take``: several times faster for the ``(n, 3)`` columns).
+
+    ``lambert``: every row is a plain diffuse BSDF (``PreparedScene.lambert_only``, as the
+    path tracer's Lambert shading assumes): ``alpha``, ``eta`` and ``tint``, which Lambert's
+    eval and pdf never read, are not gathered but read-only constant views."""
+    # Straight over the instance's columns: BSDFParams.map_columns walks every field by name,
+    # a per-call cost that showed in light tracing (several calls per vertex).
+    out = {}
+    for name, c in vars(params).items():
+        if c is None:
+            out[name] = None
+        elif lambert and name in _NOT_LAMBERT:
+            out[name] = np.broadcast_to(_NOT_LAMBERT[name], (rows.size,) + c.shape[1:])
+        else:
+            out[name] = np.take(c, rows, axis=0)
+    return BSDFParams(**out)
 
 
-def _slice_params(params, part):
-    """Rows ``part`` (a slice) of ``params``, as views."""
-    return params.take(part)
-
-
-def _scatter_params(dst, rows, src):
-    dst.scatter(rows, src)
+def _vertex_views(table, depth, n):
+    """Per vertex ``j``, rows ``j * n .. (j + 1) * n`` of ``table`` as views."""
+    return [table.take(slice(j * n, (j + 1) * n)) for j in range(depth)]
 
 
 @dataclass
@@ -89,10 +119,12 @@ class Subpath:
     def empty(depth, n):
         """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
         views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
-        is row ``j * n + i``, as in :meth:`flat`)."""
+        is row ``j * n + i``, as in :meth:`flat`), with the base columns only: a group of
+        optional columns (coat, sheen, ...) is added by :meth:`store_params` when a vertex
+        has it."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
         table = _empty_params(depth * n)
-        params = [_slice_params(table, slice(j * n, (j + 1) * n)) for j in range(depth)]
+        params = _vertex_views(table, depth, n)
         return Subpath(np.zeros((depth, n), bool), z3(), z3(), np.zeros((depth, n), np.int64),
                        z3(), z3(), z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
@@ -112,8 +144,35 @@ class Subpath:
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
                               (table.eta, 1.0), (table.tint, 0.0)):
             column.fill(value)
-        table.fill_neutral()
+        if any(table.has(group) for group in OPTIONAL_GROUPS):
+            # Back to the base columns, as empty() makes them: the next batch adds what it uses.
+            self._set_table(BSDFParams(table.kind, table.color, table.alpha, table.eta,
+                                       table.tint))
         return self
+
+    def store_params(self, j, rows, params):
+        """Store BSDF ``params`` as vertex ``j`` of the subpaths ``rows (k,)``. An optional
+        column group of ``params`` that the table lacks is added first (neutral elsewhere);
+        rows without a group the table has get its neutral values (as
+        :meth:`BSDFParams.scatter`)."""
+        table = self.all_params
+        missing = [g for g in OPTIONAL_GROUPS if params.has(g) and not table.has(g)]
+        if missing:
+            for group in missing:
+                table = table.with_neutral(group)
+            self._set_table(table)
+        view = self.params[j]
+        for group in OPTIONAL_GROUPS:
+            if view.has(group) and not params.has(group):
+                params = params.with_neutral(group)
+        for dst, src in zip(view.columns(), params.columns()):
+            if dst is not None:
+                put_rows(dst, rows, src)
+
+    def _set_table(self, table):
+        depth, n = self.valid.shape
+        self.all_params = table
+        self.params = _vertex_views(table, depth, n)
 
     def flat(self, name):
         """Column ``name`` with vertices and subpaths in one axis: ``(depth * n, ...)``, row
@@ -127,13 +186,12 @@ class Gathered:
     needs, gathered once (parameters, shading frame, incoming direction)."""
 
     def __init__(self, ctx, sub, j, rows, mode):
-        self.smooth, self.mode = ctx.smooth, mode
-        self.params = take_params(sub.params[j], rows)
+        self.smooth, self.mode, self.lambert = ctx.smooth, mode, ctx.prep.lambert_only
+        self.params = take_params(sub.params[j], rows, self.lambert)
         self.fs, self.ft, self.fn = (take_rows(sub.fs[j], rows), take_rows(sub.ft[j], rows),
                                      take_rows(sub.fn[j], rows))
-        self.wo, self.wo_l, self.ng = (take_rows(sub.wo[j], rows),
-                                       take_rows(sub.wo_local[j], rows),
-                                       take_rows(sub.ng[j], rows))
+        self.wo = take_rows(sub.wo[j], rows) if ctx.smooth else None
+        self.wo_l, self.ng = take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows)
         self.nm = take_rows(sub.nm[j], rows) if self.smooth else None
         self.normals = None
 
@@ -141,19 +199,22 @@ class Gathered:
     def at(ctx, sub, index, mode):
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`Subpath.flat` (each any vertex
         of any subpath), gathered once."""
-        return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index),
+        lambert = ctx.prep.lambert_only
+        return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index, lambert),
                            [take_rows(sub.flat(a), index) for a in ("fs", "ft", "fn")],
                            take_rows(sub.flat("wo"), index) if ctx.smooth else None,
                            take_rows(sub.flat("wo_local"), index),
                            take_rows(sub.flat("ng"), index),
-                           take_rows(sub.flat("nm"), index) if ctx.smooth else None)
+                           take_rows(sub.flat("nm"), index) if ctx.smooth else None, lambert)
 
     @staticmethod
-    def of(smooth, mode, params, frame, wo, wo_l, ng, nm=None):
+    def of(smooth, mode, params, frame, wo, wo_l, ng, nm=None, lambert=False):
         """Vertices from arrays already gathered: BSDF ``params``, shading ``frame`` (three
-        (m, 3) axes), ``wo``, ``wo_l`` (in the frame), ``ng`` and (smooth shading) ``nm``."""
+        (m, 3) axes), ``wo`` (None unless ``smooth``), ``wo_l`` (in the frame), ``ng`` and
+        (smooth shading) ``nm``; ``lambert`` as :func:`take_params` (their later gathers take
+        no more than that)."""
         out = object.__new__(Gathered)
-        out.smooth, out.mode, out.params = smooth, mode, params
+        out.smooth, out.mode, out.params, out.lambert = smooth, mode, params, lambert
         out.fs, out.ft, out.fn = frame
         out.wo, out.wo_l, out.ng, out.nm = wo, wo_l, ng, nm
         out.normals = None
@@ -161,11 +222,11 @@ class Gathered:
 
     def take(self, idx):
         """The rows ``idx`` of this gather (after shadow rays removed some)."""
-        out = Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
+        out = Gathered.of(self.smooth, self.mode, take_params(self.params, idx, self.lambert),
                           [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
                           None if self.wo is None else take_rows(self.wo, idx),
                           take_rows(self.wo_l, idx), take_rows(self.ng, idx),
-                          None if self.nm is None else take_rows(self.nm, idx))
+                          None if self.nm is None else take_rows(self.nm, idx), self.lambert)
         if self.normals is not None:
             out.normals = self.normals.take(idx)
         return out
@@ -176,8 +237,9 @@ class Gathered:
         With smooth shading the densities need the frames (:mod:`.adjoint_normals`)."""
         if self.smooth:
             return self.take(idx)
-        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx),
-                           [None] * 3, None, take_rows(self.wo_l, idx), take_rows(self.ng, idx))
+        return Gathered.of(self.smooth, self.mode, take_params(self.params, idx, self.lambert),
+                           [None] * 3, None, take_rows(self.wo_l, idx), take_rows(self.ng, idx),
+                           None, self.lambert)
 
     def _adjoint(self):
         """The rows' :class:`.adjoint_normals.VertexNormals` (smooth shading), made once."""
@@ -377,16 +439,14 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     cos_here = np.abs(dot(si.ng, si.wo))
     fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
                    to_area(pdf_prev[live], cos_here, dist))
-    # Stores go through the vertex's own rows (sub.x[j][r]): faster than sub.x[j, r].
+    # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
     for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("fs", frame[0]),
                         ("ft", frame[1]), ("fn", frame[2]), ("wo", si.wo), ("wo_local", wo_l),
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
-        getattr(sub, name)[j][r] = value
+        put_rows(getattr(sub, name)[j], r, value)
     if si.nm is not None:
         sub.nm[j][r] = si.nm
-    if sub.params[j] is None:
-        sub.params[j] = _empty_params(sub.valid.shape[1])
-    _scatter_params(sub.params[j], r, params)
+    sub.store_params(j, r, params)
     return dist

@@ -106,7 +106,7 @@ __all__ = [
     "KIND_LAYERED_MS", "KIND_DIELECTRIC_MS",
     "KINDS", "KIND_NAMES",
     "RADIANCE", "IMPORTANCE", "TRANSPORT_MODES", "LOBE_REFLECT", "LOBE_TRANSMIT", "LOBE_DIFFUSE",
-    "LOBE_GLOSSY", "LOBE_SINGULAR", "BSDFParams", "BSDFSample", "make_params",
+    "LOBE_GLOSSY", "LOBE_SINGULAR", "BSDFParams", "OPTIONAL_GROUPS", "BSDFSample", "make_params",
     "eval_bsdf", "pdf_bsdf", "sample_bsdf", "is_delta_only",
 ]
 
@@ -419,6 +419,8 @@ _GROUPS = {
     "bump": (("bump_normal", 0.0, (3,)),),
     "base": (("base_normal", 0.0, (3,)),),
 }
+# Their names: what BSDFParams.has / with_neutral take.
+OPTIONAL_GROUPS = tuple(_GROUPS)
 
 
 class BSDFSample(NamedTuple):

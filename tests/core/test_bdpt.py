@@ -387,8 +387,14 @@ def test_subpath_reset_restores_an_empty_subpath():
                  "wo_local", "beta", "pdf_fwd", "pdf_rev", "d_prev", "cos_prev"):
         a = getattr(used, name)
         a[...] = rng.random(a.shape) > 0.5 if a.dtype == bool else rng.random(a.shape) + 2
+    # A stored vertex with a coat and a sheen adds those column groups to the table.
+    from sampling_lab.core.materials.bsdf import make_params
+    used.store_params(1, np.array([2, 5]), make_params(0, k=2, coat_weight=0.5,
+                                                       sheen_weight=0.3))
+    assert used.all_params.has("coat") and used.params[3].has("sheen")
     for column in vars(used.all_params).values():
-        column[...] = 3
+        if column is not None:
+            column[...] = 3
     used.reset()
     for name, a in vars(fresh).items():
         if name == "params":

@@ -1,0 +1,129 @@
+"""The fast paths of light tracing and BDPT (issue 12) against the general code they skip.
+
+- BDPT's subpath tables carry only the optional BSDF column groups (coat, sheen, anisotropy,
+  bump) that the stored vertices use, so a diffuse scene pays for none. Property: the same
+  image, bit for bit, as tables that carry every group in every batch (the general layout
+  before), on a scene without any group and on one that uses three of them on different
+  materials; and the tables hold exactly the groups the scene's materials use.
+- In a scene of plain diffuse materials (``PreparedScene.lambert_only``) the connections
+  gather no glossy parameters (alpha, IOR, tint) of their vertices. Property: the same image,
+  bit for bit, as the general gather, for light tracing and BDPT.
+- Light tracing connects its vertices to the pinhole with the occlusion query alone when no
+  material is transparent. Property: the same image, bit for bit, as the transmittance walk
+  (:func:`core.integrators.shadows.shadow_transmittance`) that a scene with transparent
+  materials takes.
+
+Smallest error detected: any difference at all (the passes are compared for equality).
+"""
+
+import numpy as np
+import pytest
+
+from sampling_lab.core import scenes
+from sampling_lab.core.film import PixelFilter
+from sampling_lab.core.integrators import subpaths
+from sampling_lab.core.integrators.base import Counters
+from sampling_lab.core.integrators.bdpt import BDPT
+from sampling_lab.core.prepare import prepare
+from sampling_lab.core.render import render
+from sampling_lab.core.sampling.samplers import make_sampler
+from tests.helpers import plain_settings
+
+
+def _diffuse_scene():
+    return scenes.cornell_box(16, 16, "mesh")
+
+
+def _layered_scene():
+    """The Cornell box with a rough anisotropic metal ball, a coated white and a sheened red
+    wall: three optional groups, on different rows of every subpath."""
+    scene = scenes.cornell_sphere(16, 16, ball="mirror", light="area", roughness=0.3)
+    mats = scene.materials
+    mats.coat_weight[0] = 0.5
+    mats.sheen_weight[1] = 0.8
+    mats.aniso_scale[3] = 2.0
+    return scene
+
+
+def _passes(scene):
+    settings = plain_settings(integrator="bdpt", spp=2, seed=3, threads=1, max_bounces=4,
+                              strategy_views=True, strategy_max_length=3)
+    result = render(scene, settings)
+    layers = result.layers()
+    return [result.combined(), result.variance(), *[layers[n] for n in result.layer_names]]
+
+
+def _with_every_group(monkeypatch):
+    """Subpath tables as before: every optional group present (neutral) in every batch."""
+    empty, reset = subpaths._empty_params, subpaths.Subpath.reset
+
+    def reset_keeping_every_group(self):
+        out = reset(self)
+        out._set_table(out.all_params.with_all_groups())
+        return out
+
+    monkeypatch.setattr(subpaths, "_empty_params", lambda n: empty(n).with_all_groups())
+    monkeypatch.setattr(subpaths.Subpath, "reset", reset_keeping_every_group)
+
+
+@pytest.mark.parametrize("make_scene", [_diffuse_scene, _layered_scene],
+                         ids=["diffuse", "coat sheen aniso"])
+def test_bdpt_image_is_the_same_with_only_the_groups_the_scene_uses(make_scene, monkeypatch):
+    lean = _passes(make_scene())
+    with monkeypatch.context() as m:
+        _with_every_group(m)
+        full = _passes(make_scene())
+    assert len(lean) == len(full) > 2
+    for a, b in zip(lean, full):
+        np.testing.assert_array_equal(a, b)
+    assert np.isfinite(lean[0]).all() and lean[0].max() > 0
+
+
+@pytest.mark.parametrize("make_scene, expected", [(_diffuse_scene, set()),
+                                                  (_layered_scene, {"coat", "sheen", "aniso"})],
+                         ids=["diffuse", "coat sheen aniso"])
+def test_subpath_tables_hold_the_groups_the_materials_use(make_scene, expected):
+    class Probe(BDPT):
+        def connect(self, ctx, stream, C, L, out):
+            self.seen = {g for g in ("coat", "sheen", "aniso", "bump")
+                         if C.all_params.has(g) or L.all_params.has(g)}
+
+    scene = make_scene()
+    settings = plain_settings(integrator="bdpt", spp=1, max_bounces=4)
+    integ = Probe(prepare(scene), settings)
+    sampler = make_sampler("independent", seed=1, spp=1, width=16)
+    integ.render_samples(sampler.stream(np.arange(256), np.zeros(256, np.int64)),
+                         PixelFilter(settings.filter_type, settings.filter_width), Counters())
+    assert integ.seen == expected
+
+
+@pytest.mark.parametrize("make_scene", [_diffuse_scene, _layered_scene],
+                         ids=["diffuse", "coat sheen aniso"])
+def test_light_tracing_image_is_the_same_without_the_transmittance_walk(make_scene):
+    scene = make_scene()
+    settings = plain_settings(integrator="light", spp=2, seed=3, threads=1, max_bounces=4)
+    first = render(scene, settings)
+    prep = first.prepared
+    assert prep.material_transparency is None  # the fast path was taken
+    # Every material opaque, but through the general walk (zero transparency, not None).
+    prep.material_transparency = np.zeros((len(scene.materials.kind), 3))
+    general = render(scene, settings, prepared=prep)
+    np.testing.assert_array_equal(first.combined(), general.combined())
+    np.testing.assert_array_equal(first.variance(), general.variance())
+    # The walk also traces a closest-hit ray per blocked connection, to find the blocker opaque.
+    assert first.stats["rays"] < general.stats["rays"]
+    assert np.isfinite(first.combined()).all() and first.combined().max() > 0
+
+
+@pytest.mark.parametrize("integrator", ["light", "bdpt"])
+def test_lambert_gathers_give_the_same_image_as_the_general_gather(integrator):
+    scene = _diffuse_scene()
+    settings = plain_settings(integrator=integrator, spp=2, seed=3, threads=1, max_bounces=4)
+    lean = render(scene, settings)
+    prep = lean.prepared
+    assert prep.lambert_only
+    prep.lambert_only = False  # gather every parameter column
+    general = render(scene, settings, prepared=prep)
+    np.testing.assert_array_equal(lean.combined(), general.combined())
+    np.testing.assert_array_equal(lean.variance(), general.variance())
+    assert lean.combined().max() > 0
