@@ -1,36 +1,41 @@
-"""Shading normals on light paths: the adjoint of the camera side's choice of normal.
+"""Shading normals on subpaths: the camera side's BSDF (Cycles' rule) and its adjoint.
 
-The camera side (:func:`.common.shading_normals`) shades a hit with its perturbed normal
-``nm`` (interpolated corner normals, Normal Map, Bump) unless the direction toward the camera
-``wc`` sees ``nm`` and the geometric normal ``ng`` from different sides; then with ``ng``
-(:func:`.common.view_fallback`). The scene's BSDF is therefore
+The camera side (the path tracer, BDPT's camera subpaths and the camera ends of its
+connections) shades a smooth hit in the frame of its perturbed normal ``nm`` (interpolated
+corner normals, Normal Map, Bump; :attr:`.common.Interaction.nm`), whatever the direction
+toward the camera ``wc``; where ``wc`` sees ``nm`` and the geometric normal ``ng`` from
+different sides, the row is replaced by Cycles' lower-view variant
+(:func:`..materials.lower_view.lower_view_params`: Lambert around ``nm``, scaled by kind).
+The scene's BSDF is therefore
 
-    f(wc, wl) = f_N(wc)(wc, wl),     N(wc) = nm if (wc . nm) (wc . ng) > 0 else ng,
+    f(wc, wl) = f_nm(wc, wl)            where (wc . nm) (wc . ng) > 0,
+                f_nm^below(wc', wl)     else (wc' = wc mirrored through nm's plane),
 
-with a normal that depends on the camera-side direction. A light path arrives from ``wl`` and
-does not know ``wc`` before it samples it, so it cannot choose the frame first; choosing it by
-``wl`` (as light paths did) is another BSDF: on a plane whose map tilts 60 degrees, light
-tracing left black the pixels that see the plane below its mapped normal, which the path
-tracer lights through ``ng``, and a sun below the mapped normal lit the pixels the path tracer
-leaves black (``tests/core/test_adjoint_normals.py``). So light paths (light tracing, BDPT's
-light subpaths):
+times the geometric-side rule, with a variant that depends on the camera-side direction.
+:meth:`VertexNormals.camera_side`, :meth:`~VertexNormals.f_radiance`,
+:meth:`~VertexNormals.sample_radiance` and :meth:`~VertexNormals.pdf_camera` are that BSDF.
 
-- evaluate ``f`` in the frame of ``N(wc)``, in importance mode, times Veach's shading-normal
-  factor ``|wl . N| |wc . ng| / (|wl . ng| |wc . N|)`` with that ``N`` (thesis section 5.3;
+A light path (light tracing, BDPT's light subpaths, photons) arrives from ``wl`` and samples
+``wc``; it uses the adjoint:
+
+- evaluation in ``nm``'s frame with the variant of ``wc``, in importance mode, times Veach's
+  shading-normal factor ``|wl . nm| |wc . ng| / (|wl . ng| |wc . nm|)`` (thesis section 5.3;
   pbrt-v4's ``CorrectShadingNormal``) and the geometric-side rule;
-- sample ``wc`` from the mixture ``(1 - q) p_nm(wl -> wc) + q p_ng(wl -> wc)`` of the BSDF
-  sampled in either frame, ``q = min(1/2, |nm x ng|)`` (zero where the two agree): the
-  support of ``f(., wl)`` lies in the union of the two lobes. A non-delta sample weighs
-  ``f / mixture``; a delta sample counts only where the frame it was sampled in is ``N(wc)``,
-  divided by the chance of that frame;
-- give BDPT's MIS the mixture as the light side's density and ``p_N(wc)(wc -> wl)`` as the
-  camera side's, at light and camera vertices alike.
+- sampling ``wc`` from the mixture ``(1 - q) p_nm(wl -> wc) + q p_ng(wl -> wc)`` of the BSDF
+  sampled in either frame, ``q = min(1/2, |nm x ng|)`` (zero where the two agree): the ``ng``
+  proposal covers the wedge below ``nm`` where the lower-view variant (a cosine lobe around
+  ``ng`` once Veach's factor is in) is non-zero. A non-delta sample weighs ``f / mixture``; a
+  delta sample counts only where drawn in ``nm``'s frame and the camera side keeps that delta
+  lobe (not where ``wc`` is below ``nm``, except a Transparent BSDF), divided by ``1 - q``;
+- BDPT's MIS reads the mixture as the light side's density and the camera side's pdf (the
+  lower-view pdf where ``wc`` is below ``nm``) as the camera side's, at light and camera
+  vertices alike.
 
 Both frames are rebuilt from the stored frame of a vertex (its ``s`` axis is the tangent of
 anisotropic rows; exact for the stored normal, the other frame's tangent is that ``s``
 projected). The path tracer's bending of glossy normals for valid reflections
-(:func:`.common.valid_reflection_normals`) is no part of either subpath (see
-``docs/INTEGRATORS.md``).
+(:func:`.common.valid_reflection_normals`) and the unbent base normal of bent layered rows are
+no part of either subpath (see ``docs/INTEGRATORS.md``).
 """
 
 from __future__ import annotations
