@@ -76,7 +76,9 @@ def test_tilted_map_under_a_sun_follows_cycles_rule_in_every_integrator(toward_s
                                 what=f"{integrator} vs the exact plane")
 
 
-DETECT = {"light": (0.09, 0.14), "bdpt": (0.09, 0.14)}
+# Measured: light tracing detects 2.8 % image-mean and 9.0 % block errors, BDPT (whose MIS
+# leans on its camera-side strategy here) 0.3 % and 0.8 %.
+DETECT = {"light": (0.03, 0.10), "bdpt": (0.005, 0.01)}
 
 
 def random_dirs(rng, k, z_min=-1.0):
