@@ -27,11 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import RenderRefused
+from ..integrators.adjoint_normals import VertexNormals
 from ..integrators.base import Counters
 from ..integrators.common import (intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
                                   with_bump_normals)
-from ..integrators.adjoint_normals import VertexNormals
 from ..materials.bsdf import IMPORTANCE, BSDFSample, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..sampling.samplers import make_sampler
