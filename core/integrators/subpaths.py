@@ -18,9 +18,9 @@ from ..materials.bsdf import (IMPORTANCE, BSDFParams, BSDFSample, eval_bsdf, pdf
                               sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from .adjoint_normals import VertexNormals
-from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
-                     next_1d_if, ray_class, roulette_at, russian_roulette, shading_tangents,
-                     surface_hits, surface_interaction, take_rows, with_bump_normals)
+from .common import (finite_rows, intersect_by_class, max_component, next_1d_if, ray_class,
+                     roulette_at, russian_roulette, shading_tangents, surface_hits,
+                     surface_interaction, take_rows, with_bump_normals)
 
 
 def dot(a, b):
@@ -223,16 +223,6 @@ class Gathered:
                 return self._adjoint().pdf_camera(w, self.wo)
             return self._adjoint().pdf_light(w, self.wo)
         return pdf_bsdf(self.params, w_l, self.wo_l)
-
-
-def smooth_factor(ng, ns, wo, wi, wo_l, wi_l, mode):
-    transmit = wo_l[:, 2] * wi_l[:, 2] < 0
-    ok = geometric_side_valid(ng, wo, wi, transmit).astype(np.float64)
-    if mode == IMPORTANCE:
-        num = np.abs(dot(wo, ns)) * np.abs(dot(wi, ng))
-        den = np.abs(dot(wo, ng)) * np.abs(dot(wi, ns))
-        ok *= np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-    return ok
 
 
 def to_area(pdf_sa, cos_at, dist):
