@@ -138,11 +138,14 @@ def tilted_box(size=24):
 
 
 def test_light_tracing_and_bdpt_agree_with_path_tracing_with_the_correction():
-    """A Cornell box whose every surface has a normal map tilted 40 degrees, corrected: light
-    paths choose the shading normal by the direction toward the camera, as camera paths do
-    (:mod:`core.integrators.adjoint_normals`), and apply the term to the light-side direction,
-    so the three estimate one image. Choosing the normal by the light's direction instead made
-    4 of 30 blocks 16-24 % brighter in light tracing (measured; this check failed then)."""
+    """A Cornell box whose every surface has a normal map tilted 40 degrees, corrected: the
+    camera side shades in the mapped normal's frame by Cycles' rule where the view falls below
+    it, light paths use the exact adjoint of that BSDF (:mod:`core.integrators.adjoint_normals`)
+    and apply the term to the light-side direction, so the three estimate one image. Earlier
+    rules each failed this check: choosing the normal by the light's direction made 4 of 30
+    blocks 16-24 % brighter in light tracing; the adjoint of the facet fallback (while the
+    path tracer already kept the mapped normal) made 4 of 30 blocks 4-16 % brighter
+    (measured)."""
     from tests.core.test_bdpt import _replicates
     from tests.helpers import assert_replicates_agree
 
