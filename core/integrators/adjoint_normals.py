@@ -1,36 +1,41 @@
-"""Shading normals on light paths: the adjoint of the camera side's choice of normal.
+"""Shading normals on subpaths: the camera side's BSDF (Cycles' rule) and its adjoint.
 
-The camera side (:func:`.common.shading_normals`) shades a hit with its perturbed normal
-``nm`` (interpolated corner normals, Normal Map, Bump) unless the direction toward the camera
-``wc`` sees ``nm`` and the geometric normal ``ng`` from different sides; then with ``ng``
-(:func:`.common.view_fallback`). The scene's BSDF is therefore
+The camera side (the path tracer, BDPT's camera subpaths and the camera ends of its
+connections) shades a smooth hit in the frame of its perturbed normal ``nm`` (interpolated
+corner normals, Normal Map, Bump; :attr:`.common.Interaction.nm`), whatever the direction
+toward the camera ``wc``; where ``wc`` sees ``nm`` and the geometric normal ``ng`` from
+different sides, the row is replaced by Cycles' lower-view variant
+(:func:`..materials.lower_view.lower_view_params`: Lambert around ``nm``, scaled by kind).
+The scene's BSDF is therefore
 
-    f(wc, wl) = f_N(wc)(wc, wl),     N(wc) = nm if (wc . nm) (wc . ng) > 0 else ng,
+    f(wc, wl) = f_nm(wc, wl)            where (wc . nm) (wc . ng) > 0,
+                f_nm^below(wc', wl)     else (wc' = wc mirrored through nm's plane),
 
-with a normal that depends on the camera-side direction. A light path arrives from ``wl`` and
-does not know ``wc`` before it samples it, so it cannot choose the frame first; choosing it by
-``wl`` (as light paths did) is another BSDF: on a plane whose map tilts 60 degrees, light
-tracing left black the pixels that see the plane below its mapped normal, which the path
-tracer lights through ``ng``, and a sun below the mapped normal lit the pixels the path tracer
-leaves black (``tests/core/test_adjoint_normals.py``). So light paths (light tracing, BDPT's
-light subpaths):
+times the geometric-side rule, with a variant that depends on the camera-side direction.
+:meth:`VertexNormals.camera_side`, :meth:`~VertexNormals.f_radiance`,
+:meth:`~VertexNormals.sample_radiance` and :meth:`~VertexNormals.pdf_camera` are that BSDF.
 
-- evaluate ``f`` in the frame of ``N(wc)``, in importance mode, times Veach's shading-normal
-  factor ``|wl . N| |wc . ng| / (|wl . ng| |wc . N|)`` with that ``N`` (thesis section 5.3;
+A light path (light tracing, BDPT's light subpaths, photons) arrives from ``wl`` and samples
+``wc``; it uses the adjoint:
+
+- evaluation in ``nm``'s frame with the variant of ``wc``, in importance mode, times Veach's
+  shading-normal factor ``|wl . nm| |wc . ng| / (|wl . ng| |wc . nm|)`` (thesis section 5.3;
   pbrt-v4's ``CorrectShadingNormal``) and the geometric-side rule;
-- sample ``wc`` from the mixture ``(1 - q) p_nm(wl -> wc) + q p_ng(wl -> wc)`` of the BSDF
-  sampled in either frame, ``q = min(1/2, |nm x ng|)`` (zero where the two agree): the
-  support of ``f(., wl)`` lies in the union of the two lobes. A non-delta sample weighs
-  ``f / mixture``; a delta sample counts only where the frame it was sampled in is ``N(wc)``,
-  divided by the chance of that frame;
-- give BDPT's MIS the mixture as the light side's density and ``p_N(wc)(wc -> wl)`` as the
-  camera side's, at light and camera vertices alike.
+- sampling ``wc`` from the mixture ``(1 - q) p_nm(wl -> wc) + q p_ng(wl -> wc)`` of the BSDF
+  sampled in either frame, ``q = min(1/2, |nm x ng|)`` (zero where the two agree): the ``ng``
+  proposal covers the wedge below ``nm`` where the lower-view variant (a cosine lobe around
+  ``ng`` once Veach's factor is in) is non-zero. A non-delta sample weighs ``f / mixture``; a
+  delta sample counts only where drawn in ``nm``'s frame and the camera side keeps that delta
+  lobe (not where ``wc`` is below ``nm``, except a Transparent BSDF), divided by ``1 - q``;
+- BDPT's MIS reads the mixture as the light side's density and the camera side's pdf (the
+  lower-view pdf where ``wc`` is below ``nm``) as the camera side's, at light and camera
+  vertices alike.
 
 Both frames are rebuilt from the stored frame of a vertex (its ``s`` axis is the tangent of
 anisotropic rows; exact for the stored normal, the other frame's tangent is that ``s``
 projected). The path tracer's bending of glossy normals for valid reflections
-(:func:`.common.valid_reflection_normals`) is no part of either subpath (see
-``docs/INTEGRATORS.md``).
+(:func:`.common.valid_reflection_normals`) and the unbent base normal of bent layered rows are
+no part of either subpath (see ``docs/INTEGRATORS.md``).
 """
 
 from __future__ import annotations
@@ -39,8 +44,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..materials.bsdf import IMPORTANCE, eval_bsdf, pdf_bsdf, sample_bsdf
+from ..materials.bsdf import IMPORTANCE, RADIANCE, eval_bsdf, pdf_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
+from ..materials.lower_view import lower_view_params, shaded_below, view_below
 from ..sampling.warps import remap_after_choice
 from .common import geometric_side_valid
 
@@ -111,26 +117,60 @@ class VertexNormals:
         params = self.params if bump is None else replace(self.params, bump_normal=bump)
         return frame, params
 
-    def camera_normal_is_nm(self, wc):
-        """Whether ``N(wc)`` is ``nm`` for camera-side directions ``wc (k, 3)``."""
-        return dot(wc, self.nm) * dot(wc, self.ng) > 0
+    def camera_side(self, wc):
+        """The camera side's BSDF for directions toward the camera ``wc (k, 3)``: the ``nm``
+        frame, the rows' params there (the lower-view variant of :mod:`..materials.lower_view`
+        where ``wc`` lies below ``nm``) and ``wc`` in that frame (mirrored on those rows)."""
+        frame, params = self._in(np.ones(self.q.size, bool))
+        wc_l = to_local(wc, *frame)
+        below = view_below(dot(wc, self.ng), wc_l[:, 2])
+        params, wc_l = lower_view_params(params, wc_l, below)
+        return frame, params, wc_l
+
+    def has_camera_deltas(self, wc):
+        """Whether the camera side's BSDF at ``wc (k, 3)`` keeps its delta lobes: ``(k,)``
+        bool (False where the lower-view variant replaced the row)."""
+        wc_l = to_local(wc, *self.frame_m)
+        return ~shaded_below(self.params, view_below(dot(wc, self.ng), wc_l[:, 2]))
 
     def f_importance(self, wl, wc):
         """``f(wc, wl) |cos|`` read from the light side (toward ``wc``, world directions), with
         the geometric-side rule and Veach's factor. ``(k, 3)``."""
-        use_m = self.camera_normal_is_nm(wc)
-        frame, params = self._in(use_m)
-        wl_l, wc_l = to_local(wl, *frame), to_local(wc, *frame)
+        frame, params, wc_l = self.camera_side(wc)
+        wl_l = to_local(wl, *frame)
         f = eval_bsdf(params, wl_l, wc_l, IMPORTANCE)
-        return f * self._factor(frame[2], wl, wc, wl_l, wc_l)[:, None]
+        return f * self._factor(wl, wc, wl_l, wc_l)[:, None]
 
-    def _factor(self, n, wl, wc, wl_l, wc_l):
-        """Geometric-side rule times Veach's shading-normal factor for normals ``n``."""
+    def f_radiance(self, wc, wl):
+        """``f(wc, wl) |cos|`` read from the camera side (as the path tracer evaluates it),
+        with the geometric-side rule. ``(k, 3)``."""
+        frame, params, wc_l = self.camera_side(wc)
+        wl_l = to_local(wl, *frame)
+        f = eval_bsdf(params, wc_l, wl_l, RADIANCE)
+        return f * self._side(wl, wc, wl_l, wc_l)[:, None]
+
+    def sample_radiance(self, wc, u_lobe, u):
+        """Sample ``wl`` from the camera side's BSDF given ``wc (k, 3)`` (as the path tracer
+        does). Returns the :class:`BSDFSample` (``wi`` local to the ``nm`` frame), ``wl``
+        (world) and the weight with the geometric-side rule."""
+        frame, params, wc_l = self.camera_side(wc)
+        smp = sample_bsdf(params, wc_l, u_lobe, u, RADIANCE)
+        wl = to_world(smp.wi, *frame)
+        weight = smp.weight * self._side(wl, wc, smp.wi, wc_l)[:, None]
+        return smp, wl, weight
+
+    def _side(self, wl, wc, wl_l, wc_l):
+        """The geometric-side rule, ``(k,)`` 0 or 1 (transmission read from the local sides)."""
         transmit = wl_l[:, 2] * wc_l[:, 2] < 0
-        ok = geometric_side_valid(self.ng, wl, wc, transmit).astype(np.float64)
+        return geometric_side_valid(self.ng, wl, wc, transmit).astype(np.float64)
+
+    def _factor(self, wl, wc, wl_l, wc_l):
+        """Geometric-side rule times Veach's shading-normal factor with ``nm``."""
+        n = self.nm
         num = np.abs(dot(wl, n)) * np.abs(dot(wc, self.ng))
         den = np.abs(dot(wl, self.ng)) * np.abs(dot(wc, n))
-        return ok * np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+        veach = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+        return self._side(wl, wc, wl_l, wc_l) * veach
 
     def pdf_light(self, wl, wc):
         """The light side's solid-angle density of sampling ``wc`` from ``wl``: the mixture."""
@@ -145,10 +185,10 @@ class VertexNormals:
         return out
 
     def pdf_camera(self, wc, wl):
-        """The camera side's solid-angle density of sampling ``wl`` from ``wc`` (frame
-        ``N(wc)``)."""
-        frame, params = self._in(self.camera_normal_is_nm(wc))
-        return pdf_bsdf(params, to_local(wc, *frame), to_local(wl, *frame))
+        """The camera side's solid-angle density of sampling ``wl`` from ``wc`` (its BSDF of
+        :meth:`camera_side`)."""
+        frame, params, wc_l = self.camera_side(wc)
+        return pdf_bsdf(params, wc_l, to_local(wl, *frame))
 
     def sample_importance(self, wl, u_lobe, u):
         """Sample ``wc`` from the mixture, given ``wl (k, 3)`` (world, toward the light side).
@@ -161,7 +201,7 @@ class VertexNormals:
             ``f |cos| / pdf`` with the factors of :meth:`f_importance` (zero where invalid).
         pdf : (k,) float64
             The mixture density (non-delta samples), or the chance of the delta lobe times
-            the chance of its frame.
+            the chance of the ``nm`` frame.
         delta : (k,) bool
         lobe : (k,) uint8
         """
@@ -172,10 +212,11 @@ class VertexNormals:
         smp = sample_bsdf(params, wl_l, u_lobe, u, IMPORTANCE)
         wc = to_world(smp.wi, *frame)
         chance = np.where(use_g, self.q, 1.0 - self.q)
-        # The sample counts as drawn in N(wc)'s frame only where that is the frame it was
-        # drawn in (always for delta samples; other rows are evaluated in N(wc)'s frame).
-        same = self.camera_normal_is_nm(wc) != use_g
-        factor = self._factor(frame[2], wl, wc, wl_l, smp.wi) * same
+        # Drawn from the camera side's own BSDF: in nm's frame, where wc does not see the row
+        # from below nm. Only those delta samples count (the camera side has no other delta
+        # lobes); the other rows are evaluated by the camera side's rule below.
+        same = ~use_g & self.has_camera_deltas(wc)
+        factor = self._factor(wl, wc, wl_l, smp.wi) * same
         weight = smp.weight * (factor / np.where(chance > 0, chance, 1.0))[:, None]
         pdf = smp.pdf * chance
         smooth = ~smp.delta & (smp.pdf > 0)
@@ -186,7 +227,7 @@ class VertexNormals:
     def _mixture_weights(self, wl, wc, smp, smooth, same, factor, use_g, weight, pdf):
         """Set ``weight`` and ``pdf`` of the non-delta samples ``smooth (k,)`` to ``f / mixture``
         and the mixture, in place: ``f`` is the sample's own ``eval`` (``weight x pdf``) where
-        it was drawn in ``N(wc)``'s frame (``same``), else evaluated in the other frame."""
+        it was drawn from the camera side's BSDF (``same``), else :meth:`f_importance`."""
         f = smp.weight * (smp.pdf * factor)[:, None]
         mix = smp.pdf.copy()  # rows of q = 0: one frame, drawn with chance one
         mixed = np.nonzero(smooth & (self.q > 0))[0]
@@ -198,10 +239,9 @@ class VertexNormals:
             q = self.q[mixed]
             mix[mixed] = np.where(use_g[mixed], q * smp.pdf[mixed] + (1.0 - q) * p_other,
                                   (1.0 - q) * smp.pdf[mixed] + q * p_other)
-            moved = np.nonzero(~same[mixed])[0]
-            if moved.size:
-                rows = mixed[moved]
-                f[rows] = part.take(moved).f_importance(wl[rows], wc[rows])
+        moved = np.nonzero(smooth & ~same)[0]
+        if moved.size:
+            f[moved] = self.take(moved).f_importance(wl[moved], wc[moved])
         rows = np.nonzero(smooth)[0]
         weight[rows] = f[rows] / np.where(mix[rows] > 0, mix[rows], np.inf)[:, None]
         pdf[rows] = mix[rows]

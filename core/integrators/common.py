@@ -266,7 +266,7 @@ class Interaction:
     nm : (k, 3) float64 or None
         The shading normal before the view's fallback (:func:`perturbed_normals`), on the
         stored ``ng``'s front side (not flipped); None when the scene has no corner normals.
-        Light paths choose their normal by the direction they leave in
+        Subpaths and photons shade in its frame by Cycles' rule and its adjoint
         (:mod:`.adjoint_normals`).
     """
 
@@ -377,8 +377,8 @@ def shading_normals(prep, prim, u, v, ng, wo, keep_below=False):
     (:func:`core.normal_maps.normal_mapped`, then :func:`core.bump.bump_mapped`), and the
     same fallbacks apply to the perturbed normal. With ``keep_below`` (the path tracer) a
     normal that the view falls below is kept, as Cycles keeps it: the BSDF then shades those
-    rows by Cycles' rule (:mod:`core.materials.lower_view`); light paths (BDPT, light tracing,
-    photons) keep the fallback. Returns ``ng`` itself when the scene has no corner normals
+    rows by Cycles' rule (:mod:`core.materials.lower_view`); BDPT, light tracing and photons
+    use it too, through :mod:`.adjoint_normals`. Returns ``ng`` itself when the scene has no corner normals
     (every face flat; a scene with normal maps or bumps always has them).
 
     Parameters
@@ -425,8 +425,8 @@ def perturbed_normals(prep, prim, u, v, ng):
 
 def view_fallback(n, ng, w):
     """``n (k, 3)`` where ``w (k, 3)`` sees ``n`` and ``ng`` from the same side, else ``ng``: the
-    camera side's choice of shading normal (``w`` toward the camera;
-    :mod:`.adjoint_normals` gives light paths its adjoint)."""
+    facet fallback of the integrators that do not keep normals the view falls below
+    (radiosity, SPPM's and photon mapping's visible points)."""
     cos_g = np.einsum("ij,ij->i", ng, w)
     cos_s = np.einsum("ij,ij->i", n, w)
     return np.where((cos_g * cos_s > 0)[:, None], n, ng)

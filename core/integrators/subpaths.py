@@ -18,9 +18,9 @@ from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSampl
                               pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from .adjoint_normals import VertexNormals
-from .common import (finite_rows, geometric_side_valid, intersect_by_class, max_component,
-                     next_1d_if, ray_class, roulette_at, russian_roulette, shading_tangents,
-                     surface_hits, surface_interaction, take_rows, with_bump_normals)
+from .common import (finite_rows, intersect_by_class, max_component, next_1d_if, ray_class,
+                     roulette_at, russian_roulette, shading_tangents, surface_hits,
+                     surface_interaction, take_rows, with_bump_normals)
 
 
 def dot(a, b):
@@ -257,20 +257,23 @@ class Gathered:
 
     def f(self, w, w_l):
         """``f |cos|`` toward ``w`` (world) / ``w_l`` (local), with the geometric-side rule and,
-        in importance mode, the shading normal of the camera side's direction ``w`` and
-        Veach's correction (:mod:`.adjoint_normals`)."""
-        if self.smooth and self.mode == IMPORTANCE:
-            return self._adjoint().f_importance(self.wo, w)
-        f = eval_bsdf(self.params, self.wo_l, w_l, self.mode)
+        with smooth shading, the camera side's BSDF (Cycles' rule where its direction falls
+        below the shading normal) and in importance mode its adjoint with Veach's correction
+        (:mod:`.adjoint_normals`)."""
         if self.smooth:
-            f *= smooth_factor(self.ng, self.fn, self.wo, w, self.wo_l, w_l, self.mode)[:, None]
-        return f
+            if self.mode == IMPORTANCE:
+                return self._adjoint().f_importance(self.wo, w)
+            return self._adjoint().f_radiance(self.wo, w)
+        return eval_bsdf(self.params, self.wo_l, w_l, self.mode)
 
     def pdf_toward(self, w_l):
         """Solid-angle density of sampling ``w_l`` given the incoming direction (this side's
         sampling: the mixture of :mod:`.adjoint_normals` on smooth light vertices)."""
-        if self.smooth and self.mode == IMPORTANCE:
-            return self._adjoint().pdf_light(self.wo, self._world(w_l))
+        if self.smooth:
+            w = self._world(w_l)
+            if self.mode == IMPORTANCE:
+                return self._adjoint().pdf_light(self.wo, w)
+            return self._adjoint().pdf_camera(self.wo, w)
         return pdf_bsdf(self.params, self.wo_l, w_l)
 
     def pdf_back(self, w_l):
@@ -282,16 +285,6 @@ class Gathered:
                 return self._adjoint().pdf_camera(w, self.wo)
             return self._adjoint().pdf_light(w, self.wo)
         return pdf_bsdf(self.params, w_l, self.wo_l)
-
-
-def smooth_factor(ng, ns, wo, wi, wo_l, wi_l, mode):
-    transmit = wo_l[:, 2] * wi_l[:, 2] < 0
-    ok = geometric_side_valid(ng, wo, wi, transmit).astype(np.float64)
-    if mode == IMPORTANCE:
-        num = np.abs(dot(wo, ns)) * np.abs(dot(wi, ng))
-        den = np.abs(dot(wo, ng)) * np.abs(dot(wi, ns))
-        ok *= np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-    return ok
 
 
 def to_area(pdf_sa, cos_at, dist):
@@ -339,7 +332,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         live = surface_hits(prep, hits)
         if live.size == 0:
             break
-        si = surface_interaction(prep, hits, d, live)
+        # Smooth shading: frames around the shading normal as the path tracer's (nm).
+        si = surface_interaction(prep, hits, d, live, keep_below=True)
         r = rows[live]
         # Draw for the live paths only (a copy of the stream compacted along with them).
         if path_stream is None:
@@ -400,24 +394,23 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
 def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse):
     """Stage *sample BSDF* of a walk: the sample, its world direction ``wi``, its weight and
     (``reverse``) the other side's solid-angle density of ``si.wo`` given ``wi``. With smooth
-    shading, light paths sample and weigh as the adjoint of the camera side's choice of
-    normal, and camera paths report that side's density (:mod:`.adjoint_normals`)."""
+    shading, camera paths sample as the path tracer does (Cycles' rule where the view falls
+    below the shading normal) and report the light side's density, light paths sample and
+    weigh as its adjoint (:mod:`.adjoint_normals`)."""
     normals = VertexNormals(params, frame, si.ng, si.nm) if smooth else None
     if normals is not None and mode == IMPORTANCE:
         wi, weight, pdf, delta, lobe = normals.sample_importance(si.wo, u_lobe, u_bsdf)
         smp = BSDFSample(to_local(wi, *frame), weight, pdf, delta, lobe)
         back = normals.pdf_camera(wi, si.wo) if reverse else None
         return smp, wi, weight, back
+    if normals is not None:
+        smp, wi, weight = normals.sample_radiance(si.wo, u_lobe, u_bsdf)
+        back = normals.pdf_light(wi, si.wo) if reverse else None
+        return smp, wi, weight, back
     smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode)
     wi = to_world(smp.wi, *frame)
-    weight = smp.weight
-    if smooth:
-        weight = weight * smooth_factor(si.ng, frame[2], si.wo, wi, wo_l, smp.wi, mode)[:, None]
-    back = None
-    if reverse:
-        back = (normals.pdf_light(wi, si.wo) if normals is not None
-                else pdf_bsdf(params, smp.wi, wo_l))
-    return smp, wi, weight, back
+    back = pdf_bsdf(params, smp.wi, wo_l) if reverse else None
+    return smp, wi, smp.weight, back
 
 
 def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, beta, pdf_prev,

@@ -60,7 +60,7 @@ def lower_view_params(params, wo, below):
     wo : (k, 3) float64
         ``wo`` mirrored through the tangent plane on the rows ``below`` (a copy).
     """
-    below = below & ~_pass_through(params)
+    below = shaded_below(params, below)
     if not below.any():
         return params, wo
     wo = wo.copy()
@@ -76,6 +76,12 @@ def lower_view_params(params, wo, below):
     color = np.where(below[:, None], params.color * scale[:, None], params.color)
     kind = np.where(below, KIND_DIFFUSE, params.kind).astype(params.kind.dtype)
     return replace(params, kind=kind, color=color), wo
+
+
+def shaded_below(params, below):
+    """The rows of ``below (k,)`` that :func:`lower_view_params` changes: all but a
+    Transparent BSDF's. ``(k,)`` bool."""
+    return below & ~_pass_through(params)
 
 
 def _pass_through(params):

@@ -3,7 +3,8 @@
 A photon starts as a light subpath does in light tracing and BDPT: an emitter chosen with the
 light sampler's selection, a point and a direction on it (:class:`core.lights.Emission`,
 ``sample_le``), power ``Le cos / (pdf_origin pdf_dir)``. It then scatters by BSDF sampling in
-importance mode (with the shading-normal correction of :func:`.subpaths.smooth_factor`) and
+importance mode (with smooth shading: the adjoint of the camera side's BSDF,
+:class:`core.integrators.adjoint_normals.VertexNormals`, as light tracing's) and
 is continued by Russian roulette *by albedo*: it survives with probability
 ``q = min(1, max(beta') / max(beta))`` and its power is divided by ``q``, so surviving photons
 keep roughly the power they had (Jensen's photon tracing) and the estimate stays unbiased.
@@ -26,12 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import RenderRefused
+from ..integrators.adjoint_normals import VertexNormals
 from ..integrators.base import Counters
 from ..integrators.common import (intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
                                   with_bump_normals)
-from ..integrators.subpaths import smooth_factor
-from ..materials.bsdf import IMPORTANCE, sample_bsdf
+from ..materials.bsdf import IMPORTANCE, BSDFSample, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..sampling.samplers import make_sampler
 from ..scene import VIS_SHADOW
@@ -207,22 +208,10 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
                              unconnectable[store]))
         if hit == max_bounces + 1:
             break
-        # Importance-mode BSDF sampling in the shading frame, then roulette by albedo.
-        tangent = shading_tangents(prep, si)
-        if smooth:
-            front = np.where(np.einsum("ij,ij->i", si.ns, si.ng) < 0, -1.0, 1.0)
-            fs, ft, fn = shading_frame(si.ns * front[:, None], tangent)
-        else:
-            fs, ft, fn = shading_frame(si.ng, tangent)
-        wo_l = to_local(si.wo, fs, ft, fn)
-        params = with_bump_normals(params, si, (fs, ft, fn))
-        smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, IMPORTANCE)
-        wi = to_world(smp.wi, fs, ft, fn)
-        weight = smp.weight
-        if smooth:
-            weight = weight * smooth_factor(si.ng, fn, si.wo, wi, wo_l, smp.wi,
-                                            IMPORTANCE)[:, None]
-        new = beta * weight
+        # Importance-mode BSDF sampling, then roulette by albedo. Smooth shading: the
+        # adjoint of the camera side's BSDF, as light paths (adjoint_normals).
+        smp, wi = _scatter(prep, si, params, u_lobe, u_bsdf, smooth)
+        new = beta * smp.weight
         with np.errstate(divide="ignore", invalid="ignore"):
             q = np.minimum(1.0, max_component(new) / max_component(beta))
         alive = (smp.pdf > 0) & np.isfinite(new).all(axis=1) & (u_rr < q) & (q > 0)
@@ -235,6 +224,24 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
         d = wi[keep]
         vis = ray_class(smp.lobe[keep])
     return Photons.join(parts)
+
+
+def _scatter(prep, si, params, u_lobe, u_bsdf, smooth):
+    """Stage *sample BSDF* of a photon at the hits ``si``: the sample (its weight with the
+    shading-normal correction) and its world direction. With smooth shading the photon samples
+    the adjoint of the camera side's BSDF (:class:`.adjoint_normals.VertexNormals`), as light
+    tracing and BDPT's light subpaths."""
+    tangent = shading_tangents(prep, si)
+    if smooth:
+        frame = shading_frame(si.nm, tangent)
+        params = with_bump_normals(params, si, frame)
+        normals = VertexNormals(params, frame, si.ng, si.nm)
+        wi, weight, pdf, delta, lobe = normals.sample_importance(si.wo, u_lobe, u_bsdf)
+        return BSDFSample(None, weight, pdf, delta, lobe), wi
+    frame = shading_frame(si.ng, tangent)
+    params = with_bump_normals(params, si, frame)
+    smp = sample_bsdf(params, to_local(si.wo, *frame), u_lobe, u_bsdf, IMPORTANCE)
+    return smp, to_world(smp.wi, *frame)
 
 
 # Photons or camera paths per chunk: the unit of work a worker thread runs.
