@@ -55,7 +55,7 @@ STAGES = [
     ("prepare", "PreparedScene.choose_bsdf", "subpaths: choose BSDF (material tables)"),
     ("integrators.subpaths", "sample_bsdf", "subpaths: BSDF sampling"),
     ("integrators.subpaths", "pdf_bsdf", "subpaths: BSDF sampling"),
-    ("integrators.subpaths", "smooth_factor", "subpaths: BSDF sampling"),
+    ("integrators.adjoint_normals", "VertexNormals.sample_importance", "subpaths: BSDF sampling"),
     ("integrators.subpaths", "_store_vertex", "subpaths: store vertices"),
     ("integrators.subpaths", "Subpath.empty", "subpaths: store vertices"),
     ("integrators.subpaths", "Subpath.reset", "subpaths: store vertices"),
