@@ -25,6 +25,7 @@ from ..integrators.common import (add_emitters_along_rays, add_rows, camera_rays
                                   take_rows, with_bump_normals)
 from ..materials.bsdf import RADIANCE, BSDFParams, eval_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
+from ..materials.lower_view import lower_view_params, shaded_below, view_below
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_SHADOW
 
@@ -164,7 +165,7 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
         live = surface_hits(prep, hits)
         if live.size == 0:
             break
-        si = surface_interaction(prep, hits, d, live)
+        si = surface_interaction(prep, hits, d, live, keep_below=True)
         rows, beta = rows[live], take_rows(beta, live)
         travelled = travelled[live] + hits.t[live]
         stream.skip_to(dims + bounce * DIMS_PER_BOUNCE)
@@ -174,6 +175,12 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
                                                       hits.v[live])
         fs, ft, fn = _frame(prep, si)
         wo_l = to_local(si.wo, fs, ft, fn)
+        if prep.scene.corner_normals is not None:
+            # A smooth normal the view falls below is kept and shaded as the path tracer does
+            # (Cycles' rule, core.materials.lower_view): such rows are no longer specular.
+            below = view_below(np.einsum("ij,ij->i", si.wo, si.ng), wo_l[:, 2])
+            delta_only = delta_only & ~shaded_below(params, below)
+            params, wo_l = lower_view_params(params, wo_l, below)
         params = with_bump_normals(params, si, (fs, ft, fn))
         vp = np.nonzero(~delta_only)[0]
         if vp.size:
