@@ -445,6 +445,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         "emitters": prep.lights.n_emitters,
         **used,
         "distribution_build_s": prep.lights.build_s,
+        **prep.accel.build_stats(),
         "distribution_sample_s": counters.distribution_s,
         "distribution_samples": counters.distribution_samples,
         "distribution_ns_per_sample": (1e9 * counters.distribution_s
