@@ -364,6 +364,15 @@ def cmd_render(args):
     for message in result.messages:
         if message not in scene.messages:  # those were printed before rendering
             print(f"note: {message}", file=sys.stderr)
+    if interrupted and not result.error and not result.sample_count().any():
+        # Ctrl-C before the first sample (while preparing the scene): nothing to keep, and an
+        # existing file at the output path is left alone.
+        print(f"{PROG}: cancelled before any sample was taken; nothing written",
+              file=sys.stderr)
+        if args.json:
+            print(json.dumps({**result.stats, "output": None, "layers": [],
+                              "cancelled": True}))
+        return 130
     if result.error:
         print(f"{PROG}: error: the render failed ({result.error}); writing the samples taken",
               file=sys.stderr)

@@ -177,3 +177,30 @@ def test_the_image_is_the_same_through_ctypes_and_through_the_embreex_fallback(m
     assert theirs.stats["bvh_build"] == "embreex: no Embree library (test)"
     assert ours.combined().max() > 0
     assert np.array_equal(ours.combined(), theirs.combined())
+
+
+def test_ctrl_c_during_the_bvh_build_exits_130_and_writes_nothing(commits, monkeypatch,
+                                                                  tmp_path, capsys):
+    """The command line (in this process, with its own SIGINT handler): Ctrl-C while Embree
+    builds ends with exit code 130 and no samples, so nothing is written and a file already
+    at the output path is left as it was."""
+    from sampling_lab import cli
+
+    started, reports = commits
+    monkeypatch.setitem(cli.builtin_scenes.BUILTIN, "big_plane",
+                        lambda w, h: many_triangles(BIG, w, h))
+    out = tmp_path / "kept.exr"
+    out.write_bytes(b"an earlier render")
+
+    def interrupt():
+        if started.wait(HANG_S):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    threading.Thread(target=interrupt, daemon=True).start()
+    code = cli.main(["render", "big_plane", "--resolution", "8x6", "--spp", "4", "--quiet",
+                     "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 130, err
+    assert "cancelled before any sample was taken; nothing written" in err
+    assert out.read_bytes() == b"an earlier render"
+    assert reports[0].error == embree_commit.RTC_ERROR_CANCELLED
