@@ -17,7 +17,9 @@ created, whose queries then run unchanged:
    Embree calls the monitor from its worker threads (ctypes takes the GIL for each call, which
    is free: the calling thread waits on a lock, which releases it). A stopped build ends with
    ``RTC_ERROR_CANCELLED`` and leaves the scene empty; :class:`Aborted` is raised and the scene
-   dropped;
+   dropped. Embree does not call the monitor during the first splits of a large BVH (up to
+   2 s at 10 M triangles under load), so a build that has not stopped :data:`ABANDON_S` s
+   after the cancel is left to stop by itself on its thread (:func:`wait_abandoned`);
 3. embreex's ``is_committed`` is set, so that embreex does not build again.
 
 The handle of the scene (``EmbreeScene.scene_i``, a C field with no Python accessor) is read
@@ -219,12 +221,24 @@ def add_triangles(lib, device, handle, vertices, triangles, poll):
         lib.rtcReleaseGeometry(geometry)
 
 
-def commit(lib, handle, device, cancel=None, report=None):
+ABANDON_S = 0.25
+"""Seconds a cancelled build is waited for before :func:`commit` returns without it."""
+
+_ABANDONED = set()
+
+
+def commit(lib, handle, device, cancel=None, report=None, keep=None):
     """Build the BVH of scene ``handle`` on a helper thread, the GIL released, polling
     ``cancel()`` every :data:`POLL_S` s; raises :class:`Aborted` if the build was stopped.
-    Fills ``report``'s monitor fields (a new :class:`BuildReport` when None) and returns it."""
+    Fills ``report``'s monitor fields (a new :class:`BuildReport` when None) and returns it.
+
+    Embree calls the monitor often, but not during the first splits of a large BVH (up to
+    2 s for 10 M triangles on a loaded machine): a build still running :data:`ABANDON_S` s
+    after the cancel is left to stop by itself at the monitor's next call, on its thread,
+    which holds ``keep`` (the embreex scene owning ``handle``) until then
+    (:func:`wait_abandoned`)."""
     report = report or BuildReport("ctypes")
-    stop = threading.Event()
+    stop, done = threading.Event(), threading.Event()
 
     def monitor(_user, _fraction):
         report.monitor_calls += 1
@@ -236,23 +250,47 @@ def commit(lib, handle, device, cancel=None, report=None):
     callback = MONITOR(monitor)
     lib.rtcSetSceneProgressMonitorFunction(handle, callback, None)
 
-    def work():
-        lib.rtcCommitScene(handle)
-        report.error = lib.rtcGetDeviceError(device)  # the committing thread's error
+    def work(_alive=(callback, keep)):
+        try:
+            lib.rtcCommitScene(handle)
+            report.error = lib.rtcGetDeviceError(device)  # the committing thread's error
+        finally:
+            lib.rtcSetSceneProgressMonitorFunction(handle, None, None)
+            done.set()
 
     thread = threading.Thread(target=work, name="embree-bvh-build", daemon=True)
     thread.start()
     try:
-        while thread.is_alive():
-            thread.join(POLL_S)
-            if cancel is not None and not stop.is_set() and thread.is_alive() and cancel():
+        while not done.wait(POLL_S):
+            if cancel is not None and cancel():
                 stop.set()
-    finally:
-        stop.set()  # an exception here (a cancel hook that failed) stops the build too
-        thread.join()
-        lib.rtcSetSceneProgressMonitorFunction(handle, None, None)
+                break
+    except BaseException:
+        stop.set()  # a cancel hook that failed stops the build too
+        _abandon(thread)
+        raise
+    if not done.wait(ABANDON_S if stop.is_set() else None):
+        _abandon(thread)
+        raise Aborted("cancelled while building Embree's BVH (it stops in the background)")
     _raise_for(report.error)
     return report
+
+
+def _abandon(thread):
+    _ABANDONED.difference_update([t for t in _ABANDONED if not t.is_alive()])
+    _ABANDONED.add(thread)
+
+
+def wait_abandoned(timeout=None):
+    """Wait for the builds :func:`commit` returned without (``timeout`` s in all, None:
+    until they end); whether none still runs. The command line exits at once instead
+    (``os._exit``), since a process must not finalise Python while Embree's threads may
+    still call into it."""
+    end = None if timeout is None else time.perf_counter() + timeout
+    for thread in list(_ABANDONED):
+        thread.join(None if end is None else max(0.0, end - time.perf_counter()))
+    _ABANDONED.difference_update([t for t in _ABANDONED if not t.is_alive()])
+    return not _ABANDONED
 
 
 def _raise_for(error):
@@ -295,7 +333,7 @@ def build_scene(vertices, triangles, cancel=None):
 
     if len(triangles):
         add_triangles(lib, device_handle, handle, vertices, triangles, poll)
-        commit(lib, handle, device_handle, cancel, report)
+        commit(lib, handle, device_handle, cancel, report, keep=(scene, device))
     scene.is_committed = 1
     report.seconds = time.perf_counter() - t0
     return scene, report

@@ -338,9 +338,9 @@ def _cancel_during_build(scene, delay):
         started.set()
         return build_scene(*args, **kw)
 
-    def recording(lib, handle, device, cancel=None, report=None):
+    def recording(lib, handle, device, cancel=None, report=None, keep=None):
         reports.append(report or embree_commit.BuildReport("ctypes"))
-        return commit(lib, handle, device, cancel, reports[-1])
+        return commit(lib, handle, device, cancel, reports[-1], keep)
 
     accel.build_scene, embree_commit.commit = starting, recording
     try:
@@ -359,11 +359,13 @@ def _cancel_during_build(scene, delay):
         thread.join(600.0)
     finally:
         accel.build_scene, embree_commit.commit = build_scene, commit
+    embree_commit.wait_abandoned()  # a build left to stop by itself: its report is complete
     stopped = bool(reports) and reports[0].error == embree_commit.RTC_ERROR_CANCELLED
     return out["end"] - asked, stopped
 
 
 _CLI_BVH = """
+import runpy
 import sys
 from sampling_lab import cli
 from sampling_lab.core import accel
@@ -374,8 +376,9 @@ def starting(*args, **kw):
     print("BVH build started", file=sys.stderr, flush=True)
     return build_scene(*args, **kw)
 accel.build_scene = starting
-sys.exit(cli.main(["render", "plane", "--resolution", "8x8", "--spp", "1", "--quiet",
-                   "-o", {path!r}]))
+sys.argv = ["sampling_lab", "render", "plane", "--resolution", "8x8", "--spp", "1", "--quiet",
+            "-o", {path!r}]
+runpy.run_module("sampling_lab", run_name="__main__")  # as python -m sampling_lab
 """
 
 

@@ -35,11 +35,11 @@ def commits(monkeypatch):
     reports = []
     original = embree_commit.commit
 
-    def recording(lib, handle, device, cancel=None, report=None):
+    def recording(lib, handle, device, cancel=None, report=None, keep=None):
         report = report or embree_commit.BuildReport("ctypes")
         reports.append(report)
         started.set()
-        return original(lib, handle, device, cancel, report)
+        return original(lib, handle, device, cancel, report, keep)
 
     monkeypatch.setattr(embree_commit, "commit", recording)
     return started, reports
@@ -70,6 +70,7 @@ def test_a_cancel_during_the_bvh_build_stops_it_through_the_progress_monitor(com
     assert time.perf_counter() - t0 < HANG_S
     assert result.cancelled and result.stats["spp"] == 0
     assert result.sample_count().max() == 0 and np.isfinite(result.combined()).all()
+    assert embree_commit.wait_abandoned(HANG_S)
     (report,) = reports
     assert report.error == embree_commit.RTC_ERROR_CANCELLED
     assert 0 < report.refused_at_call <= report.monitor_calls
@@ -108,6 +109,7 @@ def test_ctrl_c_is_handled_while_the_bvh_builds(commits):
     finally:
         signal.signal(signal.SIGINT, previous)
     assert interrupted and result.cancelled and result.stats["spp"] == 0
+    assert embree_commit.wait_abandoned(HANG_S)
     assert reports[0].error == embree_commit.RTC_ERROR_CANCELLED
     assert reports[0].refused_at_call > 0
 
@@ -203,4 +205,19 @@ def test_ctrl_c_during_the_bvh_build_exits_130_and_writes_nothing(commits, monke
     assert code == 130, err
     assert "cancelled before any sample was taken; nothing written" in err
     assert out.read_bytes() == b"an earlier render"
+    assert embree_commit.wait_abandoned(HANG_S)
     assert reports[0].error == embree_commit.RTC_ERROR_CANCELLED
+
+
+def test_a_build_not_stopped_at_once_is_left_to_stop_in_the_background(commits, monkeypatch):
+    """With no time to wait (``ABANDON_S = 0``), a cancelled build returns at once while
+    Embree's threads still run: they stop at the monitor's next call, holding the scene until
+    then, and :func:`wait_abandoned` sees them end."""
+    started, reports = commits
+    monkeypatch.setattr(embree_commit, "ABANDON_S", 0.0)
+    scene = many_triangles(BIG)
+    with pytest.raises(Aborted):
+        embree_commit.build_scene(scene.vertices, scene.triangles, started.is_set)
+    assert embree_commit.wait_abandoned(HANG_S)
+    (report,) = reports
+    assert report.error == embree_commit.RTC_ERROR_CANCELLED and report.refused_at_call > 0
