@@ -110,7 +110,10 @@ def _library_candidates():
 def _load(path):
     """The library at ``path`` only if the process has loaded it already (embreex's copy)."""
     if sys.platform == "win32":
-        return ctypes.CDLL(path)  # Windows returns the module already loaded from this path
+        handle = ctypes.windll.kernel32.GetModuleHandleW(path)
+        if not handle:
+            raise OSError(f"{path} is not loaded")
+        return ctypes.CDLL(path, handle=handle)
     return ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LAZY | os.RTLD_GLOBAL)
 
 
