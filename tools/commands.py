@@ -180,7 +180,8 @@ def _add_bench_limits(sub, **kw):
     p.add_argument("--bvh", action="store_true",
                    help="also cancel Embree's BVH build of 1, 3 and 10 M triangles")
     p.add_argument("--bvh-sizes", type=_positive_int, nargs="+", metavar="TRIANGLES",
-                   help="triangle counts of the BVH build measurements (implies --bvh)")
+                   help="triangle counts of the BVH build measurements (implies --bvh; "
+                        "default: none, or 1, 3 and 10 M with --bvh)")
     p.add_argument("--bvh-only", action="store_true",
                    help="only the BVH build measurements (no integrator)")
     add_output_arguments(p, "bench-limits")
