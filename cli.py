@@ -173,10 +173,12 @@ def build_parser():
 class ProgressBar:
     """A one-line progress bar on stderr (redrawn in place on a terminal, every 10 % otherwise)."""
 
-    def __init__(self, stream=sys.stderr, quiet=False):
-        self.stream = stream
+    def __init__(self, stream=None, quiet=False):
+        # sys.stderr when the bar is made, not when this module was imported (a test's
+        # captured stream, closed since, would be kept otherwise).
+        self.stream = sys.stderr if stream is None else stream
         self.quiet = quiet
-        self.tty = stream.isatty()
+        self.tty = self.stream.isatty()
         self.last_decile = -1
 
     def __call__(self, fraction, text):
