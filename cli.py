@@ -173,10 +173,12 @@ def build_parser():
 class ProgressBar:
     """A one-line progress bar on stderr (redrawn in place on a terminal, every 10 % otherwise)."""
 
-    def __init__(self, stream=sys.stderr, quiet=False):
-        self.stream = stream
+    def __init__(self, stream=None, quiet=False):
+        # sys.stderr when the bar is made, not when this module was imported (a test's
+        # captured stream, closed since, would be kept otherwise).
+        self.stream = sys.stderr if stream is None else stream
         self.quiet = quiet
-        self.tty = stream.isatty()
+        self.tty = self.stream.isatty()
         self.last_decile = -1
 
     def __call__(self, fraction, text):
@@ -364,6 +366,15 @@ def cmd_render(args):
     for message in result.messages:
         if message not in scene.messages:  # those were printed before rendering
             print(f"note: {message}", file=sys.stderr)
+    if interrupted and not result.error and not result.sample_count().any():
+        # Ctrl-C before the first sample (while preparing the scene): nothing to keep, and an
+        # existing file at the output path is left alone.
+        print(f"{PROG}: cancelled before any sample was taken; nothing written",
+              file=sys.stderr)
+        if args.json:
+            print(json.dumps({**result.stats, "output": None, "layers": [],
+                              "cancelled": True}))
+        return 130
     if result.error:
         print(f"{PROG}: error: the render failed ({result.error}); writing the samples taken",
               file=sys.stderr)

@@ -304,8 +304,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     it; with ``'tree'`` the light tree is built here, once per render); ``distribution`` also
     draws mixed materials' components.
     Unknown values raise ``ValueError``. ``cancel`` (a callable, or None) is polled between
-    the stages and every :data:`TABLE_CHUNK` triangles of the tables (Embree's BVH build cannot
-    stop half-way: 8 to 11 s for 3 M triangles on a loaded machine): once it says so,
+    the stages, every :data:`TABLE_CHUNK` triangles of the tables and every
+    ``core.embree_commit.POLL_S`` s while Embree builds its BVH: once it says so,
     ``core.sampling.stream.Aborted`` is raised. A scene of at most :data:`TABLE_CHUNK`
     triangles is prepared in milliseconds and not polled (so the polls a render makes are
     its work units', as before, for such scenes).
@@ -322,6 +322,8 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
     stage_done()
     v0, e1, e2, normal, area = triangle_tables(scene, stage_done)
     accel = Accel(scene.vertices, scene.triangles, scene.visibility)
+    # Embree's BVH: cancellable, the GIL released (core.embree_commit).
+    accel.build(cancel if polled else None)
     stage_done()
     mats = scene.materials
     albedo = np.clip(mats.base_color[scene.material].astype(np.float64), 0.0, 1.0)

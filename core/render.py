@@ -149,7 +149,9 @@ class RenderResult:
         ``emitters``; the light sampler's ``distribution`` ('cdf' or 'alias'),
         ``distribution_build_s`` (building its tables, once per render),
         ``distribution_sample_s`` (drawing from them, summed over batches and threads),
-        ``distribution_samples`` (draws) and ``distribution_ns_per_sample``.
+        ``distribution_samples`` (draws) and ``distribution_ns_per_sample``; how Embree's
+        BVH was built (``core.accel.Accel.build_stats``: ``bvh_build``, ``'ctypes'`` when a
+        cancel can stop it, else ``'embreex: <why>'``; ``bvh_build_s``, ``bvh_scenes``).
     cancelled : bool
         Whether the render stopped before its sample count or time limit (cancel, or an
         error).
@@ -458,6 +460,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         "emitters": prep.lights.n_emitters,
         **used,
         "distribution_build_s": prep.lights.build_s,
+        **prep.accel.build_stats(),
         "distribution_sample_s": counters.distribution_s,
         "distribution_samples": counters.distribution_samples,
         "distribution_ns_per_sample": (1e9 * counters.distribution_s

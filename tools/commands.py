@@ -163,8 +163,12 @@ def _bench_radiosity(args):
 def _bench_limits(args):
     from .limits import run
 
-    run(integrators=args.integrators, repeats=args.repeats, cancel_size=args.cancel_size,
-        rss_size=args.rss_size, cli=not args.no_cli, rss=not args.no_rss, output=args.output)
+    from .limits import BVH_SIZES
+
+    bvh_sizes = args.bvh_sizes or (BVH_SIZES if args.bvh or args.bvh_only else ())
+    run(integrators=() if args.bvh_only else args.integrators, repeats=args.repeats,
+        cancel_size=args.cancel_size, rss_size=args.rss_size, cli=not args.no_cli,
+        rss=not args.no_rss, output=args.output, bvh_sizes=bvh_sizes)
     return 0
 
 
@@ -181,6 +185,13 @@ def _add_bench_limits(sub, **kw):
     _size(p, (1920, 1080), "--rss-size", "image size of the peak-memory renders")
     p.add_argument("--no-cli", action="store_true", help="skip the command-line cancels")
     p.add_argument("--no-rss", action="store_true", help="skip the peak-memory renders")
+    p.add_argument("--bvh", action="store_true",
+                   help="also cancel Embree's BVH build of 1, 3 and 10 M triangles")
+    p.add_argument("--bvh-sizes", type=_positive_int, nargs="+", metavar="TRIANGLES",
+                   help="triangle counts of the BVH build measurements (implies --bvh; "
+                        "default: none, or 1, 3 and 10 M with --bvh)")
+    p.add_argument("--bvh-only", action="store_true",
+                   help="only the BVH build measurements (no integrator)")
     add_output_arguments(p, "bench-limits")
 
 
