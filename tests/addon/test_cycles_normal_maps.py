@@ -181,8 +181,10 @@ def tilted_map_material(name, tilt_deg, node_type):
     # G1 = 0.84: the diffuse light 16 % darker than without the correction.
     ("ShaderNodeBsdfDiffuse", 50.0, 66.0),
     # G1 = 0.79 on the diffuse base. A tilt at which the view's mirror direction stays above
-    # the plane: at 50 degrees Cycles bends the specular closure's normal only, we bend the
-    # whole layered row's frame (measured: image mean 1.0003, blocks up to 1.3 % off).
+    # the plane. At 50 degrees Cycles bends the specular closure's normal only; we bent the
+    # whole layered row's frame then (measured: image mean 1.0003, blocks up to 1.3 % off).
+    # The path tracer now keeps the diffuse base around the unbent normal as Cycles does
+    # (BSDFParams.base_normal); 50 degrees was not re-measured since.
     ("ShaderNodeBsdfPrincipled", 30.0, 80.0),
 ])
 def test_bump_map_correction_agrees_with_cycles(empty_scene, tmp_path, node_type, tilt,
