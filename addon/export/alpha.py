@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .nodes import follow_link, node_name
-from .textures import scalar_texture
+from .textures import own_principled_texture, scalar_texture
 
 LAYOUT = 0.5
 """The opacity a textured-alpha mixture is laid out for (both sides exist)."""
@@ -21,12 +21,7 @@ LAYOUT = 0.5
 def principled_alpha_texture(node, owner, messages, depth):
     """``(pixels, mode)`` of an Image Texture (its Color or Alpha output) into the Alpha of
     Principled ``node``, or None."""
-    alpha = scalar_texture(node, "Alpha", owner, messages, alpha_output=True)
-    if alpha is not None and depth > 0:
-        messages.add(f"{owner}: the alpha texture of node '{node_name(node)}' inside a mix is "
-                     f"not supported yet; using the input's own value")
-        return None
-    return alpha
+    return own_principled_texture(node, "Alpha", owner, messages, depth, alpha_output=True)
 
 
 def mix_fac_texture(node, owner, messages, depth):

@@ -25,7 +25,7 @@ from .alpha import (LAYOUT, emission_note, mean_opacity, mix_fac_texture,
 from .anisotropy import glossy_anisotropy, principled_anisotropy
 from .nodes import NodeReader, active_output, follow_link, node_name, uses_nodes
 from .normal_maps import bump_map_correction, mixed_normal_input, normal_input
-from .textures import roughness_texture, scalar_texture, surface_texture
+from .textures import own_principled_texture, roughness_texture, scalar_texture, surface_texture
 
 # Cycles shades surfaces without a material as a 0.8 grey diffuse.
 DEFAULT_SURFACE_NAME = "Default Surface"
@@ -197,12 +197,7 @@ def _metallic_texture(node, owner, messages, depth):
     """``(pixels, mode)`` of an Image Texture into the Metallic of Principled ``node``, or
     None; only a material's own Principled (not one inside a Mix Shader) is re-weighted per
     hit, others are reported and use the socket's value."""
-    metal = scalar_texture(node, "Metallic", owner, messages)
-    if metal is not None and depth > 0:
-        messages.add(f"{owner}: the metallic texture of node '{node_name(node)}' inside a mix "
-                     f"is not supported yet; using the input's own value")
-        return None
-    return metal
+    return own_principled_texture(node, "Metallic", owner, messages, depth)
 
 
 def _node_surface(node, read, owner, messages):

@@ -252,3 +252,15 @@ def _image_rgb(image, owner, messages, node=None):
         messages.add(f"{owner}: colour space '{space}' of image '{image.name}' is not "
                      f"converted yet; its values are used as linear Rec.709")
     return rgb
+
+
+def own_principled_texture(node, name, owner, messages, depth, alpha_output=False):
+    """:func:`scalar_texture` of input ``name`` of a material's own Principled ``node`` (at
+    mix ``depth`` 0), whose mixture is re-weighted per hit; one inside a Mix Shader is reported
+    and its socket's value used (None)."""
+    found = scalar_texture(node, name, owner, messages, alpha_output=alpha_output)
+    if found is not None and depth > 0:
+        messages.add(f"{owner}: the {name.lower()} texture of node '{node_name(node)}' inside "
+                     f"a mix is not supported yet; using the input's own value")
+        return None
+    return found
