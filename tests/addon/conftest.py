@@ -64,3 +64,21 @@ def empty_scene(addon):
     scene = bpy.context.scene
     scene.render.engine = ENGINE_ID
     return scene
+
+
+@pytest.fixture()
+def pass_counts(addon, monkeypatch):
+    """The mean Sample Count of every progressive update the engine writes to Blender, in
+    order (a list that fills as a render runs; updates are not throttled)."""
+    from importlib import import_module
+    engine = import_module(f"{addon.__name__}.addon.engine")
+    monkeypatch.setattr(engine, "UPDATE_INTERVAL", 0.0)
+    write_passes = engine.passes.write_passes
+    counts = []
+
+    def recording(layer, images):
+        counts.append(float(images["Sample Count"].mean()))
+        write_passes(layer, images)
+
+    monkeypatch.setattr(engine.passes, "write_passes", recording)
+    return counts
