@@ -37,7 +37,7 @@ def test_photon_rows_are_active_exactly_where_the_render_uses_them(empty_scene, 
 
 
 def test_sppm_render_shows_every_pass_and_writes_a_finite_image(empty_scene, tmp_path,
-        pass_counts):
+                                                                pass_counts):
     scenes.cornell_box_point_light(empty_scene, resolution=(16, 16))
     scenes.set_sampling_lab(empty_scene, samples=4, max_bounces=3)
     empty_scene.sampling_lab.integrator = 'SPPM'
