@@ -216,9 +216,10 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         kinds.prop(settings, "diffuse_bounces")
         kinds.prop(settings, "glossy_bounces")
         kinds.prop(settings, "transmission_bounces")
-        # Light tracing's camera connections cross at most this many transparent surfaces.
+        # Light tracing's and BDPT's subpaths and connections cross at most this many
+        # transparent surfaces together.
         transparent = col.column(align=True)
-        transparent.active = settings.integrator in {'PATH', 'MLT', 'LIGHT'}
+        transparent.active = settings.integrator in {'PATH', 'MLT', 'LIGHT', 'BDPT'}
         transparent.prop(settings, "transparent_max_bounces")
         col.separator()
         rr = col.column()

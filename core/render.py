@@ -235,8 +235,8 @@ def used_settings(settings):
         ``sppm_alpha``, ``photon_memory``, ``photon_lookup``, ``photon_k``, ``photon_radius``,
         ``photon_kernel``, ``gather_rays``, the ``radiosity_*`` options and the per-kind
         bounce limits ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces`` and
-        ``transparent_max_bounces`` (path tracing only: the other integrators stop paths at
-        ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
+        ``transparent_max_bounces`` (path tracing only, and the transparent limit for light
+        tracing and BDPT: the other integrators stop paths at ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
         estimators use no MIS: one strategy per light contribution).
     """
     if settings.integrator == "radiosity":
@@ -283,10 +283,11 @@ def used_settings(settings):
         **{name: na for name in RADIOSITY_OPTIONS},
         **{name: na for name in MLT_OPTIONS},
         # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
-        # light tracing's camera connections cross at most the Transparent limit's surfaces.
+        # light tracing's and BDPT's subpaths and connections cross at most the Transparent
+        # limit's surfaces (core.integrators.transparent_passes).
         **{name: getattr(settings, name) if settings.integrator == "path"
-           or (settings.integrator == "light" and name == "transparent_max_bounces") else na
-           for name in BOUNCE_KIND_OPTIONS},
+           or (settings.integrator in ("light", "bdpt") and name == "transparent_max_bounces")
+           else na for name in BOUNCE_KIND_OPTIONS},
     }
 
 
@@ -511,15 +512,11 @@ def _messages(scene, settings, integrator):
     if scene.film_transparent and settings.integrator != "path":
         messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
                         f"tracing only; the background is rendered opaque")
-    if (settings.integrator not in ("path", "radiosity", "light", "mlt")
+    if (settings.integrator not in ("path", "radiosity", "light", "mlt", "bdpt")
             and integrator.prep.material_transparency is not None):
         messages.append(f"{settings.integrator}: transparent surfaces (Transparent BSDF, "
                         f"Alpha) block shadow rays and connections, and count as "
                         f"transmission bounces; path tracing lets shadow rays through them")
-    if settings.integrator == "light" and integrator.prep.material_transparency is not None:
-        messages.append("light: transparent surfaces (Transparent BSDF, Alpha) count as "
-                        "transmission bounces of the light paths; camera connections pass "
-                        "through them")
     return messages
 
 

@@ -16,11 +16,13 @@ from .mis_densities import camera_hit_weight
 
 def camera_emission(ctx, cam_sub, out):
     """``on_segment`` of the camera walk: emitters along the segment from vertex ``j - 1``
-    (strategy ``s = 0, t = j + 1``), MIS-weighted against the strategies that connect."""
+    (strategy ``s = 0, t = j + 1``), MIS-weighted against the strategies that connect. After
+    transparent passes (:mod:`.transparent_passes`) the segment starts ``t0 (k,)`` along the
+    ray from vertex ``j - 1``."""
     prep, em = ctx.prep, ctx.emission
     ls = prep.lights
 
-    def handle(j, rows, o, d, hits, beta, pdf_prev, prev_delta):
+    def handle(j, rows, o, d, hits, beta, pdf_prev, prev_delta, t0=None):
         found = []  # (local rows, emitter index, point, normal, distance)
         n = rows.size
         escaped = np.nonzero(~hits.hit)[0]
@@ -60,6 +62,8 @@ def camera_emission(ctx, cam_sub, out):
             else:
                 if j == 1:  # distances from the pinhole, not from the near clipping plane
                     t = np.where(np.isfinite(t), np.linalg.norm(q - ctx.cam_pos, axis=1), t)
+                elif t0 is not None:  # after transparent passes: from z_{j-1}, not the pass
+                    t = t + t0[lr]
                 weight = camera_hit_weight(ctx, cam_sub, j, r, index, q, normal, t, -d[lr],
                                            pdf_prev[lr], prev_delta[lr])
             out.add(0, j + 1, r, value, weight)

@@ -19,8 +19,8 @@ from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import finite_rows, max_component, take_rows
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
-from .shadows import shadow_transmittance
 from .subpaths import Gathered, dot, take_params, to_area
+from .transparent_passes import connection_budget, transmitted
 
 # Connections joined per batch of array operations (see _in_pieces).
 PIECE = 8192
@@ -121,7 +121,10 @@ def _join_vertices(ctx, L, C, zj, yj, row):
     value = (take_rows(L.flat("beta"), at_y) * yv.f(-w_e, w_y) * take_rows(f_z, e)
              * take_rows(C.flat("beta"), at_z[e]))
     value = value * (1.0 / np.maximum(dist_e ** 2, 1e-300))[:, None]
-    kept = _unblocked(ctx, C, at_z[e], take_rows(z, e), w_e, dist_e, yv.ng, value, dist_e > 0)
+    budget = connection_budget(ctx.settings.transparent_max_bounces,
+                               C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
+    kept = _unblocked(ctx, C, at_z[e], take_rows(z, e), w_e, dist_e, yv.ng, value, dist_e > 0,
+                      budget)
     if kept.size == 0:
         return None
     keep = e[kept]
@@ -166,7 +169,8 @@ def _join_emitters(ctx, L, C, zj, row, pts):
     g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
     value = value * g[:, None]
     y_normal = np.where(infinite[:, None], 0.0, pts.normal)
-    keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0)
+    budget = connection_budget(ctx.settings.transparent_max_bounces, C.flat("passed")[at_z])
+    keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0, budget)
     if keep.size == 0:
         return None
     zv, w, dist = zv.for_densities(keep), take_rows(w, keep), dist[keep]
@@ -191,18 +195,22 @@ def _reverse_at_z(C, zv, w_z, zj, row):
     return np.where(far, to_area(zv.pdf_back(w_z), C.cos_prev[zj, row], C.d_prev[zj, row]), 1.0)
 
 
-def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok):
-    """Connections ``(k,)`` (indices) with a contribution whose shadow ray gets through."""
+def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok, budget):
+    """Connections ``(k,)`` (indices) with a contribution whose shadow ray gets through
+    (through at most ``budget (m,)`` transparent surfaces, whose transparency then scales
+    their rows of ``value`` in place, :mod:`.transparent_passes`)."""
     ok = ok & (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return cand
     at = at_z[cand]
-    blocked = ctx.prep.accel.occluded(*ctx.prep.accel.shadow_rays(
+    through, transmit = transmitted(ctx, *ctx.prep.accel.shadow_rays(
         take_rows(z, cand), take_rows(C.flat("ng"), at), C.flat("prim")[at], take_rows(w, cand),
-        dist[cand], take_rows(y_normal, cand)), VIS_SHADOW)
+        dist[cand], take_rows(y_normal, cand)), budget[cand], VIS_SHADOW)
     ctx.counters.rays += cand.size
-    return cand[~blocked]
+    if transmit is not None:
+        value[cand[through]] *= transmit
+    return cand[through]
 
 
 def connect_camera(ctx, L, s, out):
@@ -213,7 +221,8 @@ def connect_camera(ctx, L, s, out):
         return
     splat_vertices(ctx, s, rows, take_rows(L.p[yj], rows), L.prim[yj, rows],
                    lambda seen: Gathered(ctx, L, yj, rows[seen], IMPORTANCE),
-                   lambda seen: take_rows(L.beta[yj], rows[seen]), out, L)
+                   lambda seen: take_rows(L.beta[yj], rows[seen]), out, L,
+                   connection_budget(ctx.settings.transparent_max_bounces, L.passed[yj, rows]))
 
 
 def camera_splatter(ctx, out):
@@ -234,21 +243,27 @@ def camera_splatter(ctx, out):
                                take_rows(wo_l, idx), take_rows(si.ng, idx),
                                None if si.nm is None else take_rows(si.nm, idx), lambert)
 
+        passed = getattr(ctx, "vertex_passes", None)
+        budget = connection_budget(ctx.settings.transparent_max_bounces,
+                                   0 if passed is None else passed[ok])
         splat_vertices(ctx, j + 1, rows[ok], take_rows(si.p, ok), si.prim[ok], gather,
-                       lambda seen: take_rows(beta, ok[seen]), out)
+                       lambda seen: take_rows(beta, ok[seen]), out, budget=budget)
 
     return handle
 
 
-def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
+def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0):
     """Strategy ``t = 1`` for the light vertices ``y (m, 3)`` (vertex ``s - 1`` of the light
     subpaths ``rows (m,)``, on triangles ``prim (m,)``): those the pinhole sees are splatted.
 
     ``gather(seen)`` gives the :class:`.subpaths.Gathered` vertices of the rows ``seen`` of
     ``rows``, ``beta_of(seen)`` their throughputs: only vertices in the film's view are
     gathered. ``L`` (the stored light subpaths) is needed for MIS weights (BDPT) only.
+    ``budget (m,)``: transparent surfaces each connection may cross
+    (:mod:`.transparent_passes`).
     """
     cam = ctx.cam
+    budget = np.broadcast_to(budget, rows.shape)
     film_xy, visible, cos_theta, dist = project(cam, y, ctx.film_margin, ctx.window)
     seen = np.nonzero(visible)[0]
     if seen.size == 0:
@@ -269,22 +284,12 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None):
         take_rows(y, cand), take_rows(yv.ng, cand), prim[cand], take_rows(w, cand), dist[cand],
         np.zeros((cand.size, 3)))
     ctx.counters.rays += cand.size
-    if ctx.weighs or ctx.prep.material_transparency is None:
-        # BDPT's MIS counts transparent passes as vertices: its connections stop at them. In a
-        # scene without transparent surfaces light tracing's transmittance is 0 or 1: the
-        # occlusion query alone gives the same splats.
-        through = np.nonzero(~ctx.prep.accel.occluded(o, dirs, tmax, VIS_CAMERA))[0]
-        keep = cand[through]
-        value = take_rows(value, keep)
-    else:
-        # Light tracing (one strategy) lets the connection through transparent surfaces, as
-        # the path tracer's shadow rays (:mod:`.shadows`), within the Transparent limit.
-        transmit = shadow_transmittance(ctx.prep, o, dirs, tmax,
-                                        ctx.settings.transparent_max_bounces, ctx.counters,
-                                        VIS_CAMERA)
-        through = np.nonzero(max_component(transmit) > 0)[0]
-        keep = cand[through]
-        value = take_rows(value, keep) * take_rows(transmit, through).astype(value.dtype)
+    # Through transparent surfaces, as the path tracer's shadow rays (:mod:`.shadows`).
+    through, transmit = transmitted(ctx, o, dirs, tmax, budget[seen][cand], VIS_CAMERA)
+    keep = cand[through]
+    value = take_rows(value, keep)
+    if transmit is not None:
+        value = value * transmit.astype(value.dtype)
     if keep.size == 0:
         return
     film_xy = take_rows(film_xy, keep)
@@ -331,12 +336,14 @@ def connect_emitter_to_camera(ctx, L, out):
     # From the pinhole toward the point, stopping just short of it (emissive triangles are
     # geometry; lamps are not).
     origins = np.broadcast_to(ctx.cam_pos, (rows.size, 3)).copy()
-    blocked = prep.accel.occluded(origins, -w, dist * (1.0 - 1e-5), VIS_CAMERA)
+    keep, transmit = transmitted(ctx, origins, -w, dist * (1.0 - 1e-5),
+                                 ctx.settings.transparent_max_bounces, VIS_CAMERA)
     ctx.counters.rays += rows.size
-    keep = np.nonzero(~blocked)[0]
     if keep.size == 0:
         return
     rows, dist, value, film_xy, cos_theta, cos_l = (rows[keep], dist[keep], value[keep],
                                                     film_xy[keep], cos_theta[keep], cos_l[keep])
+    if transmit is not None:  # through transparent surfaces (:mod:`.transparent_passes`)
+        value = value * transmit
     weight = direct_weight(ctx, rows, cos_theta, cos_l, dist)
     out.splat(1, film_xy, value, weight)

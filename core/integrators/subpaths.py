@@ -21,6 +21,7 @@ from .adjoint_normals import VertexNormals
 from .common import (finite_rows, intersect_by_class, max_component, next_1d_if, ray_class,
                      roulette_at, russian_roulette, shading_tangents, surface_hits,
                      surface_interaction, take_rows, with_bump_normals)
+from .transparent_passes import Passes, has_passes
 
 
 def dot(a, b):
@@ -92,7 +93,9 @@ class Subpath:
     (along the edge, geometric normal; one for points, the pinhole and infinite endpoints),
     used to turn solid-angle densities at this vertex into area densities at the previous one.
     ``nm`` is the perturbed shading normal before the view's fallback, for light paths' choice
-    of normal (:mod:`.adjoint_normals`; smooth-shaded scenes only).
+    of normal (:mod:`.adjoint_normals`; smooth-shaded scenes only). ``passed`` counts the
+    transparent surfaces the subpath passed straight through before each vertex (not vertices:
+    :mod:`.transparent_passes`).
     """
 
     valid: np.ndarray
@@ -114,6 +117,7 @@ class Subpath:
     cos_prev: np.ndarray
     all_params: BSDFParams = None
     nm: np.ndarray = None
+    passed: np.ndarray = None
 
     @staticmethod
     def empty(depth, n):
@@ -129,13 +133,13 @@ class Subpath:
                        z3(), z3(), z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
-                       np.ones((depth, n)), table, z3())
+                       np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32))
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
         allocation would page its memory in again for every batch."""
         for name, value in (("valid", False), ("prim", 0), ("connectible", False),
-                            ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
+                            ("passed", 0), ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
                             ("d_prev", np.inf), ("cos_prev", 1.0)):
             getattr(self, name).fill(value)
         for name in ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm"):
@@ -322,11 +326,18 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     start = max_component(beta)
     rr_scale = np.where(start > 0, 1.0 / np.where(start > 0, start, 1.0), 1.0)
     last = depth + int(on_segment is not None)
+    passes = Passes(rows.size) if has_passes(prep) else None
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         ctx.counters.rays += o.shape[0]
         if on_segment is not None:
             on_segment(j, rows, o, d, hits, beta, pdf_prev, prev_delta)
+        u_pass = None
+        if passes is not None:
+            # Straight through transparent surfaces to the next vertex (not vertices).
+            hits, beta, u_pass = passes.resolve(ctx, j, rows, o, d, tmax, hits, beta, vis,
+                                                stream, dims_of(j), on_segment, pdf_prev,
+                                                prev_delta)
         if j == depth:
             break
         live = surface_hits(prep, hits)
@@ -343,6 +354,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             path_stream.compact(live)
         path_stream.skip_to(dims_of(j))
         u_lobe = path_stream.next_1d()
+        if u_pass is not None:  # the number left after the choices of the passes
+            u_lobe = u_pass[live]
         u_bsdf = path_stream.next_2d()
         u_rr = next_1d_if(path_stream, roulette_at(settings, j - 1))
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
@@ -356,11 +369,16 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         wo_l = to_local(si.wo, fs, ft, fn)
         params = with_bump_normals(params, si, (fs, ft, fn))
         beta = take_rows(beta, live)
+        if passes is not None:
+            passes.take(live)
+            ctx.vertex_passes = passes.passed
         if on_vertex is not None:
             on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta)
         if sub is not None:
             dist = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l, params,
                                  delta_only, beta, pdf_prev, prev_delta)
+            if passes is not None:
+                sub.passed[j][r] = passes.passed
         if j == depth - 1 and on_segment is None:
             break
 
@@ -380,6 +398,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             break
         rows = r[keep]
         rr_scale = rr_scale[keep]
+        if passes is not None:
+            passes.take(keep)
         path_stream.compact(keep)
         beta = take_rows(beta, keep)
         d = take_rows(wi, keep)
