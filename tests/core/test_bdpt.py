@@ -384,7 +384,7 @@ def test_subpath_reset_restores_an_empty_subpath():
     rng = np.random.default_rng(3)
     fresh, used = Subpath.empty(4, 7), Subpath.empty(4, 7)
     for name in ("valid", "prim", "connectible", "delta", "p", "ng", "fs", "ft", "fn", "wo",
-                 "wo_local", "beta", "pdf_fwd", "pdf_rev", "d_prev", "cos_prev"):
+                 "wo_local", "beta", "pdf_fwd", "pdf_rev", "d_prev", "cos_prev", "passed"):
         a = getattr(used, name)
         a[...] = rng.random(a.shape) > 0.5 if a.dtype == bool else rng.random(a.shape) + 2
     # A stored vertex with a coat and a sheen adds those column groups to the table.
