@@ -16,7 +16,7 @@ that hit. Every integrator sees this in the two places it reads a surface's tran
 
 - choosing a mixture component at a path vertex (camera paths, light paths, BDPT, photons):
   :func:`core.reweighting.choose_reweighted` draws with the hit's weights;
-- shadow rays and light tracing's camera connections that pass through transparent surfaces
+- shadow rays and light tracing's and BDPT's connections that pass through transparent surfaces
   (:mod:`core.integrators.shadows`): :meth:`AlphaTextures.transparency` gives the hit's
   ``sum_c w_c(hit) color_c`` over the pass-through components.
 

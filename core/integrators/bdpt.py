@@ -21,11 +21,16 @@ Bias and consistency
     a path and get weight zero; so do strategies whose density is zero.
     Densities used for MIS ignore Russian roulette, and light points for ``s = 1`` are sampled
     by area (not by solid angle as the path tracer's ``solid_angle`` setting does).
+    Transparent surfaces (Transparent BSDF, Alpha) are not path vertices: subpaths pass them
+    straight through and connections cross them, dimmed by their transparency, within the
+    Transparent limit (:mod:`.transparent_passes`, which argues why the MIS weights still sum
+    to one).
 Parameters
-    ``max_bounces``, ``use_russian_roulette``, ``rr_min_bounces``, ``mis_heuristic``,
-    ``mis_beta``, ``mis_alpha``; light selection and the world's importance map as
-    :class:`core.lights.LightSampler`; ``strategy_views`` and ``strategy_max_length`` write one
-    image per strategy (its own estimate, and its MIS-weighted share).
+    ``max_bounces``, ``transparent_max_bounces``, ``use_russian_roulette``,
+    ``rr_min_bounces``, ``mis_heuristic``, ``mis_beta``, ``mis_alpha``; light selection and
+    the world's importance map as :class:`core.lights.LightSampler`; ``strategy_views`` and
+    ``strategy_max_length`` write one image per strategy (its own estimate, and its
+    MIS-weighted share).
 Limitations
     Perspective cameras only (light subpaths must be able to reach the film). Object ray
     visibility is honoured for camera rays and shadow rays; light subpath rays trace every

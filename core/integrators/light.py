@@ -3,9 +3,11 @@
 What it estimates
     The same pixel measurement as :mod:`.path`, from the other end. Each sample traces one
     light subpath (emitter chosen as next-event estimation chooses it, a point on it, a
-    direction by its emission profile; then BSDF sampling in importance mode) and connects every
-    non-delta vertex to the pinhole with a shadow ray (through transparent surfaces, dimmed by
-    them, at most the Transparent limit of them); the contribution lands at the film
+    direction by its emission profile; then BSDF sampling in importance mode, straight through
+    transparent surfaces, which are no vertices) and connects every non-delta vertex to the
+    pinhole with a shadow ray (through transparent surfaces, dimmed by them; the path's passes
+    and the connection's at most the Transparent limit, :mod:`.transparent_passes`); the
+    contribution lands at the film
     position where the vertex projects, weighted by the pixel filter (BDPT's ``t = 1``
     strategies, unweighted). Emitters seen directly come from the camera ray of the sample
     (BDPT's ``s = 0, t = 2``), so that the sky and sun disks seen directly count too.

@@ -2,13 +2,13 @@
 
 A surface with transparent components (Transparent BSDF, a Principled BSDF's Alpha, a Mix with
 a Transparent BSDF; per hit where the alpha is a texture, :mod:`core.alpha`) is, for light
-tracing and BDPT, a *null interface* as in pbrt-v4 and Mitsuba 3:
+tracing and BDPT, a *null interface*, as pbrt-v4's walks skip interface surfaces:
 
 - **Walks** (camera and light subpaths, :func:`.subpaths.walk`): at such a hit the walk chooses
-  a mixture component as every vertex does (probability its weight, :meth:`core.prepare.
-  PreparedScene.choose_material`). If it is the pass-through (a smooth dielectric of IOR 1) the
-  ray goes on straight from the hit, its throughput times the component's colour, and *no
-  vertex is stored*: the next vertex keeps the densities of the ray from the vertex before the
+  a mixture component as every vertex does (probability its weight,
+  :meth:`core.prepare.PreparedScene.choose_material`). If it is the pass-through (a smooth
+  dielectric of IOR 1) the ray goes on straight from the hit, its throughput times the
+  component's colour, and *no vertex is stored*: the next vertex keeps the densities of the ray from the vertex before the
   surface (its distance is the whole way from there). Otherwise the hit is a vertex as before,
   shaded by the chosen component. A purely transparent surface passes every ray, with its
   colour. The choices chain on one lobe number (the remapped number of one choice is uniform
