@@ -8,10 +8,10 @@ tracing and BDPT, a *null interface*, as pbrt-v4's walks skip interface surfaces
   a mixture component as every vertex does (probability its weight,
   :meth:`core.prepare.PreparedScene.choose_material`). If it is the pass-through (a smooth
   dielectric of IOR 1) the ray goes on straight from the hit, its throughput times the
-  component's colour, and *no vertex is stored*: the next vertex keeps the densities of the ray from the vertex before the
-  surface (its distance is the whole way from there). Otherwise the hit is a vertex as before,
-  shaded by the chosen component. A purely transparent surface passes every ray, with its
-  colour. The choices chain on one lobe number (the remapped number of one choice is uniform
+  component's colour, and *no vertex is stored*: the next vertex keeps the densities of the
+  ray from the vertex before the surface (its distance is the whole way from there).
+  Otherwise the hit is a vertex as before, shaded by the chosen component. A purely
+  transparent surface passes every ray, with its colour. The choices chain on one lobe number (the remapped number of one choice is uniform
   again and independent of it), so a subpath draws no more numbers than before.
 - **Connections** (``s >= 1, t >= 2``, ``t = 1`` to the pinhole, ``s = 1, t = 1``): the
   connecting ray goes through such surfaces, its contribution times their transparency
