@@ -11,8 +11,9 @@ tracing and BDPT, a *null interface*, as pbrt-v4's walks skip interface surfaces
   component's colour, and *no vertex is stored*: the next vertex keeps the densities of the
   ray from the vertex before the surface (its distance is the whole way from there).
   Otherwise the hit is a vertex as before, shaded by the chosen component. A purely
-  transparent surface passes every ray, with its colour. The choices chain on one lobe number (the remapped number of one choice is uniform
-  again and independent of it), so a subpath draws no more numbers than before.
+  transparent surface passes every ray, with its colour. The choices chain on one lobe
+  number (the remapped number of one choice is uniform again and independent of it), so a
+  subpath draws no more numbers than before.
 - **Connections** (``s >= 1, t >= 2``, ``t = 1`` to the pinhole, ``s = 1, t = 1``): the
   connecting ray goes through such surfaces, its contribution times their transparency
   ``sum_c w_c color_c`` (:func:`.shadows.shadow_transmittance`), as the path tracer's shadow
