@@ -139,8 +139,8 @@ class Subpath:
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
         allocation would page its memory in again for every batch."""
         for name, value in (("valid", False), ("prim", 0), ("connectible", False),
-                            ("passed", 0), ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
-                            ("d_prev", np.inf), ("cos_prev", 1.0)):
+                            ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
+                            ("d_prev", np.inf), ("cos_prev", 1.0), ("passed", 0)):
             getattr(self, name).fill(value)
         for name in ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm"):
             getattr(self, name).fill(0.0)
@@ -312,7 +312,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     handed over as it is made (the subpaths ``rows (k,)``, their
     :class:`.common.Interaction`, shading frame, BSDF and throughput); with ``sub`` None
     nothing is stored (light tracing connects every vertex as it is made, so it keeps none).
-    ``stream`` itself is not advanced: the walk draws from a copy.
+    ``stream`` itself is not advanced: the walk draws from a copy. Transparent surfaces on the
+    way are passed straight through, not made vertices (:mod:`.transparent_passes`; the
+    segments after a pass go to ``on_segment`` too).
 
     Russian roulette weighs a path's throughput relative to its first ray's (``1`` for camera
     rays; the emitted power over its density for light paths, in Watts): survival then
