@@ -357,7 +357,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         path_stream.skip_to(dims_of(j))
         u_lobe = path_stream.next_1d()
         if u_pass is not None:  # the number left after the choices of the passes
-            u_lobe = u_pass[live]
+            u_lobe = np.where(np.isnan(u_pass[live]), u_lobe, u_pass[live])
         u_bsdf = path_stream.next_2d()
         u_rr = next_1d_if(path_stream, roulette_at(settings, j - 1))
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],

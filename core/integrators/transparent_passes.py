@@ -98,6 +98,14 @@ def transmitted(ctx, origins, directions, tmax, budget, mask):
     return through, take_rows(value, through)
 
 
+def _on_transparent(prep, hits):
+    """The rows ``(k,)`` of ``hits`` on a surface whose material has a transparent component
+    (a textured alpha may still make a hit opaque: the component choice decides)."""
+    live = surface_hits(prep, hits)
+    clear = prep.material_transparency.max(axis=1) > 0
+    return live[clear[prep.tri_material[hits.prim[live]]]]
+
+
 def _is_pass(prep, material):
     """Whether the material rows ``material (k,)`` pass rays straight through (smooth
     dielectrics of IOR exactly 1, :func:`core.prepare.pass_colors`)."""
@@ -151,14 +159,17 @@ class Passes:
             beyond the Transparent limit, or one of colour zero, end (no hit).
         beta : (m, 3) float64
         u_lobe : (m,) float64 or None
-            The lobe number entering the component choice of each final hit (NaN for rows
-            that hit no surface); None if no ray passed a surface (the walk's own draw).
+            The lobe number entering the component choice of each final hit, NaN where the
+            walk's own draw is that number (no surface with a transparent component on the
+            way); None if no ray passed a surface.
         """
         prep = ctx.prep
         limit = int(ctx.settings.transparent_max_bounces)
-        live = surface_hits(prep, hits)
+        live = _on_transparent(prep, hits)
         if live.size == 0:
             return hits, beta, None
+        # Only hits on materials with a transparent component draw here (the others keep NaN:
+        # the walk's own draw of the same dimension).
         u_lobe = np.full(rows.size, np.nan)
         draw = copy.copy(stream)
         draw.compact(rows[live])
@@ -170,7 +181,7 @@ class Passes:
         cur, cur_hits, cur_o = np.arange(rows.size), hits, o
         # Each round passes one more surface or ends a path: at most limit + 1 rounds.
         for _ in range(limit + 2):
-            lc = surface_hits(prep, cur_hits)
+            lc = _on_transparent(prep, cur_hits)
             at = cur[lc]
             prim, hu, hv = cur_hits.prim[lc], cur_hits.u[lc], cur_hits.v[lc]
             material, u_after = prep.choose_material(prim, u_lobe[at], hu, hv)
