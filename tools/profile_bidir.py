@@ -147,9 +147,11 @@ def _patch_handler(module, name):
 
 
 def _scene(args):
-    from sampling_lab.core.scenes import cornell_box
+    """The bench's Cornell box (``--scene bench``) or a ``bench-scenes`` scene (needs
+    ``bpy``), as :func:`tools.profile_path.load_scene` loads them."""
+    from profile_path import load_scene
 
-    return cornell_box(args.width, args.height, light="mesh")
+    return load_scene(args.scene, args.width, args.height)
 
 
 def speeds(scene, args, integrators=("path", "light", "bdpt")):
@@ -219,7 +221,7 @@ def unit_costs(scene, args):
             import pstats
             profile = cProfile.Profile(time.thread_time)
             profile.runcall(run, args.units)
-            pstats.Stats(profile).sort_stats("tottime").print_stats(args.cprofile)
+            pstats.Stats(profile).sort_stats(os.environ.get("PROFILE_SORT", "tottime")).print_stats(args.cprofile)
     return out
 
 
@@ -231,6 +233,9 @@ def main(argv=None):
     parser.add_argument("--width", type=int, default=256)
     parser.add_argument("--height", type=int, default=256)
     parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--scene", default="bench",
+                        help="bench (the bench's mesh-light box) or a bench-scenes scene "
+                             "(tools.hard_scenes.SCENES, e.g. mirror_ball; needs bpy)")
     parser.add_argument("--integrators", default="light,bdpt", help="profiled, comma-separated")
     parser.add_argument("--no-profile", action="store_true", help="speed figures only")
     parser.add_argument("--units", type=int, default=0,
