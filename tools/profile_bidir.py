@@ -16,7 +16,8 @@ It imports the package by its absolute name, so the same file profiles an older 
 ``PYTHONPATH`` names that one; stages that a tree lacks are skipped.
 
 ``--units N`` measures the work itself instead: the integrator's ``render_samples`` called
-directly on this thread, ``N`` work units of ``--unit-paths`` paths (independent sampler,
+directly on this thread, ``N`` work units of ``--unit-paths`` paths (by default the
+integrator's own unit size, as in a render; independent sampler,
 power light selection), CPU microseconds per sample (best of ``--repeats``), without the
 render loop, its threads or the film. With ``--cprofile K`` it then prints the ``K``
 functions of most own time in a ``cProfile`` of those units on a thread-CPU clock (other
@@ -192,13 +193,14 @@ def unit_costs(scene, args):
     from sampling_lab.core.render import RenderSettings
     from sampling_lab.core.sampling.samplers import make_sampler
 
-    w, h, n = args.width, args.height, args.unit_paths
+    w, h = args.width, args.height
     out = {}
     for name in args.integrators.split(","):
         settings = RenderSettings(integrator=name, spp=4, threads=1, seed=0,
                                   sampler="independent", light_selection="power",
                                   **_bounces(RenderSettings, 8))
         integ = integrator_class(name)(prepare(scene, "power"), settings)
+        n = args.unit_paths or integ.unit_paths  # a render's own unit size by default
         sampler = make_sampler("independent", seed=0, spp=4, width=w)
         pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
 
@@ -240,7 +242,8 @@ def main(argv=None):
     parser.add_argument("--no-profile", action="store_true", help="speed figures only")
     parser.add_argument("--units", type=int, default=0,
                         help="CPU time per sample of this many work units called directly")
-    parser.add_argument("--unit-paths", type=int, default=8192, help="paths per unit")
+    parser.add_argument("--unit-paths", type=int, default=0,
+                        help="paths per unit (default: the integrator's own, as a render's)")
     parser.add_argument("--cprofile", type=int, default=0,
                         help="with --units: print this many functions of a cProfile")
     args = parser.parse_args(argv)

@@ -71,15 +71,37 @@ class BDPT(Bidirectional):
     # Cornell box), so units are smaller than the path tracer's to keep cancel and progress
     # within a second. A call has a few milliseconds of fixed cost (7 ms for 256 paths, one
     # core, 2026-11-25), and NumPy's per-call cost falls with larger batches: much smaller
-    # units would be slower.
+    # units would be slower. The class's figure sizes viewport units (core.progressive); a
+    # render's units and chunks are sized by its depth (_unit_paths).
     unit_paths = 1 << 13
     strategy_views = True
+
+    def __init__(self, prep, settings):
+        super().__init__(prep, settings)
+        self.unit_paths = self.chunk_paths = _unit_paths(settings.max_bounces + 2)
 
     def connect(self, ctx, stream, C, L, out):
         """Strategies ``s >= 1, t >= 2`` (a fresh emitter point for ``s = 1``), then
         ``s = 1, t = 1``."""
         connect_all(ctx, L, C, _fresh_points(ctx, stream, C), out)
         connect_emitter_to_camera(ctx, L, out)
+
+
+# Most subpath vertices per chunk and side (_unit_paths): at about 330 bytes a vertex, at
+# most 90 MB of subpath arrays per side and worker thread.
+UNIT_VERTICES = 1 << 18
+
+
+def _unit_paths(depth):
+    """Paths per work unit (and chunk) for subpaths of ``depth`` vertices: a power of two
+    between ``2^13`` and ``2^14`` with at most :data:`UNIT_VERTICES` vertices per subpath
+    table. Each chunk has a fixed cost per vertex depth and strategy (NumPy calls on few
+    rows): 16,384 paths took 0.8 x the CPU per sample of 8,192 on the bench box (8 bounces,
+    one thread, 2026-11-26; docs/BENCHMARKS.md), 32,768 0.7 x but with 3 x the memory."""
+    paths = 1 << 14
+    while paths > 1 << 13 and paths * depth > UNIT_VERTICES:
+        paths >>= 1
+    return paths
 
 
 def _fresh_points(ctx, stream, C):
