@@ -91,6 +91,8 @@ STAGES = [
     ("integrators.mis_densities", "splat_weight", MIS),
     ("integrators.mis_densities", "direct_weight", MIS),
     ("integrators.mis_densities", "strategy_weight", MIS),
+    ("integrators.mis_sums", "RunningSums.__init__", MIS),
+    ("integrators.mis_sums", "RunningSums.weights", MIS),
     ("integrators.strategy_views", "Tally.add", "tally (image sums, splat lists, output)"),
     ("integrators.strategy_views", "Tally.splat", "tally (image sums, splat lists, output)"),
     ("integrators.strategy_views", "Tally.output", "tally (image sums, splat lists, output)"),
@@ -274,9 +276,11 @@ def main(argv=None):
         render(scene, RenderSettings(integrator=name, spp=args.spp, threads=args.threads,
                                      **_bounces(RenderSettings, 8), seed=0))
         total = sum(_TOTALS.values())
-        print(f"\n{name}: stage profile (exclusive thread CPU seconds, total {total:.2f} s):")
+        per = 1e6 / (args.width * args.height * args.spp)  # us per camera sample
+        print(f"\n{name}: stage profile (exclusive thread CPU seconds, total {total:.2f} s, "
+              f"{total * per:.2f} us per sample):")
         for stage, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
-            print(f"  {100 * sec / total:5.1f} %  {stage}")
+            print(f"  {100 * sec / total:5.1f} %  {sec * per:6.3f} us  {stage}")
     print(f"load average at end: {os.getloadavg()}")
 
 

@@ -17,7 +17,9 @@ Bias and consistency
     all strategies that can make a path sum to one for every heuristic, so every setting of
     ``mis_heuristic`` is unbiased: ``balance``, ``power`` (``mis_beta``), ``maximum``,
     ``cutoff`` (``mis_alpha``), or ``none`` (every strategy that can make the path gets the same
-    weight). Strategies next to a delta BSDF vertex, and ``s = 0`` for delta lights, cannot make
+    weight). For the connections ``s >= 1, t >= 2`` under ``balance``, ``power`` and ``none``
+    the same weights (to rounding) come from running sums along the subpaths
+    (:mod:`.mis_sums`), one pass for every strategy of a batch. Strategies next to a delta BSDF vertex, and ``s = 0`` for delta lights, cannot make
     a path and get weight zero; so do strategies whose density is zero.
     Densities used for MIS ignore Russian roulette, and light points for ``s = 1`` are sampled
     by area (not by solid angle as the path tracer's ``solid_angle`` setting does).
