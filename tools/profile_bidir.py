@@ -25,6 +25,11 @@ processes' load does not count; a profiler of the render would see only the rend
 thread)::
 
     PYTHONPATH=/path/to/parent python tools/profile_bidir.py --units 4 --repeats 6
+
+``--scene NAME`` profiles a ``bench-scenes`` scene (``tools.hard_scenes.SCENES``, built in
+``bpy`` and exported as the add-on does) instead of the bench's box, e.g. ``--scene
+mirror_ball --width 96 --height 96``. The stage profile prints each stage's share and its
+CPU microseconds per camera sample.
 """
 
 from __future__ import annotations
@@ -225,7 +230,7 @@ def unit_costs(scene, args):
             import pstats
             profile = cProfile.Profile(time.thread_time)
             profile.runcall(run, args.units)
-            pstats.Stats(profile).sort_stats(os.environ.get("PROFILE_SORT", "tottime")).print_stats(args.cprofile)
+            pstats.Stats(profile).sort_stats(args.cprofile_sort).print_stats(args.cprofile)
     return out
 
 
@@ -248,6 +253,9 @@ def main(argv=None):
                         help="paths per unit (default: the integrator's own, as a render's)")
     parser.add_argument("--cprofile", type=int, default=0,
                         help="with --units: print this many functions of a cProfile")
+    parser.add_argument("--cprofile-sort", default="tottime",
+                        help="order of the cProfile's functions (pstats key: tottime, "
+                             "cumulative, ...)")
     args = parser.parse_args(argv)
     if args.units:
         print(f"load average at start: {os.getloadavg()}")
