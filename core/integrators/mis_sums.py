@@ -120,7 +120,8 @@ class RunningSums:
         one, two = s == 1, s == 2
         y = s - 1
         a1 = _ratio(near.camera_s1, np.where(one, near.light_0, L.pdf_fwd[y, row]))
-        # Strategy s - 1 connects at x_{s-2} (delta there impossible) and y (never delta).
+        # Strategy s - 1 connects x_{s-2} (impossible where it is delta) to y (never counted
+        # delta: the connection evaluates its BSDF). Vertex 0's flag is never set (false).
         p1 = np.where(one, ~near.delta_light, ~L.delta[np.maximum(y - 1, 0), row])
         back = np.maximum(y - 1, 0)
         a2 = _ratio(near.camera_s2, np.where(two, near.light_0, L.pdf_fwd[back, row]))
@@ -135,7 +136,8 @@ class RunningSums:
         h = self.h
         z = t - 1
         b1 = _ratio(near.light_s, C.pdf_fwd[z, row])
-        # Strategy s + 1 connects at z = x_s (never delta) and z_{t-2} (delta impossible).
+        # Strategy s + 1 connects z = x_s (never counted delta) to z_{t-2} (impossible where
+        # it is delta; the pinhole z_0's flag is never set).
         p1 = ~C.delta[z - 1, row]
         b2 = _ratio(near.light_s1, C.pdf_fwd[z - 1, row])
         p2 = ~C.delta[np.maximum(z - 2, 0), row] & p1
