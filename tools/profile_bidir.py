@@ -16,7 +16,8 @@ It imports the package by its absolute name, so the same file profiles an older 
 ``PYTHONPATH`` names that one; stages that a tree lacks are skipped.
 
 ``--units N`` measures the work itself instead: the integrator's ``render_samples`` called
-directly on this thread, ``N`` work units of ``--unit-paths`` paths (independent sampler,
+directly on this thread, ``N`` work units of ``--unit-paths`` paths (by default the
+integrator's own unit size, as in a render; independent sampler,
 power light selection), CPU microseconds per sample (best of ``--repeats``), without the
 render loop, its threads or the film. With ``--cprofile K`` it then prints the ``K``
 functions of most own time in a ``cProfile`` of those units on a thread-CPU clock (other
@@ -24,6 +25,11 @@ processes' load does not count; a profiler of the render would see only the rend
 thread)::
 
     PYTHONPATH=/path/to/parent python tools/profile_bidir.py --units 4 --repeats 6
+
+``--scene NAME`` profiles a ``bench-scenes`` scene (``tools.hard_scenes.SCENES``, built in
+``bpy`` and exported as the add-on does) instead of the bench's box, e.g. ``--scene
+mirror_ball --width 96 --height 96``. The stage profile prints each stage's share and its
+CPU microseconds per camera sample.
 """
 
 from __future__ import annotations
@@ -90,6 +96,8 @@ STAGES = [
     ("integrators.mis_densities", "splat_weight", MIS),
     ("integrators.mis_densities", "direct_weight", MIS),
     ("integrators.mis_densities", "strategy_weight", MIS),
+    ("integrators.mis_sums", "RunningSums.__init__", MIS),
+    ("integrators.mis_sums", "RunningSums.weights", MIS),
     ("integrators.strategy_views", "Tally.add", "tally (image sums, splat lists, output)"),
     ("integrators.strategy_views", "Tally.splat", "tally (image sums, splat lists, output)"),
     ("integrators.strategy_views", "Tally.output", "tally (image sums, splat lists, output)"),
@@ -147,9 +155,11 @@ def _patch_handler(module, name):
 
 
 def _scene(args):
-    from sampling_lab.core.scenes import cornell_box
+    """The bench's Cornell box (``--scene bench``) or a ``bench-scenes`` scene (needs
+    ``bpy``), as :func:`tools.profile_path.load_scene` loads them."""
+    from profile_path import load_scene
 
-    return cornell_box(args.width, args.height, light="mesh")
+    return load_scene(args.scene, args.width, args.height)
 
 
 def speeds(scene, args, integrators=("path", "light", "bdpt")):
@@ -190,13 +200,14 @@ def unit_costs(scene, args):
     from sampling_lab.core.render import RenderSettings
     from sampling_lab.core.sampling.samplers import make_sampler
 
-    w, h, n = args.width, args.height, args.unit_paths
+    w, h = args.width, args.height
     out = {}
     for name in args.integrators.split(","):
         settings = RenderSettings(integrator=name, spp=4, threads=1, seed=0,
                                   sampler="independent", light_selection="power",
                                   **_bounces(RenderSettings, 8))
         integ = integrator_class(name)(prepare(scene, "power"), settings)
+        n = args.unit_paths or integ.unit_paths  # a render's own unit size by default
         sampler = make_sampler("independent", seed=0, spp=4, width=w)
         pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
 
@@ -219,7 +230,7 @@ def unit_costs(scene, args):
             import pstats
             profile = cProfile.Profile(time.thread_time)
             profile.runcall(run, args.units)
-            pstats.Stats(profile).sort_stats("tottime").print_stats(args.cprofile)
+            pstats.Stats(profile).sort_stats(args.cprofile_sort).print_stats(args.cprofile)
     return out
 
 
@@ -231,13 +242,20 @@ def main(argv=None):
     parser.add_argument("--width", type=int, default=256)
     parser.add_argument("--height", type=int, default=256)
     parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--scene", default="bench",
+                        help="bench (the bench's mesh-light box) or a bench-scenes scene "
+                             "(tools.hard_scenes.SCENES, e.g. mirror_ball; needs bpy)")
     parser.add_argument("--integrators", default="light,bdpt", help="profiled, comma-separated")
     parser.add_argument("--no-profile", action="store_true", help="speed figures only")
     parser.add_argument("--units", type=int, default=0,
                         help="CPU time per sample of this many work units called directly")
-    parser.add_argument("--unit-paths", type=int, default=8192, help="paths per unit")
+    parser.add_argument("--unit-paths", type=int, default=0,
+                        help="paths per unit (default: the integrator's own, as a render's)")
     parser.add_argument("--cprofile", type=int, default=0,
                         help="with --units: print this many functions of a cProfile")
+    parser.add_argument("--cprofile-sort", default="tottime",
+                        help="order of the cProfile's functions (pstats key: tottime, "
+                             "cumulative, ...)")
     args = parser.parse_args(argv)
     if args.units:
         print(f"load average at start: {os.getloadavg()}")
@@ -266,9 +284,11 @@ def main(argv=None):
         render(scene, RenderSettings(integrator=name, spp=args.spp, threads=args.threads,
                                      **_bounces(RenderSettings, 8), seed=0))
         total = sum(_TOTALS.values())
-        print(f"\n{name}: stage profile (exclusive thread CPU seconds, total {total:.2f} s):")
+        per = 1e6 / (args.width * args.height * args.spp)  # us per camera sample
+        print(f"\n{name}: stage profile (exclusive thread CPU seconds, total {total:.2f} s, "
+              f"{total * per:.2f} us per sample):")
         for stage, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
-            print(f"  {100 * sec / total:5.1f} %  {stage}")
+            print(f"  {100 * sec / total:5.1f} %  {sec * per:6.3f} us  {stage}")
     print(f"load average at end: {os.getloadavg()}")
 
 

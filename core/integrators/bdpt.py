@@ -17,7 +17,9 @@ Bias and consistency
     all strategies that can make a path sum to one for every heuristic, so every setting of
     ``mis_heuristic`` is unbiased: ``balance``, ``power`` (``mis_beta``), ``maximum``,
     ``cutoff`` (``mis_alpha``), or ``none`` (every strategy that can make the path gets the same
-    weight). Strategies next to a delta BSDF vertex, and ``s = 0`` for delta lights, cannot make
+    weight). For the connections ``s >= 1, t >= 2`` under ``balance``, ``power`` and ``none``
+    the same weights (to rounding) come from running sums along the subpaths
+    (:mod:`.mis_sums`), one pass for every strategy of a batch. Strategies next to a delta BSDF vertex, and ``s = 0`` for delta lights, cannot make
     a path and get weight zero; so do strategies whose density is zero.
     Densities used for MIS ignore Russian roulette, and light points for ``s = 1`` are sampled
     by area (not by solid angle as the path tracer's ``solid_angle`` setting does).
@@ -76,15 +78,37 @@ class BDPT(Bidirectional):
     # Cornell box), so units are smaller than the path tracer's to keep cancel and progress
     # within a second. A call has a few milliseconds of fixed cost (7 ms for 256 paths, one
     # core, 2026-11-25), and NumPy's per-call cost falls with larger batches: much smaller
-    # units would be slower.
+    # units would be slower. The class's figure sizes viewport units (core.progressive); a
+    # render's units and chunks are sized by its depth (_unit_paths).
     unit_paths = 1 << 13
     strategy_views = True
+
+    def __init__(self, prep, settings):
+        super().__init__(prep, settings)
+        self.unit_paths = self.chunk_paths = _unit_paths(settings.max_bounces + 2)
 
     def connect(self, ctx, stream, C, L, out):
         """Strategies ``s >= 1, t >= 2`` (a fresh emitter point for ``s = 1``), then
         ``s = 1, t = 1``."""
         connect_all(ctx, L, C, _fresh_points(ctx, stream, C), out)
         connect_emitter_to_camera(ctx, L, out)
+
+
+# Most subpath vertices per chunk and side (_unit_paths): at about 330 bytes a vertex, at
+# most 90 MB of subpath arrays per side and worker thread.
+UNIT_VERTICES = 1 << 18
+
+
+def _unit_paths(depth):
+    """Paths per work unit (and chunk) for subpaths of ``depth`` vertices: a power of two
+    between ``2^13`` and ``2^14`` with at most :data:`UNIT_VERTICES` vertices per subpath
+    table. Each chunk has a fixed cost per vertex depth and strategy (NumPy calls on few
+    rows): 16,384 paths took 0.8 x the CPU per sample of 8,192 on the bench box (8 bounces,
+    one thread, 2026-11-26; docs/BENCHMARKS.md), 32,768 0.7 x but with 3 x the memory."""
+    paths = 1 << 14
+    while paths > 1 << 13 and paths * depth > UNIT_VERTICES:
+        paths >>= 1
+    return paths
 
 
 def _fresh_points(ctx, stream, C):

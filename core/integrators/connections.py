@@ -19,6 +19,7 @@ from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import finite_rows, max_component, take_rows
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
+from .mis_sums import RunningSums, summable
 from .subpaths import Gathered, dot, take_params, to_area
 from .transparent_passes import connection_budget, transmitted
 
@@ -66,10 +67,25 @@ def connect_all(ctx, L, C, fresh, out):
     order = np.argsort(key, kind="stable")
     j = _Joined(*(np.concatenate(col)[order] for col in zip(*parts)))
     starts = np.flatnonzero(np.diff(key[order], prepend=-1))
-    for a, b in zip(starts, [*starts[1:], order.size]):
-        s, t, e = int(j.s[a]), int(j.t[a]), slice(a, b)
-        weight = connection_weight(ctx.mis, L, C, s, t, j.row[e], Near(*(c[e] for c in j[4:])))
-        out.add(s, t, j.row[e], j.value[e], weight)
+    groups = [slice(a, b) for a, b in zip(starts, [*starts[1:], order.size])]
+    weight = _connection_weights(ctx, L, C, j, groups)
+    for e in groups:
+        out.add(int(j.s[e.start]), int(j.t[e.start]), j.row[e], j.value[e], weight[e])
+
+
+def _connection_weights(ctx, L, C, j, groups):
+    """MIS weights of the connections ``j`` (a :class:`_Joined`, sorted into the strategies'
+    slices ``groups``): by the subpaths' running sums in one pass (:mod:`.mis_sums`), or
+    strategy by strategy for the heuristics that compare with the largest density."""
+    near = Near(*j[4:])
+    if summable(ctx.mis):
+        sums = RunningSums(ctx.mis, L, C, ctx.light_points.delta_light)
+        return sums.weights(L, C, j.s, j.t, j.row, near)
+    weight = np.empty(j.row.size)
+    for e in groups:
+        weight[e] = connection_weight(ctx.mis, L, C, int(j.s[e.start]), int(j.t[e.start]),
+                                      j.row[e], Near(*(c[e] for c in near)))
+    return weight
 
 
 def _vertex_pairs(depth):

@@ -127,3 +127,37 @@ def test_lambert_gathers_give_the_same_image_as_the_general_gather(integrator):
     np.testing.assert_array_equal(lean.combined(), general.combined())
     np.testing.assert_array_equal(lean.variance(), general.variance())
     assert lean.combined().max() > 0
+
+
+def test_bdpt_batch_is_the_same_in_chunks_of_any_size():
+    """BDPT's work units and chunks grow with a shallow depth (``bdpt._unit_paths``): each
+    sample's contributions do not depend on the chunk it is rendered in (its random numbers,
+    subpaths, connections and weights are its own), only the order of the splats does."""
+    scene = _layered_scene()
+    settings = plain_settings(integrator="bdpt", spp=1, max_bounces=4, strategy_views=True,
+                              strategy_max_length=3)
+    integ = BDPT(prepare(scene), settings)
+    assert integ.unit_paths == integ.chunk_paths == 1 << 14  # shallow: the larger units
+    sampler = make_sampler("independent", seed=2, spp=2, width=16)
+    pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
+    outs = []
+    for chunk in (512, 100):
+        integ.chunk_paths = chunk
+        stream = sampler.stream(np.tile(np.arange(256), 2), np.repeat(np.arange(2), 256))
+        outs.append(integ.render_samples(stream, pixel_filter, Counters()))
+
+    def splats(s):
+        rows = np.column_stack([s.xy, s.value])
+        return rows[np.lexsort(rows.T[::-1])]
+
+    one, many = outs
+    np.testing.assert_array_equal(one.radiance, many.radiance)
+    np.testing.assert_array_equal(splats(one.splats), splats(many.splats))
+    assert one.camera_layers.keys() == many.camera_layers.keys()
+    assert one.splat_layers.keys() == many.splat_layers.keys() and len(one.camera_layers) > 2
+    for name in one.camera_layers:
+        np.testing.assert_array_equal(one.camera_layers[name], many.camera_layers[name])
+    for name in one.splat_layers:
+        np.testing.assert_array_equal(splats(one.splat_layers[name]),
+                                      splats(many.splat_layers[name]))
+    assert one.radiance.max() > 0 and len(one.splats.xy) > 100
