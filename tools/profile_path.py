@@ -8,6 +8,9 @@ shares hold on a loaded machine; earlier tables used wall-clock time per thread)
 camera samples/s and rays/s of a second, untimed render.
 "Other" is what the named stages leave: the bookkeeping of ``render_samples`` itself (gathers,
 compaction, throughput updates) and the render loop around it.
+``--cpu-repeats N`` adds the process CPU time per sample of N one-thread renders, each run with
+the part spent outside the render's worker threads (the render loop, and library helper
+threads: OpenBLAS's pool, which spins on the cores after a multi-threaded call).
 
 Run it from a checkout's parent so that ``sampling_lab`` resolves to the tree to measure::
 
@@ -28,6 +31,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import multiprocessing
+import os
 import time
 
 # From the script's own folder (tools/), whichever tree PYTHONPATH puts first.
@@ -162,13 +166,11 @@ def cpu_per_sample(scene, settings, repeats):
 
 def _lasting_threads_cpu():
     """CPU seconds (user + system) of each thread of this process, by thread id."""
-    import os
-
-    hz, out = os.sysconf("SC_CLK_TCK"), {}
+    out = {}
     try:
-        tids = os.listdir("/proc/self/task")
-    except OSError:
-        return out
+        hz, tids = os.sysconf("SC_CLK_TCK"), os.listdir("/proc/self/task")
+    except (AttributeError, ValueError, OSError):
+        return out  # not Linux
     for tid in tids:
         try:
             with open(f"/proc/self/task/{tid}/stat") as f:

@@ -101,6 +101,10 @@ def dual_basis(axis_x, axis_y):
     Parameters
     ----------
     axis_x, axis_y : (3,) float64
+
+    Returns
+    -------
+    (dx, dy) : two (3,) float64, or None
     """
     a, b, c = float(axis_x @ axis_x), float(axis_x @ axis_y), float(axis_y @ axis_y)
     det = a * c - b * b
