@@ -8,6 +8,9 @@ shares hold on a loaded machine; earlier tables used wall-clock time per thread)
 camera samples/s and rays/s of a second, untimed render.
 "Other" is what the named stages leave: the bookkeeping of ``render_samples`` itself (gathers,
 compaction, throughput updates) and the render loop around it.
+``--cpu-repeats N`` adds the process CPU time per sample of N one-thread renders, each run with
+the part spent outside the render's worker threads (the render loop, and library helper
+threads: OpenBLAS's pool, which spins on the cores after a multi-threaded call).
 
 Run it from a checkout's parent so that ``sampling_lab`` resolves to the tree to measure::
 
@@ -28,6 +31,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import multiprocessing
+import os
 import time
 
 # From the script's own folder (tools/), whichever tree PYTHONPATH puts first.
@@ -106,7 +110,7 @@ def main(argv=None):
     parser.add_argument("--light-sampling", help="instead of the default (e.g. solid_angle)")
     parser.add_argument("--cpu-repeats", type=int, default=0,
                         help="also print CPU microseconds per sample of N one-thread renders "
-                             "(the best; hardly moved by other processes' load)")
+                             "(the best and each run; hardly moved by other processes' load)")
     parser.add_argument("--gil-check", action="store_true",
                         help="one thread, --threads threads, and --threads one-thread "
                              "processes at once: samples/s of each (see the module's doc)")
@@ -124,14 +128,7 @@ def main(argv=None):
     print(f"threads={args.threads} spp={args.spp}: {s['samples_per_s'] / 1e6:.3f} M samples/s, "
           f"{s['rays_per_s'] / 1e6:.3f} M rays/s, {s['time_s']:.2f} s")
     if args.cpu_repeats:
-        one = dataclasses.replace(settings, threads=1)
-        best = float("inf")
-        for _ in range(args.cpu_repeats):
-            t0 = time.process_time()
-            res = render(scene, one)
-            best = min(best, time.process_time() - t0)
-        print(f"CPU per camera sample, 1 thread (best of {args.cpu_repeats}): "
-              f"{1e6 * best / res.stats['samples']:.3f} us")
+        cpu_per_sample(scene, dataclasses.replace(settings, threads=1), args.cpu_repeats)
     if args.no_profile:
         return
     install_timers()
@@ -143,6 +140,45 @@ def main(argv=None):
           f"{1e6 * total / n:.3f} us per camera sample):")
     for name, sec in sorted(_TOTALS.items(), key=lambda kv: -kv[1]):
         print(f"  {100 * sec / total:5.1f} %  {sec:6.3f} s  {1e9 * sec / n:6.1f} ns/sample  {name}")
+
+
+def cpu_per_sample(scene, settings, repeats):
+    """Print the process CPU time per camera sample of ``repeats`` renders (the best, and each
+    run), with the part spent by threads that outlive the render: the calling thread and
+    library helper threads. OpenBLAS's pool spins on the cores for a while after a
+    multi-threaded call, on and off, so the best run can hide it: read each run. The
+    render's own workers exit with it and are not in that part (Linux only: 0 elsewhere)."""
+    from sampling_lab.core.render import render
+
+    runs = []
+    for _ in range(repeats):
+        before, t0 = _lasting_threads_cpu(), time.process_time()
+        res = render(scene, settings)
+        cpu, after = time.process_time() - t0, _lasting_threads_cpu()
+        lasting = sum(after[k] - before[k] for k in after.keys() & before.keys())
+        runs.append((cpu, lasting))
+    us = 1e6 / res.stats["samples"]
+    each = " / ".join(f"{us * cpu:.3f} ({us * lasting:.3f})" for cpu, lasting in runs)
+    print(f"CPU per camera sample, {settings.threads} thread(s), best of {repeats}: "
+          f"{us * min(runs)[0]:.3f} us; each run: {each} us (in brackets: outside the "
+          f"render's worker threads)")
+
+
+def _lasting_threads_cpu():
+    """CPU seconds (user + system) of each thread of this process, by thread id."""
+    out = {}
+    try:
+        hz, tids = os.sysconf("SC_CLK_TCK"), os.listdir("/proc/self/task")
+    except (AttributeError, ValueError, OSError):
+        return out  # not Linux
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # the thread ended meanwhile
+        out[tid] = (int(fields[11]) + int(fields[12])) / hz
+    return out
 
 
 def _timed_render(args, threads, barrier=None):

@@ -88,6 +88,31 @@ def ray_facing_disk(o, d, center, radius, tmax):
     return rows, t, denom
 
 
+def dual_basis(axis_x, axis_y):
+    """The vectors ``(dx, dy)`` in the plane of ``axis_x, axis_y`` with ``dot(dx, axis_x) = 1,
+    dot(dx, axis_y) = 0`` and ``dot(dy, axis_y) = 1, dot(dy, axis_x) = 0``, or None if the axes
+    span no area.
+
+    The in-plane coordinates of a point ``p = x axis_x + y axis_y`` are then ``dot(p, dx)`` and
+    ``dot(p, dy)``: the inverse of the 2 x 2 Gram matrix written out, because
+    ``np.linalg.solve`` on many right-hand sides wakes OpenBLAS's thread pool, whose threads
+    then spin on the CPU cores the render's workers need.
+
+    Parameters
+    ----------
+    axis_x, axis_y : (3,) float64
+
+    Returns
+    -------
+    (dx, dy) : two (3,) float64, or None
+    """
+    a, b, c = float(axis_x @ axis_x), float(axis_x @ axis_y), float(axis_y @ axis_y)
+    det = a * c - b * b
+    if not det > 0:
+        return None
+    return (c * axis_x - b * axis_y) / det, (a * axis_y - b * axis_x) / det
+
+
 def ray_parallelogram(o, d, position, normal, axis_x, axis_y, tmax, disk):
     """Where rays meet the emitting face of an area light before ``tmax``.
 
@@ -109,14 +134,14 @@ def ray_parallelogram(o, d, position, normal, axis_x, axis_y, tmax, disk):
     denom = np.einsum("ij,j->i", d, normal)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.einsum("ij,j->i", position - o, normal) / denom
-    gram = np.array([[axis_x @ axis_x, axis_x @ axis_y], [axis_x @ axis_y, axis_y @ axis_y]])
-    if not np.linalg.det(gram) > 0:
+    dual = dual_basis(axis_x, axis_y)
+    if dual is None:
         return None
-    # Only rays that reach the plane in time need its coordinates (the solve is the cost).
+    # Only rays that reach the plane in time need its coordinates.
     rows = np.nonzero((denom < 0) & (t > 0) & (t < tmax))[0]
     q = o[rows] + d[rows] * t[rows, None]
     rel = q - position
-    x, y = np.linalg.solve(gram, np.stack([np.einsum("ij,j->i", rel, axis_x),
-                                           np.einsum("ij,j->i", rel, axis_y)]))
+    x = np.einsum("ij,j->i", rel, dual[0])
+    y = np.einsum("ij,j->i", rel, dual[1])
     inside = x * x + y * y <= 0.25 if disk else (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5)
     return rows[inside], t, denom, q[inside]
