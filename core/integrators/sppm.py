@@ -76,6 +76,21 @@ from .base import Counters, Integrator
 
 # Footprint radius: this many pixel footprints at a pixel's first visible point.
 FOOTPRINT_PIXELS = 1.5
+
+
+def footprint_scale(camera):
+    """``fn(dist) -> radius`` of one pixel's footprint at path length ``dist``: the pixel's
+    angle times the distance for a perspective camera (its width for an orthographic one);
+    None for a camera with no pixels."""
+    if camera.width < 1 or camera.height < 1:
+        return None
+    half_x, half_y, _, _ = view_extent(camera)
+    pixel = max(2.0 * half_x / camera.width, 2.0 * half_y / camera.height)
+    if camera.type == "ORTHO":
+        return lambda dist: np.full(np.shape(dist), pixel)
+    return lambda dist: pixel * np.asarray(dist, np.float64)
+
+
 class SPPM(Integrator):
     """Stochastic progressive photon mapping (see the module docstring)."""
 
@@ -322,6 +337,8 @@ class SPPM(Integrator):
                 "photon_memory_peak_mb": self.peak_bytes / (1 << 20),
                 "photon_radius_initial": ("pixel footprint" if self.footprint
                                           else self.radius0),
+                "photon_radius_halvings": (int(self.state["disks"].halvings.sum())
+                                           if self.adaptive and self.state else "n/a"),
                 "photon_radius_mean": (float(np.nanmean(self.state["r"]))
                                        if self.state and np.isfinite(self.state["r"]).any()
                                        else self.radius0),

@@ -28,8 +28,8 @@ SCALES = 4
 KAPPA = 3.0
 
 
-def scale_sums(i, d, contrib, radii, n, scales=SCALES):
-    """Flux and photon count of every point within ``radii / 2^s``, ``s = 1 .. scales - 1``.
+def scale_sums(i, d, contrib, radii, n):
+    """Flux and photon count of every point within ``radii / 2^s``, ``s = 1 .. SCALES - 1``.
 
     Parameters
     ----------
@@ -46,11 +46,11 @@ def scale_sums(i, d, contrib, radii, n, scales=SCALES):
 
     Returns
     -------
-    phi : (n, scales - 1, 3) float64
-    m : (n, scales - 1) float64
+    phi : (n, SCALES - 1, 3) float64
+    m : (n, SCALES - 1) float64
     """
-    phi, m = np.zeros((n, scales - 1, 3)), np.zeros((n, scales - 1))
-    for s in range(1, scales):
+    phi, m = np.zeros((n, SCALES - 1, 3)), np.zeros((n, SCALES - 1))
+    for s in range(1, SCALES):
         inside = d < radii[i] * 0.5 ** s
         k = i[inside]
         m[:, s - 1] = np.bincount(k, minlength=n)
