@@ -25,7 +25,9 @@ Parameters
     ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0:
     :func:`core.photons.tracing.sppm_auto_radius`, 1.25 scene diagonals over the larger image
     side in pixels, a few pixels at any resolution, or with ``sppm_radius`` ``'pixel'``
-    :data:`FOOTPRINT_PIXELS` pixel footprints at each pixel's first visible point),
+    :data:`FOOTPRINT_PIXELS` pixel footprints at each pixel's first visible point, or with
+    ``'adaptive'`` the scene radius halved per pixel by Lepski's rule over nested disks,
+    :mod:`core.photons.adaptive`, where a smaller disk's estimate disagrees beyond noise),
     ``sppm_alpha``, ``photon_surface_test`` (photons of other surfaces are not counted,
     :mod:`core.photons.compatible`), ``sppm_coverage`` (divide by the share of the disk on a
     compatible surface, :mod:`core.photons.coverage`, instead of the whole disk),
@@ -259,11 +261,22 @@ class SPPM(Integrator):
         if self.coverage:
             share = self._coverage(points.take(live), radii[live])
             phi[live] /= share[:, None]
-            if sub is not None:  # the own disk's share: a nested disk's is at least as large
-                sub[0][live] /= share[:, None, None]
+            if sub is not None:
+                self._nested_coverage(points, sub[0], live[share < 1.0], radii)
         if sub is not None:
             sub = (sub[0] * points.beta[:, None, :], sub[1])
         return phi * points.beta, m, sub
+
+    def _nested_coverage(self, points, phi, edge, radii):
+        """Divide the nested disks' flux ``phi (k, SCALES - 1, 3)`` by their own share on a
+        compatible surface, probed for the points ``edge`` whose own disk is not wholly on
+        it (a disk wholly on it holds its nested disks wholly too: their share is one)."""
+        if edge.size == 0:
+            return
+        near = points.take(edge)
+        for s in range(phi.shape[1]):
+            share = self._coverage(near, radii[edge] * 0.5 ** (s + 1))
+            phi[edge, s] /= share[:, None]
 
     def _pairs(self, points, photons, tree):
         """``(i, j, d, live, radii)``: the (point, photon) pairs that count and their
