@@ -547,7 +547,12 @@ OPTIONS = {o.name: o for o in (
            Choice("pixel", "Pixel Footprint", "Each pixel's own radius: 1.5 times the width "
                   "of the pixel at its first visible point (path length times the pixel's "
                   "angle). Sharper near the camera and at silhouettes, noisier where few "
-                  "photons land"))),
+                  "photons land"),
+           Choice("adaptive", "Adaptive", "Each pixel's own radius from its first pass: the "
+                  "scene radius, halved up to three times where the photons within it show "
+                  "structure beyond their noise (a disk reaching into a caustic much brighter "
+                  "than its centre). Sharper caustic edges, the scene radius elsewhere; still "
+                  "biased but consistent (the radius shrinks from there every pass)"))),
     _menu("radiosity_solver", "Solver",
           "Radiosity only: how the radiosity system B = E + rho F B is solved",
           "gauss_seidel", _choices(RADIOSITY_SOLVERS, _RADIOSITY_SOLVER_TEXT)),

@@ -71,7 +71,9 @@ from ..core.integrators.bounces import uniform_limits
 DOCS_FILES = ("PHOTONS_BENCH.md",)
 # scene -> max bounces (the mirror's closed form holds for one bounce).
 SCENES = {"point_mirror": 1, "point_mirror_seen": 2, "point_glass": 8, "point_mirror_glass": 8}
-INTEGRATORS = ("sppm", "photon", "path", "bdpt")
+INTEGRATORS = ("sppm", "sppm adaptive", "photon", "path", "bdpt")
+# Rows that are an integrator with other settings: label -> (integrator, settings).
+RENDERERS = {"sppm adaptive": ("sppm", dict(sppm_radius="adaptive"))}
 # What each scene's reference holds (the glass scenes' notes add the figures of the run).
 REFERENCES = {
     "point_mirror": "closed form: direct light and the light's mirror image (every path "
@@ -175,6 +177,9 @@ VARIANTS = {
     "sppm, footprint 1": dict(sppm_radius="pixel", footprint_pixels=1.0),
     "sppm, footprint 1.5": dict(sppm_radius="pixel", footprint_pixels=1.5),
     "sppm, 25k photons": dict(photons=25_000),
+    "sppm, adaptive radius": dict(sppm_radius="adaptive"),
+    "sppm, adaptive radius, alpha 0.8": dict(sppm_radius="adaptive", sppm_alpha=0.8),
+    "sppm, adaptive radius, 25k photons": dict(sppm_radius="adaptive", photons=25_000),
 }
 
 
@@ -334,6 +339,9 @@ def _ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask, **s
     """One equal-time render of ours (``photons`` None: the default; ``settings``: more
     render settings) and its errors."""
     stage(f"{name}: {integ}, {seconds:g} s")
+    label = integ
+    integ, extra = RENDERERS.get(label, (label, {}))
+    settings = {**extra, **settings}
     if photons is not None:
         settings["photons"] = photons
     t0 = time.perf_counter()
@@ -345,7 +353,7 @@ def _ours(name, scene, integ, bounces, seconds, photons, threads, ref, mask, **s
     st = res.stats
     err, err_direct = _errors(img, ref, mask)
     median, worst = error_breakdown(img, ref)
-    return dict(scene=name, renderer=integ, spp=st["spp"], time_s=wall,
+    return dict(scene=name, renderer=label, spp=st["spp"], time_s=wall,
                 rel_mse=err, rel_mse_direct=err_direct, median=median, worst_share=worst,
                 mean_ratio=float(img.mean() / ref.mean()),
                 photons_emitted=st.get("photons_emitted", ""),

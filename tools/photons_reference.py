@@ -56,14 +56,14 @@ class ReferenceSPPM(SPPM):
 
     def _gather(self, points, photons, tree):
         """``(phi (k, 6), m (k,))``: SPPM's flux, then the missing paths' flux."""
-        i, j, live, radii = self._pairs(points, photons, tree)
-        phi, m = self._flux(points, photons, i, j)
+        i, j, _, live, radii = self._pairs(points, photons, tree)
+        phi, m, _ = self._flux(points, photons, i, j)
         sel = (points.bounces[i] > 0) & photons.unconnectable[j]
-        missing, _ = self._flux(points, photons, i[sel], j[sel])
+        missing, _, _ = self._flux(points, photons, i[sel], j[sel])
         both = np.concatenate([phi, missing], axis=1)
         if self.coverage:
             both[live] /= self._coverage(points.take(live), radii[live])[:, None]
-        return both * np.tile(points.beta, 2), m
+        return both * np.tile(points.beta, 2), m, None
 
     def _add_pass_estimate(self, direct, rows, phi):
         super()._add_pass_estimate(direct, rows, phi[:, :3])
@@ -76,7 +76,7 @@ class ReferenceSPPM(SPPM):
             x[rows] += found
             self.per_pass[name].append(x.astype(np.float32))
 
-    def _update(self, pixels, phi, m):
+    def _update(self, pixels, phi, m, sub=None):
         s = self.state
         hit = m > 0
         px = pixels[hit]

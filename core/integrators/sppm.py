@@ -25,7 +25,9 @@ Parameters
     ``photons`` per pass, ``photon_radius`` (initial radius in scene units; 0:
     :func:`core.photons.tracing.sppm_auto_radius`, 1.25 scene diagonals over the larger image
     side in pixels, a few pixels at any resolution, or with ``sppm_radius`` ``'pixel'``
-    :data:`FOOTPRINT_PIXELS` pixel footprints at each pixel's first visible point),
+    :data:`FOOTPRINT_PIXELS` pixel footprints at each pixel's first visible point, or with
+    ``'adaptive'`` the scene radius halved per pixel by Lepski's rule over nested disks,
+    :mod:`core.photons.adaptive`, where a smaller disk's estimate disagrees beyond noise),
     ``sppm_alpha``, ``photon_surface_test`` (photons of other surfaces are not counted,
     :mod:`core.photons.compatible`), ``sppm_coverage`` (divide by the share of the disk on a
     compatible surface, :mod:`core.photons.coverage`, instead of the whole disk),
@@ -64,6 +66,7 @@ import numpy as np
 
 from ..camera import view_extent
 from ..materials.frame import to_world
+from ..photons.adaptive import NestedDisks, scale_sums
 from ..photons.compatible import compatible
 from ..photons.coverage import disk_coverage
 from ..photons.lookup import QUERY_CHUNK, PhotonTree
@@ -104,6 +107,9 @@ class SPPM(Integrator):
         # Per-pixel initial radii from the pixel footprint (auto radius only).
         self.footprint = (settings.sppm_radius == "pixel" and not settings.photon_radius
                           and footprint_scale(prep.scene.camera) is not None)
+        # Nested disks and Lepski's rule per pixel (core.photons.adaptive; auto radius only).
+        self.adaptive = settings.sppm_radius == "adaptive" and not settings.photon_radius
+        self.switches = 0
         self.surface_test = bool(settings.photon_surface_test)
         self.coverage = bool(settings.sppm_coverage)
         self.state = None
@@ -119,7 +125,8 @@ class SPPM(Integrator):
         r0 = np.nan if self.footprint else self.radius0
         self.state = {"r": np.full(n_pixels, r0), "N": np.zeros(n_pixels),
                       "tau": np.zeros((n_pixels, 3)), "direct": np.zeros((n_pixels, 3)),
-                      "sum_sq": np.zeros((n_pixels, 3)), "passes": 0}
+                      "sum_sq": np.zeros((n_pixels, 3)), "passes": 0,
+                      "disks": NestedDisks(n_pixels) if self.adaptive else None}
 
     def render_pass(self, pass_index, frame_pixels, sampler, pixel_filter, counters,
                     map_chunks):
@@ -153,13 +160,19 @@ class SPPM(Integrator):
                            spans(points.rows.size, self.workers, QUERY_CHUNK))
         if found is None:
             return None
-        phi = np.concatenate([f for f, _ in found]) if found else np.zeros((0, 3))
-        m = np.concatenate([c for _, c in found]) if found else np.zeros(0)
+        phi = np.concatenate([f[0] for f in found]) if found else np.zeros((0, 3))
+        m = np.concatenate([f[1] for f in found]) if found else np.zeros(0)
         # No NaN or Inf may stay in the per-pixel sums (they would blank a pixel for good).
-        phi[~np.isfinite(phi).all(axis=1)] = 0.0
+        bad = ~np.isfinite(phi).all(axis=1)
+        phi[bad] = 0.0
         direct[~np.isfinite(direct).all(axis=1)] = 0.0
         self._add_pass_estimate(direct, points.rows, phi)
-        self._update(points.rows, phi, m)
+        sub = None
+        if self.adaptive:
+            sub = tuple(np.concatenate([f[2][k] for f in found]) for k in range(2))
+            sub[0][bad] = 0.0
+            sub[0][~np.isfinite(sub[0]).all(axis=2)] = 0.0
+        self._update(points.rows, phi, m, sub)
         self.state["direct"] += direct
         self.state["passes"] += 1
         return self.image()
@@ -240,35 +253,54 @@ class SPPM(Integrator):
     def _gather(self, points, photons, tree):
         """Flux ``phi (k, 3)`` (times the points' throughput) and photon counts ``m (k,)`` of
         every visible point from the photons (``tree`` over their positions) within its
-        pixel's radius."""
-        i, j, live, radii = self._pairs(points, photons, tree)
-        phi, m = self._flux(points, photons, i, j)
+        pixel's radius, and with the adaptive radius the same within the nested disks
+        (:func:`core.photons.adaptive.scale_sums`; else None)."""
+        i, j, d, live, radii = self._pairs(points, photons, tree)
+        phi, m, contrib = self._flux(points, photons, i, j)
+        sub = scale_sums(i, d, contrib, radii, m.size) if self.adaptive else None
         if self.coverage:
-            phi[live] /= self._coverage(points.take(live), radii[live])[:, None]
-        return phi * points.beta, m
+            share = self._coverage(points.take(live), radii[live])
+            phi[live] /= share[:, None]
+            if sub is not None:
+                self._nested_coverage(points, sub[0], live[share < 1.0], radii)
+        if sub is not None:
+            sub = (sub[0] * points.beta[:, None, :], sub[1])
+        return phi * points.beta, m, sub
+
+    def _nested_coverage(self, points, phi, edge, radii):
+        """Divide the nested disks' flux ``phi (k, SCALES - 1, 3)`` by their own share on a
+        compatible surface, probed for the points ``edge`` whose own disk is not wholly on
+        it (a disk wholly on it holds its nested disks wholly too: their share is one)."""
+        if edge.size == 0:
+            return
+        near = points.take(edge)
+        for s in range(phi.shape[1]):
+            share = self._coverage(near, radii[edge] * 0.5 ** (s + 1))
+            phi[edge, s] /= share[:, None]
 
     def _pairs(self, points, photons, tree):
-        """``(i, j, live, radii)``: the (point, photon) pairs that count, the points with a
-        radius and every point's radius."""
+        """``(i, j, d, live, radii)``: the (point, photon) pairs that count and their
+        distances, the points with a radius and every point's radius."""
         radii = self.state["r"][points.rows]
         live = np.nonzero(np.isfinite(radii))[0]  # a footprint radius is set for each point
-        i, j, _ = tree.pairs_within(points.p[live], radii[live])
+        i, j, d = tree.pairs_within(points.p[live], radii[live])
         i = live[i]
         # Paths no longer than the path tracer's: specular bounces + photon hits <= B + 1.
         ok = points.bounces[i] + photons.hit[j] <= self.settings.max_bounces + 1
         if self.surface_test:
             ok &= compatible(points.p[i], points.ng[i], photons.p[j], photons.n[j], radii[i])
-        return i[ok], j[ok], live, radii
+        return i[ok], j[ok], d[ok], live, radii
 
     @staticmethod
     def _flux(points, photons, i, j):
-        """Per point, the sum of ``f power`` over the pairs ``(i, j)`` and their count."""
+        """Per point, the sum of ``f power`` over the pairs ``(i, j)`` and their count, and
+        each pair's ``f power`` ``(m, 3)``."""
         k = points.rows.size
         contrib = (points.f(i, photons.wi[j].astype(np.float64))
                    * photons.power[j].astype(np.float64))
         phi = np.stack([np.bincount(i, contrib[:, c], minlength=k) for c in range(3)],
                        axis=1).astype(np.float64)  # (no pairs: bincount gives integers)
-        return phi, np.bincount(i, minlength=k).astype(np.float64)
+        return phi, np.bincount(i, minlength=k).astype(np.float64), contrib
 
     def _coverage(self, points, radii):
         """Share of each point's disk on a compatible surface (:mod:`core.photons.coverage`),
@@ -277,16 +309,23 @@ class SPPM(Integrator):
         side = np.where(np.einsum("ij,ij->i", points.ng, wo) < 0, -1.0, 1.0)
         return disk_coverage(self.prep, points.p, points.ng * side[:, None], radii)
 
-    def _update(self, pixels, phi, m):
-        """The progressive radius reduction of the pixels ``pixels`` that found photons."""
+    def _update(self, pixels, phi, m, sub=None):
+        """The progressive radius reduction of the pixels ``pixels`` that found photons; with
+        the adaptive radius ``sub`` holds the nested disks' sums of the pass, which are
+        rescaled alike, and Lepski's rule may then halve a pixel's radius
+        (:class:`core.photons.adaptive.NestedDisks`)."""
         s = self.state
         hit = m > 0
         px, phi, m = pixels[hit], phi[hit], m[hit]
         n_old, r_old = s["N"][px], s["r"][px]
         n_new = n_old + self.alpha * m
         r_new = r_old * np.sqrt(n_new / (n_old + m))
-        s["tau"][px] = (s["tau"][px] + phi) * ((r_new / r_old) ** 2)[:, None]
+        ratio2 = (r_new / r_old) ** 2
+        s["tau"][px] = (s["tau"][px] + phi) * ratio2[:, None]
         s["N"][px], s["r"][px] = n_new, r_new
+        if sub is not None:
+            s["disks"].add(px, sub[0][hit], sub[1][hit], ratio2)
+            self.switches += s["disks"].switch(s, px)
 
     def image(self):
         """The current estimate ``(n_pixels, 3)``, finite and non-negative."""
@@ -311,6 +350,8 @@ class SPPM(Integrator):
                 "photon_memory_peak_mb": self.peak_bytes / (1 << 20),
                 "photon_radius_initial": ("pixel footprint" if self.footprint
                                           else self.radius0),
+                "photon_radius_halvings": (int(self.state["disks"].halvings.sum())
+                                           if self.adaptive and self.state else "n/a"),
                 "photon_radius_mean": (float(np.nanmean(self.state["r"]))
                                        if self.state and np.isfinite(self.state["r"]).any()
                                        else self.radius0),

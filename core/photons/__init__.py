@@ -10,7 +10,8 @@
 - :mod:`.estimate`: radiance estimates from a photon map (k nearest or fixed radius);
 - :mod:`.visible`: camera paths through specular chains to the first non-specular surface;
 - :mod:`.compatible`: the surface-compatibility test of a lookup (a disk, not a ball);
-- :mod:`.coverage`: the share of a lookup disk on its surface (SPPM's edge correction).
+- :mod:`.coverage`: the share of a lookup disk on its surface (SPPM's edge correction);
+- :mod:`.adaptive`: SPPM's adaptive radius (nested disks per pixel, Lepski's rule).
 """
 
 # The stages use the integrators' common stages, and two integrators use these stages: load the
