@@ -217,6 +217,7 @@ def test_bump_map_correction_agrees_with_cycles(empty_scene, tmp_path, node_type
                                     block_rtol=block_rtol)
 
 
+@pytest.mark.parametrize("case", ["mapped", "mapped_corrected", "smooth"])
 def test_smooth_sphere_silhouettes_agree_with_cycles(empty_scene, tmp_path, case):
     """A smooth sphere, normal-mapped (Bump Map Correction off, then on) or not, under an area
     lamp: near its silhouettes the view falls below the shading normal, and the diffuse base
