@@ -32,8 +32,9 @@ from tests.helpers import assert_estimates_agree, z_for_false_failure
 
 ROUGHNESS = (0.2, 0.6, 1.0)
 OUR_SPP = 1024
-CYCLES_SPP = {True: 256, False: 1024}  # light-sampled, BSDF-sampled (the noisier)
-CYCLES_RUNS = 6
+# Light-sampled, BSDF-sampled (the noisier, compared block by block with ours).
+CYCLES_SPP = {True: 256, False: 1024}
+CYCLES_RUNS = {True: 4, False: 6}
 BOUNCES = 8
 # Smallest errors the comparison with Cycles detects with 99 % power, measured: 1.0 % in the
 # image mean, 5.5 % in the worst 8 x 8 block (the floor lit through BSDF sampling alone is
@@ -69,10 +70,10 @@ def set_cycles_light_sampling(scene, on):
 
 
 def render_cycles(scene, folder, light_sampling, seed):
-    """``(CYCLES_RUNS, h, w, 3)``: Cycles' Combined of each run (seeds ``seed + run``)."""
+    """``(runs, h, w, 3)``: Cycles' Combined of each run (seeds ``seed + run``)."""
     set_cycles_light_sampling(scene, light_sampling)
     runs = []
-    for run in range(CYCLES_RUNS):
+    for run in range(CYCLES_RUNS[light_sampling]):
         S.set_cycles_unbiased(scene, samples=CYCLES_SPP[light_sampling], seed=seed + run,
                               max_bounces=BOUNCES)
         path = folder / f"cycles_{int(light_sampling)}_{run}.exr"
@@ -115,7 +116,7 @@ def test_cycles_light_sampled_rough_glass_is_brighter_than_bsdf_sampled(glass_re
 
     Each sphere's mean from ``CYCLES_RUNS`` runs of each (``sphere_means``). Measured light /
     BSDF sampled (per channel): 1.001-1.0015 at roughness 0.2, 1.018-1.023 at 0.6, 1.072-1.086
-    at 1.0, standard errors 0.1-0.35 %. At roughness 0.2 the two must agree within 1 % plus
+    at 1.0, standard errors 0.1-0.4 %. At roughness 0.2 the two must agree within 1 % plus
     the interval (z = 4.3, six comparisons: a 2 % difference is caught with 99 % power); at
     roughness 1 the light-sampled sphere must be more than 4 % brighter beyond it.
     """
