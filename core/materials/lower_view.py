@@ -19,9 +19,15 @@ kind with its own albedo, a layered (Principled) row with its base albedo times
 ``1 - max_c E_t(0)`` (:func:`.layered.specular_albedo` at grazing), and conductors and
 dielectrics with albedo 0. Each is an ordinary Lambert lobe, so sampling, evaluation and pdf
 stay consistent. A Transparent BSDF (a smooth dielectric of index 1, which passes light
-straight through whatever its normal, as Cycles' transparent closure) is left as it is. Not
-modelled: a Coat or Sheen layer on such a row keeps its own lobe at the
-mirrored view (Cycles: the coat's closure is zero there too).
+straight through whatever its normal, as Cycles' transparent closure) is left as it is.
+
+A Coat on such a row is a microfacet closure too: its lobe gives nothing, but it still
+attenuates what lies below it, by Cycles' estimate of its albedo and its tint at
+``|cos|`` (Cycles' dielectric Fresnel takes ``|cos_NI|``; the tint's path length depends on
+``cos^2``): the row's Lambert colour is multiplied by :func:`.coat.coat_attenuation` at the
+view's ``|cos|`` and its coat weight set to zero. A Sheen keeps its lobe, as Cycles' does (its
+tables are read at ``cos = 0`` there, ours at the mirrored view's ``|cos|``, small near a
+silhouette).
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .coat import coat_attenuation
 from .families import KIND_DIELECTRIC, KIND_DIFFUSE, KIND_LAYERED, KIND_LAYERED_MS
 from .layered import specular_albedo
 from .microfacet import is_smooth
@@ -75,7 +82,24 @@ def lower_view_params(params, wo, below):
             scale[rows] = np.maximum(0.0, 1.0 - grazing.max(axis=1))
     color = np.where(below[:, None], params.color * scale[:, None], params.color)
     kind = np.where(below, KIND_DIFFUSE, params.kind).astype(params.kind.dtype)
-    return replace(params, kind=kind, color=color), wo
+    params = replace(params, kind=kind, color=color)
+    return _coat_below(params, wo, below), wo
+
+
+def _coat_below(params, wo, below):
+    """``params`` whose coated rows ``below`` lose the coat's lobe but keep its attenuation,
+    folded into their colour (module docstring)."""
+    if not params.has_coat:
+        return params
+    rows = np.nonzero(below & (params.coat_weight > 0.0))[0]
+    if rows.size == 0:
+        return params
+    color = params.color.copy()
+    color[rows] *= coat_attenuation(params.coat_weight[rows], params.coat_eta[rows],
+                                    params.coat_tint[rows], wo[rows, 2])
+    weight = params.coat_weight.copy()
+    weight[rows] = 0.0
+    return replace(params, color=color, coat_weight=weight)
 
 
 def shaded_below(params, below):

@@ -160,12 +160,12 @@ def render_ours_and_cycles(scene, folder, our_spp, cycles_spp, cycles_runs, boun
     return ours, np.stack(cycles)
 
 
-def assert_ours_agree_with_cycles(ours, cycles, what, detect=None, spp=None):
+def assert_ours_agree_with_cycles(ours, cycles, what, detect=None, spp=None, block_rtol=1e-5):
     """The checks every Cycles agreement test makes of :func:`render_ours_and_cycles`' output:
     every sample taken (``spp``: our Sample Count, when given), every image finite, and our
     Combined within the confidence intervals of Cycles' runs
-    (``tests.helpers.assert_images_agree``, its default ``detect`` unless given). Prints and
-    returns the agreement."""
+    (``tests.helpers.assert_images_agree``, its default ``detect`` unless given; blocks may
+    differ by ``block_rtol`` beyond their intervals). Prints and returns the agreement."""
     from tests.helpers import DETECT, assert_images_agree
 
     if spp is not None:
@@ -173,6 +173,7 @@ def assert_ours_agree_with_cycles(ours, cycles, what, detect=None, spp=None):
     for img in list(ours.values()) + list(cycles):
         assert np.isfinite(img).all()
     found = assert_images_agree(ours["Combined"][..., :3], ours["Variance"], cycles,
-                                detect=DETECT if detect is None else detect, what=what)
+                                detect=DETECT if detect is None else detect, what=what,
+                                block_rtol=block_rtol)
     print(f"{what}: image mean ours / Cycles {found.ratio}")
     return found

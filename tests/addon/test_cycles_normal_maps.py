@@ -177,18 +177,23 @@ def tilted_map_material(name, tilt_deg, node_type):
     return mat, bsdf
 
 
-@pytest.mark.parametrize("node_type,tilt,sun_zenith", [
+@pytest.mark.parametrize("node_type,tilt,sun_zenith,block_rtol", [
     # G1 = 0.84: the diffuse light 16 % darker than without the correction.
-    ("ShaderNodeBsdfDiffuse", 50.0, 66.0),
+    ("ShaderNodeBsdfDiffuse", 50.0, 66.0, 1e-5),
     # G1 = 0.79 on the diffuse base. A tilt at which the view's mirror direction stays above
-    # the plane. At 50 degrees Cycles bends the specular closure's normal only; we bent the
-    # whole layered row's frame then (measured: image mean 1.0003, blocks up to 1.3 % off).
-    # The path tracer now keeps the diffuse base around the unbent normal as Cycles does
-    # (BSDFParams.base_normal); 50 degrees was not re-measured since.
-    ("ShaderNodeBsdfPrincipled", 30.0, 80.0),
+    # the plane.
+    ("ShaderNodeBsdfPrincipled", 30.0, 80.0, 1e-5),
+    # The mirror direction falls below the plane: Cycles bends the specular closure's normal
+    # only, and so does the path tracer (the diffuse base keeps the mapped normal,
+    # BSDFParams.base_normal). Measured: image mean 1.0004, every block within 0.1 % of
+    # Cycles' (0.02 % left to 0.1 % right: the specular layer's albedo, our tables against
+    # Cycles'), where the delta sun leaves intervals of only +-0.02-0.03 %: the blocks may
+    # differ by 0.5 % beyond them (the image mean's allowance). Bending the whole layered
+    # frame (the earlier rule) put blocks 1.3-1.4 % off Cycles' (measured then), which fails.
+    ("ShaderNodeBsdfPrincipled", 50.0, 66.0, 0.005),
 ])
 def test_bump_map_correction_agrees_with_cycles(empty_scene, tmp_path, node_type, tilt,
-                                                sun_zenith):
+                                                sun_zenith, block_rtol):
     """A constant normal map tilted toward a low sun, correction on (Blender's default)."""
     scene = empty_scene
     mat, bsdf = tilted_map_material("Tilted", tilt, node_type)
@@ -204,10 +209,12 @@ def test_bump_map_correction_agrees_with_cycles(empty_scene, tmp_path, node_type
                                             our_seed=21, cycles_seed=1001)
     # Sized for the default targets (2 % image mean, 5 % blocks, 99 % power; the delta sun
     # leaves only the pixel filter's noise): detects 0.5-0.6 % image-mean and 0-0.25 % block
-    # errors. Measured ours / Cycles image mean 1.0000 (diffuse) and 1.0003 (Principled); with
+    # errors (0.56 % at 50 degrees, its allowance included). Measured ours / Cycles image
+    # mean 1.0000 (diffuse), 1.0003 (Principled, 30 degrees) and 1.0004 (50 degrees); with
     # the correction off on both sides the same; the correction darkens the centre block by
     # 16 % (diffuse) and 17 % (Principled), so rendering as with it off fails here.
-    S.assert_ours_agree_with_cycles(ours, cycles, "tilted normal map, Bump Map Correction on")
+    S.assert_ours_agree_with_cycles(ours, cycles, "tilted normal map, Bump Map Correction on",
+                                    block_rtol=block_rtol)
 
 
 @pytest.mark.parametrize("case", ["mapped", "mapped_corrected", "smooth"])

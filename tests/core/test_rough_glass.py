@@ -14,12 +14,14 @@ direction (the check is commented out), so those samples keep their weight ``G2 
 path goes on into the glass; we drop them, as a single-scattering microfacet model does (they
 are light that would hit the microsurface again).
 
-This is *not* the main part of the 8-9 % by which our single-scattering rough glass sphere at
-roughness 1 is darker than Cycles': keeping those samples (tried, not kept) brightened our
-sphere by only 0.1-0.5 %. The larger part is in light sampling: Cycles' ``bsdf_microfacet_eval``
-does not reject refraction pairs whose microfacet faces away from one of the two directions,
-so at high roughness its evaluated transmission (used by next-event estimation) exceeds what
-its sampler produces; see docs/USER_GUIDE.md (Multiscatter GGX) for the figures.
+This is *not* the main part of the 7-9 % by which our rough glass sphere at roughness 1 is
+darker than Cycles' default image: keeping those samples (tried, not kept) brightened our
+sphere by only 0.1-0.5 %. The larger part is Cycles' own: its ``bsdf_microfacet_eval`` does
+not reject refraction pairs whose microfacet faces away from one of the two directions, so
+at high roughness its evaluated transmission (used by light sampling) exceeds what its sampler
+produces, and Cycles' light-sampled image of rough glass is brighter than its BSDF-sampled one
+(``tests/addon/test_cycles_rough_glass.py``, which compares ours with the latter; figures in
+docs/USER_GUIDE.md, Multiscatter GGX).
 """
 
 from __future__ import annotations

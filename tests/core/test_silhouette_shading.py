@@ -12,6 +12,7 @@ import pytest
 from sampling_lab.core.integrators.common import bends_normals, shading_normals
 from sampling_lab.core.materials import bsdf as B
 from sampling_lab.core.materials import bump_correction, layered
+from sampling_lab.core.materials.coat import coat_attenuation
 from sampling_lab.core.materials.lower_view import lower_view_params, view_below
 from tests.helpers import (chi_square_2d, directions_from_z_phi, integrate_solid_angle,
                            z_phi_from_directions)
@@ -105,6 +106,32 @@ def test_rows_seen_from_below_shade_as_cycles_closures():
     wi = np.tile(_unit([-0.3, 0.2, 0.9]), (5, 1))
     f = B.eval_bsdf(q, wo2, wi)
     np.testing.assert_allclose(f[0], p.color[0] * wi[0, 2] / np.pi, rtol=1e-12)
+
+
+def test_coated_rows_seen_from_below_keep_only_the_coats_attenuation():
+    """Cycles' coat is a microfacet closure: from below its normal its lobe gives nothing,
+    and it still dims the layers below by its albedo estimate and tint at |cos|. A coated
+    metal there is black (it reflected the coat's lobe before this rule); a coated layered
+    row is its Lambert base times 1 - max E_t(0) times the coat's attenuation; a row above
+    keeps its coat."""
+    kinds = np.array([B.KIND_CONDUCTOR, B.KIND_LAYERED, B.KIND_LAYERED])
+    p = B.make_params(kinds, (0.7, 0.5, 0.3), 0.4, 1.5, coat_weight=0.8,
+                      coat_roughness=0.2, coat_ior=1.6, coat_tint=(0.9, 0.6, 0.5))
+    wo = np.tile(_unit([0.8, 0.0, -0.1]), (3, 1))
+    below = np.array([True, True, False])
+    q, wo2 = lower_view_params(p, wo, below)
+    wi = np.tile(_unit([-0.3, 0.2, 0.9]), (3, 1))
+    f = B.eval_bsdf(q, wo2, wi)
+    np.testing.assert_array_equal(f[0], 0.0)
+    assert (B.eval_bsdf(p.take([0]), wo2[:1], wo2[:1] * [-1, -1, 1]) > 0).all()  # the lobe
+    mu = abs(wo[1, 2])
+    coat = coat_attenuation(p.coat_weight[1:2], p.coat_eta[1:2], p.coat_tint[1:2],
+                            np.array([mu]))[0]
+    grazing = layered.specular_albedo(np.zeros(1), p.alpha[1:2], p.eta[1:2], p.tint[1:2])
+    np.testing.assert_allclose(f[1], p.color[1] * (1 - grazing.max()) * coat * wi[1, 2]
+                               / np.pi, rtol=1e-12)
+    assert q.coat_weight.tolist() == [0.0, 0.0, p.coat_weight[2]]
+    np.testing.assert_array_equal(q.color[2], p.color[2])
 
 
 def test_a_transparent_bsdf_seen_from_below_still_passes_light_straight_through():
