@@ -5,7 +5,8 @@ Per sample, a camera subpath and a light subpath (:mod:`.subpaths`); the strateg
 bidirectional estimator uses, ``s = 0`` (emitters the camera subpath finds,
 :mod:`.camera_hits`) and ``t = 1`` (light vertices seen by the pinhole, :mod:`.connections`);
 a subclass adds its own (:meth:`Bidirectional.connect`). Batches are cut into chunks of
-``CHUNK`` paths so that the subpath arrays stay small.
+``CHUNK`` paths so that the stored subpath arrays stay small (light tracing, which stores none,
+walks a work unit whole).
 """
 
 from __future__ import annotations
@@ -148,6 +149,8 @@ class Bidirectional(Integrator):
     # every light vertex is connected to the pinhole as the walk makes it (same splats, same
     # order, no stored vertices).
     stores_light_subpaths: ClassVar[bool] = True
+    # Paths per chunk of :meth:`render_samples` (None: the whole work unit at once).
+    chunk_paths: ClassVar[int | None] = CHUNK
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
@@ -180,13 +183,13 @@ class Bidirectional(Integrator):
 
     def render_samples(self, stream, pixel_filter, counters):
         """Image contributions of one sample (a camera and a light subpath) per entry of
-        ``stream``, in chunks of at most ``CHUNK`` paths."""
-        n = len(stream)
-        if n > CHUNK:
+        ``stream``, in chunks of at most ``chunk_paths`` paths."""
+        n, chunk = len(stream), self.chunk_paths
+        if chunk is not None and n > chunk:
             parts = []
-            for start in range(0, n, CHUNK):
+            for start in range(0, n, chunk):
                 part = copy.copy(stream)
-                part.compact(np.arange(start, min(start + CHUNK, n)))
+                part.compact(np.arange(start, min(start + chunk, n)))
                 parts.append(self.render_samples(part, pixel_filter, counters))
             return BatchOutput.join(parts)
         settings = self.settings
