@@ -39,15 +39,15 @@ class LightTracer(Bidirectional):
     sees, ``t = 1`` for every light vertex the pinhole sees.
     """
 
-    # A light-tracing sample costs 2-5 path-tracing samples.
-    unit_paths = 1 << 14
+    # As many paths per unit as the path tracer's, walked in one chunk (nothing is stored per
+    # vertex): NumPy's per-call cost, paid per vertex of a chunk, is spread over 4 x as many
+    # paths as in the units of 16 k paths and chunks of 8 k before (docs/BENCHMARKS.md, fifth
+    # round). The splats are the same; only the order in which a pixel sums them changes
+    # (tests/core/test_light_speed_paths.py).
+    unit_paths = 1 << 16
+    chunk_paths = None
     weighs = False
     stores_light_subpaths = False
-    # Nothing is stored per vertex, so a work unit is walked in one chunk: NumPy's per-call
-    # cost is paid once per unit, not once per 8,192 paths (13 % of the CPU per sample on the
-    # bench box). The splats are the same as in chunks; only the order in which they are summed
-    # into a pixel changes (tests/core/test_light_speed_paths.py).
-    chunk_paths = None
 
     def camera_depth(self, depth):
         """The camera ray only: emitters seen directly."""
