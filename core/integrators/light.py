@@ -40,10 +40,10 @@ class LightTracer(Bidirectional):
     """
 
     # As many paths per unit as the path tracer's, walked in one chunk (nothing is stored per
-    # vertex): NumPy's per-call cost, paid per vertex of a chunk, is spread over 4 x as many
-    # paths as in the units of 16 k paths and chunks of 8 k before (docs/BENCHMARKS.md, fifth
-    # round). The splats are the same; only the order in which a pixel sums them changes
-    # (tests/core/test_light_speed_paths.py).
+    # vertex): the costs per call (the Sobol sampler's set-up per draw, the bookkeeping of every
+    # vertex) are spread over 8 x as many paths as in the chunks of 8 k before (units of 16 k;
+    # docs/BENCHMARKS.md, fifth round). The splats are the same; only the order in which a
+    # pixel sums them changes (tests/core/test_light_speed_paths.py).
     unit_paths = 1 << 16
     chunk_paths = None
     weighs = False
