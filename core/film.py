@@ -73,6 +73,8 @@ class PixelFilter:
         start = np.searchsorted(self.cdf, np.arange(GUIDE + 1) / GUIDE, side="right") - 1
         self.guide = np.minimum(start[:-1], self.cdf.size - 2)
         self.guide_hard = start[1:] - self.guide > 1
+        # pdf_1d's density per grid cell, computed once (the same quotients it took per call).
+        self.cell_density = (self.cdf[1:] - self.cdf[:-1]) / (x[1] - x[0])
 
     def sample(self, u):
         """Filter offsets in pixels for ``u : (n, 2)``: ``(n, 2)``, each sample weight one."""
@@ -101,8 +103,7 @@ class PixelFilter:
         # The derivative of the piecewise-linear CDF: constant between grid points.
         step = self.grid[1] - self.grid[0]
         i = np.clip(np.floor((x + half) / step).astype(np.int64), 0, self.grid.size - 2)
-        density = (self.cdf[i + 1] - self.cdf[i]) / step
-        return np.where(np.abs(x) < half, density, 0.0)
+        return np.where(np.abs(x) < half, np.take(self.cell_density, i), 0.0)
 
     def taps(self):
         """Pixel offsets ``(m,)`` int a splat must visit: every pixel whose filter can cover a

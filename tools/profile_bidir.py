@@ -245,7 +245,8 @@ def main(argv=None):
     parser.add_argument("--scene", default="bench",
                         help="bench (the bench's mesh-light box) or a bench-scenes scene "
                              "(tools.hard_scenes.SCENES, e.g. mirror_ball; needs bpy)")
-    parser.add_argument("--integrators", default="light,bdpt", help="profiled, comma-separated")
+    parser.add_argument("--integrators", default="light,bdpt",
+                        help="measured and profiled beside the path tracer, comma-separated")
     parser.add_argument("--no-profile", action="store_true", help="speed figures only")
     parser.add_argument("--units", type=int, default=0,
                         help="CPU time per sample of this many work units called directly")
@@ -267,7 +268,7 @@ def main(argv=None):
 
     scene = _scene(args)
     print(f"load average at start: {os.getloadavg()}")
-    best, cpu = speeds(scene, args)
+    best, cpu = speeds(scene, args, ("path", *args.integrators.split(",")))
     path_sps = best["path"]["samples_per_s"]
     print(f"camera samples/s at {args.threads} threads (wall clock, best of {args.repeats}) | "
           f"CPU us per sample at 1 thread (min of {args.repeats})")

@@ -5,7 +5,8 @@ Per sample, a camera subpath and a light subpath (:mod:`.subpaths`); the strateg
 bidirectional estimator uses, ``s = 0`` (emitters the camera subpath finds,
 :mod:`.camera_hits`) and ``t = 1`` (light vertices seen by the pinhole, :mod:`.connections`);
 a subclass adds its own (:meth:`Bidirectional.connect`). Batches are cut into chunks of
-``CHUNK`` paths (an integrator's ``chunk_paths``) so that the subpath arrays stay small.
+``CHUNK`` paths (an integrator's ``chunk_paths``) so that the stored subpath arrays stay small
+(light tracing, which stores none, walks a work unit whole).
 """
 
 from __future__ import annotations
@@ -74,10 +75,10 @@ class _Context:
 def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     """Stage *generate light subpath*: emitter point and direction, then the random walk.
 
-    With ``on_vertex`` (see :func:`.subpaths.walk`) the vertices past the emitter are handed
-    to it and not stored: the subpath returned holds vertex 0 only."""
+    With ``on_vertex`` (see :func:`.subpaths.walk`) the vertices are handed to it and none is
+    stored (light tracing): None is returned."""
     em, prep = ctx.emission, ctx.prep
-    L = ctx.subpath("light", depth if on_vertex is None else 1, n)
+    L = ctx.subpath("light", depth, n) if on_vertex is None else None
     stream.skip_to(base)
     u_sel = stream.next_1d()
     u_pos = stream.next_2d()
@@ -85,12 +86,13 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     pts = em.sample_points(u_sel, u_pos, ctx.counters)
     origin, w, pdf_dir, cos_l, le = em.sample_directions(pts, u_dir)
     ctx.light_points = pts
-    L.valid[0] = pts.index >= 0
-    L.p[0] = np.where(pts.infinite[:, None], origin, pts.p)
-    L.ng[0] = pts.normal
-    L.pdf_fwd[0] = pts.pdf_origin
-    L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
-    L.d_prev[0] = np.where(pts.infinite, np.inf, 0.0)
+    if L is not None:
+        L.valid[0] = pts.index >= 0
+        L.p[0] = np.where(pts.infinite[:, None], origin, pts.p)
+        L.ng[0] = pts.normal
+        L.pdf_fwd[0] = pts.pdf_origin
+        L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
+        L.d_prev[0] = np.where(pts.infinite, np.inf, 0.0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & finite_rows(beta)
@@ -148,8 +150,9 @@ class Bidirectional(Integrator):
     # every light vertex is connected to the pinhole as the walk makes it (same splats, same
     # order, no stored vertices).
     stores_light_subpaths: ClassVar[bool] = True
-    # Paths per chunk of :meth:`render_samples` (an instance may set its own).
-    chunk_paths: ClassVar[int] = CHUNK
+    # Paths per chunk of :meth:`render_samples` (an instance may set its own; None: the whole
+    # work unit at once).
+    chunk_paths: ClassVar[int | None] = CHUNK
 
     def __init__(self, prep, settings):
         super().__init__(prep, settings)
@@ -183,9 +186,8 @@ class Bidirectional(Integrator):
     def render_samples(self, stream, pixel_filter, counters):
         """Image contributions of one sample (a camera and a light subpath) per entry of
         ``stream``, in chunks of at most ``chunk_paths`` paths."""
-        n = len(stream)
-        chunk = self.chunk_paths
-        if n > chunk:
+        n, chunk = len(stream), self.chunk_paths
+        if chunk is not None and n > chunk:
             parts = []
             for start in range(0, n, chunk):
                 part = copy.copy(stream)

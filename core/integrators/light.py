@@ -41,8 +41,13 @@ class LightTracer(Bidirectional):
     sees, ``t = 1`` for every light vertex the pinhole sees.
     """
 
-    # A light-tracing sample costs 2-5 path-tracing samples.
-    unit_paths = 1 << 14
+    # As many paths per unit as the path tracer's, walked in one chunk (nothing is stored per
+    # vertex): the costs per call (the Sobol sampler's set-up per draw, the bookkeeping of every
+    # vertex) are spread over 8 x as many paths as in the chunks of 8 k before (units of 16 k;
+    # docs/BENCHMARKS.md, fifth round). The splats are the same; only the order in which a
+    # pixel sums them changes (tests/core/test_light_speed_paths.py).
+    unit_paths = 1 << 16
+    chunk_paths = None
     weighs = False
     stores_light_subpaths = False
 
