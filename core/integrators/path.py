@@ -68,6 +68,7 @@ from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows
                      ray_class, roulette_at, russian_roulette, shading_tangents,
                      surface_hits, surface_interaction, take_rows,
                      valid_reflection_normals, with_base_normals, with_bump_normals,
+                     with_coat_normals,
                      bends_normals)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
@@ -145,6 +146,7 @@ class _BSDFShading:
             below = view_below(np.einsum("ij,ij->i", si.wo, si.ng), self.wo[:, 2])
             self.params, self.wo = lower_view_params(self.params, self.wo, below)
         self.params = with_bump_normals(self.params, si, (self.s, self.t, self.n))
+        self.params = with_coat_normals(self.params, si, (self.s, self.t, self.n))
         # Next-event estimation cannot contribute through smooth mirrors and glass.
         self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None
 

@@ -159,6 +159,10 @@ class BSDFParams:
         Layered kinds: the unit normal of the diffuse base in the row's local frame, when the
         frame was bent for the specular layer only (:mod:`.layered`, "base normal"); zero
         rows: the base keeps +Z. None when no row has it.
+    coat_normal : (k, 3) float64 or None
+        Coated rows: the unit normal the coat shades around, in the row's local frame (the
+        Coat Normal input, or the smooth normal; :mod:`.coat`); zero rows: +Z. None when no
+        coated row's coat normal differs from its shading normal.
     """
 
     kind: np.ndarray
@@ -176,6 +180,7 @@ class BSDFParams:
     aniso_rotation: np.ndarray = None
     bump_normal: np.ndarray = None
     base_normal: np.ndarray = None
+    coat_normal: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
@@ -418,6 +423,7 @@ _GROUPS = {
     "aniso": (("aniso_scale", 1.0, ()), ("aniso_rotation", 0.0, ())),
     "bump": (("bump_normal", 0.0, (3,)),),
     "base": (("base_normal", 0.0, (3,)),),
+    "coatn": (("coat_normal", 0.0, (3,)),),
 }
 # Their names: what BSDFParams.has / with_neutral take.
 OPTIONAL_GROUPS = tuple(_GROUPS)
