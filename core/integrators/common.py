@@ -317,12 +317,14 @@ def bump_reference_normals(prep, prim, u, v, ng):
 def coat_reference_normals(prep, prim, u, v, ng):
     """The smooth normals ``(k, 3)`` (on ``ng``'s side) at the hits whose material has a coat
     (a Coat Weight or its texture) and a normal map or bump, which the coat does not follow
-    (Cycles' coat normal when the Coat Normal input is unlinked); zero at the others; None
-    when no material of the scene has both."""
+    (Cycles' coat normal when the Coat Normal input is unlinked; ``coat_mapped`` rows follow
+    it); zero at the others; None when no material of the scene has both."""
     m = prep.scene.materials
     coated = m.coat_weight > 0.0
     if m.coat_weight_texture is not None:
         coated = coated | (m.coat_weight_texture >= 0)
+    if m.coat_mapped is not None:
+        coated = coated & ~m.coat_mapped
     mapped = np.zeros_like(coated)
     for texture in (m.normal_texture, m.bump_texture):
         if texture is not None:
@@ -356,20 +358,21 @@ def with_bump_normals(params, si, frame):
     return replace(params, bump_normal=to_local(si.n_bump, *frame))
 
 
-def with_coat_normals(params, si, frame):
+def with_coat_normals(params, n_coat, frame):
     """``params`` with a ``coat_normal`` column (:mod:`core.materials.coat`) on the coated
-    rows whose coat normal ``si.n_coat`` differs from the ``frame = (s, t, n)``'s +Z, in that
-    frame; unchanged when there is none."""
-    if si.n_coat is None or not params.has_coat:
+    rows whose coat normal ``n_coat (k, 3)`` (world, on the frame's side; zero rows: none;
+    :attr:`Interaction.n_coat`) differs from the ``frame = (s, t, n)``'s +Z, in that frame;
+    unchanged when there is none (``n_coat`` None)."""
+    if n_coat is None or not params.has_coat:
         return params
-    n = si.n_coat
+    n = n_coat
     rows = np.nonzero((params.coat_weight > 0.0) & np.any(n != 0.0, axis=1))[0]
     rows = rows[np.any(n[rows] != frame[2][rows], axis=1)]
     if rows.size == 0:
         return params
     local = np.zeros((len(params), 3))
     local[rows] = to_local(n[rows], *(f[rows] for f in frame))
-    return replace(params, coat_normal=local)
+    return replace(params, coat_normal=local, coat_flip=np.zeros(len(params)))
 
 
 def with_base_normals(params, unbent, frame):

@@ -114,6 +114,16 @@ class _LambertShading:
                 np.zeros(k, bool), None, lobe)
 
 
+def _coat_normals(prep, si):
+    """``si.n_coat`` bent for a valid reflection where the material allows it, as Cycles
+    bends the coat's normal (``maybe_ensure_valid_specular_reflection``)."""
+    n = si.n_coat
+    bend = bends_normals(prep.scene, si.prim) & np.any(n != 0.0, axis=1)
+    if not bend.any():
+        return n
+    return np.where(bend[:, None], valid_reflection_normals(si.ng, si.wo, n), n)
+
+
 class _BSDFShading:
     """Shading of a batch through :mod:`core.materials.bsdf`: local frames around the stored
     (unflipped) geometric normal, so dielectrics know whether the path is inside or outside."""
@@ -143,10 +153,12 @@ class _BSDFShading:
         if self.ng is not None:
             self.params = with_base_normals(self.params, si.ns * front[:, None],
                                             (self.s, self.t, self.n))
+            if si.n_coat is not None:
+                self.params = with_coat_normals(
+                    self.params, _coat_normals(prep, si) * front[:, None], (self.s, self.t, self.n))
             below = view_below(np.einsum("ij,ij->i", si.wo, si.ng), self.wo[:, 2])
             self.params, self.wo = lower_view_params(self.params, self.wo, below)
         self.params = with_bump_normals(self.params, si, (self.s, self.t, self.n))
-        self.params = with_coat_normals(self.params, si, (self.s, self.t, self.n))
         # Next-event estimation cannot contribute through smooth mirrors and glass.
         self.nee_rows = np.nonzero(~delta_only)[0] if delta_only.any() else None
 

@@ -163,6 +163,9 @@ class BSDFParams:
         Coated rows: the unit normal the coat shades around, in the row's local frame (the
         Coat Normal input, or the smooth normal; :mod:`.coat`); zero rows: +Z. None when no
         coated row's coat normal differs from its shading normal.
+    coat_flip : (k,) float64 or None
+        With ``coat_normal``: 1 on the rows whose view :mod:`.lower_view` mirrored while it
+        lies above the coat normal (the coat then sees the real view), else 0.
     """
 
     kind: np.ndarray
@@ -181,6 +184,7 @@ class BSDFParams:
     bump_normal: np.ndarray = None
     base_normal: np.ndarray = None
     coat_normal: np.ndarray = None
+    coat_flip: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
@@ -423,7 +427,7 @@ _GROUPS = {
     "aniso": (("aniso_scale", 1.0, ()), ("aniso_rotation", 0.0, ())),
     "bump": (("bump_normal", 0.0, (3,)),),
     "base": (("base_normal", 0.0, (3,)),),
-    "coatn": (("coat_normal", 0.0, (3,)),),
+    "coatn": (("coat_normal", 0.0, (3,)), ("coat_flip", 0.0, ())),
 }
 # Their names: what BSDFParams.has / with_neutral take.
 OPTIONAL_GROUPS = tuple(_GROUPS)

@@ -40,7 +40,9 @@ normal in the row's local frame, the ``"coatn"`` group of :class:`.bsdf.BSDFPara
 below, around that normal: every direction is first expressed in a frame around it
 (:func:`coat_frame`). The row's side (``wo``'s side of the row's +Z) still decides which
 side the coat is on; a view below the coat normal on that side gets no coat lobe and
-``A(0)``, as Cycles clamps the cosine.
+``A(0)``, as Cycles clamps the cosine. Where :mod:`.lower_view` mirrored the view (a view
+below the row's normal but above the coat's), ``coat_flip`` rows give the coat the real
+view back.
 """
 
 from __future__ import annotations
@@ -85,6 +87,15 @@ def coat_frame(p):
     return s, t, n
 
 
+def _coat_view(p, wo):
+    """The view ``(k, 3)`` the coat sees: ``wo`` mirrored back through the tangent plane on
+    the rows whose view :mod:`.lower_view` mirrored (``coat_flip``), ``wo`` elsewhere."""
+    flip = getattr(p, "coat_flip", None)
+    if flip is None or not np.any(flip):
+        return wo
+    return np.where((flip != 0.0)[:, None], wo * np.array([1.0, 1.0, -1.0]), wo)
+
+
 def _in_coat_frame(frame, side, *ws):
     """``ws`` mirrored to the row's upper side (``side (k,)``) and expressed in the coat
     ``frame`` (unchanged frame when None)."""
@@ -107,7 +118,7 @@ def _from_coat_frame(frame, side, w):
 def _coat_mu(p, wo, wi, mode=RADIANCE):
     """Cosine ``(k,)`` in [0, 1] the attenuation is judged at: ``wo``'s (``wi``'s in
     importance mode) with the coat normal, on the row's side of ``wo``."""
-    w = wo if mode == RADIANCE else wi
+    w = _coat_view(p, wo) if mode == RADIANCE else wi
     frame = coat_frame(p)
     if frame is None:
         return np.abs(w[:, 2])
@@ -156,7 +167,7 @@ def coat_probability(p, wo):
 
 def _coat_lobe(p, wo, wi):
     """``w f_coat cos_i`` and the coat lobe's own pdf, on ``wo``'s side. ``(k,)`` each."""
-    wo_, wi_ = _in_coat_frame(coat_frame(p), side_of(wo), wo, wi)
+    wo_, wi_ = _in_coat_frame(coat_frame(p), side_of(wo), _coat_view(p, wo), wi)
     return (p.coat_weight * coat_lobe_eval(p.coat_eta, p.coat_alpha, wo_, wi_),
             coat_lobe_pdf(p.coat_alpha, wo_, wi_))
 
@@ -195,7 +206,7 @@ def sample_coated(params, rows, wo, u_lobe, u, mode, sample_base, eval_fn, pdf_f
 
     side = side_of(wo_c)
     frame = coat_frame(p)
-    (wo_,) = _in_coat_frame(frame, side, wo_c)
+    (wo_,) = _in_coat_frame(frame, side, _coat_view(p, wo_c))
     smooth = mf.is_smooth(p.coat_alpha)
     wm = mf.sample_ggx_visible(np.where(wo_[:, 2:3] > 0.0, wo_, [0.0, 0.0, 1.0]), p.coat_alpha,
                                u[rows])

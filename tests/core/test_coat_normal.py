@@ -10,7 +10,7 @@ import zlib
 import numpy as np
 import pytest
 
-from sampling_lab.core.integrators.common import Interaction, with_coat_normals
+from sampling_lab.core.integrators.common import with_coat_normals
 from sampling_lab.core.materials import bsdf as B
 from sampling_lab.core.materials.coat import coat_attenuation
 from sampling_lab.core.materials.frame import shading_frame, to_local
@@ -24,7 +24,8 @@ BASE = (0.7, 0.5, 0.3)
 def coated(k, color=BASE, coat_roughness=0.2, normal=TILTED, kind=B.KIND_DIFFUSE):
     p = B.make_params(kind, color, 0.4, 1.5, k=k, coat_weight=0.8,
                       coat_roughness=coat_roughness, coat_ior=1.6, coat_tint=(0.9, 0.6, 0.4))
-    return p if normal is None else dataclasses.replace(p, coat_normal=np.tile(normal, (k, 1)))
+    return p if normal is None else dataclasses.replace(p, coat_normal=np.tile(normal, (k, 1)),
+                                                        coat_flip=np.zeros(k))
 
 
 def _directions(k, seed):
@@ -96,7 +97,7 @@ def test_tilted_coat_sample_weight_equals_eval_over_pdf(mode):
                       coat_weight=rng.uniform(0.2, 1.0, k),
                       coat_roughness=rng.choice([0.0, 0.05, 0.5], k),
                       coat_ior=rng.uniform(1.0, 2.5, k), coat_tint=rng.random((k, 3)))
-    p = dataclasses.replace(p, coat_normal=normal)
+    p = dataclasses.replace(p, coat_normal=normal, coat_flip=np.zeros(k))
     wo = rng.normal(size=(k, 3))
     wo /= np.linalg.norm(wo, axis=1, keepdims=True)
     s = B.sample_bsdf(p, wo, rng.random(k), rng.random((k, 2)), mode)
@@ -121,9 +122,8 @@ def test_coat_normals_are_set_only_where_they_differ_from_the_frame():
     k = 3
     frame = shading_frame(np.tile([0.0, 0.0, 1.0], (k, 1)))
     n_coat = np.array([TILTED, [0.0, 0.0, 1.0], TILTED])
-    si = Interaction(*(np.zeros((k, 3)),) * 4, np.zeros(k, np.int32), n_coat=n_coat)
     p = B.make_params(B.KIND_DIFFUSE, 0.5, 0.5, 1.5, k=k, coat_weight=[1.0, 1.0, 0.0])
-    out = with_coat_normals(p, si, frame)
+    out = with_coat_normals(p, n_coat, frame)
     np.testing.assert_allclose(out.coat_normal, [TILTED, [0, 0, 0], [0, 0, 0]], atol=1e-12)
-    assert with_coat_normals(B.make_params(B.KIND_DIFFUSE, 0.5, 0.5, 1.5, k=k), si,
+    assert with_coat_normals(B.make_params(B.KIND_DIFFUSE, 0.5, 0.5, 1.5, k=k), n_coat,
                              frame).coat_normal is None
