@@ -375,6 +375,14 @@ def with_coat_normals(params, n_coat, frame):
     return replace(params, coat_normal=local, coat_flip=np.zeros(len(params)))
 
 
+def coat_normals_in_front(si):
+    """``si.n_coat`` on the stored geometric normal's front side (as ``si.nm``), or None."""
+    n = si.n_coat
+    if n is None:
+        return None
+    return n * np.where(np.einsum("ij,ij->i", n, si.ng) < 0, -1.0, 1.0)[:, None]
+
+
 def with_base_normals(params, unbent, frame):
     """``params`` with a ``base_normal`` column (:mod:`core.materials.layered`) on the layered
     rows whose frame ``frame = (s, t, n)`` was bent away from their shading normal ``unbent
