@@ -626,10 +626,14 @@ def _sample_bases(params, wo, u_lobe, u, mode):
 def crosses_surface(params, wo, wi):
     """Whether ``wi`` leaves on the other side of the surface than ``wo`` (a transmission):
     ``(k,)`` bool, from the sides of the local frame, except on layered rows with a base
-    normal (:mod:`.layered`), reflections whose base lobe may dip below the bent frame."""
+    normal (:mod:`.layered`), reflections whose base lobe may dip below the bent frame, and on
+    opaque rows with a coat normal (:mod:`.coat`), whose coat reflects around its own."""
     crossed = wi[:, 2] * wo[:, 2] < 0.0
     if params.base_normal is not None:
         crossed &= ~np.any(params.base_normal != 0.0, axis=1)
+    if params.coat_normal is not None:
+        opaque = (params.kind != KIND_DIELECTRIC) & (params.kind != KIND_DIELECTRIC_MS)
+        crossed &= ~(opaque & np.any(params.coat_normal != 0.0, axis=1))
     return crossed
 
 
