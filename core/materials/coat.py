@@ -58,7 +58,7 @@ from .frame import dot, flip_to_upper, reflect, reflect_z, side_of
 from .fresnel import fresnel_dielectric
 from .layered import coat_albedo_lookup, coat_lobe_eval, coat_lobe_pdf
 
-__all__ = ["coat_rows", "coat_frame", "coat_attenuation", "coat_probability", "eval_coated", "pdf_coated",
+__all__ = ["coat_rows", "coat_frame", "in_layer_frame", "from_layer_frame", "layer_view", "coat_attenuation", "coat_probability", "eval_coated", "pdf_coated",
            "sample_coated", "DEFAULT_COAT_ROUGHNESS", "DEFAULT_COAT_IOR"]
 
 # Blender's defaults for the Principled BSDF's coat inputs.
@@ -87,7 +87,7 @@ def coat_frame(p):
     return s, t, n
 
 
-def _coat_view(p, wo):
+def layer_view(p, wo):
     """The view ``(k, 3)`` the coat sees: ``wo`` mirrored back through the tangent plane on
     the rows whose view :mod:`.lower_view` mirrored (``coat_flip``), ``wo`` elsewhere."""
     flip = getattr(p, "coat_flip", None)
@@ -96,7 +96,7 @@ def _coat_view(p, wo):
     return np.where((flip != 0.0)[:, None], wo * np.array([1.0, 1.0, -1.0]), wo)
 
 
-def _in_coat_frame(frame, side, *ws):
+def in_layer_frame(frame, side, *ws):
     """``ws`` mirrored to the row's upper side (``side (k,)``) and expressed in the coat
     ``frame`` (unchanged frame when None)."""
     out = []
@@ -108,8 +108,8 @@ def _in_coat_frame(frame, side, *ws):
     return out
 
 
-def _from_coat_frame(frame, side, w):
-    """Inverse of :func:`_in_coat_frame` for one ``w (k, 3)``."""
+def from_layer_frame(frame, side, w):
+    """Inverse of :func:`in_layer_frame` for one ``w (k, 3)``."""
     if frame is not None:
         w = w[:, 0:1] * frame[0] + w[:, 1:2] * frame[1] + w[:, 2:3] * frame[2]
     return flip_to_upper(w, side)
@@ -118,11 +118,11 @@ def _from_coat_frame(frame, side, w):
 def _coat_mu(p, wo, wi, mode=RADIANCE):
     """Cosine ``(k,)`` in [0, 1] the attenuation is judged at: ``wo``'s (``wi``'s in
     importance mode) with the coat normal, on the row's side of ``wo``."""
-    w = _coat_view(p, wo) if mode == RADIANCE else wi
+    w = layer_view(p, wo) if mode == RADIANCE else wi
     frame = coat_frame(p)
     if frame is None:
         return np.abs(w[:, 2])
-    (w_,) = _in_coat_frame(frame, side_of(wo), w)
+    (w_,) = in_layer_frame(frame, side_of(wo), w)
     return np.clip(w_[:, 2], 0.0, 1.0)
 
 
@@ -167,7 +167,7 @@ def coat_probability(p, wo):
 
 def _coat_lobe(p, wo, wi):
     """``w f_coat cos_i`` and the coat lobe's own pdf, on ``wo``'s side. ``(k,)`` each."""
-    wo_, wi_ = _in_coat_frame(coat_frame(p), side_of(wo), _coat_view(p, wo), wi)
+    wo_, wi_ = in_layer_frame(coat_frame(p), side_of(wo), layer_view(p, wo), wi)
     return (p.coat_weight * coat_lobe_eval(p.coat_eta, p.coat_alpha, wo_, wi_),
             coat_lobe_pdf(p.coat_alpha, wo_, wi_))
 
@@ -206,12 +206,12 @@ def sample_coated(params, rows, wo, u_lobe, u, mode, sample_base, eval_fn, pdf_f
 
     side = side_of(wo_c)
     frame = coat_frame(p)
-    (wo_,) = _in_coat_frame(frame, side, _coat_view(p, wo_c))
+    (wo_,) = in_layer_frame(frame, side, layer_view(p, wo_c))
     smooth = mf.is_smooth(p.coat_alpha)
     wm = mf.sample_ggx_visible(np.where(wo_[:, 2:3] > 0.0, wo_, [0.0, 0.0, 1.0]), p.coat_alpha,
                                u[rows])
     wi_up = np.where(smooth[:, None], reflect_z(wo_), reflect(wo_, wm))
-    wi_coat = _from_coat_frame(frame, side, wi_up)
+    wi_coat = from_layer_frame(frame, side, wi_up)
     coat_ok = chosen & (wo_[:, 2] > 0.0) & (wi_up[:, 2] > 0.0)
     wi_c = np.where(chosen[:, None], wi_coat, base.wi[rows])
     delta_coat = chosen & smooth

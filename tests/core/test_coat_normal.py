@@ -21,9 +21,11 @@ TILTED /= np.linalg.norm(TILTED)
 BASE = (0.7, 0.5, 0.3)
 
 
-def coated(k, color=BASE, coat_roughness=0.2, normal=TILTED, kind=B.KIND_DIFFUSE):
-    p = B.make_params(kind, color, 0.4, 1.5, k=k, coat_weight=0.8,
-                      coat_roughness=coat_roughness, coat_ior=1.6, coat_tint=(0.9, 0.6, 0.4))
+def coated(k, color=BASE, coat_roughness=0.2, normal=TILTED, kind=B.KIND_DIFFUSE,
+           coat_weight=0.8, sheen_weight=0.0):
+    p = B.make_params(kind, color, 0.4, 1.5, k=k, coat_weight=coat_weight,
+                      coat_roughness=coat_roughness, coat_ior=1.6, coat_tint=(0.9, 0.6, 0.4),
+                      sheen_weight=sheen_weight, sheen_roughness=0.4)
     return p if normal is None else dataclasses.replace(p, coat_normal=np.tile(normal, (k, 1)),
                                                         coat_flip=np.zeros(k))
 
@@ -37,20 +39,24 @@ def _directions(k, seed):
 
 
 @pytest.mark.parametrize("mode", [B.RADIANCE, B.IMPORTANCE])
-def test_coat_lobe_is_the_untilted_coat_in_the_coat_normals_frame(mode):
+@pytest.mark.parametrize("sheen", [0.0, 0.7])
+def test_coat_lobe_is_the_untilted_coat_in_the_coat_normals_frame(mode, sheen):
     """Over a black base, ``f cos`` with a tilted coat normal equals the plain coat's at the
     directions expressed in a frame around that normal (its cosine is the coat normal's, as
-    a Cycles closure's): a coat shaded around the row's +Z would differ by the tilt."""
+    a Cycles closure's): a coat shaded around the row's +Z would differ by the tilt. With
+    Coat Weight 1 the sheen's normal, Cycles' ``normalize(mix(N, coat normal, weight))``, is
+    the coat's: the sheen over the coat turns with it too."""
     k = 4000
     wo, wi = _directions(k, 1)
     s, t, n = shading_frame(np.tile(TILTED, (k, 1)))
     wo_c, wi_c = to_local(wo, s, t, n), to_local(wi, s, t, n)
     up = (wo_c[:, 2] > 0) & (wi_c[:, 2] > 0)
-    f = B.eval_bsdf(coated(k, color=0.0), wo, wi, mode)
-    ref = B.eval_bsdf(coated(k, color=0.0, normal=None), wo_c, wi_c, mode)
+    kw = dict(color=0.0, coat_weight=1.0, sheen_weight=sheen)
+    f = B.eval_bsdf(coated(k, **kw), wo, wi, mode)
+    ref = B.eval_bsdf(coated(k, normal=None, **kw), wo_c, wi_c, mode)
     np.testing.assert_allclose(f[up], ref[up], rtol=1e-9, atol=1e-14)
     assert np.all(f[~up] == 0.0)
-    assert np.abs(B.eval_bsdf(coated(k, color=0.0, normal=None), wo, wi, mode) - f).max() > 0.05
+    assert np.abs(B.eval_bsdf(coated(k, normal=None, **kw), wo, wi, mode) - f).max() > 0.05
 
 
 def test_coat_attenuates_the_base_by_the_cosine_with_its_own_normal():
@@ -66,21 +72,45 @@ def test_coat_attenuates_the_base_by_the_cosine_with_its_own_normal():
     np.testing.assert_allclose(B.eval_bsdf(p, wo, wi) - lobe, expect, rtol=1e-9, atol=1e-14)
 
 
-@pytest.mark.parametrize("coat_roughness,z", [(0.2, 0.8), (0.3, 0.3), (0.2, -0.7)])
-def test_tilted_coat_samples_follow_their_pdf(coat_roughness, z):
+def test_sheen_turns_to_the_mix_of_the_normal_and_the_coat_normal():
+    """Coat Weight 0.5 over a black base, with a sheen: ``f cos`` is the plain sheen lobe in a
+    frame around ``normalize(mix(+Z, n_coat, 0.5))`` plus what the sheen keeps (its albedo at
+    that normal) of the tilted coat (Cycles' layering)."""
+    from sampling_lab.core.materials.sheen import sheen_attenuation
+
+    k, w = 4000, 0.5
+    wo, wi = _directions(k, 3)
+    full = coated(k, color=0.0, coat_weight=w, sheen_weight=0.7)
+    coat_only = coated(k, color=0.0, coat_weight=w)
+    sheen_only = coated(k, color=0.0, coat_weight=0.0, sheen_weight=0.7, normal=None)
+    m = (1 - w) * np.array([0.0, 0.0, 1.0]) + w * TILTED
+    frame = shading_frame(np.tile(m / np.linalg.norm(m), (k, 1)))
+    wo_s, wi_s = to_local(wo, *frame), to_local(wi, *frame)
+    up = (wo_s[:, 2] > 0) & (wi_s[:, 2] > 0) & (wo @ TILTED > 0)
+    keep = sheen_attenuation(full.sheen_color, full.sheen_roughness, wo_s[:, 2])
+    expect = B.eval_bsdf(sheen_only, wo_s, wi_s) + keep[:, None] * B.eval_bsdf(coat_only, wo, wi)
+    f = B.eval_bsdf(full, wo, wi)
+    np.testing.assert_allclose(f[up], expect[up], rtol=1e-9, atol=1e-14)
+
+
+@pytest.mark.parametrize("coat_roughness,z,sheen", [(0.2, 0.8, 0.0), (0.3, 0.3, 0.0),
+                                                    (0.2, -0.7, 0.0), (0.3, 0.5, 0.8)])
+def test_tilted_coat_samples_follow_their_pdf(coat_roughness, z, sheen):
     wo = _wo(z, 0.4)
+
+    def params(k):
+        return coated(k, coat_roughness=coat_roughness, coat_weight=0.6, sheen_weight=sheen)
 
     def sample(u_lobe, u):
         k = len(u_lobe)
-        s = B.sample_bsdf(coated(k, coat_roughness=coat_roughness), np.tile(wo, (k, 1)),
-                          u_lobe, u)
+        s = B.sample_bsdf(params(k), np.tile(wo, (k, 1)), u_lobe, u)
         return s.wi, s.pdf, s.delta
 
     def pdf(w):
-        return B.pdf_bsdf(coated(len(w), coat_roughness=coat_roughness),
-                          np.tile(wo, (len(w), 1)), w)
+        return B.pdf_bsdf(params(len(w)), np.tile(wo, (len(w), 1)), w)
 
-    chi_square_bsdf(sample, pdf, z, None, seed=zlib.crc32(f"{coat_roughness}{z}".encode()),
+    chi_square_bsdf(sample, pdf, z, None,
+                    seed=zlib.crc32(f"{coat_roughness}{z}{sheen}".encode()),
                     what=f"tilted coat {coat_roughness}")
 
 
@@ -96,7 +126,8 @@ def test_tilted_coat_sample_weight_equals_eval_over_pdf(mode):
     p = B.make_params(kind, rng.random((k, 3)), rng.uniform(0, 1, k), rng.uniform(1.1, 2.5, k),
                       coat_weight=rng.uniform(0.2, 1.0, k),
                       coat_roughness=rng.choice([0.0, 0.05, 0.5], k),
-                      coat_ior=rng.uniform(1.0, 2.5, k), coat_tint=rng.random((k, 3)))
+                      coat_ior=rng.uniform(1.0, 2.5, k), coat_tint=rng.random((k, 3)),
+                      sheen_weight=np.where(rng.random(k) < 0.3, rng.random(k), 0.0))
     p = dataclasses.replace(p, coat_normal=normal, coat_flip=np.zeros(k))
     wo = rng.normal(size=(k, 3))
     wo /= np.linalg.norm(wo, axis=1, keepdims=True)
