@@ -365,3 +365,24 @@ def test_coat_on_a_normal_mapped_sphere_agrees_with_cycles(empty_scene, tmp_path
     except AssertionError as err:
         assert "block means outside" in str(err), err
         pytest.xfail(f"known silhouette residual: {err}")
+
+
+@pytest.mark.parametrize("link", ["none", "same", "other"])
+def test_coat_normal_link_is_exported_or_reported(empty_scene, export, link):
+    """Coat Normal unlinked: the coat keeps the smooth normal (``coat_mapped`` False); linked
+    to the Normal input's Normal Map: it follows the map; linked elsewhere: reported once,
+    and the smooth normal is used."""
+    mat, bsdf, normal_map = normal_mapped_material("Coated", wave_normal_map("Waves"))
+    bsdf.inputs["Coat Weight"].default_value = 1.0
+    tree = mat.node_tree
+    if link == "same":
+        tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Coat Normal"])
+    elif link == "other":
+        other = tree.nodes.new("ShaderNodeNormalMap")
+        tree.links.new(other.outputs["Normal"], bsdf.inputs["Coat Normal"])
+    add_uv_quad(empty_scene, "Quad", 1.0, mat)
+    S.add_camera(empty_scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    s = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert s.materials.coat_mapped.tolist() == [link == "same"]
+    reports = [m for m in s.messages if "Coat Normal" in m or "coat normal" in m]
+    assert len(reports) == (link == "other"), s.messages
