@@ -209,6 +209,11 @@ class Materials:
         Cycles' Bump Map Correction on the diffuse lobes of the triangles whose own row this
         is (:mod:`core.materials.bump_correction`), where a normal map or bump perturbs their
         normal; default False.
+    coat_mapped : (m,) bool
+        The coat shades around the row's (mapped) shading normal: the Principled Coat Normal
+        is linked to the same normal as its Normal input. False (the default): the coat keeps
+        the smooth normal under normal maps and bumps, as Cycles' unlinked Coat Normal
+        (:mod:`core.materials.coat`).
     mix_rows : (m, c) int32
         Component rows of each material: a row whose ``mix_rows`` is more than itself is a
         *mixture* (a Principled BSDF with fractional Metallic, Transmission or Alpha, a Mix
@@ -256,6 +261,7 @@ class Materials:
     bump_distance: np.ndarray = None
     bump_strength: np.ndarray = None
     bump_correction: np.ndarray = None
+    coat_mapped: np.ndarray = None
     mix_rows: np.ndarray = None
     mix_weights: np.ndarray = None
 
@@ -301,6 +307,8 @@ class Materials:
         self.bump_correction = (np.zeros(m, bool) if self.bump_correction is None else
                                 np.broadcast_to(np.asarray(self.bump_correction, bool),
                                                 (m,)).copy())
+        self.coat_mapped = (np.zeros(m, bool) if self.coat_mapped is None else
+                            np.broadcast_to(np.asarray(self.coat_mapped, bool), (m,)).copy())
         self._check_mix(m)
 
     def _check_mix(self, m):
@@ -344,7 +352,7 @@ class Materials:
                    bump_distance=None, bump_strength=None,
                    metallic_texture=None, bump_correction=None, alpha_texture=None,
                    alpha_invert=None, alpha_clear=None, specular_level_texture=None,
-                   coat_weight_texture=None) -> "Materials":
+                   coat_weight_texture=None, coat_mapped=None) -> "Materials":
         """A table from per-material lists; omitted columns take Blender's defaults."""
         m = len(names)
         return Materials(
@@ -364,7 +372,7 @@ class Materials:
             bump_correction=bump_correction, metallic_texture=metallic_texture,
             alpha_texture=alpha_texture, alpha_invert=alpha_invert, alpha_clear=alpha_clear,
             specular_level_texture=specular_level_texture,
-            coat_weight_texture=coat_weight_texture,
+            coat_weight_texture=coat_weight_texture, coat_mapped=coat_mapped,
             coat_tint=None if coat_tint is None
             else np.asarray(coat_tint, np.float32).reshape(-1, 3),
             sheen_weight=sheen_weight, sheen_roughness=sheen_roughness,

@@ -86,7 +86,8 @@ class MaterialTable:
             alpha_invert=[s.alpha_texture is not None and bool(s.alpha_texture[2])
                           for s in self.surfaces],
             alpha_clear=col["alpha_clear"], specular_level_texture=self._texture_index()[7],
-            coat_weight_texture=self._texture_index()[8], mix_rows=mix_rows,
+            coat_weight_texture=self._texture_index()[8], coat_mapped=col["coat_mapped"],
+            mix_rows=mix_rows,
             mix_weights=mix_weights)
 
     def _texture_index(self):

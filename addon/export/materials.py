@@ -80,6 +80,8 @@ class Surface(NamedTuple):
     metallic_texture: tuple = None
     # Cycles' Bump Map Correction on this row's diffuse lobes (core.materials.bump_correction).
     bump_correction: bool = False
+    # The coat follows the Normal input's normal (Coat Normal linked to it); else the smooth one.
+    coat_mapped: bool = False
     # (pixels, mode, invert) of a textured alpha (its mixture laid out for opacity 0.5, see
     # core.alpha and .alpha), or None; alpha_clear marks the components on its clear side.
     alpha_texture: tuple = None
@@ -279,7 +281,7 @@ def _surface_key(surface):
             tuple(np.round(surface.sheen_tint, 9)), surface.aniso_scale,
             surface.aniso_rotation, surface.tangent_axis, surface.alpha_clear,
             _texture_key(surface.specular_level_texture),
-            _texture_key(surface.coat_weight_texture))
+            _texture_key(surface.coat_weight_texture), surface.coat_mapped)
 
 
 def _texture_key(texture):
@@ -427,17 +429,34 @@ def _principled_layer_textures(node, owner, messages):
 
 def _principled_coat(node, read, owner, weight_texture=None):
     """The Coat inputs of Principled ``node`` as :class:`Surface` fields (weight 0: no coat;
-    1 with ``weight_texture``, which gives the weight per hit); a linked Coat Normal is
-    reported (the coat uses the shading normal)."""
+    1 with ``weight_texture``, which gives the weight per hit). The coat shades around the
+    smooth normal when Coat Normal is unlinked (Cycles), around the Normal input's normal when
+    Coat Normal is linked to the same output; another Coat Normal link is reported (the
+    smooth normal is used)."""
     weight = (1.0 if weight_texture is not None
               else min(max(read.value(node, "Coat Weight"), 0.0), 1.0))
     if weight <= 0:
         return {"coat_weight": 0.0}
-    read.ignored_if_linked(node, "Coat Normal", "the coat normal input")
-    return {"coat_weight": weight,
+    return {"coat_weight": weight, "coat_mapped": _coat_follows_normal(node, read, owner),
             "coat_roughness": min(max(read.value(node, "Coat Roughness", 0.03), 0.0), 1.0),
             "coat_ior": max(read.value(node, "Coat IOR", 1.5), 1.0),
             "coat_tint": np.maximum(read.color(node, "Coat Tint", (1.0, 1.0, 1.0)), 0.0)}
+
+
+def _coat_follows_normal(node, read, owner):
+    """Whether Principled ``node``'s Coat Normal is linked to the output its Normal input is
+    linked to (then the coat follows the mapped normal); any other link is reported."""
+    coat = node.inputs.get("Coat Normal")
+    link = follow_link(coat) if coat is not None else None
+    if link is None:
+        return False
+    normal = node.inputs.get("Normal")
+    same = normal is not None and follow_link(normal)
+    if same and same[0] == link[0] and same[1] == link[1]:
+        return True
+    read.messages.add(f"{owner}: a Coat Normal other than the Normal input's normal is not "
+                      f"supported yet; the coat uses the smooth normal")
+    return False
 
 
 def _principled_sheen(node, read):

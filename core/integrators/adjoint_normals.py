@@ -94,6 +94,10 @@ class VertexNormals:
         if params.bump_normal is not None:
             world = to_world(params.bump_normal, *frame)
             self.bump = (to_local(world, *self.frame_m), to_local(world, *self.frame_g))
+        self.coat = None
+        if params.coat_normal is not None:  # the coat's own normal (core.materials.coat)
+            world = to_world(params.coat_normal, *frame)
+            self.coat = (to_local(world, *self.frame_m), to_local(world, *self.frame_g))
 
     def take(self, rows):
         """The rows ``rows`` (an index array)."""
@@ -103,6 +107,7 @@ class VertexNormals:
         out.frame_g = tuple(a[rows] for a in self.frame_g)
         out.params = self.params.take(rows)
         out.bump = None if self.bump is None else tuple(b[rows] for b in self.bump)
+        out.coat = None if self.coat is None else tuple(c[rows] for c in self.coat)
         return out
 
     def _in(self, use_m):
@@ -111,10 +116,13 @@ class VertexNormals:
         if every or not use_m.any():
             frame = self.frame_m if every else self.frame_g
             bump = None if self.bump is None else self.bump[0 if every else 1]
+            coat = None if self.coat is None else self.coat[0 if every else 1]
         else:
             frame = tuple(_pick(use_m, a, b) for a, b in zip(self.frame_m, self.frame_g))
             bump = None if self.bump is None else _pick(use_m, *self.bump)
+            coat = None if self.coat is None else _pick(use_m, *self.coat)
         params = self.params if bump is None else replace(self.params, bump_normal=bump)
+        params = params if coat is None else replace(params, coat_normal=coat)
         return frame, params
 
     def camera_side(self, wc):

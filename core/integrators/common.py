@@ -268,6 +268,11 @@ class Interaction:
         stored ``ng``'s front side (not flipped); None when the scene has no corner normals.
         Subpaths and photons shade in its frame by Cycles' rule and its adjoint
         (:mod:`.adjoint_normals`).
+    n_coat : (k, 3) float64 or None
+        The smooth normal before normal maps and bumps, flipped as ``ns``, at hits whose
+        material has a coat and a normal map or bump (the Principled coat shades around it,
+        :mod:`core.materials.coat`; :func:`coat_reference_normals`); zero elsewhere. None
+        when no such hit.
     """
 
     p: np.ndarray
@@ -277,6 +282,7 @@ class Interaction:
     prim: np.ndarray
     n_bump: np.ndarray = None
     nm: np.ndarray = None
+    n_coat: np.ndarray = None
 
 
 def surface_interaction(prep, hits, d, rows, keep_below=False):
@@ -295,14 +301,40 @@ def surface_interaction(prep, hits, d, rows, keep_below=False):
     n_bump = bump_reference_normals(prep, prim, u, v, ng)
     if n_bump is not None:
         n_bump *= side[:, None]
-    return Interaction(p, ng, ns * side[:, None], wo, prim, n_bump, nm)
+    n_coat = coat_reference_normals(prep, prim, u, v, ng)
+    if n_coat is not None:
+        n_coat *= side[:, None]
+    return Interaction(p, ng, ns * side[:, None], wo, prim, n_bump, nm, n_coat)
 
 
 def bump_reference_normals(prep, prim, u, v, ng):
     """The smooth normals ``(k, 3)`` before normal maps and bumps (on ``ng``'s side) at the
     hits whose triangle's own material row has ``bump_correction``, zero at the others; None
     when no row of the scene has it (:mod:`core.materials.bump_correction`)."""
-    flags = prep.scene.materials.bump_correction
+    return _smooth_normals_where(prep, prim, u, v, ng, prep.scene.materials.bump_correction)
+
+
+def coat_reference_normals(prep, prim, u, v, ng):
+    """The smooth normals ``(k, 3)`` (on ``ng``'s side) at the hits whose material has a coat
+    (a Coat Weight or its texture) and a normal map or bump, which the coat does not follow
+    (Cycles' coat normal when the Coat Normal input is unlinked; ``coat_mapped`` rows follow
+    it); zero at the others; None when no material of the scene has both."""
+    m = prep.scene.materials
+    coated = m.coat_weight > 0.0
+    if m.coat_weight_texture is not None:
+        coated = coated | (m.coat_weight_texture >= 0)
+    if m.coat_mapped is not None:
+        coated = coated & ~m.coat_mapped
+    mapped = np.zeros_like(coated)
+    for texture in (m.normal_texture, m.bump_texture):
+        if texture is not None:
+            mapped = mapped | (texture >= 0)
+    return _smooth_normals_where(prep, prim, u, v, ng, coated & mapped)
+
+
+def _smooth_normals_where(prep, prim, u, v, ng, flags):
+    """The interpolated corner normals ``(k, 3)`` on ``ng``'s side at the hits whose material
+    has ``flags (m,)``, zero elsewhere; None when the scene has no such material."""
     corner = prep.scene.corner_normals
     if corner is None or not flags.any():
         return None
@@ -324,6 +356,31 @@ def with_bump_normals(params, si, frame):
     if si.n_bump is None:
         return params
     return replace(params, bump_normal=to_local(si.n_bump, *frame))
+
+
+def with_coat_normals(params, n_coat, frame):
+    """``params`` with a ``coat_normal`` column (:mod:`core.materials.coat`) on the coated
+    rows whose coat normal ``n_coat (k, 3)`` (world, on the frame's side; zero rows: none;
+    :attr:`Interaction.n_coat`) differs from the ``frame = (s, t, n)``'s +Z, in that frame;
+    unchanged when there is none (``n_coat`` None)."""
+    if n_coat is None or not params.has_coat:
+        return params
+    n = n_coat
+    rows = np.nonzero((params.coat_weight > 0.0) & np.any(n != 0.0, axis=1))[0]
+    rows = rows[np.any(n[rows] != frame[2][rows], axis=1)]
+    if rows.size == 0:
+        return params
+    local = np.zeros((len(params), 3))
+    local[rows] = to_local(n[rows], *(f[rows] for f in frame))
+    return replace(params, coat_normal=local, coat_flip=np.zeros(len(params)))
+
+
+def coat_normals_in_front(si):
+    """``si.n_coat`` on the stored geometric normal's front side (as ``si.nm``), or None."""
+    n = si.n_coat
+    if n is None:
+        return None
+    return n * np.where(np.einsum("ij,ij->i", n, si.ng) < 0, -1.0, 1.0)[:, None]
 
 
 def with_base_normals(params, unbent, frame):

@@ -68,6 +68,7 @@ from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows
                      ray_class, roulette_at, russian_roulette, shading_tangents,
                      surface_hits, surface_interaction, take_rows,
                      valid_reflection_normals, with_base_normals, with_bump_normals,
+                     with_coat_normals,
                      bends_normals)
 
 # Dimensions of the sample vector: 0-1 pixel filter, then a block per bounce (light selection,
@@ -113,6 +114,16 @@ class _LambertShading:
                 np.zeros(k, bool), None, lobe)
 
 
+def _coat_normals(prep, si):
+    """``si.n_coat`` bent for a valid reflection where the material allows it, as Cycles
+    bends the coat's normal (``maybe_ensure_valid_specular_reflection``)."""
+    n = si.n_coat
+    bend = bends_normals(prep.scene, si.prim) & np.any(n != 0.0, axis=1)
+    if not bend.any():
+        return n
+    return np.where(bend[:, None], valid_reflection_normals(si.ng, si.wo, n), n)
+
+
 class _BSDFShading:
     """Shading of a batch through :mod:`core.materials.bsdf`: local frames around the stored
     (unflipped) geometric normal, so dielectrics know whether the path is inside or outside."""
@@ -142,6 +153,9 @@ class _BSDFShading:
         if self.ng is not None:
             self.params = with_base_normals(self.params, si.ns * front[:, None],
                                             (self.s, self.t, self.n))
+            if si.n_coat is not None:
+                self.params = with_coat_normals(
+                    self.params, _coat_normals(prep, si) * front[:, None], (self.s, self.t, self.n))
             below = view_below(np.einsum("ij,ij->i", si.wo, si.ng), self.wo[:, 2])
             self.params, self.wo = lower_view_params(self.params, self.wo, below)
         self.params = with_bump_normals(self.params, si, (self.s, self.t, self.n))

@@ -20,7 +20,8 @@ from ..materials.frame import shading_frame, to_local, to_world
 from .adjoint_normals import VertexNormals
 from .common import (finite_rows, intersect_by_class, max_component, next_1d_if, ray_class,
                      roulette_at, russian_roulette, shading_tangents, surface_hits,
-                     surface_interaction, take_rows, with_bump_normals)
+                     surface_interaction, take_rows, with_bump_normals, with_coat_normals,
+                     coat_normals_in_front)
 from .transparent_passes import Passes, has_passes
 
 
@@ -370,6 +371,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             fs, ft, fn = shading_frame(si.ng, tangent)
         wo_l = to_local(si.wo, fs, ft, fn)
         params = with_bump_normals(params, si, (fs, ft, fn))
+        params = with_coat_normals(params, coat_normals_in_front(si), (fs, ft, fn))
         beta = take_rows(beta, live)
         if passes is not None:
             passes.take(live)

@@ -159,6 +159,13 @@ class BSDFParams:
         Layered kinds: the unit normal of the diffuse base in the row's local frame, when the
         frame was bent for the specular layer only (:mod:`.layered`, "base normal"); zero
         rows: the base keeps +Z. None when no row has it.
+    coat_normal : (k, 3) float64 or None
+        Coated rows: the unit normal the coat shades around, in the row's local frame (the
+        Coat Normal input, or the smooth normal; :mod:`.coat`); zero rows: +Z. None when no
+        coated row's coat normal differs from its shading normal.
+    coat_flip : (k,) float64 or None
+        With ``coat_normal``: 1 on the rows whose view :mod:`.lower_view` mirrored while it
+        lies above the coat normal (the coat then sees the real view), else 0.
     """
 
     kind: np.ndarray
@@ -176,6 +183,8 @@ class BSDFParams:
     aniso_rotation: np.ndarray = None
     bump_normal: np.ndarray = None
     base_normal: np.ndarray = None
+    coat_normal: np.ndarray = None
+    coat_flip: np.ndarray = None
 
     def __len__(self):
         return self.kind.shape[0]
@@ -418,6 +427,7 @@ _GROUPS = {
     "aniso": (("aniso_scale", 1.0, ()), ("aniso_rotation", 0.0, ())),
     "bump": (("bump_normal", 0.0, (3,)),),
     "base": (("base_normal", 0.0, (3,)),),
+    "coatn": (("coat_normal", 0.0, (3,)), ("coat_flip", 0.0, ())),
 }
 # Their names: what BSDFParams.has / with_neutral take.
 OPTIONAL_GROUPS = tuple(_GROUPS)
@@ -616,10 +626,14 @@ def _sample_bases(params, wo, u_lobe, u, mode):
 def crosses_surface(params, wo, wi):
     """Whether ``wi`` leaves on the other side of the surface than ``wo`` (a transmission):
     ``(k,)`` bool, from the sides of the local frame, except on layered rows with a base
-    normal (:mod:`.layered`), reflections whose base lobe may dip below the bent frame."""
+    normal (:mod:`.layered`), reflections whose base lobe may dip below the bent frame, and on
+    opaque rows with a coat normal (:mod:`.coat`), whose coat reflects around its own."""
     crossed = wi[:, 2] * wo[:, 2] < 0.0
     if params.base_normal is not None:
         crossed &= ~np.any(params.base_normal != 0.0, axis=1)
+    if params.coat_normal is not None:
+        opaque = (params.kind != KIND_DIELECTRIC) & (params.kind != KIND_DIELECTRIC_MS)
+        crossed &= ~(opaque & np.any(params.coat_normal != 0.0, axis=1))
     return crossed
 
 

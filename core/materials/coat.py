@@ -31,6 +31,18 @@ base with the remapped lobe number. Non-delta samples get the mixture pdf
 ``p pdf_coat + (1 - p) pdf_base``; a delta base sample has ``pdf = (1 - p) pdf_base``.
 
 Only rows with ``w > 0`` pay for any of this (:func:`coat_rows`).
+
+The coat's own normal: Cycles' coat closure has its own normal, the node's Coat Normal input
+or, unlinked, the smooth interpolated normal, *not* the Normal input (``svm_closure.h``,
+``node_principled_bsdf.osl``; behaviour matched). A row with a ``coat_normal`` (its unit
+normal in the row's local frame, the ``"coatn"`` group of :class:`.bsdf.BSDFParams`; zero:
++Z) evaluates, samples and weighs the coat lobe, and the attenuation ``A`` of the layers
+below, around that normal: every direction is first expressed in a frame around it
+(:func:`coat_frame`). The row's side (``wo``'s side of the row's +Z) still decides which
+side the coat is on; a view below the coat normal on that side gets no coat lobe and
+``A(0)``, as Cycles clamps the cosine. Where :mod:`.lower_view` mirrored the view (a view
+below the row's normal but above the coat's), ``coat_flip`` rows give the coat the real
+view back.
 """
 
 from __future__ import annotations
@@ -41,11 +53,12 @@ from . import microfacet as mf
 from ..sampling.warps import remap_after_choice
 from .dielectric import RADIANCE
 from .families import LOBE_GLOSSY, LOBE_REFLECT, LOBE_SINGULAR
-from .frame import flip_to_upper, reflect, reflect_z, side_of
+from ..sampling.warps import frame_from_normal
+from .frame import dot, flip_to_upper, reflect, reflect_z, side_of
 from .fresnel import fresnel_dielectric
 from .layered import coat_albedo_lookup, coat_lobe_eval, coat_lobe_pdf
 
-__all__ = ["coat_rows", "coat_attenuation", "coat_probability", "eval_coated", "pdf_coated",
+__all__ = ["coat_rows", "coat_frame", "in_layer_frame", "from_layer_frame", "layer_view", "coat_attenuation", "coat_probability", "eval_coated", "pdf_coated",
            "sample_coated", "DEFAULT_COAT_ROUGHNESS", "DEFAULT_COAT_IOR"]
 
 # Blender's defaults for the Principled BSDF's coat inputs.
@@ -60,6 +73,57 @@ def coat_rows(params):
     if params.coat_weight is None:
         return np.zeros(0, np.int64)
     return np.nonzero(params.coat_weight > 0.0)[0]
+
+
+def coat_frame(p):
+    """Frames ``(s, t, n)`` ``(k, 3)`` each around the rows' coat normals (+Z where ``p``
+    has no ``coat_normal`` or its row is zero), in the row's local frame; None when ``p`` has
+    no ``coat_normal`` column."""
+    n = getattr(p, "coat_normal", None)
+    if n is None:
+        return None
+    n = np.where(np.any(n != 0.0, axis=1)[:, None], n, np.array([0.0, 0.0, 1.0]))
+    s, t = frame_from_normal(n)
+    return s, t, n
+
+
+def layer_view(p, wo):
+    """The view ``(k, 3)`` the coat sees: ``wo`` mirrored back through the tangent plane on
+    the rows whose view :mod:`.lower_view` mirrored (``coat_flip``), ``wo`` elsewhere."""
+    flip = getattr(p, "coat_flip", None)
+    if flip is None or not np.any(flip):
+        return wo
+    return np.where((flip != 0.0)[:, None], wo * np.array([1.0, 1.0, -1.0]), wo)
+
+
+def in_layer_frame(frame, side, *ws):
+    """``ws`` mirrored to the row's upper side (``side (k,)``) and expressed in the coat
+    ``frame`` (unchanged frame when None)."""
+    out = []
+    for w in ws:
+        w = flip_to_upper(w, side)
+        if frame is not None:
+            w = np.stack([dot(w, frame[0]), dot(w, frame[1]), dot(w, frame[2])], axis=-1)
+        out.append(w)
+    return out
+
+
+def from_layer_frame(frame, side, w):
+    """Inverse of :func:`in_layer_frame` for one ``w (k, 3)``."""
+    if frame is not None:
+        w = w[:, 0:1] * frame[0] + w[:, 1:2] * frame[1] + w[:, 2:3] * frame[2]
+    return flip_to_upper(w, side)
+
+
+def _coat_mu(p, wo, wi, mode=RADIANCE):
+    """Cosine ``(k,)`` in [0, 1] the attenuation is judged at: ``wo``'s (``wi``'s in
+    importance mode) with the coat normal, on the row's side of ``wo``."""
+    w = layer_view(p, wo) if mode == RADIANCE else wi
+    frame = coat_frame(p)
+    if frame is None:
+        return np.abs(w[:, 2])
+    (w_,) = in_layer_frame(frame, side_of(wo), w)
+    return np.clip(w_[:, 2], 0.0, 1.0)
 
 
 def coat_attenuation(weight, eta, tint, mu):
@@ -93,7 +157,7 @@ def _base_albedo_guess(p):
 
 def coat_probability(p, wo):
     """Probability ``(k,)`` with which :func:`sample_coated` samples the coat at ``wo``."""
-    mu = np.abs(wo[:, 2])
+    mu = _coat_mu(p, wo, wo)
     s = p.coat_weight * coat_albedo_lookup(mu, p.coat_alpha, p.coat_eta)
     a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, mu)
     d = np.mean(a, axis=1) * _base_albedo_guess(p)
@@ -103,16 +167,14 @@ def coat_probability(p, wo):
 
 def _coat_lobe(p, wo, wi):
     """``w f_coat cos_i`` and the coat lobe's own pdf, on ``wo``'s side. ``(k,)`` each."""
-    side = side_of(wo)
-    wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
+    wo_, wi_ = in_layer_frame(coat_frame(p), side_of(wo), layer_view(p, wo), wi)
     return (p.coat_weight * coat_lobe_eval(p.coat_eta, p.coat_alpha, wo_, wi_),
             coat_lobe_pdf(p.coat_alpha, wo_, wi_))
 
 
 def eval_coated(p, wo, wi, base_f, mode=RADIANCE):
     """``f cos_i (k, 3)`` of coated rows, given the base's ``base_f (k, 3)`` (same mode)."""
-    mu = wo[:, 2] if mode == RADIANCE else wi[:, 2]
-    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, mu)
+    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, _coat_mu(p, wo, wi, mode))
     coat_f, _ = _coat_lobe(p, wo, wi)
     return a * base_f + coat_f[:, None]
 
@@ -143,11 +205,14 @@ def sample_coated(params, rows, wo, u_lobe, u, mode, sample_base, eval_fn, pdf_f
     delta, lobe = base.delta.copy(), base.lobe.copy()
 
     side = side_of(wo_c)
-    wo_ = flip_to_upper(wo_c, side)
+    frame = coat_frame(p)
+    (wo_,) = in_layer_frame(frame, side, layer_view(p, wo_c))
     smooth = mf.is_smooth(p.coat_alpha)
-    wm = mf.sample_ggx_visible(wo_, p.coat_alpha, u[rows])
-    wi_coat = flip_to_upper(np.where(smooth[:, None], reflect_z(wo_), reflect(wo_, wm)), side)
-    coat_ok = chosen & (wo_[:, 2] > 0.0) & (wi_coat[:, 2] * wo_c[:, 2] > 0.0)
+    wm = mf.sample_ggx_visible(np.where(wo_[:, 2:3] > 0.0, wo_, [0.0, 0.0, 1.0]), p.coat_alpha,
+                               u[rows])
+    wi_up = np.where(smooth[:, None], reflect_z(wo_), reflect(wo_, wm))
+    wi_coat = from_layer_frame(frame, side, wi_up)
+    coat_ok = chosen & (wo_[:, 2] > 0.0) & (wi_up[:, 2] > 0.0)
     wi_c = np.where(chosen[:, None], wi_coat, base.wi[rows])
     delta_coat = chosen & smooth
     delta_base = ~chosen & base.delta[rows]
@@ -159,11 +224,11 @@ def sample_coated(params, rows, wo, u_lobe, u, mode, sample_base, eval_fn, pdf_f
     w_c = f / np.where(pdf_c > 0.0, pdf_c, 1.0)[:, None]
     good = ok & (pdf_c > 0.0)
     # Delta samples: the coat's mirror (weight F / p), or the base's delta lobe scaled by A.
-    mu_c = np.abs(wo_c[:, 2])
+    mu_c = _coat_mu(p, wo_c, wo_c)
     f_mirror = p.coat_weight * fresnel_dielectric(mu_c, p.coat_eta)
     w_mirror = (f_mirror / np.where(prob > 0.0, prob, 1.0))[:, None] * np.ones((1, 3))
-    mu_a = mu_c if mode == RADIANCE else np.abs(wi_c[:, 2])
-    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, mu_a)
+    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint,
+                         _coat_mu(p, wo_c, wi_c, mode))
     rest = np.where(prob < 1.0, 1.0 - prob, 1.0)
     w_base = a * base.weight[rows] / rest[:, None]
     w_c = np.where(delta_coat[:, None], w_mirror, np.where(delta_base[:, None], w_base, w_c))

@@ -25,7 +25,9 @@ A Coat on such a row is a microfacet closure too: its lobe gives nothing, but it
 attenuates what lies below it, by Cycles' estimate of its albedo and its tint at
 ``|cos|`` (Cycles' dielectric Fresnel takes ``|cos_NI|``; the tint's path length depends on
 ``cos^2``): the row's Lambert colour is multiplied by :func:`.coat.coat_attenuation` at the
-view's ``|cos|`` and its coat weight set to zero. A Sheen keeps its lobe, as Cycles' does (its
+view's ``|cos|`` and its coat weight set to zero. A coat with its own normal (the smooth one
+under a normal map) that the real view lies above keeps its lobe and attenuation, judged at
+the real view (``coat_flip``, :mod:`.coat`), as Cycles' coat closure does. A Sheen keeps its lobe, as Cycles' does (its
 tables are read at ``cos = 0`` there, ours at the mirrored view's ``|cos|``, small near a
 silhouette).
 """
@@ -91,7 +93,9 @@ def _coat_below(params, wo, below):
     folded into their colour (module docstring)."""
     if not params.has_coat:
         return params
-    rows = np.nonzero(below & (params.coat_weight > 0.0))[0]
+    params = _coat_sees_the_view(params, wo, below)
+    kept = np.zeros(below.size, bool) if params.coat_flip is None else params.coat_flip != 0.0
+    rows = np.nonzero(below & ~kept & (params.coat_weight > 0.0))[0]
     if rows.size == 0:
         return params
     color = params.color.copy()
@@ -100,6 +104,20 @@ def _coat_below(params, wo, below):
     weight = params.coat_weight.copy()
     weight[rows] = 0.0
     return replace(params, color=color, coat_weight=weight)
+
+
+def _coat_sees_the_view(params, wo, below):
+    """``params`` with ``coat_flip`` 1 on the coated rows ``below`` whose own coat normal
+    (:mod:`.coat`) the real view (``wo`` mirrored back) lies above: their coat keeps its lobe
+    and attenuation there, as Cycles' coat closure around its own normal."""
+    n = params.coat_normal
+    if n is None:
+        return params
+    seen = below & (params.coat_weight > 0.0) & np.any(n != 0.0, axis=1)
+    seen &= wo[:, 0] * n[:, 0] + wo[:, 1] * n[:, 1] - wo[:, 2] * n[:, 2] > 0.0
+    if not seen.any():
+        return params
+    return replace(params, coat_flip=np.where(seen, 1.0, params.coat_flip))
 
 
 def shaded_below(params, below):

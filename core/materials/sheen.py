@@ -29,6 +29,11 @@ Non-delta samples get the mixture pdf ``p D_o + (1 - p) pdf_below``; a delta sam
 has ``pdf = (1 - p) pdf_below`` and weight ``(1 - max_c S) weight_below / (1 - p)``.
 
 Only rows with a sheen (``sheen_color > 0``) pay for any of this (:func:`sheen_rows`).
+
+The sheen's normal: Cycles turns the sheen to ``normalize(mix(N, coat normal, Coat Weight))``
+(``svm_closure.h``; behaviour matched). Rows with a ``coat_normal`` (:mod:`.coat`) evaluate,
+sample and weigh the sheen in a frame around that mix (:func:`sheen_frame`), with the real view
+where :mod:`.lower_view` mirrored it (``coat_flip``).
 """
 
 from __future__ import annotations
@@ -41,7 +46,9 @@ from ..sampling import warps
 from ..sampling.warps import remap_after_choice
 from .dielectric import RADIANCE
 from .families import LOBE_DIFFUSE, LOBE_REFLECT
-from .frame import flip_to_upper, side_of
+from ..sampling.warps import frame_from_normal
+from .coat import from_layer_frame, in_layer_frame, layer_view
+from .frame import flip_to_upper, normalize, side_of
 
 __all__ = ["sheen_rows", "sheen_ltc", "sample_sheen_lobe", "sheen_lobe_pdf",
            "invert_sheen_lobe_sample", "sheen_albedo", "sheen_attenuation", "sheen_probability",
@@ -168,6 +175,28 @@ def sheen_attenuation(color, roughness, mu):
     return np.clip(1.0 - np.max(sheen_albedo(color, roughness, mu), axis=1), 0.0, 1.0)
 
 
+def sheen_frame(p):
+    """Frames ``(s, t, n)`` ``(k, 3)`` each around ``normalize(mix(+Z, coat_normal, coat
+    weight))`` in the row's local frame (+Z where a row has no coat normal); None when ``p``
+    has no ``coat_normal`` column."""
+    n = getattr(p, "coat_normal", None)
+    if n is None or p.coat_weight is None:
+        return None
+    up = np.array([0.0, 0.0, 1.0])
+    own = np.any(n != 0.0, axis=1)
+    w = np.clip(p.coat_weight, 0.0, 1.0)[:, None]
+    m, ok = normalize(np.where(own[:, None], (1.0 - w) * up + w * n, up))
+    m = np.where(ok[:, None], m, up)
+    s, t = frame_from_normal(m)
+    return s, t, m
+
+
+def _in_sheen_frame(p, wo, *ws):
+    """The view (the real one, :func:`.coat.layer_view`) and ``ws``, on ``wo``'s side, in
+    :func:`sheen_frame` (unchanged when there is none)."""
+    return in_layer_frame(sheen_frame(p), side_of(wo), layer_view(p, wo), *ws)
+
+
 def _below_albedo_guess(p):
     """Mean colour of diffuse (0) and layered (3) bases, 1 for the others. ``(k,)``."""
     lambertian = (p.kind == 0) | (p.kind == 3)
@@ -176,7 +205,8 @@ def _below_albedo_guess(p):
 
 def sheen_probability(p, wo):
     """Probability ``(k,)`` with which :func:`sample_sheened` samples the sheen at ``wo``."""
-    mu = np.abs(wo[:, 2])
+    (wo_,) = _in_sheen_frame(p, wo)
+    mu = np.clip(wo_[:, 2], 0.0, 1.0)
     albedo = sheen_albedo(p.sheen_color, p.sheen_roughness, mu)
     s = np.mean(albedo, axis=1)
     d = np.clip(1.0 - np.max(albedo, axis=1), 0.0, 1.0) * _below_albedo_guess(p)
@@ -187,10 +217,9 @@ def sheen_probability(p, wo):
 def _sheen_lobe(p, wo, wi, mode):
     """``S D cos``-part of the sheen ``(k, 3)`` and the lobe's own pdf ``(k,)``, on ``wo``'s
     side; importance mode gives the adjoint ``S(mu_i) D_i(wo) cos_i / cos_o``."""
-    side = side_of(wo)
-    wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
+    wo_, wi_ = _in_sheen_frame(p, wo, wi)
     ok = (wo_[:, 2] > 0.0) & (wi_[:, 2] > 0.0)
-    a, b, r = sheen_ltc(wo_[:, 2], p.sheen_roughness)
+    a, b, r = sheen_ltc(np.clip(wo_[:, 2], 0.0, 1.0), p.sheen_roughness)
     pdf = np.where(ok, sheen_lobe_pdf(a, b, wo_, wi_), 0.0)
     if mode == RADIANCE:
         f = p.sheen_color * (r * pdf)[:, None]
@@ -203,9 +232,16 @@ def _sheen_lobe(p, wo, wi, mode):
 
 def eval_sheened(p, wo, wi, below_f, mode=RADIANCE):
     """``f cos_i (k, 3)`` of rows with a sheen, given the layers below ``below_f (k, 3)``."""
-    mu = wo[:, 2] if mode == RADIANCE else wi[:, 2]
-    keep = sheen_attenuation(p.sheen_color, p.sheen_roughness, np.abs(mu))
+    keep = sheen_attenuation(p.sheen_color, p.sheen_roughness, _sheen_mu(p, wo, wi, mode))
     return keep[:, None] * below_f + _sheen_lobe(p, wo, wi, mode)[0]
+
+
+def _sheen_mu(p, wo, wi, mode):
+    """``|cos| (k,)`` of the view (radiance) or ``wi`` (importance) with the sheen's normal."""
+    if sheen_frame(p) is None:
+        return np.abs((wo if mode == RADIANCE else wi)[:, 2])
+    wo_, wi_ = _in_sheen_frame(p, wo, wi)
+    return np.clip((wo_ if mode == RADIANCE else wi_)[:, 2], 0.0, 1.0)
 
 
 def pdf_sheened(p, wo, wi, below_pdf):
@@ -232,10 +268,11 @@ def sample_sheened(params, rows, wo, u_lobe, u, mode, sample_below, eval_fn, pdf
     wi, weight, pdf = below.wi.copy(), below.weight.copy(), below.pdf.copy()
     delta, lobe = below.delta.copy(), below.lobe.copy()
 
-    side = side_of(wo_s)
-    wo_ = flip_to_upper(wo_s, side)
-    a, b, _ = sheen_ltc(wo_[:, 2], p.sheen_roughness)
-    wi_sheen = flip_to_upper(sample_sheen_lobe(a, b, wo_, u[rows]), side)
+    frame = sheen_frame(p)
+    (wo_,) = _in_sheen_frame(p, wo_s)
+    up = np.where(wo_[:, 2:3] > 0.0, wo_, [0.0, 0.0, 1.0])
+    a, b, _ = sheen_ltc(up[:, 2], p.sheen_roughness)
+    wi_sheen = from_layer_frame(frame, side_of(wo_s), sample_sheen_lobe(a, b, up, u[rows]))
     wi_c = np.where(chosen[:, None], wi_sheen, below.wi[rows])
     delta_below = ~chosen & below.delta[rows]
     ok = np.where(chosen, (wo_[:, 2] > 0.0) & (a > 0.0), below.pdf[rows] > 0.0)
@@ -245,8 +282,7 @@ def sample_sheened(params, rows, wo, u_lobe, u, mode, sample_below, eval_fn, pdf
     pdf_c = pdf_fn(p, wo_s, wi_c)
     w_c = f / np.where(pdf_c > 0.0, pdf_c, 1.0)[:, None]
     # Delta samples from below: their weight, attenuated by the sheen, over 1 - p.
-    mu = np.abs(wo_s[:, 2]) if mode == RADIANCE else np.abs(wi_c[:, 2])
-    keep = sheen_attenuation(p.sheen_color, p.sheen_roughness, mu)
+    keep = sheen_attenuation(p.sheen_color, p.sheen_roughness, _sheen_mu(p, wo_s, wi_c, mode))
     rest = np.where(prob < 1.0, 1.0 - prob, 1.0)
     w_c = np.where(delta_below[:, None], keep[:, None] * below.weight[rows] / rest[:, None], w_c)
     pdf_c = np.where(delta_below, (1.0 - prob) * below.pdf[rows], pdf_c)

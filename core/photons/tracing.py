@@ -31,7 +31,8 @@ from ..integrators.adjoint_normals import VertexNormals
 from ..integrators.base import Counters
 from ..integrators.common import (intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
-                                  with_bump_normals)
+                                  with_bump_normals, with_coat_normals,
+                                  coat_normals_in_front)
 from ..materials.bsdf import IMPORTANCE, BSDFSample, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..sampling.samplers import make_sampler
@@ -235,6 +236,7 @@ def _scatter(prep, si, params, u_lobe, u_bsdf, smooth):
     if smooth:
         frame = shading_frame(si.nm, tangent)
         params = with_bump_normals(params, si, frame)
+        params = with_coat_normals(params, coat_normals_in_front(si), frame)
         normals = VertexNormals(params, frame, si.ng, si.nm)
         wi, weight, pdf, delta, lobe = normals.sample_importance(si.wo, u_lobe, u_bsdf)
         return BSDFSample(None, weight, pdf, delta, lobe), wi

@@ -22,7 +22,8 @@ from ..camera import camera_position
 from ..integrators.common import (add_emitters_along_rays, add_rows, camera_rays,
                                   intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
-                                  take_rows, with_bump_normals)
+                                  take_rows, with_bump_normals, with_coat_normals,
+                                  coat_normals_in_front)
 from ..materials.bsdf import RADIANCE, BSDFParams, eval_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lower_view import lower_view_params, shaded_below, view_below
@@ -175,6 +176,7 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
                                                       hits.v[live])
         fs, ft, fn = _frame(prep, si)
         wo_l = to_local(si.wo, fs, ft, fn)
+        params = with_coat_normals(params, coat_normals_in_front(si), (fs, ft, fn))
         if prep.scene.corner_normals is not None:
             # A smooth normal the view falls below is kept and shaded as the path tracer does
             # (Cycles' rule, core.materials.lower_view): such rows are no longer specular.
