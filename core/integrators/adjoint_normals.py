@@ -44,11 +44,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..materials.bsdf import IMPORTANCE, RADIANCE, eval_bsdf, pdf_bsdf, sample_bsdf
+from ..materials.bsdf import (IMPORTANCE, KIND_DIFFUSE, RADIANCE, eval_bsdf, pdf_bsdf,
+                              sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lower_view import lower_view_params, shaded_below, view_below
 from ..sampling.warps import remap_after_choice
-from .common import geometric_side_valid
+from .common import geometric_side_valid, valid_reflection_normals, with_base_normals
 
 # The largest share of light-path samples drawn in the geometric normal's frame.
 MAX_NG_SHARE = 0.5
@@ -81,19 +82,27 @@ class VertexNormals:
         Stored geometric normals (not flipped).
     nm : (k, 3) float64
         Perturbed normals on ``ng``'s front side (:attr:`.common.Interaction.nm`).
+    bends : (k,) bool, optional
+        Rows whose material lets glossy closures bend their normal for a valid reflection
+        (:func:`.common.bends_normals`); the camera side bends the non-diffuse ones among them
+        as the path tracer does. None: no row bends.
     """
 
-    def __init__(self, params, frame, ng, nm):
-        tangent = frame[0] if params.aniso_scale is not None else None
+    def __init__(self, params, frame, ng, nm, bends=None):
+        self.tangent = frame[0] if params.aniso_scale is not None else None
         self.ng, self.nm = ng, nm
         self.q = mixture_share(nm, ng)
-        self.frame_m = shading_frame(nm, tangent)
-        self.frame_g = shading_frame(ng, tangent)
+        self.frame_m = shading_frame(nm, self.tangent)
+        self.frame_g = shading_frame(ng, self.tangent)
         self.params = params
-        self.bump = None
+        self.bump = self.bump_world = None
         if params.bump_normal is not None:
-            world = to_world(params.bump_normal, *frame)
-            self.bump = (to_local(world, *self.frame_m), to_local(world, *self.frame_g))
+            self.bump_world = to_world(params.bump_normal, *frame)
+            self.bump = tuple(to_local(self.bump_world, *f) for f in (self.frame_m, self.frame_g))
+        # Normals that agree (q = 0) always give a valid reflection: nothing to bend there.
+        self.bend = None
+        if bends is not None:
+            self.bend = np.asarray(bends, bool) & (params.kind != KIND_DIFFUSE) & (self.q > 0)
 
     def take(self, rows):
         """The rows ``rows`` (an index array)."""
@@ -103,6 +112,9 @@ class VertexNormals:
         out.frame_g = tuple(a[rows] for a in self.frame_g)
         out.params = self.params.take(rows)
         out.bump = None if self.bump is None else tuple(b[rows] for b in self.bump)
+        out.tangent = None if self.tangent is None else self.tangent[rows]
+        out.bump_world = None if self.bump_world is None else self.bump_world[rows]
+        out.bend = None if self.bend is None else self.bend[rows]
         return out
 
     def _in(self, use_m):
@@ -117,11 +129,43 @@ class VertexNormals:
         params = self.params if bump is None else replace(self.params, bump_normal=bump)
         return frame, params
 
+    def bent_rows(self, wc):
+        """The rows whose glossy normal the camera side bends for ``wc (k, 3)`` (Cycles'
+        ``ensure_valid_specular_reflection``, :func:`.common.valid_reflection_normals`, as
+        the path tracer): ``rows (b,)`` and their bent normals ``(b, 3)`` on ``ng``'s front
+        side. Rows whose normal the rule leaves as it is are not among them."""
+        if self.bend is None or not self.bend.any():
+            return np.zeros(0, np.int64), np.zeros((0, 3))
+        rows = np.nonzero(self.bend)[0]
+        ng, w = self.ng[rows], wc[rows]
+        side = np.where(dot(ng, w) >= 0, 1.0, -1.0)[:, None]
+        bent = valid_reflection_normals(ng, w, self.nm[rows] * side)
+        bent = bent * np.where(dot(bent, ng) < 0, -1.0, 1.0)[:, None]
+        moved = np.any(bent != self.nm[rows], axis=1)
+        return rows[moved], bent[moved]
+
+    def _camera_frame(self, wc):
+        """The camera side's frame and params before the lower-view rule: ``nm``'s, with the
+        bent normal of :meth:`bent_rows` on the rows that bend (their bump normal moved into
+        that frame, layered rows keeping their base around ``nm``, as the path tracer)."""
+        frame, params = self._in(np.ones(self.q.size, bool))
+        rows, bent = self.bent_rows(wc)
+        if rows.size == 0:
+            return frame, params
+        frame = tuple(a.copy() for a in frame)
+        tangent = None if self.tangent is None else self.tangent[rows]
+        for axis, value in zip(frame, shading_frame(bent, tangent)):
+            axis[rows] = value
+        if self.bump_world is not None:
+            params = replace(params, bump_normal=to_local(self.bump_world, *frame))
+        return frame, with_base_normals(params, self.nm, frame)
+
     def camera_side(self, wc):
         """The camera side's BSDF for directions toward the camera ``wc (k, 3)``: the ``nm``
-        frame, the rows' params there (the lower-view variant of :mod:`..materials.lower_view`
-        where ``wc`` lies below ``nm``) and ``wc`` in that frame (mirrored on those rows)."""
-        frame, params = self._in(np.ones(self.q.size, bool))
+        frame (bent as :meth:`bent_rows` says), the rows' params there (the lower-view variant
+        of :mod:`..materials.lower_view` where ``wc`` lies below the frame's normal) and
+        ``wc`` in that frame (mirrored on those rows)."""
+        frame, params = self._camera_frame(wc)
         wc_l = to_local(wc, *frame)
         below = view_below(dot(wc, self.ng), wc_l[:, 2])
         params, wc_l = lower_view_params(params, wc_l, below)
@@ -129,9 +173,13 @@ class VertexNormals:
 
     def has_camera_deltas(self, wc):
         """Whether the camera side's BSDF at ``wc (k, 3)`` keeps its delta lobes: ``(k,)``
-        bool (False where the lower-view variant replaced the row)."""
+        bool (False where the lower-view variant replaced the row, and where the row's normal
+        is bent for ``wc``: its mirror is then another than ``nm``'s, and light paths do not
+        sample it, see :func:`unsampled_bent_mirrors`)."""
         wc_l = to_local(wc, *self.frame_m)
-        return ~shaded_below(self.params, view_below(dot(wc, self.ng), wc_l[:, 2]))
+        keeps = ~shaded_below(self.params, view_below(dot(wc, self.ng), wc_l[:, 2]))
+        keeps[self.bent_rows(wc)[0]] = False
+        return keeps
 
     def f_importance(self, wl, wc):
         """``f(wc, wl) |cos|`` read from the light side (toward ``wc``, world directions), with
@@ -139,7 +187,7 @@ class VertexNormals:
         frame, params, wc_l = self.camera_side(wc)
         wl_l = to_local(wl, *frame)
         f = eval_bsdf(params, wl_l, wc_l, IMPORTANCE)
-        return f * self._factor(wl, wc, wl_l, wc_l)[:, None]
+        return f * self._factor(wl, wc, wl_l, wc_l, frame[2])[:, None]
 
     def f_radiance(self, wc, wl):
         """``f(wc, wl) |cos|`` read from the camera side (as the path tracer evaluates it),
@@ -151,7 +199,7 @@ class VertexNormals:
 
     def sample_radiance(self, wc, u_lobe, u):
         """Sample ``wl`` from the camera side's BSDF given ``wc (k, 3)`` (as the path tracer
-        does). Returns the :class:`BSDFSample` (``wi`` local to the ``nm`` frame), ``wl``
+        does). Returns the :class:`BSDFSample` (``wi`` local to the camera side's frame), ``wl``
         (world) and the weight with the geometric-side rule."""
         frame, params, wc_l = self.camera_side(wc)
         smp = sample_bsdf(params, wc_l, u_lobe, u, RADIANCE)
@@ -164,9 +212,10 @@ class VertexNormals:
         transmit = wl_l[:, 2] * wc_l[:, 2] < 0
         return geometric_side_valid(self.ng, wl, wc, transmit).astype(np.float64)
 
-    def _factor(self, wl, wc, wl_l, wc_l):
-        """Geometric-side rule times Veach's shading-normal factor with ``nm``."""
-        n = self.nm
+    def _factor(self, wl, wc, wl_l, wc_l, n=None):
+        """Geometric-side rule times Veach's shading-normal factor with the frame's normal
+        ``n (k, 3)`` (default ``nm``)."""
+        n = self.nm if n is None else n
         num = np.abs(dot(wl, n)) * np.abs(dot(wc, self.ng))
         den = np.abs(dot(wl, self.ng)) * np.abs(dot(wc, n))
         veach = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
