@@ -33,9 +33,17 @@ A light path (light tracing, BDPT's light subpaths, photons) arrives from ``wl``
 
 Both frames are rebuilt from the stored frame of a vertex (its ``s`` axis is the tangent of
 anisotropic rows; exact for the stored normal, the other frame's tangent is that ``s``
-projected). The path tracer's bending of glossy normals for valid reflections
-(:func:`.common.valid_reflection_normals`) and the unbent base normal of bent layered rows are
-no part of either subpath (see ``docs/INTEGRATORS.md``).
+projected).
+
+Where the material bends glossy normals for valid reflections (``bends``,
+:func:`.common.valid_reflection_normals`), the camera side's frame of a glossy or glass row is
+around the normal bent for ``wc`` (:meth:`VertexNormals.bent_rows`; a layered row keeps its
+base around ``nm``), as the path tracer's: the BSDF then depends on ``wc``, which a light path
+samples. Evaluation in that frame is exact (Veach's factor with the bent normal); sampling
+stays the mixture above (its ``ng`` share covers the bent lobe, since only rows with
+``nm != ng`` bend) with every non-delta sample weighed by the exact ``f``. A delta sample of a
+row the camera side bends for its ``wc`` counts zero: light paths do not sample the bent
+mirror, and renders report those materials (:func:`unsampled_bent_mirrors`).
 """
 
 from __future__ import annotations
@@ -44,12 +52,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..materials.bsdf import (IMPORTANCE, KIND_DIFFUSE, RADIANCE, eval_bsdf, pdf_bsdf,
-                              sample_bsdf)
+from ..materials.bsdf import (IMPORTANCE, KIND_DIFFUSE, RADIANCE, crosses_surface, eval_bsdf,
+                              pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lower_view import lower_view_params, shaded_below, view_below
+from ..materials.microfacet import is_smooth
 from ..sampling.warps import remap_after_choice
-from .common import geometric_side_valid, valid_reflection_normals, with_base_normals
+from .common import (geometric_side_valid, materials_bending, valid_reflection_normals,
+                     with_base_normals)
 
 # The largest share of light-path samples drawn in the geometric normal's frame.
 MAX_NG_SHARE = 0.5
@@ -63,6 +73,25 @@ def mixture_share(nm, ng):
     """``q (k,)``: the share of light-path samples drawn in ``ng``'s frame, ``min(1/2,
     |nm x ng|)`` (zero where the normals agree, so that nothing changes there)."""
     return np.minimum(MAX_NG_SHARE, np.linalg.norm(np.cross(nm, ng), axis=1))
+
+
+def unsampled_bent_mirrors(prep):
+    """Names of the materials whose smooth (delta) glossy lobes the camera side may bend
+    (:meth:`VertexNormals.bent_rows`) on a smooth-shaded scene: light paths sample the mirror
+    of the unbent normal only and count it where the camera side keeps it; where the camera
+    side bends, there is no exact adjoint sample and the light side's strategies miss those
+    paths (light tracing and photons darker there; BDPT keeps them through camera subpaths
+    only with their MIS share). Empty on flat-shaded scenes."""
+    scene = prep.scene
+    if scene.corner_normals is None or prep.material_bsdf is None:
+        return []
+    p = prep.material_bsdf
+    delta = (p.kind != KIND_DIFFUSE) & is_smooth(p.alpha)
+    if p.coat_weight is not None and p.coat_alpha is not None:
+        delta |= (p.coat_weight > 0) & is_smooth(p.coat_alpha)
+    rows = np.nonzero(delta & materials_bending(scene.materials))[0]
+    names = list(scene.materials.names)
+    return [names[i] if i < len(names) else f"material {i}" for i in rows]
 
 
 def _pick(mask, a, b):
@@ -187,7 +216,24 @@ class VertexNormals:
         frame, params, wc_l = self.camera_side(wc)
         wl_l = to_local(wl, *frame)
         f = eval_bsdf(params, wl_l, wc_l, IMPORTANCE)
-        return f * self._factor(wl, wc, wl_l, wc_l, frame[2])[:, None]
+        f *= self._factor(wl, wc, wl_l, wc_l, frame[2], params)[:, None]
+        if params.base_normal is not None:
+            # Bent layered rows: base and specular lobe have their own normals, so no single
+            # Veach factor applies; the adjoint is the camera side's f |wc.ng| / |wl.ng|.
+            rows = np.nonzero(np.any(params.base_normal != 0.0, axis=1))[0]
+            if rows.size:
+                f[rows] = self._adjoint_of_radiance(params.take(rows), wl[rows], wc[rows],
+                                                    wl_l[rows], wc_l[rows], rows)
+        return f
+
+    def _adjoint_of_radiance(self, params, wl, wc, wl_l, wc_l, rows):
+        """``f(wc, wl) |cos| |wc.ng| / |wl.ng|`` (the camera side's ``eval``, its own cosines)
+        with the geometric-side rule, on ``rows``."""
+        f = eval_bsdf(params, wc_l, wl_l, RADIANCE)
+        num, den = np.abs(dot(wc, self.ng[rows])), np.abs(dot(wl, self.ng[rows]))
+        ratio = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+        side = geometric_side_valid(self.ng[rows], wl, wc, crosses_surface(params, wl_l, wc_l))
+        return f * (ratio * side)[:, None]
 
     def f_radiance(self, wc, wl):
         """``f(wc, wl) |cos|`` read from the camera side (as the path tracer evaluates it),
@@ -195,7 +241,7 @@ class VertexNormals:
         frame, params, wc_l = self.camera_side(wc)
         wl_l = to_local(wl, *frame)
         f = eval_bsdf(params, wc_l, wl_l, RADIANCE)
-        return f * self._side(wl, wc, wl_l, wc_l)[:, None]
+        return f * self._side(wl, wc, wl_l, wc_l, params)[:, None]
 
     def sample_radiance(self, wc, u_lobe, u):
         """Sample ``wl`` from the camera side's BSDF given ``wc (k, 3)`` (as the path tracer
@@ -204,22 +250,26 @@ class VertexNormals:
         frame, params, wc_l = self.camera_side(wc)
         smp = sample_bsdf(params, wc_l, u_lobe, u, RADIANCE)
         wl = to_world(smp.wi, *frame)
-        weight = smp.weight * self._side(wl, wc, smp.wi, wc_l)[:, None]
+        weight = smp.weight * self._side(wl, wc, smp.wi, wc_l, params)[:, None]
         return smp, wl, weight
 
-    def _side(self, wl, wc, wl_l, wc_l):
-        """The geometric-side rule, ``(k,)`` 0 or 1 (transmission read from the local sides)."""
-        transmit = wl_l[:, 2] * wc_l[:, 2] < 0
+    def _side(self, wl, wc, wl_l, wc_l, params=None):
+        """The geometric-side rule, ``(k,)`` 0 or 1 (transmission read from the local sides,
+        as :func:`..materials.bsdf.crosses_surface` of ``params`` when given)."""
+        if params is None:
+            transmit = wl_l[:, 2] * wc_l[:, 2] < 0
+        else:
+            transmit = crosses_surface(params, wl_l, wc_l)
         return geometric_side_valid(self.ng, wl, wc, transmit).astype(np.float64)
 
-    def _factor(self, wl, wc, wl_l, wc_l, n=None):
+    def _factor(self, wl, wc, wl_l, wc_l, n=None, params=None):
         """Geometric-side rule times Veach's shading-normal factor with the frame's normal
-        ``n (k, 3)`` (default ``nm``)."""
+        ``n (k, 3)`` (default ``nm``; ``params`` as :meth:`_side`)."""
         n = self.nm if n is None else n
         num = np.abs(dot(wl, n)) * np.abs(dot(wc, self.ng))
         den = np.abs(dot(wl, self.ng)) * np.abs(dot(wc, n))
         veach = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-        return self._side(wl, wc, wl_l, wc_l) * veach
+        return self._side(wl, wc, wl_l, wc_l, params) * veach
 
     def pdf_light(self, wl, wc):
         """The light side's solid-angle density of sampling ``wc`` from ``wl``: the mixture."""

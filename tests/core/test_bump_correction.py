@@ -221,3 +221,23 @@ def test_light_paths_use_the_bent_glossy_normal_of_the_camera_side():
         found = assert_replicates_agree(imgs, pt, mask=~lamp, detect=detect,
                                         what=f"{integrator} vs path (bent glossy normals)")
         print(f"{integrator}/path: image mean ratio {np.round(found.ratio, 4)}")
+
+
+BENT_MIRROR_NOTE = "light paths do not sample the bent mirror normal"
+
+
+def test_bent_smooth_mirrors_are_reported_by_name_for_light_paths():
+    """Smooth (roughness 0) mirrors have no exact adjoint sample of the bent normal: renders
+    with light paths say so, naming the materials; the path tracer, rough lobes and mapped
+    materials without the correction (no bending) say nothing."""
+    def notes(box, integrator):
+        res = render(box, plain_settings(integrator=integrator, spp=1, max_bounces=1))
+        return [m for m in res.messages if BENT_MIRROR_NOTE in m]
+
+    mirror = rough_metal_box(8, roughness=0.0)
+    found = notes(mirror, "light")
+    assert len(found) == 1 and all(name in found[0] for name in mirror.materials.names)
+    assert notes(mirror, "bdpt")
+    assert not notes(mirror, "path")
+    assert not notes(rough_metal_box(8), "light")
+    assert not notes(rough_metal_box(8, roughness=0.0, correction=False), "light")
