@@ -40,6 +40,7 @@ import numpy as np
 from .errors import RenderRefused
 from .film import Film, PixelFilter, check_film_memory, to_float32
 from .integrators import integrator_class
+from .integrators.adjoint_normals import unsampled_bent_mirrors
 from .integrators.base import UNIT_PATHS, Counters
 from .options import DEFAULTS, validate
 from .prepare import PreparedScene, prepare
@@ -503,6 +504,13 @@ def _messages(scene, settings, integrator):
         if soft:
             messages.append(f"{settings.integrator}: Soft Falloff of {', '.join(soft)} "
                             f"is rendered as a plain sphere light")
+    if integrator.splats or settings.integrator in PHOTON_INTEGRATORS:
+        bent = unsampled_bent_mirrors(integrator.prep)
+        if bent:
+            messages.append(f"{settings.integrator}: light paths do not sample the bent "
+                            f"mirror normal (Bump Map Correction, smooth shading) of the "
+                            f"roughness-0 glossy and glass lobes of {', '.join(bent)}: where it bends, "
+                            f"their light-path reflections are missing (biased darker)")
     bounce_bits = VIS_DIFFUSE | VIS_GLOSSY | VIS_TRANSMISSION
     if (integrator.splats and len(scene.visibility)
             and np.any((np.asarray(scene.visibility) & bounce_bits) != bounce_bits)):

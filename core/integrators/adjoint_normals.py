@@ -33,9 +33,17 @@ A light path (light tracing, BDPT's light subpaths, photons) arrives from ``wl``
 
 Both frames are rebuilt from the stored frame of a vertex (its ``s`` axis is the tangent of
 anisotropic rows; exact for the stored normal, the other frame's tangent is that ``s``
-projected). The path tracer's bending of glossy normals for valid reflections
-(:func:`.common.valid_reflection_normals`) and the unbent base normal of bent layered rows are
-no part of either subpath (see ``docs/INTEGRATORS.md``).
+projected).
+
+Where the material bends glossy normals for valid reflections (``bends``,
+:func:`.common.valid_reflection_normals`), the camera side's frame of a glossy or glass row is
+around the normal bent for ``wc`` (:meth:`VertexNormals.bent_rows`; a layered row keeps its
+base around ``nm``), as the path tracer's: the BSDF then depends on ``wc``, which a light path
+samples. Evaluation in that frame is exact (Veach's factor with the bent normal); sampling
+stays the mixture above (its ``ng`` share covers the bent lobe, since only rows with
+``nm != ng`` bend) with every non-delta sample weighed by the exact ``f``. A delta sample of a
+row the camera side bends for its ``wc`` counts zero: light paths do not sample the bent
+mirror, and renders report those materials (:func:`unsampled_bent_mirrors`).
 """
 
 from __future__ import annotations
@@ -44,11 +52,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..materials.bsdf import IMPORTANCE, RADIANCE, eval_bsdf, pdf_bsdf, sample_bsdf
+from ..materials.bsdf import (IMPORTANCE, KIND_DIFFUSE, RADIANCE, crosses_surface, eval_bsdf,
+                              pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lower_view import lower_view_params, shaded_below, view_below
+from ..materials.microfacet import is_smooth
 from ..sampling.warps import remap_after_choice
-from .common import geometric_side_valid
+from .common import (geometric_side_valid, materials_bending, valid_reflection_normals,
+                     with_base_normals)
 
 # The largest share of light-path samples drawn in the geometric normal's frame.
 MAX_NG_SHARE = 0.5
@@ -62,6 +73,25 @@ def mixture_share(nm, ng):
     """``q (k,)``: the share of light-path samples drawn in ``ng``'s frame, ``min(1/2,
     |nm x ng|)`` (zero where the normals agree, so that nothing changes there)."""
     return np.minimum(MAX_NG_SHARE, np.linalg.norm(np.cross(nm, ng), axis=1))
+
+
+def unsampled_bent_mirrors(prep):
+    """Names of the materials whose smooth (delta) glossy lobes the camera side may bend
+    (:meth:`VertexNormals.bent_rows`) on a smooth-shaded scene: light paths sample the mirror
+    of the unbent normal only and count it where the camera side keeps it; where the camera
+    side bends, there is no exact adjoint sample and the light side's strategies miss those
+    paths (light tracing and photons darker there; BDPT keeps them through camera subpaths
+    only with their MIS share). Empty on flat-shaded scenes."""
+    scene = prep.scene
+    if scene.corner_normals is None or prep.material_bsdf is None:
+        return []
+    p = prep.material_bsdf
+    delta = (p.kind != KIND_DIFFUSE) & is_smooth(p.alpha)
+    if p.coat_weight is not None and p.coat_alpha is not None:
+        delta |= (p.coat_weight > 0) & is_smooth(p.coat_alpha)
+    rows = np.nonzero(delta & materials_bending(scene.materials))[0]
+    names = list(scene.materials.names)
+    return [names[i] if i < len(names) else f"material {i}" for i in rows]
 
 
 def _pick(mask, a, b):
@@ -81,23 +111,33 @@ class VertexNormals:
         Stored geometric normals (not flipped).
     nm : (k, 3) float64
         Perturbed normals on ``ng``'s front side (:attr:`.common.Interaction.nm`).
+    bends : (k,) bool, optional
+        Rows whose material lets glossy closures bend their normal for a valid reflection
+        (:func:`.common.bends_normals`); the camera side bends the non-diffuse ones among them
+        as the path tracer does. None: no row bends.
     """
 
-    def __init__(self, params, frame, ng, nm):
-        tangent = frame[0] if params.aniso_scale is not None else None
+    def __init__(self, params, frame, ng, nm, bends=None):
+        self.tangent = frame[0] if params.aniso_scale is not None else None
         self.ng, self.nm = ng, nm
         self.q = mixture_share(nm, ng)
-        self.frame_m = shading_frame(nm, tangent)
-        self.frame_g = shading_frame(ng, tangent)
+        self.frame_m = shading_frame(nm, self.tangent)
+        self.frame_g = shading_frame(ng, self.tangent)
         self.params = params
-        self.bump = None
+        self.bump = self.bump_world = None
         if params.bump_normal is not None:
-            world = to_world(params.bump_normal, *frame)
-            self.bump = (to_local(world, *self.frame_m), to_local(world, *self.frame_g))
-        self.coat = None
+            self.bump_world = to_world(params.bump_normal, *frame)
+            self.bump = tuple(to_local(self.bump_world, *f) for f in (self.frame_m, self.frame_g))
+        self.coat = self.coat_world = None
         if params.coat_normal is not None:  # the coat's own normal (core.materials.coat)
             world = to_world(params.coat_normal, *frame)
-            self.coat = (to_local(world, *self.frame_m), to_local(world, *self.frame_g))
+            # Rows without a coat normal keep a zero column in every frame.
+            self.coat_world = world * np.any(params.coat_normal != 0.0, axis=1)[:, None]
+            self.coat = tuple(to_local(self.coat_world, *f) for f in (self.frame_m, self.frame_g))
+        # Normals that agree (q = 0) always give a valid reflection: nothing to bend there.
+        self.bend = None
+        if bends is not None:
+            self.bend = np.asarray(bends, bool) & (params.kind != KIND_DIFFUSE) & (self.q > 0)
 
     def take(self, rows):
         """The rows ``rows`` (an index array)."""
@@ -108,6 +148,10 @@ class VertexNormals:
         out.params = self.params.take(rows)
         out.bump = None if self.bump is None else tuple(b[rows] for b in self.bump)
         out.coat = None if self.coat is None else tuple(c[rows] for c in self.coat)
+        out.coat_world = None if self.coat_world is None else self.coat_world[rows]
+        out.tangent = None if self.tangent is None else self.tangent[rows]
+        out.bump_world = None if self.bump_world is None else self.bump_world[rows]
+        out.bend = None if self.bend is None else self.bend[rows]
         return out
 
     def _in(self, use_m):
@@ -125,11 +169,45 @@ class VertexNormals:
         params = params if coat is None else replace(params, coat_normal=coat)
         return frame, params
 
+    def bent_rows(self, wc):
+        """The rows whose glossy normal the camera side bends for ``wc (k, 3)`` (Cycles'
+        ``ensure_valid_specular_reflection``, :func:`.common.valid_reflection_normals`, as
+        the path tracer): ``rows (b,)`` and their bent normals ``(b, 3)`` on ``ng``'s front
+        side. Rows whose normal the rule leaves as it is are not among them."""
+        if self.bend is None or not self.bend.any():
+            return np.zeros(0, np.int64), np.zeros((0, 3))
+        rows = np.nonzero(self.bend)[0]
+        ng, w = self.ng[rows], wc[rows]
+        side = np.where(dot(ng, w) >= 0, 1.0, -1.0)[:, None]
+        bent = valid_reflection_normals(ng, w, self.nm[rows] * side)
+        bent = bent * np.where(dot(bent, ng) < 0, -1.0, 1.0)[:, None]
+        moved = np.any(bent != self.nm[rows], axis=1)
+        return rows[moved], bent[moved]
+
+    def _camera_frame(self, wc):
+        """The camera side's frame and params before the lower-view rule: ``nm``'s, with the
+        bent normal of :meth:`bent_rows` on the rows that bend (their bump normal moved into
+        that frame, layered rows keeping their base around ``nm``, as the path tracer)."""
+        frame, params = self._in(np.ones(self.q.size, bool))
+        rows, bent = self.bent_rows(wc)
+        if rows.size == 0:
+            return frame, params
+        frame = tuple(a.copy() for a in frame)
+        tangent = None if self.tangent is None else self.tangent[rows]
+        for axis, value in zip(frame, shading_frame(bent, tangent)):
+            axis[rows] = value
+        if self.bump_world is not None:
+            params = replace(params, bump_normal=to_local(self.bump_world, *frame))
+        if self.coat_world is not None:  # the coat keeps its own (unbent) normal
+            params = replace(params, coat_normal=to_local(self.coat_world, *frame))
+        return frame, with_base_normals(params, self.nm, frame)
+
     def camera_side(self, wc):
         """The camera side's BSDF for directions toward the camera ``wc (k, 3)``: the ``nm``
-        frame, the rows' params there (the lower-view variant of :mod:`..materials.lower_view`
-        where ``wc`` lies below ``nm``) and ``wc`` in that frame (mirrored on those rows)."""
-        frame, params = self._in(np.ones(self.q.size, bool))
+        frame (bent as :meth:`bent_rows` says), the rows' params there (the lower-view variant
+        of :mod:`..materials.lower_view` where ``wc`` lies below the frame's normal) and
+        ``wc`` in that frame (mirrored on those rows)."""
+        frame, params = self._camera_frame(wc)
         wc_l = to_local(wc, *frame)
         below = view_below(dot(wc, self.ng), wc_l[:, 2])
         params, wc_l = lower_view_params(params, wc_l, below)
@@ -137,9 +215,13 @@ class VertexNormals:
 
     def has_camera_deltas(self, wc):
         """Whether the camera side's BSDF at ``wc (k, 3)`` keeps its delta lobes: ``(k,)``
-        bool (False where the lower-view variant replaced the row)."""
+        bool (False where the lower-view variant replaced the row, and where the row's normal
+        is bent for ``wc``: its mirror is then another than ``nm``'s, and light paths do not
+        sample it, see :func:`unsampled_bent_mirrors`)."""
         wc_l = to_local(wc, *self.frame_m)
-        return ~shaded_below(self.params, view_below(dot(wc, self.ng), wc_l[:, 2]))
+        keeps = ~shaded_below(self.params, view_below(dot(wc, self.ng), wc_l[:, 2]))
+        keeps[self.bent_rows(wc)[0]] = False
+        return keeps
 
     def f_importance(self, wl, wc):
         """``f(wc, wl) |cos|`` read from the light side (toward ``wc``, world directions), with
@@ -147,7 +229,29 @@ class VertexNormals:
         frame, params, wc_l = self.camera_side(wc)
         wl_l = to_local(wl, *frame)
         f = eval_bsdf(params, wl_l, wc_l, IMPORTANCE)
-        return f * self._factor(wl, wc, wl_l, wc_l)[:, None]
+        f *= self._factor(wl, wc, wl_l, wc_l, frame[2], params)[:, None]
+        if params.base_normal is not None or params.coat_normal is not None:
+            # Bent layered rows and coats on their own normal: the lobes have different
+            # normals, so no single Veach factor applies; the adjoint is the camera side's
+            # f |wc.ng| / |wl.ng|.
+            own = np.zeros(len(params), bool)
+            for column in (params.base_normal, params.coat_normal):
+                if column is not None:
+                    own |= np.any(column != 0.0, axis=1)
+            rows = np.nonzero(own)[0]
+            if rows.size:
+                f[rows] = self._adjoint_of_radiance(params.take(rows), wl[rows], wc[rows],
+                                                    wl_l[rows], wc_l[rows], rows)
+        return f
+
+    def _adjoint_of_radiance(self, params, wl, wc, wl_l, wc_l, rows):
+        """``f(wc, wl) |cos| |wc.ng| / |wl.ng|`` (the camera side's ``eval``, its own cosines)
+        with the geometric-side rule, on ``rows``."""
+        f = eval_bsdf(params, wc_l, wl_l, RADIANCE)
+        num, den = np.abs(dot(wc, self.ng[rows])), np.abs(dot(wl, self.ng[rows]))
+        ratio = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+        side = geometric_side_valid(self.ng[rows], wl, wc, crosses_surface(params, wl_l, wc_l))
+        return f * (ratio * side)[:, None]
 
     def f_radiance(self, wc, wl):
         """``f(wc, wl) |cos|`` read from the camera side (as the path tracer evaluates it),
@@ -155,30 +259,35 @@ class VertexNormals:
         frame, params, wc_l = self.camera_side(wc)
         wl_l = to_local(wl, *frame)
         f = eval_bsdf(params, wc_l, wl_l, RADIANCE)
-        return f * self._side(wl, wc, wl_l, wc_l)[:, None]
+        return f * self._side(wl, wc, wl_l, wc_l, params)[:, None]
 
     def sample_radiance(self, wc, u_lobe, u):
         """Sample ``wl`` from the camera side's BSDF given ``wc (k, 3)`` (as the path tracer
-        does). Returns the :class:`BSDFSample` (``wi`` local to the ``nm`` frame), ``wl``
+        does). Returns the :class:`BSDFSample` (``wi`` local to the camera side's frame), ``wl``
         (world) and the weight with the geometric-side rule."""
         frame, params, wc_l = self.camera_side(wc)
         smp = sample_bsdf(params, wc_l, u_lobe, u, RADIANCE)
         wl = to_world(smp.wi, *frame)
-        weight = smp.weight * self._side(wl, wc, smp.wi, wc_l)[:, None]
+        weight = smp.weight * self._side(wl, wc, smp.wi, wc_l, params)[:, None]
         return smp, wl, weight
 
-    def _side(self, wl, wc, wl_l, wc_l):
-        """The geometric-side rule, ``(k,)`` 0 or 1 (transmission read from the local sides)."""
-        transmit = wl_l[:, 2] * wc_l[:, 2] < 0
+    def _side(self, wl, wc, wl_l, wc_l, params=None):
+        """The geometric-side rule, ``(k,)`` 0 or 1 (transmission read from the local sides,
+        as :func:`..materials.bsdf.crosses_surface` of ``params`` when given)."""
+        if params is None:
+            transmit = wl_l[:, 2] * wc_l[:, 2] < 0
+        else:
+            transmit = crosses_surface(params, wl_l, wc_l)
         return geometric_side_valid(self.ng, wl, wc, transmit).astype(np.float64)
 
-    def _factor(self, wl, wc, wl_l, wc_l):
-        """Geometric-side rule times Veach's shading-normal factor with ``nm``."""
-        n = self.nm
+    def _factor(self, wl, wc, wl_l, wc_l, n=None, params=None):
+        """Geometric-side rule times Veach's shading-normal factor with the frame's normal
+        ``n (k, 3)`` (default ``nm``; ``params`` as :meth:`_side`)."""
+        n = self.nm if n is None else n
         num = np.abs(dot(wl, n)) * np.abs(dot(wc, self.ng))
         den = np.abs(dot(wl, self.ng)) * np.abs(dot(wc, n))
         veach = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-        return self._side(wl, wc, wl_l, wc_l) * veach
+        return self._side(wl, wc, wl_l, wc_l, params) * veach
 
     def pdf_light(self, wl, wc):
         """The light side's solid-angle density of sampling ``wc`` from ``wl``: the mixture."""

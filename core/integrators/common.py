@@ -171,14 +171,17 @@ def bends_normals(scene, prim):
     the exporter records that setting for materials with a normal map or bump
     (``materials.bump_correction``), so only those can turn it off here (a plain smooth
     material with the setting off is bent all the same)."""
-    m = scene.materials
+    return materials_bending(scene.materials)[scene.material[prim]]
+
+
+def materials_bending(m):
+    """:func:`bends_normals` per material of the table ``m``: ``(m,)`` bool."""
     mapped = np.zeros(len(m.bump_correction), bool)
     for column in ("normal_texture", "bump_texture"):
         values = getattr(m, column, None)
         if values is not None:
             mapped |= np.asarray(values) >= 0
-    allowed = ~mapped | np.asarray(m.bump_correction, bool)
-    return allowed[scene.material[prim]]
+    return ~mapped | np.asarray(m.bump_correction, bool)
 
 
 def strategies(max_length):

@@ -17,7 +17,7 @@ from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
-from .common import finite_rows, max_component, take_rows
+from .common import bends_normals, finite_rows, max_component, take_rows
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
 from .mis_sums import RunningSums, summable
 from .subpaths import Gathered, dot, take_params, to_area
@@ -257,7 +257,9 @@ def camera_splatter(ctx, out):
                                [take_rows(a, idx) for a in frame],
                                take_rows(si.wo, idx) if ctx.smooth else None,
                                take_rows(wo_l, idx), take_rows(si.ng, idx),
-                               None if si.nm is None else take_rows(si.nm, idx), lambert)
+                               None if si.nm is None else take_rows(si.nm, idx), lambert,
+                               bends_normals(ctx.prep.scene, si.prim[idx])
+                               if ctx.smooth else None)
 
         passed = getattr(ctx, "vertex_passes", None)
         budget = connection_budget(ctx.settings.transparent_max_bounces,

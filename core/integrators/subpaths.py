@@ -18,10 +18,10 @@ from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSampl
                               pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
 from .adjoint_normals import VertexNormals
-from .common import (finite_rows, intersect_by_class, max_component, next_1d_if, ray_class,
-                     roulette_at, russian_roulette, shading_tangents, surface_hits,
-                     surface_interaction, take_rows, with_bump_normals, with_coat_normals,
-                     coat_normals_in_front)
+from .common import (bends_normals, coat_normals_in_front, finite_rows, intersect_by_class,
+                     max_component, next_1d_if, ray_class, roulette_at, russian_roulette,
+                     shading_tangents, surface_hits, surface_interaction, take_rows,
+                     with_bump_normals, with_coat_normals)
 from .transparent_passes import Passes, has_passes
 
 
@@ -198,6 +198,8 @@ class Gathered:
         self.wo = take_rows(sub.wo[j], rows) if ctx.smooth else None
         self.wo_l, self.ng = take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows)
         self.nm = take_rows(sub.nm[j], rows) if self.smooth else None
+        self.bends = (bends_normals(ctx.prep.scene, take_rows(sub.prim[j], rows))
+                      if self.smooth else None)
         self.normals = None
 
     @staticmethod
@@ -210,18 +212,20 @@ class Gathered:
                            take_rows(sub.flat("wo"), index) if ctx.smooth else None,
                            take_rows(sub.flat("wo_local"), index),
                            take_rows(sub.flat("ng"), index),
-                           take_rows(sub.flat("nm"), index) if ctx.smooth else None, lambert)
+                           take_rows(sub.flat("nm"), index) if ctx.smooth else None, lambert,
+                           bends_normals(ctx.prep.scene, take_rows(sub.flat("prim"), index))
+                           if ctx.smooth else None)
 
     @staticmethod
-    def of(smooth, mode, params, frame, wo, wo_l, ng, nm=None, lambert=False):
+    def of(smooth, mode, params, frame, wo, wo_l, ng, nm=None, lambert=False, bends=None):
         """Vertices from arrays already gathered: BSDF ``params``, shading ``frame`` (three
         (m, 3) axes), ``wo`` (None unless ``smooth``), ``wo_l`` (in the frame), ``ng`` and
-        (smooth shading) ``nm``; ``lambert`` as :func:`take_params` (their later gathers take
-        no more than that)."""
+        (smooth shading) ``nm`` and ``bends`` (:func:`.common.bends_normals` of the hits);
+        ``lambert`` as :func:`take_params` (their later gathers take no more than that)."""
         out = object.__new__(Gathered)
         out.smooth, out.mode, out.params, out.lambert = smooth, mode, params, lambert
         out.fs, out.ft, out.fn = frame
-        out.wo, out.wo_l, out.ng, out.nm = wo, wo_l, ng, nm
+        out.wo, out.wo_l, out.ng, out.nm, out.bends = wo, wo_l, ng, nm, bends
         out.normals = None
         return out
 
@@ -231,7 +235,8 @@ class Gathered:
                           [take_rows(a, idx) for a in (self.fs, self.ft, self.fn)],
                           None if self.wo is None else take_rows(self.wo, idx),
                           take_rows(self.wo_l, idx), take_rows(self.ng, idx),
-                          None if self.nm is None else take_rows(self.nm, idx), self.lambert)
+                          None if self.nm is None else take_rows(self.nm, idx), self.lambert,
+                          None if self.bends is None else self.bends[idx])
         if self.normals is not None:
             out.normals = self.normals.take(idx)
         return out
@@ -250,7 +255,7 @@ class Gathered:
         """The rows' :class:`.adjoint_normals.VertexNormals` (smooth shading), made once."""
         if self.normals is None:
             self.normals = VertexNormals(self.params, (self.fs, self.ft, self.fn), self.ng,
-                                         self.nm)
+                                         self.nm, self.bends)
         return self.normals
 
     def _world(self, w_l):
@@ -388,7 +393,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
 
         # Sample the BSDF for the next vertex; the reverse density goes to vertex j - 1.
         smp, wi, weight, back = _scatter(ctx.smooth, mode, si, (fs, ft, fn), wo_l, params,
-                                         u_lobe, u_bsdf, sub is not None)
+                                         u_lobe, u_bsdf, sub is not None,
+                                         bends_normals(prep.scene, si.prim) if ctx.smooth
+                                         else None)
         if sub is not None:
             back = to_area(back, sub.cos_prev[j, r], dist)
             sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
@@ -415,13 +422,14 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         vis = ray_class(smp.lobe[keep])
 
 
-def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse):
+def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, bends=None):
     """Stage *sample BSDF* of a walk: the sample, its world direction ``wi``, its weight and
     (``reverse``) the other side's solid-angle density of ``si.wo`` given ``wi``. With smooth
     shading, camera paths sample as the path tracer does (Cycles' rule where the view falls
     below the shading normal) and report the light side's density, light paths sample and
-    weigh as its adjoint (:mod:`.adjoint_normals`)."""
-    normals = VertexNormals(params, frame, si.ng, si.nm) if smooth else None
+    weigh as its adjoint (:mod:`.adjoint_normals`; ``bends``: :func:`.common.bends_normals`
+    of the hits)."""
+    normals = VertexNormals(params, frame, si.ng, si.nm, bends) if smooth else None
     if normals is not None and mode == IMPORTANCE:
         wi, weight, pdf, delta, lobe = normals.sample_importance(si.wo, u_lobe, u_bsdf)
         smp = BSDFSample(to_local(wi, *frame), weight, pdf, delta, lobe)

@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import RenderRefused
 from ..integrators.adjoint_normals import VertexNormals
 from ..integrators.base import Counters
-from ..integrators.common import (intersect_by_class, max_component, ray_class,
+from ..integrators.common import (bends_normals, intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
                                   with_bump_normals, with_coat_normals,
                                   coat_normals_in_front)
@@ -237,7 +237,7 @@ def _scatter(prep, si, params, u_lobe, u_bsdf, smooth):
         frame = shading_frame(si.nm, tangent)
         params = with_bump_normals(params, si, frame)
         params = with_coat_normals(params, coat_normals_in_front(si), frame)
-        normals = VertexNormals(params, frame, si.ng, si.nm)
+        normals = VertexNormals(params, frame, si.ng, si.nm, bends_normals(prep.scene, si.prim))
         wi, weight, pdf, delta, lobe = normals.sample_importance(si.wo, u_lobe, u_bsdf)
         return BSDFSample(None, weight, pdf, delta, lobe), wi
     frame = shading_frame(si.ng, tangent)

@@ -19,12 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..camera import camera_position
-from ..integrators.common import (add_emitters_along_rays, add_rows, camera_rays,
-                                  intersect_by_class, max_component, ray_class,
+from ..integrators.common import (add_emitters_along_rays, add_rows, bends_normals,
+                                  camera_rays, intersect_by_class, max_component, ray_class,
                                   shading_tangents, surface_hits, surface_interaction,
-                                  take_rows, with_bump_normals, with_coat_normals,
-                                  coat_normals_in_front)
-from ..materials.bsdf import RADIANCE, BSDFParams, eval_bsdf, sample_bsdf
+                                  take_rows, valid_reflection_normals, with_base_normals,
+                                  with_bump_normals, with_coat_normals, coat_normals_in_front)
+from ..materials.bsdf import KIND_DIFFUSE, RADIANCE, BSDFParams, eval_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lower_view import lower_view_params, shaded_below, view_below
 from ..sampling.mis import MIS
@@ -96,12 +96,21 @@ class VisiblePoints:
         return fc * np.where(ok, 1.0 / np.where(ok, cos_g, 1.0), 0.0)[:, None]
 
 
-def _frame(prep, si):
+def _frame(prep, si, params):
+    """The visible points' frames and ``params``, as the path tracer's: around the shading
+    normal on ``ng``'s front, bent for the view on glossy rows where the material allows
+    (:func:`..integrators.common.valid_reflection_normals`; layered rows keep their base
+    around the unbent normal)."""
     tangent = shading_tangents(prep, si)
     if prep.scene.corner_normals is None:
-        return shading_frame(si.ng, tangent)
-    front = np.where(np.einsum("ij,ij->i", si.ns, si.ng) < 0, -1.0, 1.0)
-    return shading_frame(si.ns * front[:, None], tangent)
+        return shading_frame(si.ng, tangent), params
+    ns = si.ns
+    glossy = (params.kind != KIND_DIFFUSE) & bends_normals(prep.scene, si.prim)
+    if glossy.any():
+        ns = np.where(glossy[:, None], valid_reflection_normals(si.ng, si.wo, ns), ns)
+    front = np.where(np.einsum("ij,ij->i", ns, si.ng) < 0, -1.0, 1.0)
+    frame = shading_frame(ns * front[:, None], tangent)
+    return frame, with_base_normals(params, si.ns * front[:, None], frame)
 
 
 def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, direct):
@@ -174,7 +183,7 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
         u_sel, u_light = stream.next_1d()[rows], stream.next_2d()[rows]
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
-        fs, ft, fn = _frame(prep, si)
+        (fs, ft, fn), params = _frame(prep, si, params)
         wo_l = to_local(si.wo, fs, ft, fn)
         params = with_coat_normals(params, coat_normals_in_front(si), (fs, ft, fn))
         if prep.scene.corner_normals is not None:
