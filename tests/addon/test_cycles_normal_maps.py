@@ -351,14 +351,15 @@ def test_coat_on_a_normal_mapped_sphere_agrees_with_cycles(empty_scene, tmp_path
     ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 256, 64, CYCLES_RUNS, BOUNCES,
                                             our_seed=13, cycles_seed=803)
     # Detects 1.1 % (unlinked) and 1.3 % (linked) image-mean errors with 99 % power
-    # (measured); blocks to the helper's default target. Measured ours / Cycles image mean
-    # 1.0003, 0.9997, 0.9994 (unlinked) and 0.998, 0.999, 0.999 (linked). Shading the coat around the mapped normal (before) put blocks
+    # (measured); blocks to the checker's default target. Measured ours / Cycles image mean
+    # 1.0003, 0.9997, 0.9994 (unlinked) and 0.998, 0.999, 0.999 (linked). Shading the coat
+    # around the mapped normal (before) put blocks
     # 35 % below to 29 % above Cycles' and the image mean 1.1 % low (unlinked); dropping the
     # coat where the view falls below the mapped normal but not below the smooth one put
     # silhouette blocks up to 7 % low. Known residuals, 8x8 blocks beyond their intervals:
     # unlinked 4 of 108 (at most 1.6 % off), linked 17 of 108 (3.5 % above to 6.9 % below,
-    # upper-left silhouette; cause not found): the image means must agree (checked first by
-    # the helper), the block residual is an expected failure until found.
+    # upper-left silhouette; cause not found): the image means must agree (the checker tests them
+    # first), the block residual is an expected failure until found.
     try:
         S.assert_ours_agree_with_cycles(ours, cycles,
                                         f"coated normal-mapped sphere ({coat_normal})")
