@@ -541,7 +541,7 @@ OPTIONS = {o.name: o for o in (
            "darkening where the disk reaches past a surface's edge into empty space; costs the "
            "probe rays", True, prop="use_sppm_coverage"),
     _menu("sppm_radius", "Initial Radius",
-          "SPPM with Radius 0: how the initial lookup radius is chosen", "scene",
+          "SPPM with Radius 0: how the initial lookup radius is chosen", "adaptive",
           (Choice("scene", "Scene", "One radius for every pixel: 1.25 scene bounding-box "
                   "diagonals over the image's larger side in pixels"),
            Choice("pixel", "Pixel Footprint", "Each pixel's own radius: 1.5 times the width "

@@ -102,6 +102,8 @@ def sppm_reference(scene, bounces, seconds, seed, threads=2, photon_radius=0.0, 
     per-pass estimates ``image_passes`` and ``missing_passes`` (``(passes, h, w, 3)``) and the
     figures ``passes``, ``radius0``, ``radius_mean`` (final) and ``seconds``."""
     extra = {"photons": int(photons)} if photons else {}
+    # One initial radius for every pixel (the reference bounds its bias with two of them).
+    extra["sppm_radius"] = "scene"
     settings = RenderSettings(integrator="sppm", spp=0, time_limit=seconds, seed=seed,
                               threads=threads, photon_radius=photon_radius,
                               **uniform_limits(bounces), **PLAIN, **extra)

@@ -66,7 +66,7 @@ import numpy as np
 
 from ..camera import view_extent
 from ..materials.frame import to_world
-from ..photons.adaptive import NestedDisks, scale_sums
+from ..photons.adaptive import SCALES, NestedDisks, scale_sums
 from ..photons.compatible import compatible
 from ..photons.coverage import disk_coverage
 from ..photons.lookup import QUERY_CHUNK, PhotonTree
@@ -169,7 +169,8 @@ class SPPM(Integrator):
         self._add_pass_estimate(direct, points.rows, phi)
         sub = None
         if self.adaptive:
-            sub = tuple(np.concatenate([f[2][k] for f in found]) for k in range(2))
+            sub = (tuple(np.concatenate([f[2][k] for f in found]) for k in range(2)) if found
+                   else (np.zeros((0, SCALES - 1, 3)), np.zeros((0, SCALES - 1))))
             sub[0][bad] = 0.0
             sub[0][~np.isfinite(sub[0]).all(axis=2)] = 0.0
         self._update(points.rows, phi, m, sub)

@@ -59,7 +59,7 @@ def test_stats_say_which_photon_settings_were_used():
     assert fixed["photon_radius"] == 0.1 and fixed["photon_k"] == "n/a"
     sppm = render.used_settings(_settings(integrator="sppm"))
     assert sppm["sppm_alpha"] == 0.7 and sppm["photon_kernel"] == "n/a"
-    assert sppm["sppm_radius"] == "scene" and sppm["photon_surface_test"] is True
+    assert sppm["sppm_radius"] == "adaptive" and sppm["photon_surface_test"] is True
     # Footprint radii replace the automatic initial radius only.
     assert render.used_settings(_settings(integrator="sppm", photon_radius=0.1))[
         "sppm_radius"] == "n/a"
