@@ -166,28 +166,35 @@ def test_light_side_sampling_weights_integrate_the_light_side_bsdf(kind, wl):
     nothing (measured: sampling in ``nm``'s frame only reads 0.702 for the diffuse row with
     the light above nm, where the integral is 0.787: the wedge holds 10 % of it; the
     interval, 5 standard errors of the difference, is 2.2 % of it there)."""
-    rng = np.random.default_rng(8)
-    k = 100_000
-    normals, _ = vertex(kind, k)
-    wl = np.tile(unit(np.array(wl)), (k, 1))
-    wc, weight, pdf, delta, _ = normals.sample_importance(wl, rng.random(k), rng.random((k, 2)))
-    ok = ~delta & (pdf > 0)
-    np.testing.assert_allclose(pdf[ok], normals.take(np.nonzero(ok)[0]).pdf_light(
-        wl[ok], wc[ok]), rtol=1e-9)
-    sampled = np.where(ok[:, None], weight, 0.0)
-    u = random_dirs(rng, k)
-    uniform = normals.f_importance(wl, u) * 4.0 * np.pi
-    for a, b in ((sampled, uniform),):
-        diff = a.mean(0) - b.mean(0)
-        se = np.sqrt(a.var(0) / k + b.var(0) / k)
-        assert np.all(np.abs(diff) < 5.0 * se + 1e-12), (a.mean(0), b.mean(0), se)
-    if wl[0] @ normals.nm[0] > 0:
+    normals, _ = vertex(kind, 100_000)
+    sampled, uniform = assert_light_samples_integrate(normals, wl, np.random.default_rng(8))
+    if unit(np.array(wl)) @ normals.nm[0] > 0:
         assert uniform.mean(0)[0] > 0.05
     else:
         # Below nm the camera side reflects nothing toward any wc (Cycles' rule: Lambert
         # around nm, zero for the other closures; the geometric-side rule bars transmission),
         # so every sampled weight must be exactly zero.
         assert not np.any(uniform) and not np.any(sampled)
+
+
+def assert_light_samples_integrate(normals, wl, rng):
+    """Sample ``normals.sample_importance`` from the light direction ``wl (3,)`` on every row
+    of ``normals``: the sampled pdfs are :meth:`pdf_light`'s and the mean sampled weight equals
+    the integral of ``f_importance(wl, .)`` estimated with uniform directions, within 5
+    standard errors of the difference. Returns the sampled weights and the uniform
+    estimate's terms, each ``(k, 3)``."""
+    k = normals.q.size
+    wl = np.tile(unit(np.array(wl)), (k, 1))
+    wc, weight, pdf, delta, _ = normals.sample_importance(wl, rng.random(k), rng.random((k, 2)))
+    ok = ~delta & (pdf > 0)
+    np.testing.assert_allclose(pdf[ok], normals.take(np.nonzero(ok)[0]).pdf_light(
+        wl[ok], wc[ok]), rtol=1e-9)
+    sampled = np.where(ok[:, None], weight, 0.0)
+    uniform = normals.f_importance(wl, random_dirs(rng, k)) * 4.0 * np.pi
+    diff = sampled.mean(0) - uniform.mean(0)
+    se = np.sqrt(sampled.var(0) / k + uniform.var(0) / k)
+    assert np.all(np.abs(diff) < 5.0 * se + 1e-12), (sampled.mean(0), uniform.mean(0), se)
+    return sampled, uniform
 
 
 def test_mixture_share_is_zero_where_the_normals_agree():

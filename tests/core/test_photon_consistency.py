@@ -74,15 +74,8 @@ def test_sppm_agrees_with_the_path_tracer_on_a_tilted_normal_mapped_box():
     interval (z = 4.63, 0.598 against 0.575 +- 0.019): this check failed then."""
     from tests.core.test_bump_correction import tilted_box
 
-    scene = tilted_box(24)
-    path = render.render(scene, _settings(integrator="path", spp=512))
-    reps = np.array([render.render(scene, _settings(integrator="sppm", spp=64, photons=5000,
-                                                    photon_radius=0.02, seed=seed)
-                                   ).film.mean() for seed in range(8)])
-    agreement = assert_images_agree(path.film.mean(), path.film.variance(), reps, block=8,
-                                    mean_rtol=_bias_allowance(0.02), detect=(0.11, 0.15),
-                                    what="SPPM vs path, tilted normal-mapped box")
-    print(f"image-mean ratio path / SPPM: {agreement.ratio}")
+    _sppm_agrees_with_path(tilted_box(24), spp=64, seeds=8, detect=(0.11, 0.15),
+                           what="SPPM vs path, tilted normal-mapped box")
 
 
 def test_sppm_agrees_with_the_path_tracer_where_glossy_normals_bend():
@@ -96,12 +89,18 @@ def test_sppm_agrees_with_the_path_tracer_where_glossy_normals_bend():
     12 blocks fell outside their intervals (measured): this check failed then."""
     from tests.core.test_bump_correction import rough_metal_box
 
-    scene = rough_metal_box(16)
+    _sppm_agrees_with_path(rough_metal_box(16), spp=16, seeds=16, detect=(0.30, 2.5),
+                           what="SPPM vs path, bent glossy normals")
+
+
+def _sppm_agrees_with_path(scene, spp, seeds, detect, what):
+    """SPPM (``seeds`` renders of ``spp`` passes, 5,000 photons, radius 0.02 m) against a
+    512-spp path-traced image: image and 8x8-block means within their intervals plus the
+    radius' bias allowance; ``detect`` the (image, block) errors the check must detect."""
     path = render.render(scene, _settings(integrator="path", spp=512))
-    reps = np.array([render.render(scene, _settings(integrator="sppm", spp=16, photons=5000,
+    reps = np.array([render.render(scene, _settings(integrator="sppm", spp=spp, photons=5000,
                                                     photon_radius=0.02, seed=seed)
-                                   ).film.mean() for seed in range(16)])
+                                   ).film.mean() for seed in range(seeds)])
     agreement = assert_images_agree(path.film.mean(), path.film.variance(), reps, block=8,
-                                    mean_rtol=_bias_allowance(0.02), detect=(0.30, 2.5),
-                                    what="SPPM vs path, bent glossy normals")
+                                    mean_rtol=_bias_allowance(0.02), detect=detect, what=what)
     print(f"image-mean ratio path / SPPM: {agreement.ratio}")
