@@ -353,11 +353,16 @@ def prepare(scene: Scene, light_selection="power", light_sampling="area",
                          mix_weights)
 
 
+def passes_straight(bsdf):
+    """``(m,)`` bool: the rows that pass rays straight through (a smooth dielectric of IOR
+    exactly 1: Transparent BSDF, Principled Alpha's pass-through)."""
+    return (bsdf.kind == KIND_DIELECTRIC) & (bsdf.eta == 1.0)
+
+
 def pass_colors(bsdf):
-    """``(m, 3)`` colour of every row that passes rays straight through (a smooth dielectric
-    of IOR exactly 1: Transparent BSDF, Principled Alpha's pass-through), zero for others."""
-    passes = (bsdf.kind == KIND_DIELECTRIC) & (bsdf.eta == 1.0)
-    return bsdf.color * passes[:, None]
+    """``(m, 3)`` colour of every row that passes rays straight through
+    (:func:`passes_straight`), zero for others."""
+    return bsdf.color * passes_straight(bsdf)[:, None]
 
 
 def transparency_table(bsdf, mix_rows, mix_weights):

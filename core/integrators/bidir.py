@@ -59,6 +59,9 @@ class _Context:
         self.window = integrator.window
         self.film_pixels = integrator.film_pixels
         self.light_points = None  # the light subpaths' endpoints, once sampled
+        # Transparent passes of the walk's live paths before their current vertex
+        # (:class:`.transparent_passes.Passes`; None while every surface is opaque).
+        self.vertex_passes = None
         self.buffers = integrator.buffers
 
     def subpath(self, side, depth, n):

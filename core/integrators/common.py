@@ -176,12 +176,17 @@ def bends_normals(scene, prim):
 
 def materials_bending(m):
     """:func:`bends_normals` per material of the table ``m``: ``(m,)`` bool."""
+    return ~mapped_materials(m) | np.asarray(m.bump_correction, bool)
+
+
+def mapped_materials(m):
+    """The materials of the table ``m`` with a Normal Map or Bump: ``(m,)`` bool."""
     mapped = np.zeros(len(m.bump_correction), bool)
     for column in ("normal_texture", "bump_texture"):
         values = getattr(m, column, None)
         if values is not None:
             mapped |= np.asarray(values) >= 0
-    return ~mapped | np.asarray(m.bump_correction, bool)
+    return mapped
 
 
 def strategies(max_length):
@@ -328,11 +333,7 @@ def coat_reference_normals(prep, prim, u, v, ng):
         coated = coated | (m.coat_weight_texture >= 0)
     if m.coat_mapped is not None:
         coated = coated & ~m.coat_mapped
-    mapped = np.zeros_like(coated)
-    for texture in (m.normal_texture, m.bump_texture):
-        if texture is not None:
-            mapped = mapped | (texture >= 0)
-    return _smooth_normals_where(prep, prim, u, v, ng, coated & mapped)
+    return _smooth_normals_where(prep, prim, u, v, ng, coated & mapped_materials(m))
 
 
 def _smooth_normals_where(prep, prim, u, v, ng, flags):

@@ -261,7 +261,7 @@ def camera_splatter(ctx, out):
                                bends_normals(ctx.prep.scene, si.prim[idx])
                                if ctx.smooth else None)
 
-        passed = getattr(ctx, "vertex_passes", None)
+        passed = ctx.vertex_passes
         budget = connection_budget(ctx.settings.transparent_max_bounces,
                                    0 if passed is None else passed[ok])
         splat_vertices(ctx, j + 1, rows[ok], take_rows(si.p, ok), si.prim[ok], gather,

@@ -55,7 +55,7 @@ import copy
 import numpy as np
 
 from ..accel import Hits
-from ..materials.bsdf import KIND_DIELECTRIC
+from ..prepare import passes_straight
 from .common import intersect_by_class, max_component, surface_hits, take_rows
 from .shadows import shadow_transmittance
 
@@ -107,10 +107,9 @@ def _on_transparent(prep, hits):
 
 
 def _is_pass(prep, material):
-    """Whether the material rows ``material (k,)`` pass rays straight through (smooth
-    dielectrics of IOR exactly 1, :func:`core.prepare.pass_colors`)."""
-    bsdf = prep.material_bsdf
-    return (bsdf.kind[material] == KIND_DIELECTRIC) & (bsdf.eta[material] == 1.0)
+    """Whether the material rows ``material (k,)`` pass rays straight through
+    (:func:`core.prepare.passes_straight`)."""
+    return passes_straight(prep.material_bsdf)[material]
 
 
 class Passes:
