@@ -54,11 +54,12 @@ from ..sampling.warps import remap_after_choice
 from .dielectric import RADIANCE
 from .families import LOBE_GLOSSY, LOBE_REFLECT, LOBE_SINGULAR
 from ..sampling.warps import frame_from_normal
-from .frame import dot, flip_to_upper, reflect, reflect_z, side_of
+from .frame import flip_to_upper, reflect, reflect_z, side_of, to_local, to_world
 from .fresnel import fresnel_dielectric
 from .layered import coat_albedo_lookup, coat_lobe_eval, coat_lobe_pdf
 
-__all__ = ["coat_rows", "coat_frame", "in_layer_frame", "from_layer_frame", "layer_view", "coat_attenuation", "coat_probability", "eval_coated", "pdf_coated",
+__all__ = ["coat_rows", "coat_frame", "in_layer_frame", "from_layer_frame", "layer_view",
+           "coat_attenuation", "coat_probability", "eval_coated", "pdf_coated",
            "sample_coated", "DEFAULT_COAT_ROUGHNESS", "DEFAULT_COAT_IOR"]
 
 # Blender's defaults for the Principled BSDF's coat inputs.
@@ -102,17 +103,13 @@ def in_layer_frame(frame, side, *ws):
     out = []
     for w in ws:
         w = flip_to_upper(w, side)
-        if frame is not None:
-            w = np.stack([dot(w, frame[0]), dot(w, frame[1]), dot(w, frame[2])], axis=-1)
-        out.append(w)
+        out.append(w if frame is None else to_local(w, *frame))
     return out
 
 
 def from_layer_frame(frame, side, w):
     """Inverse of :func:`in_layer_frame` for one ``w (k, 3)``."""
-    if frame is not None:
-        w = w[:, 0:1] * frame[0] + w[:, 1:2] * frame[1] + w[:, 2:3] * frame[2]
-    return flip_to_upper(w, side)
+    return flip_to_upper(w if frame is None else to_world(w, *frame), side)
 
 
 def _coat_mu(p, wo, wi, mode=RADIANCE):
