@@ -237,7 +237,8 @@ def used_settings(settings):
         ``photon_kernel``, ``gather_rays``, the ``radiosity_*`` options and the per-kind
         bounce limits ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces`` and
         ``transparent_max_bounces`` (path tracing only, and the transparent limit for light
-        tracing and BDPT: the other integrators stop paths at ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
+        tracing, BDPT, photon mapping and SPPM: the other integrators stop paths at
+        ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
         estimators use no MIS: one strategy per light contribution).
     """
     if settings.integrator == "radiosity":
@@ -285,9 +286,11 @@ def used_settings(settings):
         **{name: na for name in MLT_OPTIONS},
         # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
         # light tracing's and BDPT's subpaths and connections cross at most the Transparent
-        # limit's surfaces (core.integrators.transparent_passes).
+        # limit's surfaces (core.integrators.transparent_passes), photons and the photon
+        # estimators' camera paths each as many (core.photons.passes).
         **{name: getattr(settings, name) if settings.integrator == "path"
-           or (settings.integrator in ("light", "bdpt") and name == "transparent_max_bounces")
+           or (settings.integrator in ("light", "bdpt", *PHOTON_INTEGRATORS)
+               and name == "transparent_max_bounces")
            else na for name in BOUNCE_KIND_OPTIONS},
     }
 
@@ -520,11 +523,6 @@ def _messages(scene, settings, integrator):
     if scene.film_transparent and settings.integrator != "path":
         messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
                         f"tracing only; the background is rendered opaque")
-    if (settings.integrator not in ("path", "radiosity", "light", "mlt", "bdpt")
-            and integrator.prep.material_transparency is not None):
-        messages.append(f"{settings.integrator}: transparent surfaces (Transparent BSDF, "
-                        f"Alpha) block shadow rays and connections, and count as "
-                        f"transmission bounces; path tracing lets shadow rays through them")
     return messages
 
 

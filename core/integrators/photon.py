@@ -62,6 +62,12 @@ class _GatherStream:
         self.stream, self.entries = stream, entries
         self.rays, self.base, self.stride = rays, base, stride
         self.dimension = 0
+        self.kept = None  # rows kept by compact (None: all)
+
+    def compact(self, keep):
+        """Keep the rows ``keep`` (index array) of what the draws return (the transparent
+        passes draw from a compacted copy, :mod:`core.photons.passes`)."""
+        self.kept = keep if self.kept is None else self.kept[keep]
 
     def skip_to(self, dimension):
         self.stream.check_abort()  # a cancelled render stops here (core.render)
@@ -72,7 +78,7 @@ class _GatherStream:
             self.stream.sample(self.base + g * self.stride + self.dimension, count)[self.entries]
             for g in range(self.rays)])
         self.dimension += count
-        return out
+        return out if self.kept is None else out[self.kept]
 
     def next_1d(self):
         return self._take(1)[:, 0]
@@ -147,7 +153,8 @@ class PhotonMapping(Integrator):
         n, bounces = len(stream), self.settings.max_bounces
         counters.camera_samples += n
         L = np.zeros((n, 3))
-        points = trace_visible_points(self.prep, stream, pixel_filter, bounces, counters, L)
+        points = trace_visible_points(self.prep, stream, pixel_filter, bounces, counters, L,
+                                      self.settings.transparent_max_bounces)
         caustic, global_map = self.maps
         limit = bounces + 1 - points.bounces
         poll = stream.check_abort  # between lookup steps: a cancelled render stops there
@@ -183,7 +190,9 @@ class PhotonMapping(Integrator):
         gs_rows = ok  # gather-stream row of every surviving ray (ray g of point i: g k + i)
         hits = follow_specular(self.prep, gs, o, wi, None, beta, gs_rows,
                                ray_class(smp.lobe[ok]), self.settings.max_bounces, counters,
-                               direct=None, dims=3)
+                               direct=None, dims=3,
+                               transparent=self.settings.transparent_max_bounces,
+                               passed=points.passed[rep])
         if hits.rows.size == 0:
             return
         origin = gs_rows.searchsorted(hits.rows)  # rows are ascending: index into `rep`

@@ -224,7 +224,7 @@ class SPPM(Integrator):
             local.camera_samples += rows.size
             direct = np.zeros((rows.size, 3))
             points = trace_visible_points(prep, stream, pixel_filter, settings.max_bounces,
-                                          local, direct)
+                                          local, direct, settings.transparent_max_bounces)
             points.rows = points.rows + span[0]
             return (direct, points), local
 
