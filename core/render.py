@@ -51,6 +51,9 @@ from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 # Integrators that estimate by photon density (biased, consistent): their own settings apply.
 PHOTON_INTEGRATORS = ("photon", "sppm")
+# Integrators whose camera paths honour Film > Transparent (alpha from the camera rays that
+# escape, the world they see left out).
+FILM_TRANSPARENT_INTEGRATORS = ("path", *PHOTON_INTEGRATORS)
 
 # Seconds between polls of ``cancel()`` while work units run.
 POLL_S = 0.05
@@ -520,9 +523,10 @@ def _messages(scene, settings, integrator):
         messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
                         f"visibility are honoured by path tracing only; camera paths "
                         f"bounce with Camera visibility, light paths with Shadow")
-    if scene.film_transparent and settings.integrator != "path":
+    if scene.film_transparent and settings.integrator not in FILM_TRANSPARENT_INTEGRATORS:
         messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
-                        f"tracing only; the background is rendered opaque")
+                        f"tracing, photon mapping and SPPM only; the background is rendered "
+                        f"opaque")
     return messages
 
 
@@ -662,7 +666,8 @@ class _Passes:
                 if image is None:
                     return True
                 self.done_spp += 1
-                show_estimate(film, image, self.done_spp, integrator.pass_sum_sq())
+                show_estimate(film, image, self.done_spp, integrator.pass_sum_sq(),
+                              integrator.pass_transparency())
                 self.report(self.done_spp / self.total_spp if self.total_spp
                             else self.elapsed() / self.settings.time_limit)
                 on_pass()
@@ -768,14 +773,18 @@ class _AbortingSampler:
         return getattr(self.sampler, name)
 
 
-def show_estimate(film, image, passes, sum_sq=None):
+def show_estimate(film, image, passes, sum_sq=None, transparency=None):
     """Make ``film`` show ``image (n_pixels, 3)`` as the estimate of ``passes`` samples per
     pixel (integrators with ``whole_passes``: the film's sums are replaced). ``sum_sq
     (n_pixels, 3)``: the sum of the squared per-pass estimates whose mean ``image`` is (SPPM),
-    which gives the Variance pass; None: the variance is zero (not estimated)."""
+    which gives the Variance pass; None: the variance is zero (not estimated).
+    ``transparency (n_pixels,)``: the sum over the passes of what reached a transparent film's
+    background (the alpha); None: an opaque film."""
     film.count[:] = passes
     film.sum[:] = image * passes
     film.sum_sq[:] = image * image * passes if sum_sq is None else sum_sq
+    if transparency is not None:
+        film.transparency = np.array(transparency, np.float64)
 
 
 def preparation_key(scene, settings):

@@ -98,6 +98,7 @@ class PhotonMapping(Integrator):
         self.photons, self.radius, self.photon_sampler = photon_setup(prep, settings)
         self.maps = None
         self.sum = None
+        self.clear = None  # Film > Transparent: the samples' transparency summed per pixel
         self.passes = 0
         self.photon_s = 0.0
         bounces = settings.max_bounces
@@ -142,19 +143,29 @@ class PhotonMapping(Integrator):
             return None
         for _, local in parts:
             counters.add(local)
-        radiance = np.concatenate([L for L, _ in parts])
+        radiance = np.concatenate([L for (L, _), _ in parts])
         radiance[~np.isfinite(radiance).all(axis=1)] = 0.0
         self.sum = radiance if self.sum is None else self.sum + radiance
+        if self.prep.scene.film_transparent:
+            clear = np.concatenate([c for (_, c), _ in parts])
+            self.clear = clear if self.clear is None else self.clear + clear
         self.passes += 1
         return np.maximum(self.sum / self.passes, 0.0)
 
+    def pass_transparency(self):
+        """Per-pixel sum ``(n_pixels,)`` of the samples' transparency on a transparent film
+        (the alpha, :meth:`.base.Integrator.pass_transparency`); None on an opaque one."""
+        return self.clear
+
     def _samples(self, stream, pixel_filter, counters):
-        """Radiance ``(n, 3)`` of one camera sample per stream entry."""
+        """Radiance ``(n, 3)`` of one camera sample per stream entry, and on a transparent
+        film what of each reached the background ``(n,)`` (else None)."""
         n, bounces = len(stream), self.settings.max_bounces
         counters.camera_samples += n
         L = np.zeros((n, 3))
+        clear = np.zeros(n) if self.prep.scene.film_transparent else None
         points = trace_visible_points(self.prep, stream, pixel_filter, bounces, counters, L,
-                                      self.settings.transparent_max_bounces)
+                                      self.settings.transparent_max_bounces, clear)
         caustic, global_map = self.maps
         limit = bounces + 1 - points.bounces
         poll = stream.check_abort  # between lookup steps: a cancelled render stops there
@@ -167,7 +178,7 @@ class PhotonMapping(Integrator):
             add_rows(L, points.rows, points.beta * indirect)
         else:
             self._final_gather(stream, points, L, counters)
-        return L
+        return L, clear
 
     def _final_gather(self, stream, points, L, counters):
         """Stage *final gathering*: BSDF rays from the visible points into the global map."""

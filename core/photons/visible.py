@@ -122,7 +122,7 @@ def _frame(prep, si, params):
 
 
 def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, direct,
-                         transparent=None):
+                         transparent=None, transparency=None):
     """Stage *visible points*: one camera path per entry of ``stream``.
 
     Parameters
@@ -138,6 +138,11 @@ def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, dire
         (next-event estimation).
     transparent : int or None
         The Transparent limit (:mod:`.passes`; None: the option's default).
+    transparency : (n,) float64 or None
+        On a transparent film (Film > Transparent): receives what of each camera sample
+        reaches the background (the mean throughput of its camera rays that escape, straight
+        or through transparent passes, as the path tracer's); the world they see is then not
+        added to ``direct`` (it still lights the scene).
 
     Returns
     -------
@@ -149,12 +154,13 @@ def trace_visible_points(prep, stream, pixel_filter, max_bounces, counters, dire
     eye = camera_position(prep.scene.camera)
     return follow_specular(prep, stream, o, d, tmax, np.ones((n, 3)), np.arange(n),
                            np.full(n, VIS_CAMERA, np.int32), max_bounces, counters, direct,
-                           start=np.linalg.norm(o - eye, axis=1), transparent=transparent)
+                           start=np.linalg.norm(o - eye, axis=1), transparent=transparent,
+                           transparency=transparency)
 
 
 def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, counters,
                     direct=None, dims=DIMS_CAMERA, start=None,
-                    transparent=None, passed=None):
+                    transparent=None, passed=None, transparency=None):
     """Follow rays through specular bounces to their first non-specular hits.
 
     Parameters
@@ -174,7 +180,10 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
     start : (m,) float64 or None
         Path length before the rays' origins (the points' ``dist`` adds it; None: zero).
     transparent : int or None
-        The Transparent limit (None: the option's default); ``passed (m,)`` the passes the paths made before (None: none).
+        The Transparent limit (None: the option's default); ``passed (m,)`` the passes the
+        paths made before (None: none).
+    transparency : (n,) float64 or None
+        Camera paths on a transparent film (:func:`trace_visible_points`).
     """
     parts = []
     travelled = np.zeros(rows.size) if start is None else np.asarray(start, np.float64)
@@ -183,7 +192,8 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
     for bounce in range(max_bounces + 1):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         counters.rays += rows.size
-        seen = None if direct is None else _emitters_seen(prep, direct, bounce == 0)
+        seen = (None if direct is None
+                else _emitters_seen(prep, direct, bounce == 0, transparency))
         if seen is not None:
             seen(rows, o, d, hits, beta)
         dim = dims + bounce * DIMS_PER_BOUNCE
@@ -246,15 +256,21 @@ def follow_specular(prep, stream, o, d, tmax, beta, rows, vis, max_bounces, coun
     return join_points(parts)
 
 
-def _emitters_seen(prep, direct, camera):
+def _emitters_seen(prep, direct, camera, transparency=None):
     """``fn(rows, o, d, hits, beta)`` adding to ``direct`` the emitters a segment of the
     camera paths ``rows`` sees (weight one: nothing else samples light seen directly or through
-    specular bounces); ``camera``: the segments are camera rays."""
+    specular bounces); ``camera``: the segments are camera rays. On a transparent film camera
+    rays that escape add the mean of their throughput to ``transparency`` instead of the
+    world's light."""
     no_mis = MIS("power")  # never consulted: every weight here is one (use_mis false)
+    clear = camera and prep.scene.film_transparent
 
     def seen(rows, o, d, hits, beta):
         add_emitters_along_rays(prep, direct, beta, o, d, hits, rows, np.zeros(rows.size),
-                                np.zeros(rows.size, bool), camera, no_mis)
+                                np.zeros(rows.size, bool), camera, no_mis, world=not clear)
+        if clear and transparency is not None:
+            escaped = np.nonzero(~hits.hit)[0]
+            np.add.at(transparency, rows[escaped], take_rows(beta, escaped).mean(axis=1))
     return seen
 
 
