@@ -19,6 +19,11 @@ What it estimates
     Density estimation uses the ``photon_k`` nearest photons (``photon_lookup = 'knn'``) or a
     fixed ``photon_radius`` (``'radius'``), weighted by ``photon_kernel`` (:mod:`core.photons
     .kernels`; see :mod:`core.photons.estimate`).
+
+    Photons, camera paths and gather rays pass transparent surfaces straight through (no
+    bounce), the shadow rays cross them attenuated (:mod:`core.photons.passes`). On a
+    transparent film (Film > Transparent) the camera rays that escape give the alpha and
+    leave the world out of the sample (:func:`core.photons.visible.trace_visible_points`).
 Bias and consistency
     **Biased but consistent.** The density estimates blur light over their disk; the maps are
     fixed for the render, so more samples per pixel average the gather and direct-light noise

@@ -12,7 +12,10 @@ What it estimates
 
         N' = N + alpha M,   r' = r sqrt(N' / (N + M)),   tau' = (tau + phi) (r' / r)^2
 
-    The image is ``direct / passes + tau / (photons emitted pi r^2)``.
+    The image is ``direct / passes + tau / (photons emitted pi r^2)``. Photons and camera
+    paths pass transparent surfaces straight through (no bounce), the shadow rays cross them
+    attenuated (:mod:`core.photons.passes`); on a transparent film the camera rays that escape
+    give the alpha (:meth:`SPPM.pass_transparency`) and leave the world out.
 Bias and consistency
     **Biased but consistent.** Density estimation blurs the incident light over a disk of
     radius ``r`` (and catches photons on nearby surfaces of other orientation, near edges and

@@ -9,6 +9,8 @@ is continued by Russian roulette *by albedo*: it survives with probability
 ``q = min(1, max(beta') / max(beta))`` and its power is divided by ``q``, so surviving photons
 keep roughly the power they had (Jensen's photon tracing) and the estimate stays unbiased.
 
+Transparent surfaces (Transparent BSDF, Principled Alpha, a Mix with a Transparent BSDF) are
+passed straight through, as light tracing's walks do: a pass is no hit (:mod:`.passes`).
 Every hit on a surface that is not purely specular (a delta BSDF cannot be density-estimated)
 is a stored photon: its position, the geometric normal of the surface it landed on, the
 direction back toward where it came from, its power, the number of the hit along the path (1:
