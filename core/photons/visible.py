@@ -26,9 +26,9 @@ from ..integrators.common import (add_emitters_along_rays, add_rows, bends_norma
                                   shading_tangents, surface_hits, surface_interaction,
                                   take_rows, valid_reflection_normals, with_base_normals,
                                   with_bump_normals, with_coat_normals, coat_normals_in_front)
+from ..integrators.shadows import shadow_transmittance
 from ..materials.bsdf import KIND_DIFFUSE, RADIANCE, BSDFParams, eval_bsdf, sample_bsdf
 from ..materials.frame import shading_frame, to_local, to_world
-from ..integrators.shadows import shadow_transmittance
 from ..materials.lower_view import lower_view_params, shaded_below, view_below
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_SHADOW
