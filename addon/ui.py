@@ -217,9 +217,10 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         kinds.prop(settings, "glossy_bounces")
         kinds.prop(settings, "transmission_bounces")
         # Light tracing's and BDPT's subpaths and connections cross at most this many
-        # transparent surfaces together.
+        # transparent surfaces together; photons and the photon estimators' camera paths each.
         transparent = col.column(align=True)
-        transparent.active = settings.integrator in {'PATH', 'MLT', 'LIGHT', 'BDPT'}
+        transparent.active = settings.integrator in {'PATH', 'MLT', 'LIGHT', 'BDPT', 'PHOTON',
+                                                     'SPPM'}
         transparent.prop(settings, "transparent_max_bounces")
         col.separator()
         rr = col.column()
@@ -243,10 +244,10 @@ class SAMPLINGLAB_RENDER_PT_film(SamplingLabButtonsPanel, Panel):
         col = layout.column()
         col.prop(settings, "filter_type")
         col.prop(settings, "filter_width")
-        # Blender's own Film > Transparent, which only the path tracer renders as alpha (the
-        # others report an opaque background).
+        # Blender's own Film > Transparent, which the estimators with camera paths render as
+        # alpha (MLT and radiosity report an opaque background).
         sub = col.column()
-        sub.active = settings.integrator == 'PATH'
+        sub.active = settings.integrator in {'PATH', 'LIGHT', 'BDPT', 'PHOTON', 'SPPM'}
         sub.prop(context.scene.render, "film_transparent", text="Transparent")
 
 

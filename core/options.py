@@ -429,8 +429,8 @@ OPTIONS = {o.name: o for o in (
            "Maximum number of transparent surfaces (Transparent BSDF, Principled Alpha) a path "
            "or a shadow ray passes straight through, as Cycles' limit of the same name; the "
            "next one blocks it. Light Tracing and Bidirectional count a path's passes on its "
-           "camera and light paths and its connection together. Does not count toward the "
-           "other limits", 8, minimum=0,
+           "camera and light paths and its connection together; Photon Mapping and SPPM a "
+           "photon's apart from a camera path's. Does not count toward the other limits", 8, minimum=0,
            maximum=1024, flag="--transparent-bounces"),
     Option("use_russian_roulette", bool, "Russian Roulette",
            "Terminate low-throughput paths at random and reweight the survivors. Unbiased: it "

@@ -51,6 +51,9 @@ from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 # Integrators that estimate by photon density (biased, consistent): their own settings apply.
 PHOTON_INTEGRATORS = ("photon", "sppm")
+# Integrators whose camera paths honour Film > Transparent (alpha from the camera rays that
+# escape, the world they see left out).
+FILM_TRANSPARENT_INTEGRATORS = ("path", "light", "bdpt", *PHOTON_INTEGRATORS)
 
 # Seconds between polls of ``cancel()`` while work units run.
 POLL_S = 0.05
@@ -237,7 +240,8 @@ def used_settings(settings):
         ``photon_kernel``, ``gather_rays``, the ``radiosity_*`` options and the per-kind
         bounce limits ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces`` and
         ``transparent_max_bounces`` (path tracing only, and the transparent limit for light
-        tracing and BDPT: the other integrators stop paths at ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
+        tracing, BDPT, photon mapping and SPPM: the other integrators stop paths at
+        ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
         estimators use no MIS: one strategy per light contribution).
     """
     if settings.integrator == "radiosity":
@@ -285,9 +289,11 @@ def used_settings(settings):
         **{name: na for name in MLT_OPTIONS},
         # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
         # light tracing's and BDPT's subpaths and connections cross at most the Transparent
-        # limit's surfaces (core.integrators.transparent_passes).
+        # limit's surfaces (core.integrators.transparent_passes), photons and the photon
+        # estimators' camera paths each as many (core.photons.passes).
         **{name: getattr(settings, name) if settings.integrator == "path"
-           or (settings.integrator in ("light", "bdpt") and name == "transparent_max_bounces")
+           or (settings.integrator in ("light", "bdpt", *PHOTON_INTEGRATORS)
+               and name == "transparent_max_bounces")
            else na for name in BOUNCE_KIND_OPTIONS},
     }
 
@@ -517,14 +523,10 @@ def _messages(scene, settings, integrator):
         messages.append(f"{settings.integrator}: Diffuse, Glossy and Transmission ray "
                         f"visibility are honoured by path tracing only; camera paths "
                         f"bounce with Camera visibility, light paths with Shadow")
-    if scene.film_transparent and settings.integrator != "path":
+    if scene.film_transparent and settings.integrator not in FILM_TRANSPARENT_INTEGRATORS:
         messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
-                        f"tracing only; the background is rendered opaque")
-    if (settings.integrator not in ("path", "radiosity", "light", "mlt", "bdpt")
-            and integrator.prep.material_transparency is not None):
-        messages.append(f"{settings.integrator}: transparent surfaces (Transparent BSDF, "
-                        f"Alpha) block shadow rays and connections, and count as "
-                        f"transmission bounces; path tracing lets shadow rays through them")
+                        f"tracing, light tracing, BDPT, photon mapping and SPPM only; the "
+                        f"background is rendered opaque")
     return messages
 
 
@@ -664,7 +666,8 @@ class _Passes:
                 if image is None:
                     return True
                 self.done_spp += 1
-                show_estimate(film, image, self.done_spp, integrator.pass_sum_sq())
+                show_estimate(film, image, self.done_spp, integrator.pass_sum_sq(),
+                              integrator.pass_transparency())
                 self.report(self.done_spp / self.total_spp if self.total_spp
                             else self.elapsed() / self.settings.time_limit)
                 on_pass()
@@ -770,14 +773,18 @@ class _AbortingSampler:
         return getattr(self.sampler, name)
 
 
-def show_estimate(film, image, passes, sum_sq=None):
+def show_estimate(film, image, passes, sum_sq=None, transparency=None):
     """Make ``film`` show ``image (n_pixels, 3)`` as the estimate of ``passes`` samples per
     pixel (integrators with ``whole_passes``: the film's sums are replaced). ``sum_sq
     (n_pixels, 3)``: the sum of the squared per-pass estimates whose mean ``image`` is (SPPM),
-    which gives the Variance pass; None: the variance is zero (not estimated)."""
+    which gives the Variance pass; None: the variance is zero (not estimated).
+    ``transparency (n_pixels,)``: the sum over the passes of what reached a transparent film's
+    background (the alpha); None: an opaque film."""
     film.count[:] = passes
     film.sum[:] = image * passes
     film.sum_sq[:] = image * image * passes if sum_sq is None else sum_sq
+    if transparency is not None:
+        film.transparency = np.array(transparency, np.float64)
 
 
 def preparation_key(scene, settings):

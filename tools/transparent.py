@@ -1,5 +1,6 @@
-"""Scenes with transparent surfaces, and an equal-time benchmark of path tracing, light tracing
-and BDPT on them (a measurement, not a test; ``python -m sampling_lab.tools.transparent``).
+"""Scenes with transparent surfaces, and an equal-time benchmark of path tracing, light tracing,
+BDPT, photon mapping and SPPM on them (a measurement, not a test;
+``python -m sampling_lab.tools.transparent``).
 
 :func:`transparent_scene` builds a diffuse floor under a square area light (or a sun) with one
 sheet: (``sheet_between_light_and_floor``) a Transparent BSDF sheet between the light and the
@@ -7,7 +8,8 @@ floor, the camera below it; (``alpha_plane``) a Principled Alpha 0.5 plane and (
 alpha-textured leaf (a 2 x 2 opacity checker, :mod:`core.alpha`) between the light and the
 floor and in front of the camera; (``sheet_before_camera``) a Transparent BSDF sheet in front
 of the camera only. ``tests/core/test_transparent_bidir.py`` checks light tracing and BDPT
-against the path tracer on them.
+against the path tracer on them, ``tests/core/test_photon_transparent.py`` photon mapping and
+SPPM (biased: their relMSE below includes their blur).
 
 The benchmark renders each case with each integrator for the same wall-clock time,
 interleaved (so that a load spike hits all alike), against a path-traced reference, and prints
@@ -93,7 +95,10 @@ def _settings(**kw):
                           transparent_max_bounces=8, **kw)
 
 
-def bench(size=64, seconds=3.0, ref_spp=1024, threads=2, cases=CASES):
+INTEGRATORS = ("path", "light", "bdpt", "photon", "sppm")
+
+
+def bench(size=64, seconds=3.0, ref_spp=1024, threads=2, cases=CASES, integrators=INTEGRATORS):
     """Rows (dicts) of ``case``, ``integrator``, ``spp``, ``samples_per_s``, ``rel_mse`` and
     ``mean_ratio`` (to the reference) at equal time, the integrators interleaved per case."""
     from .common import equal_time_row, stage
@@ -104,7 +109,7 @@ def bench(size=64, seconds=3.0, ref_spp=1024, threads=2, cases=CASES):
         scene = transparent_scene(case, size=size)
         stage(f"{case}: path-traced reference, {ref_spp} spp")
         ref = render(scene, _settings(spp=ref_spp, seed=99, threads=threads)).film.mean()
-        for integrator in ("path", "light", "bdpt"):
+        for integrator in integrators:
             stage(f"{case}: {integrator}, {seconds} s")
             row = equal_time_row(scene, _settings(integrator=integrator, spp=1 << 20,
                                                   time_limit=seconds, threads=threads), ref)
@@ -119,10 +124,13 @@ def main(argv=None):
     p.add_argument("--ref-spp", type=int, default=1024, help="reference samples per pixel")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--case", action="append", choices=CASES, help="cases (default: all)")
+    p.add_argument("--integrator", action="append", choices=INTEGRATORS,
+                   help="integrators (default: all)")
     args = p.parse_args(argv)
     from .common import loadavg
     print(f"load average at start: {loadavg()}")
-    rows = bench(args.size, args.seconds, args.ref_spp, args.threads, args.case or CASES)
+    rows = bench(args.size, args.seconds, args.ref_spp, args.threads, args.case or CASES,
+                 args.integrator or INTEGRATORS)
     print("| case | integrator | spp | samples/s | relMSE | mean ratio |")
     print("|---|---|---|---|---|---|")
     for r in rows:

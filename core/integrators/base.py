@@ -192,6 +192,12 @@ class Integrator:
         not estimated and the pass is zero (default)."""
         return None
 
+    def pass_transparency(self):
+        """``whole_passes`` integrators on a transparent film: per-pixel sum ``(n_pixels,)``
+        over the passes of what of each pass's camera sample reached the background (as
+        :attr:`BatchOutput.transparency`), or None: an opaque film (default)."""
+        return None
+
     def render_samples(self, stream, pixel_filter, counters: Counters) -> BatchOutput:
         """Estimates of one work unit: one sample per entry of ``stream``.
 

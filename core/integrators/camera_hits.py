@@ -4,6 +4,12 @@ Every segment of the camera walk looks for the world (escaped rays), suns of fin
 lamp shapes before the hit (:meth:`core.lights.LightSampler.lamp_points`) and emissive
 triangles hit; BDPT weighs what it finds against the strategies that connect
 (:func:`.mis_densities.camera_hit_weight`), light tracing counts it alone.
+
+On a transparent film (Film > Transparent) the camera rays (``j = 1``, also after transparent
+passes) that escape do not add the world: they add the mean of their throughput to the
+sample's transparency instead (the alpha, as the path tracer's camera rays). No other strategy
+makes a path from the pinhole straight to the world (a light vertex on the world is never
+joined to the pinhole), so nothing else must be dropped; the world still lights the scene.
 """
 
 from __future__ import annotations
@@ -21,13 +27,17 @@ def camera_emission(ctx, cam_sub, out):
     ray from vertex ``j - 1``."""
     prep, em = ctx.prep, ctx.emission
     ls = prep.lights
+    clear_film = prep.scene.film_transparent
 
     def handle(j, rows, o, d, hits, beta, pdf_prev, prev_delta, t0=None):
         found = []  # (local rows, emitter index, point, normal, distance)
         n = rows.size
         escaped = np.nonzero(~hits.hit)[0]
+        clear = clear_film and j == 1  # camera rays on a transparent film
+        if clear:
+            out.add_transparency(rows[escaped], take_rows(beta, escaped).mean(axis=1))
         if escaped.size:
-            if ls.has_world:
+            if ls.has_world and not clear:
                 found.append((escaped, np.full(escaped.size, ls.world_index),
                               np.zeros((escaped.size, 3)), np.zeros((escaped.size, 3)),
                               np.full(escaped.size, np.inf)))

@@ -19,6 +19,11 @@ What it estimates
     Density estimation uses the ``photon_k`` nearest photons (``photon_lookup = 'knn'``) or a
     fixed ``photon_radius`` (``'radius'``), weighted by ``photon_kernel`` (:mod:`core.photons
     .kernels`; see :mod:`core.photons.estimate`).
+
+    Photons, camera paths and gather rays pass transparent surfaces straight through (no
+    bounce), the shadow rays cross them attenuated (:mod:`core.photons.passes`). On a
+    transparent film (Film > Transparent) the camera rays that escape give the alpha and
+    leave the world out of the sample (:func:`core.photons.visible.trace_visible_points`).
 Bias and consistency
     **Biased but consistent.** The density estimates blur light over their disk; the maps are
     fixed for the render, so more samples per pixel average the gather and direct-light noise
@@ -62,6 +67,12 @@ class _GatherStream:
         self.stream, self.entries = stream, entries
         self.rays, self.base, self.stride = rays, base, stride
         self.dimension = 0
+        self.kept = None  # rows kept by compact (None: all)
+
+    def compact(self, keep):
+        """Keep the rows ``keep`` (index array) of what the draws return (the transparent
+        passes draw from a compacted copy, :mod:`core.photons.passes`)."""
+        self.kept = keep if self.kept is None else self.kept[keep]
 
     def skip_to(self, dimension):
         self.stream.check_abort()  # a cancelled render stops here (core.render)
@@ -72,7 +83,7 @@ class _GatherStream:
             self.stream.sample(self.base + g * self.stride + self.dimension, count)[self.entries]
             for g in range(self.rays)])
         self.dimension += count
-        return out
+        return out if self.kept is None else out[self.kept]
 
     def next_1d(self):
         return self._take(1)[:, 0]
@@ -92,6 +103,7 @@ class PhotonMapping(Integrator):
         self.photons, self.radius, self.photon_sampler = photon_setup(prep, settings)
         self.maps = None
         self.sum = None
+        self.clear = None  # Film > Transparent: the samples' transparency summed per pixel
         self.passes = 0
         self.photon_s = 0.0
         bounces = settings.max_bounces
@@ -136,18 +148,29 @@ class PhotonMapping(Integrator):
             return None
         for _, local in parts:
             counters.add(local)
-        radiance = np.concatenate([L for L, _ in parts])
+        radiance = np.concatenate([L for (L, _), _ in parts])
         radiance[~np.isfinite(radiance).all(axis=1)] = 0.0
         self.sum = radiance if self.sum is None else self.sum + radiance
+        if self.prep.scene.film_transparent:
+            clear = np.concatenate([c for (_, c), _ in parts])
+            self.clear = clear if self.clear is None else self.clear + clear
         self.passes += 1
         return np.maximum(self.sum / self.passes, 0.0)
 
+    def pass_transparency(self):
+        """Per-pixel sum ``(n_pixels,)`` of the samples' transparency on a transparent film
+        (the alpha, :meth:`.base.Integrator.pass_transparency`); None on an opaque one."""
+        return self.clear
+
     def _samples(self, stream, pixel_filter, counters):
-        """Radiance ``(n, 3)`` of one camera sample per stream entry."""
+        """Radiance ``(n, 3)`` of one camera sample per stream entry, and on a transparent
+        film what of each reached the background ``(n,)`` (else None)."""
         n, bounces = len(stream), self.settings.max_bounces
         counters.camera_samples += n
         L = np.zeros((n, 3))
-        points = trace_visible_points(self.prep, stream, pixel_filter, bounces, counters, L)
+        clear = np.zeros(n) if self.prep.scene.film_transparent else None
+        points = trace_visible_points(self.prep, stream, pixel_filter, bounces, counters, L,
+                                      self.settings.transparent_max_bounces, clear)
         caustic, global_map = self.maps
         limit = bounces + 1 - points.bounces
         poll = stream.check_abort  # between lookup steps: a cancelled render stops there
@@ -160,7 +183,7 @@ class PhotonMapping(Integrator):
             add_rows(L, points.rows, points.beta * indirect)
         else:
             self._final_gather(stream, points, L, counters)
-        return L
+        return L, clear
 
     def _final_gather(self, stream, points, L, counters):
         """Stage *final gathering*: BSDF rays from the visible points into the global map."""
@@ -183,7 +206,9 @@ class PhotonMapping(Integrator):
         gs_rows = ok  # gather-stream row of every surviving ray (ray g of point i: g k + i)
         hits = follow_specular(self.prep, gs, o, wi, None, beta, gs_rows,
                                ray_class(smp.lobe[ok]), self.settings.max_bounces, counters,
-                               direct=None, dims=3)
+                               direct=None, dims=3,
+                               transparent=self.settings.transparent_max_bounces,
+                               passed=points.passed[rep])
         if hits.rows.size == 0:
             return
         origin = gs_rows.searchsorted(hits.rows)  # rows are ascending: index into `rep`

@@ -12,7 +12,10 @@ What it estimates
 
         N' = N + alpha M,   r' = r sqrt(N' / (N + M)),   tau' = (tau + phi) (r' / r)^2
 
-    The image is ``direct / passes + tau / (photons emitted pi r^2)``.
+    The image is ``direct / passes + tau / (photons emitted pi r^2)``. Photons and camera
+    paths pass transparent surfaces straight through (no bounce), the shadow rays cross them
+    attenuated (:mod:`core.photons.passes`); on a transparent film the camera rays that escape
+    give the alpha (:meth:`SPPM.pass_transparency`) and leave the world out.
 Bias and consistency
     **Biased but consistent.** Density estimation blurs the incident light over a disk of
     radius ``r`` (and catches photons on nearby surfaces of other orientation, near edges and
@@ -126,6 +129,8 @@ class SPPM(Integrator):
         self.state = {"r": np.full(n_pixels, r0), "N": np.zeros(n_pixels),
                       "tau": np.zeros((n_pixels, 3)), "direct": np.zeros((n_pixels, 3)),
                       "sum_sq": np.zeros((n_pixels, 3)), "passes": 0,
+                      "clear": (np.zeros(n_pixels) if self.prep.scene.film_transparent
+                                else None),
                       "disks": NestedDisks(n_pixels) if self.adaptive else None}
 
     def render_pass(self, pass_index, frame_pixels, sampler, pixel_filter, counters,
@@ -152,7 +157,7 @@ class SPPM(Integrator):
                              map_chunks)
         if traced is None:
             return None
-        direct, points, photons = traced
+        direct, points, photons, clear = traced
         if self.footprint:
             self._first_radii(points)
         tree = PhotonTree(photons.p, origin=np.zeros(3))
@@ -175,6 +180,8 @@ class SPPM(Integrator):
             sub[0][~np.isfinite(sub[0]).all(axis=2)] = 0.0
         self._update(points.rows, phi, m, sub)
         self.state["direct"] += direct
+        if clear is not None:
+            self.state["clear"] += clear
         self.state["passes"] += 1
         return self.image()
 
@@ -208,11 +215,18 @@ class SPPM(Integrator):
         slight once the radii change slowly."""
         return None if self.state is None else self.state["sum_sq"]
 
+    def pass_transparency(self):
+        """Per-pixel sum ``(n_pixels,)`` over the passes of what of each pass's camera path
+        reached a transparent film's background (the alpha); None on an opaque film."""
+        return None if self.state is None else self.state["clear"]
+
     def _trace(self, pass_index, frame_pixels, sampler, pixel_filter, counters, map_chunks):
         """Stages *visible points* (one camera path per pixel, with its direct light) and
         *photon tracing* (``photons`` photons, those after one bounce at least kept), their
         chunks in one call of ``map_chunks`` so that both keep every worker thread busy:
-        ``(direct (n, 3), VisiblePoints, Photons)``, or None if cancelled."""
+        ``(direct (n, 3), VisiblePoints, Photons, clear)``, ``clear (n,)`` what of each
+        camera path reached a transparent film's background (None: an opaque film), or None if
+        cancelled."""
         n = frame_pixels.size
         prep, settings = self.prep, self.settings
 
@@ -223,10 +237,12 @@ class SPPM(Integrator):
             local = Counters()
             local.camera_samples += rows.size
             direct = np.zeros((rows.size, 3))
+            clear = np.zeros(rows.size) if prep.scene.film_transparent else None
             points = trace_visible_points(prep, stream, pixel_filter, settings.max_bounces,
-                                          local, direct)
+                                          local, direct, settings.transparent_max_bounces,
+                                          clear)
             points.rows = points.rows + span[0]
-            return (direct, points), local
+            return (direct, points, clear), local
 
         def photon(span):
             t0 = time.perf_counter()
@@ -248,8 +264,10 @@ class SPPM(Integrator):
         photons = Photons.join(p for p, _ in lights)
         self.peak_bytes = max(self.peak_bytes, len(photons) * BYTES_PER_PHOTON)
         self.photons_stored += len(photons)
-        direct = np.concatenate([d for d, _ in cams]) if cams else np.zeros((0, 3))
-        return direct, join_points([p for _, p in cams]), photons
+        direct = np.concatenate([d for d, _, _ in cams]) if cams else np.zeros((0, 3))
+        clear = (np.concatenate([c for _, _, c in cams]) if cams and cams[0][2] is not None
+                 else None)
+        return direct, join_points([p for _, p, _ in cams]), photons, clear
 
     def _gather(self, points, photons, tree):
         """Flux ``phi (k, 3)`` (times the points' throughput) and photon counts ``m (k,)`` of

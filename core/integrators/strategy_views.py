@@ -24,6 +24,7 @@ class Tally:
         self.view_length = view_length  # 0: no strategy views
         self.camera_layers = {}
         self.splat_layers = {}
+        self.transparency = None  # Film > Transparent: see add_transparency
 
     def add(self, s, t, rows, value, weight):
         """Add strategy ``(s, t)``'s contributions to the camera samples ``rows``."""
@@ -35,6 +36,13 @@ class Tally:
                 if name not in layers:
                     layers[name] = np.zeros_like(self.image)
                 layers[name][rows] += v
+
+    def add_transparency(self, rows, amount):
+        """Add ``amount (k,)``, what of the camera samples ``rows (k,)`` reached a transparent
+        film's background, to their transparency (:attr:`.base.BatchOutput.transparency`)."""
+        if self.transparency is None:
+            self.transparency = np.zeros(self.image.shape[0])
+        np.add.at(self.transparency, rows, amount)
 
     def splat(self, s, xy, value, weight):
         """Add strategy ``(s, 1)``'s contributions at film positions ``xy``."""
@@ -53,4 +61,5 @@ class Tally:
                            Splats(splats.xy, np.maximum(splats.value, 0.0)), light_paths,
                            {name: np.where(np.isfinite(v), v, 0.0)
                             for name, v in self.camera_layers.items()},
-                           {name: Splats.join(parts) for name, parts in self.splat_layers.items()})
+                           {name: Splats.join(parts) for name, parts in self.splat_layers.items()},
+                           self.transparency)

@@ -9,6 +9,7 @@
 - :mod:`.kernels`: density-estimation kernels (uniform, cone, Epanechnikov), normalised in 2-D;
 - :mod:`.estimate`: radiance estimates from a photon map (k nearest or fixed radius);
 - :mod:`.visible`: camera paths through specular chains to the first non-specular surface;
+- :mod:`.passes`: photons and camera paths straight through transparent surfaces (no bounce);
 - :mod:`.compatible`: the surface-compatibility test of a lookup (a disk, not a ball);
 - :mod:`.coverage`: the share of a lookup disk on its surface (SPPM's edge correction);
 - :mod:`.adaptive`: SPPM's adaptive radius (nested disks per pixel, Lepski's rule).

@@ -9,6 +9,8 @@ is continued by Russian roulette *by albedo*: it survives with probability
 ``q = min(1, max(beta') / max(beta))`` and its power is divided by ``q``, so surviving photons
 keep roughly the power they had (Jensen's photon tracing) and the estimate stays unbiased.
 
+Transparent surfaces (Transparent BSDF, Principled Alpha, a Mix with a Transparent BSDF) are
+passed straight through, as light tracing's walks do: a pass is no hit (:mod:`.passes`).
 Every hit on a surface that is not purely specular (a delta BSDF cannot be density-estimated)
 is a stored photon: its position, the geometric normal of the surface it landed on, the
 direction back toward where it came from, its power, the number of the hit along the path (1:
@@ -38,6 +40,7 @@ from ..materials.frame import shading_frame, to_local, to_world
 from ..sampling.samplers import make_sampler
 from ..scene import VIS_SHADOW
 from .lookup import require_scipy
+from .passes import lobe_numbers, pass_walk
 
 # Sample dimensions of a photon: emitter choice, point 2-D, direction 2-D; then per hit the
 # BSDF lobe, the BSDF direction 2-D and Russian roulette.
@@ -126,9 +129,11 @@ def check_memory(photons, max_bounces, cap_mb):
             f"{cap_mb:,.0f} MB: lower Photons or Max Bounces, or raise Photon Memory")
 
 
-def trace_photons(prep, stream, max_bounces, counters, min_hit=1):
+def trace_photons(prep, stream, max_bounces, counters, min_hit=1,
+                  transparent=None):
     """Stage *photon tracing*: one photon per entry of ``stream``, stored at every
-    non-specular hit from hit ``min_hit`` up to ``max_bounces + 1`` hits.
+    non-specular hit from hit ``min_hit`` up to ``max_bounces + 1`` hits. Transparent
+    surfaces are passed straight through (not hits, :mod:`.passes`), up to ``transparent``.
 
     Parameters
     ----------
@@ -141,6 +146,9 @@ def trace_photons(prep, stream, max_bounces, counters, min_hit=1):
     min_hit : int
         First hit stored (2: leave out the photons straight from a light, which SPPM does not
         use: its direct light comes from next-event estimation).
+    transparent : int or None
+        The Transparent limit: a photon ends at its pass beyond it (None: the option's
+        default).
 
     Returns
     -------
@@ -157,7 +165,8 @@ def trace_photons(prep, stream, max_bounces, counters, min_hit=1):
     rows = np.nonzero(good & (max_component(np.where(good[:, None], beta, 0.0)) > 0))[0]
     o = _leave_emitters(prep, pts, origin, w, rows)
     stream.compact(rows)
-    return _walk(prep, stream, o, w[rows], beta[rows], max_bounces, counters, min_hit)
+    return _walk(prep, stream, o, w[rows], beta[rows], max_bounces, counters, min_hit,
+                 transparent)
 
 
 def _leave_emitters(prep, pts, origin, w, rows):
@@ -172,27 +181,37 @@ def _leave_emitters(prep, pts, origin, w, rows):
     return o
 
 
-def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
+def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit, transparent):
     """Scatter the photons of ``stream`` from ``o`` along ``d``; store every non-specular hit
-    from hit ``min_hit`` on. The stream is compacted as photons leave (so that later bounces
-    draw samples for the survivors only: the values do not change)."""
+    from hit ``min_hit`` on, passing transparent surfaces (up to ``transparent``) on the way.
+    The stream is compacted as photons leave (so that later bounces draw samples for the
+    survivors only: the values do not change)."""
     smooth = prep.scene.corner_normals is not None
     n = beta.shape[0]
     vis = np.full(n, VIS_SHADOW, np.int32)
     specular = np.zeros(n, bool)  # every bounce so far was specular (and one happened)
     unconnectable = np.ones(n, bool)  # no two non-specular neighbours so far (light: delta)
     last_rough = np.zeros(n, bool)  # the previous hit was not purely specular
+    walk = pass_walk(prep, transparent, counters, n)
     parts = []
     for hit in range(1, max_bounces + 2):
         if beta.shape[0] == 0:
             break
         hits = intersect_by_class(prep.accel, o, d, None, vis)
         counters.rays += beta.shape[0]
+        dim = DIMS_START + (hit - 1) * DIMS_PER_HIT
+        u_pass = None
+        if walk is not None:  # straight through transparent surfaces (no hits)
+            hits, beta, u_pass = walk.resolve(hit, np.arange(beta.shape[0]), o, d, None, hits,
+                                              beta, vis, stream, dim)
         live = surface_hits(prep, hits)
         si = surface_interaction(prep, hits, d, live)
         stream.compact(live)
-        stream.skip_to(DIMS_START + (hit - 1) * DIMS_PER_HIT)
+        if walk is not None:
+            walk.take(live)
+        stream.skip_to(dim)
         u_lobe, u_bsdf, u_rr = stream.next_1d(), stream.next_2d(), stream.next_1d()
+        u_lobe = lobe_numbers(u_lobe, u_pass, live)
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
         beta, specular = beta[live], specular[live]
@@ -218,6 +237,8 @@ def _walk(prep, stream, o, d, beta, max_bounces, counters, min_hit=1):
         alive = (smp.pdf > 0) & np.isfinite(new).all(axis=1) & (u_rr < q) & (q > 0)
         keep = np.nonzero(alive)[0]
         stream.compact(keep)
+        if walk is not None:
+            walk.take(keep)
         beta = new[keep] / q[keep, None]
         specular = np.where(hit == 1, smp.delta, specular & smp.delta)[keep]
         unconnectable, last_rough = unconnectable[keep], last_rough[keep]
@@ -312,7 +333,8 @@ def photon_chunk(prep, settings, sampler, pass_index, span, min_hit=1):
     ids = np.arange(*span, dtype=np.int64)
     local = Counters()
     stream = sampler.stream(ids, np.full(ids.size, pass_index, np.int64))
-    return trace_photons(prep, stream, settings.max_bounces, local, min_hit), local
+    return trace_photons(prep, stream, settings.max_bounces, local, min_hit,
+                         settings.transparent_max_bounces), local
 
 
 def trace_photon_chunks(prep, settings, sampler, n, pass_index, map_chunks, counters):

@@ -237,3 +237,48 @@ def test_non_finite_pixels_are_transparent_black(empty_scene, export):
     assert np.isfinite(opacity).all() and np.isfinite(color).all()
     assert opacity[0, 0] == 0.0 and opacity[1, 1] == 0.0
     np.testing.assert_array_equal(color[[0, 1], [0, 1]], 0.0)
+
+
+# Film > Transparent with every estimator that has camera paths (path tracing is checked in
+# test_cycles_light_paths.py): the scene of that test, a plane under a sun and a dim world with
+# the Alpha 0.5 leaf in front of part of the sky.
+FILM_SPP = {"LIGHT": 128, "BDPT": 128, "PHOTON": 128, "SPPM": 128}
+
+
+def test_transparent_film_alpha_of_the_other_estimators_agrees_with_cycles(empty_scene,
+                                                                           tmp_path):
+    """Our alpha (camera rays that escape, straight or through the leaf) against Cycles': the
+    image mean within 1 % and every 8 x 8 block mean within 0.03. The alpha is a mean of
+    per-sample transparencies in [0, 1] (here 0, 0.5 or 1 per sample): at 128 spp a block's
+    mean has a standard error under 0.5 / sqrt(128 x 64) = 0.0055 (Cycles' two runs of 256
+    spp less), so 0.03 is over 5 standard errors; a film left opaque (alpha 1) misses the
+    image mean by the sky's share of the view, the leaf ignored (alpha 0 or 1 behind it) its
+    blocks by 0.5. Sky pixels are dark in RGB (the world is not drawn) while the plane is lit.
+    Measured: alpha means 0.6290-0.6293 against Cycles' 0.6293-0.6294, worst blocks 0.002-0.003."""
+    from test_cycles_light_paths import RESOLUTION, add_leaf
+
+    scene = empty_scene
+    S.plane_under_sun(scene, RESOLUTION)
+    add_leaf(scene).location = (0.0, -1.0, 0.4)
+    scene.render.film_transparent = True
+    cycles = []
+    for run in range(2):
+        S.set_cycles_unbiased(scene, samples=256, seed=301 + run)
+        scene.render.film_transparent = True
+        cycles.append(S.render_to_exr(scene, tmp_path / f"cycles_{run}.exr")["Combined"][..., 3])
+    cycles_alpha = np.mean(cycles, axis=0)
+    assert 0.1 < cycles_alpha.mean() < 0.9  # sky, plane and leaf all in view
+    blocks = lambda a: a.reshape(4, 8, 4, 8).mean(axis=(1, 3))  # noqa: E731
+    for integrator, spp in FILM_SPP.items():
+        S.set_sampling_lab(scene, samples=spp, seed=11)
+        scene.sampling_lab.integrator = integrator
+        scene.sampling_lab.photons = 2000
+        ours = S.render_to_exr(scene, tmp_path / f"{integrator}.exr")["Combined"]
+        alpha = ours[..., 3]
+        print(f"{integrator}: alpha mean {alpha.mean():.4f}, Cycles {cycles_alpha.mean():.4f}; "
+              f"worst block {np.abs(blocks(alpha) - blocks(cycles_alpha)).max():.4f}")
+        assert abs(alpha.mean() - cycles_alpha.mean()) < 0.01 * cycles_alpha.mean(), integrator
+        assert np.abs(blocks(alpha) - blocks(cycles_alpha)).max() < 0.03, integrator
+        # The world (0.05, 0.07, 0.1) not drawn: sky pixels hold only light-path splats that
+        # the pixel filter spreads past the plane's edge (light tracing, BDPT).
+        assert ours[alpha == 0.0, :3].mean() < 0.005 and ours[alpha == 1.0, :3].min() > 0.0

@@ -137,8 +137,9 @@ def test_transparent_film_agrees_with_cycles_alpha(empty_scene, tmp_path):
     assert S.np.abs(blocks(ours_alpha) - blocks(cycles_alpha)).max() < 0.02
 
 
-@pytest.mark.parametrize("integrator", ['PATH', 'BDPT', 'RADIOSITY'])
-def test_film_panel_shows_transparent_active_for_path_tracing_only(empty_scene, integrator):
+@pytest.mark.parametrize("integrator", ['PATH', 'LIGHT', 'BDPT', 'PHOTON', 'SPPM', 'MLT',
+                                        'RADIOSITY'])
+def test_film_panel_shows_transparent_active_where_it_is_rendered(empty_scene, integrator):
     empty_scene.sampling_lab.integrator = integrator
     active = drawn_rows("SAMPLINGLAB_RENDER_PT_film", empty_scene)
-    assert active["film_transparent"] == (integrator == 'PATH')
+    assert active["film_transparent"] == (integrator not in ('MLT', 'RADIOSITY'))

@@ -34,6 +34,9 @@ def test_photon_rows_are_active_exactly_where_the_render_uses_them(empty_scene, 
         assert active[row] == (used[OPTION.get(row, row)] != "n/a"), row
     light = drawn_rows("SAMPLINGLAB_RENDER_PT_light_sampling", empty_scene)
     assert light["mis_heuristic"] == (used["mis_heuristic"] != "n/a")
+    # The Transparent limit: photons and camera paths pass transparent surfaces up to it.
+    paths = drawn_rows("SAMPLINGLAB_RENDER_PT_light_paths", empty_scene)
+    assert paths["transparent_max_bounces"] == (used["transparent_max_bounces"] != "n/a")
 
 
 def test_sppm_render_shows_every_pass_and_writes_a_finite_image(empty_scene, tmp_path,

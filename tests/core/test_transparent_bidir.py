@@ -90,11 +90,11 @@ def test_bdpt_lights_a_floor_through_the_sheet_the_sun_and_the_camera_look_throu
     assert half < 0.15 * closed
 
 
-def test_transparent_limit_is_used_by_light_tracing_and_bdpt():
-    for integrator in ("path", "light", "bdpt", "photon", "sppm"):
+def test_transparent_limit_is_used_by_light_tracing_bdpt_and_the_photon_estimators():
+    for integrator in ("path", "light", "bdpt", "photon", "sppm", "mlt", "radiosity"):
         used = used_settings(plain_settings(integrator=integrator, transparent_max_bounces=3))
-        assert (used["transparent_max_bounces"] == 3) == (integrator in ("path", "light",
-                                                                          "bdpt")), integrator
+        # MLT explores the path tracer's numbers (its settings); radiosity has no paths.
+        assert (used["transparent_max_bounces"] == 3) == (integrator != "radiosity"), integrator
 
 
 @pytest.mark.parametrize("integrator", ["light", "bdpt"])
