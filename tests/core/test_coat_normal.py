@@ -66,8 +66,8 @@ def test_coat_attenuates_the_base_by_the_cosine_with_its_own_normal():
     wo, wi = _directions(k, 2)
     p = coated(k)
     lobe = B.eval_bsdf(coated(k, color=0.0), wo, wi)
-    mu = np.clip(wo @ TILTED, 0.0, 1.0)
-    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, mu)
+    mu = wo @ TILTED  # negative below the coat normal: the albedo at grazing
+    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, mu, p.coat_alpha)
     expect = a * np.array(BASE) * (wi[:, 2] / np.pi)[:, None]
     np.testing.assert_allclose(B.eval_bsdf(p, wo, wi) - lobe, expect, rtol=1e-9, atol=1e-14)
 
@@ -205,3 +205,4 @@ def test_bdpt_shades_the_coat_around_its_own_normal():
 
 
 DETECT = (0.0075, 0.02)
+
