@@ -206,3 +206,34 @@ def test_bdpt_shades_the_coat_around_its_own_normal():
 
 DETECT = (0.0075, 0.02)
 
+
+def coated_bumped_vertex(k, coat_roughness=0.3):
+    """``k`` hits of a coated diffuse row on a plane (``ng`` = +Z) mapped 40 degrees toward +X,
+    with Bump Map Correction's smooth normal (+Z) and the coat on its own normal (+Z), both
+    stored in the mapped normal's frame, as the integrators store them
+    (:class:`.adjoint_normals.VertexNormals`)."""
+    from sampling_lab.core.integrators.adjoint_normals import VertexNormals
+
+    t = np.radians(40.0)
+    ng = np.tile([0.0, 0.0, 1.0], (k, 1))
+    nm = np.tile([np.sin(t), 0.0, np.cos(t)], (k, 1))
+    frame = shading_frame(nm)
+    p = coated(k, coat_roughness=coat_roughness, normal=None, coat_weight=0.9)
+    p = with_coat_normals(p, ng, frame)
+    p = dataclasses.replace(p, bump_normal=to_local(ng, *frame))
+    return VertexNormals(p, frame, ng, nm)
+
+
+@pytest.mark.parametrize("wl_z", [0.8, 0.25])
+def test_light_side_density_is_the_mixture_it_samples_on_coated_bumped_rows(wl_z):
+    """:meth:`VertexNormals.pdf_light` (BDPT's MIS reads it as the light side's density) is
+    the density :meth:`~VertexNormals.sample_importance` samples with on a coated, bump-mapped
+    row whose coat has its own normal, each frame with its own coat normal: the pdf of every
+    non-delta sample equals it (to rounding), and the sampled weights integrate the light
+    side's BSDF (:func:`tests.core.test_adjoint_normals.assert_light_samples_integrate`).
+    Before, its ``ng`` frame read the coat normal in the mapped normal's coordinates (a coat
+    tilted 40 degrees the wrong way there), and the pdfs differed (fails here)."""
+    from tests.core.test_adjoint_normals import assert_light_samples_integrate
+
+    rng = np.random.default_rng(int(wl_z * 100))
+    assert_light_samples_integrate(coated_bumped_vertex(100_000), _wo(wl_z, 0.3), rng)
