@@ -360,10 +360,11 @@ def test_coat_on_a_normal_mapped_sphere_agrees_with_cycles(empty_scene, tmp_path
     # blocks beyond their intervals (3.5 % above to 6.9 % below Cycles, upper-left silhouette,
     # where the view falls below the mapped coat normal) and unlinked 4 (at most 1.6 %).
     # Shading the coat around the mapped normal when Coat Normal is unlinked put blocks 35 %
-    # below to 29 % above Cycles'. Left: blocks (1, 2) and (2, 3) differ by +1.1 % and
-    # -0.7 % from Cycles with 8 x 256 Cycles spp against our 1024, with Coat Weight 0 as well
-    # (not the coat; see docs/SHADING_NORMALS.md); with other seeds that block was flagged
-    # once in 8 runs of this test (unlinked, +1.4 % against an interval of 1.2 %).
+    # below to 29 % above Cycles'. Left: blocks (1, 2) and (2, 3) differ by up to +1.3 % and
+    # -1.4 % from Cycles with 8 x 256 Cycles spp against our 1024, +1.1 % and -0.7 % with
+    # Coat Weight 0 (mostly not the coat; docs/SHADING_NORMALS.md); with other seeds block
+    # (1, 2) was flagged once in 8 runs of this test (unlinked, +1.4 % against an interval
+    # of 1.2 %).
     S.assert_ours_agree_with_cycles(ours, cycles, f"coated normal-mapped sphere ({coat_normal})")
 
 
