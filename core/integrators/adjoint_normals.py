@@ -244,6 +244,12 @@ class VertexNormals:
                                                     wl_l[rows], wc_l[rows], rows)
         return f
 
+    def _own_normals(self):
+        """Rows whose coat has a normal of its own: ``(k,)`` bool."""
+        if self.coat_world is None:
+            return np.zeros(self.q.size, bool)
+        return np.any(self.coat_world != 0.0, axis=1)
+
     def _adjoint_of_radiance(self, params, wl, wc, wl_l, wc_l, rows):
         """``f(wc, wl) |cos| |wc.ng| / |wl.ng|`` (the camera side's ``eval``, its own cosines)
         with the geometric-side rule, on ``rows``."""
@@ -290,13 +296,15 @@ class VertexNormals:
         return self._side(wl, wc, wl_l, wc_l, params) * veach
 
     def pdf_light(self, wl, wc):
-        """The light side's solid-angle density of sampling ``wc`` from ``wl``: the mixture."""
-        pm = pdf_bsdf(self.params, to_local(wl, *self.frame_m), to_local(wc, *self.frame_m))
+        """The light side's solid-angle density of sampling ``wc`` from ``wl``: the mixture
+        of :meth:`sample_importance`, each frame with its own bump and coat normals."""
+        frame, params = self._in(np.ones(self.q.size, bool))
+        pm = pdf_bsdf(params, to_local(wl, *frame), to_local(wc, *frame))
         rows = np.nonzero(self.q > 0)[0]
         if rows.size == 0:
             return pm
-        g = tuple(a[rows] for a in self.frame_g)
-        pg = pdf_bsdf(self.params.take(rows), to_local(wl[rows], *g), to_local(wc[rows], *g))
+        g, params_g = self.take(rows)._in(np.zeros(rows.size, bool))
+        pg = pdf_bsdf(params_g, to_local(wl[rows], *g), to_local(wc[rows], *g))
         out = pm.copy()
         out[rows] = (1.0 - self.q[rows]) * pm[rows] + self.q[rows] * pg
         return out
@@ -344,7 +352,8 @@ class VertexNormals:
     def _mixture_weights(self, wl, wc, smp, smooth, same, factor, use_g, weight, pdf):
         """Set ``weight`` and ``pdf`` of the non-delta samples ``smooth (k,)`` to ``f / mixture``
         and the mixture, in place: ``f`` is the sample's own ``eval`` (``weight x pdf``) where
-        it was drawn from the camera side's BSDF (``same``), else :meth:`f_importance`."""
+        it was drawn from the camera side's BSDF (``same``) with one normal for all its lobes,
+        else :meth:`f_importance` (a coat on its own normal has no single Veach factor)."""
         f = smp.weight * (smp.pdf * factor)[:, None]
         mix = smp.pdf.copy()  # rows of q = 0: one frame, drawn with chance one
         mixed = np.nonzero(smooth & (self.q > 0))[0]
@@ -356,7 +365,7 @@ class VertexNormals:
             q = self.q[mixed]
             mix[mixed] = np.where(use_g[mixed], q * smp.pdf[mixed] + (1.0 - q) * p_other,
                                   (1.0 - q) * smp.pdf[mixed] + q * p_other)
-        moved = np.nonzero(smooth & ~same)[0]
+        moved = np.nonzero(smooth & (~same | self._own_normals()))[0]
         if moved.size:
             f[moved] = self.take(moved).f_importance(wl[moved], wc[moved])
         rows = np.nonzero(smooth)[0]

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..materials.coat import coat_attenuation
+from ..materials.microfacet import alpha_from_roughness
 from ..sampling import warps
 from .area import area_point_pdf, cosine_from_faces, solid_angle_pdf
 from .base import LUMINANCE, LightFamily, batch_rows, dot
@@ -82,8 +83,8 @@ class EmissiveTriangles(LightFamily):
         emitter has a coat."""
         if self.emit_coat is None:
             return None
-        weight, eta, tint = (np.take(c, e, axis=0) for c in self.emit_coat)
-        return coat_attenuation(weight, eta, tint, cos)
+        weight, eta, tint, alpha = (np.take(c, e, axis=0) for c in self.emit_coat)
+        return coat_attenuation(weight, eta, tint, np.abs(cos), alpha)
 
     def hit_emission(self, prim, cos):
         """Radiance ``(j, 3)`` of emissive triangles ``prim (j,)`` seen at ``cos (j,)``."""
@@ -207,10 +208,11 @@ class EmissiveTriangles(LightFamily):
 
 
 def _emitter_coats(materials, rows):
-    """``(weight, eta, tint)`` of the Coat over each emitter's material row ``rows (e,)``, or
-    None when none is coated."""
+    """``(weight, eta, tint, alpha)`` of the Coat over each emitter's material row
+    ``rows (e,)``, or None when none is coated."""
     weight = np.asarray(materials.coat_weight, np.float64)[rows]
     if not np.any(weight > 0):
         return None
     return (weight, np.maximum(np.asarray(materials.coat_ior, np.float64)[rows], 1.0),
-            np.asarray(materials.coat_tint, np.float64)[rows])
+            np.asarray(materials.coat_tint, np.float64)[rows],
+            alpha_from_roughness(np.asarray(materials.coat_roughness, np.float64)[rows]))

@@ -4,17 +4,20 @@ Model (Cycles' Principled v2 closure layering, learnt from its ``svm_closure.h``
 ``bsdf_microfacet.h``; radiance mode)::
 
     f(wo, wi) = w f_coat(wo, wi) + A(mu_o) f_base(wo, wi)
-    A(mu)     = (1 - w F(mu, eta_c)) (1 - w + w tint^(1 / cos_t(mu))),
+    A(mu)     = (1 - w E(max(mu, 0))) (1 - w + w tint^(1 / cos_t(mu))),
     cos_t(mu) = sqrt(1 - (1 - mu^2) / eta_c^2)
 
 - ``w`` is the Coat Weight, ``f_coat`` single-scattering GGX reflection of alpha =
   Coat Roughness^2 with the exact dielectric Fresnel ``F(wo.h, eta_c)`` (Coat IOR) and no tint
   (Cycles' coat is plain GGX whatever the node's distribution).
-- The base is attenuated by the coat's albedo *as Cycles estimates it*: the smooth Fresnel
-  ``F(mu_o, eta_c)`` at the macro normal (Cycles' ``closure_layering_weight`` with the
-  ``bsdf_microfacet_estimate_albedo`` of a dielectric-Fresnel lobe), not by the rough coat's
-  true albedo. Rough coats therefore lose a little energy at grazing angles, exactly as in
-  Cycles.
+- The base is attenuated by the coat's albedo *as Cycles estimates it*: ``E(mu_o)``, the
+  directional albedo of the rough coat lobe with the exact dielectric Fresnel
+  (:func:`.layered.coat_albedo_lookup`; ``F(mu_o, eta_c)`` for a smooth coat), read at the
+  view's cosine with the coat's normal clamped to [0, 1] (Cycles 5.0's
+  ``closure_layering_weight`` with ``bsdf_microfacet_estimate_albedo``, which reads its
+  dielectric GGX albedo table ``ggx_gen_schlick_ior_s`` so; a view below the coat's normal
+  reads the grazing row). The smooth Fresnel used before made rough coats near grazing up to
+  40 % too opaque (``F = 0.75`` against ``E = 0.52`` at ``mu = 0.05``, roughness 0.2).
 - Coat Tint is an absorption of the base's light along the refracted path through a coat of
   unit thickness (Beer's law, ``tint`` at normal incidence), faded in with the weight.
 - The attenuation depends on ``wo`` only, so the BSDF is **not reciprocal**: importance mode
@@ -39,10 +42,10 @@ normal in the row's local frame, the ``"coatn"`` group of :class:`.bsdf.BSDFPara
 +Z) evaluates, samples and weighs the coat lobe, and the attenuation ``A`` of the layers
 below, around that normal: every direction is first expressed in a frame around it
 (:func:`coat_frame`). The row's side (``wo``'s side of the row's +Z) still decides which
-side the coat is on; a view below the coat normal on that side gets no coat lobe and
-``A(0)``, as Cycles clamps the cosine. Where :mod:`.lower_view` mirrored the view (a view
-below the row's normal but above the coat's), ``coat_flip`` rows give the coat the real
-view back.
+side the coat is on; a view below the coat normal on that side gets no coat lobe and the
+albedo of ``A`` at grazing, as Cycles clamps the cosine. Where :mod:`.lower_view` mirrored
+the view (a view below the row's normal but above the coat's), ``coat_flip`` rows give the
+coat the real view back.
 """
 
 from __future__ import annotations
@@ -113,18 +116,26 @@ def from_layer_frame(frame, side, w):
 
 
 def _coat_mu(p, wo, wi, mode=RADIANCE):
-    """Cosine ``(k,)`` in [0, 1] the attenuation is judged at: ``wo``'s (``wi``'s in
-    importance mode) with the coat normal, on the row's side of ``wo``."""
+    """Cosine ``(k,)`` the attenuation is judged at: ``wo``'s (``wi``'s in importance mode)
+    with the coat normal, on the row's side of ``wo``; negative where that direction lies below
+    a coat normal of its own (``|cos|`` on rows without one)."""
     w = layer_view(p, wo) if mode == RADIANCE else wi
     frame = coat_frame(p)
     if frame is None:
         return np.abs(w[:, 2])
     (w_,) = in_layer_frame(frame, side_of(wo), w)
-    return np.clip(w_[:, 2], 0.0, 1.0)
+    return np.clip(w_[:, 2], -1.0, 1.0)
 
 
-def coat_attenuation(weight, eta, tint, mu):
-    """``A(mu) (k, 3)``: what the coat leaves of the base's light seen at ``|cos| = mu``.
+def coat_attenuation(weight, eta, tint, mu, alpha):
+    """``A(mu) (k, 3)``: what the coat leaves of the base's light seen at cosine ``mu``.
+
+    ``A = (1 - w E(max(mu, 0))) (1 - w + w tint^(1 / cos_t(|mu|)))`` with ``E`` the rough
+    coat's directional albedo (:func:`.layered.coat_albedo_lookup`; the exact Fresnel for a
+    smooth coat): Cycles' ``closure_layering_weight`` of the coat's
+    ``bsdf_microfacet_estimate_albedo``, which reads its dielectric-Fresnel GGX albedo table at
+    the view's cosine clamped to [0, 1] (a view below the coat's normal reads the grazing row),
+    and its tint's path length from ``cos^2``.
 
     Parameters
     ----------
@@ -135,10 +146,14 @@ def coat_attenuation(weight, eta, tint, mu):
     tint : (k, 3) float
         Coat Tint (transmittance at normal incidence through the coat), >= 0.
     mu : (k,) float
-        Cosine of the direction the layering is judged from (``wo``; ``wi`` for the adjoint).
+        Cosine of the direction the layering is judged from (``wo``; ``wi`` for the adjoint)
+        with the coat's normal; negative below it.
+    alpha : (k,) float
+        The coat's GGX alpha (Coat Roughness squared).
     """
-    mu = np.clip(np.abs(mu), 0.0, 1.0)
-    reflected = np.clip(1.0 - weight * fresnel_dielectric(mu, eta), 0.0, 1.0)
+    mu = np.clip(mu, -1.0, 1.0)
+    albedo = coat_albedo_lookup(np.maximum(mu, 0.0), alpha, eta)
+    reflected = np.clip(1.0 - weight * albedo, 0.0, 1.0)
     cos_t = np.sqrt(np.maximum(1.0 - (1.0 - mu * mu) / (eta * eta), 0.0))
     # tint^(1 / cos_t); a black tint stays black, cos_t = 0 only for an IOR of one at grazing.
     depth = 1.0 / np.maximum(cos_t, 1e-6)
@@ -155,8 +170,8 @@ def _base_albedo_guess(p):
 def coat_probability(p, wo):
     """Probability ``(k,)`` with which :func:`sample_coated` samples the coat at ``wo``."""
     mu = _coat_mu(p, wo, wo)
-    s = p.coat_weight * coat_albedo_lookup(mu, p.coat_alpha, p.coat_eta)
-    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, mu)
+    s = p.coat_weight * coat_albedo_lookup(np.maximum(mu, 0.0), p.coat_alpha, p.coat_eta)
+    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, mu, p.coat_alpha)
     d = np.mean(a, axis=1) * _base_albedo_guess(p)
     total = s + d
     return np.where(total > 0.0, s / np.where(total > 0.0, total, 1.0), 0.5)
@@ -171,7 +186,8 @@ def _coat_lobe(p, wo, wi):
 
 def eval_coated(p, wo, wi, base_f, mode=RADIANCE):
     """``f cos_i (k, 3)`` of coated rows, given the base's ``base_f (k, 3)`` (same mode)."""
-    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, _coat_mu(p, wo, wi, mode))
+    a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint, _coat_mu(p, wo, wi, mode),
+                         p.coat_alpha)
     coat_f, _ = _coat_lobe(p, wo, wi)
     return a * base_f + coat_f[:, None]
 
@@ -221,11 +237,11 @@ def sample_coated(params, rows, wo, u_lobe, u, mode, sample_base, eval_fn, pdf_f
     w_c = f / np.where(pdf_c > 0.0, pdf_c, 1.0)[:, None]
     good = ok & (pdf_c > 0.0)
     # Delta samples: the coat's mirror (weight F / p), or the base's delta lobe scaled by A.
-    mu_c = _coat_mu(p, wo_c, wo_c)
+    mu_c = np.maximum(_coat_mu(p, wo_c, wo_c), 0.0)
     f_mirror = p.coat_weight * fresnel_dielectric(mu_c, p.coat_eta)
     w_mirror = (f_mirror / np.where(prob > 0.0, prob, 1.0))[:, None] * np.ones((1, 3))
     a = coat_attenuation(p.coat_weight, p.coat_eta, p.coat_tint,
-                         _coat_mu(p, wo_c, wi_c, mode))
+                         _coat_mu(p, wo_c, wi_c, mode), p.coat_alpha)
     rest = np.where(prob < 1.0, 1.0 - prob, 1.0)
     w_base = a * base.weight[rows] / rest[:, None]
     w_c = np.where(delta_coat[:, None], w_mirror, np.where(delta_base[:, None], w_base, w_c))

@@ -22,10 +22,11 @@ stay consistent. A Transparent BSDF (a smooth dielectric of index 1, which passe
 straight through whatever its normal, as Cycles' transparent closure) is left as it is.
 
 A Coat on such a row is a microfacet closure too: its lobe gives nothing, but it still
-attenuates what lies below it, by Cycles' estimate of its albedo and its tint at
-``|cos|`` (Cycles' dielectric Fresnel takes ``|cos_NI|``; the tint's path length depends on
-``cos^2``): the row's Lambert colour is multiplied by :func:`.coat.coat_attenuation` at the
-view's ``|cos|`` and its coat weight set to zero. A coat with its own normal (the smooth one
+attenuates what lies below it, by Cycles' estimate of its albedo (its table read at the
+cosine clamped to 0: the grazing albedo) and its tint at ``|cos|`` (the tint's path length
+depends on ``cos^2``): the row's Lambert colour is multiplied by
+:func:`.coat.coat_attenuation` at the real view's (negative) cosine with the coat's normal and
+its coat weight set to zero. A coat with its own normal (the smooth one
 under a normal map) that the real view lies above keeps its lobe and attenuation, judged at
 the real view (``coat_flip``, :mod:`.coat`), as Cycles' coat closure does. A Sheen keeps its lobe, as Cycles' does (its
 tables are read at ``cos = 0`` there, ours at the mirrored view's ``|cos|``, small near a
@@ -100,10 +101,21 @@ def _coat_below(params, wo, below):
         return params
     color = params.color.copy()
     color[rows] *= coat_attenuation(params.coat_weight[rows], params.coat_eta[rows],
-                                    params.coat_tint[rows], wo[rows, 2])
+                                    params.coat_tint[rows], _real_view_cos(params, wo, rows),
+                                    params.coat_alpha[rows])
     weight = params.coat_weight.copy()
     weight[rows] = 0.0
     return replace(params, color=color, coat_weight=weight)
+
+
+def _real_view_cos(params, wo, rows):
+    """Cosine ``(j,)`` of the real view (``wo`` mirrored back) with the coat's normal on
+    ``rows``: the row's +Z, or its own ``coat_normal`` where it has one; negative (the view
+    is below it), so :func:`.coat.coat_attenuation` reads its albedo at grazing."""
+    real = wo[rows] * np.array([1.0, 1.0, -1.0])
+    n = np.zeros((rows.size, 3)) if params.coat_normal is None else params.coat_normal[rows]
+    n = np.where(np.any(n != 0.0, axis=1)[:, None], n, np.array([0.0, 0.0, 1.0]))
+    return np.sum(real * n, axis=1)
 
 
 def _coat_sees_the_view(params, wo, below):

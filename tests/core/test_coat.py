@@ -130,16 +130,37 @@ def test_coat_of_weight_zero_is_the_base_exactly():
 
 
 def test_coat_attenuation_is_cycles_layering_and_tint():
+    smooth = np.full(1, 1e-8)  # a smooth coat: its albedo is the Fresnel term
     # Weight 1, IOR 1.5, tint 0.5 at normal incidence: (1 - F0) * 0.5, F0 = 0.04.
-    a = coat_attenuation(np.ones(1), np.full(1, 1.5), np.full((1, 3), 0.5), np.ones(1))
+    a = coat_attenuation(np.ones(1), np.full(1, 1.5), np.full((1, 3), 0.5), np.ones(1), smooth)
     np.testing.assert_allclose(a, 0.96 * 0.5, rtol=1e-12)
     # At 60 degrees the path through the coat is 1 / cos_t long; weight 0.5 fades both.
     mu, eta, w = 0.5, 1.5, 0.5
     cos_t = math.sqrt(1 - (1 - mu * mu) / eta**2)
     f = fresnel_dielectric(np.array([mu]), np.array([eta]))[0]
     expect = (1 - w * f) * (1 - w + w * 0.25 ** (1 / cos_t))
-    a = coat_attenuation(np.full(1, w), np.full(1, eta), np.full((1, 3), 0.25), np.full(1, mu))
+    a = coat_attenuation(np.full(1, w), np.full(1, eta), np.full((1, 3), 0.25), np.full(1, mu),
+                         smooth)
     np.testing.assert_allclose(a, expect, rtol=1e-12)
+
+
+@pytest.mark.parametrize("mu", [0.9, 0.3, 0.05, -0.2])
+def test_rough_coat_attenuates_by_its_albedo_at_the_clamped_cosine(mu):
+    """Cycles 5.0 attenuates the layers below a coat by ``1 - w E``, ``E`` the rough coat's
+    directional albedo with the exact Fresnel (its GGX table read at the view's cosine clamped
+    to [0, 1]; a view below the coat's normal reads the grazing row), the tint by the path
+    length at ``|mu|``. Checked against the albedo's quadrature (independent of our table,
+    within the table's interpolation error, 2e-3 here). The smooth Fresnel used before is
+    0.23 above ``E`` at ``mu = 0.05`` and 0.39 at ``mu <= 0`` (roughness 0.2): far outside."""
+    from sampling_lab.core.materials.layered import coat_albedo
+
+    w, eta, alpha = 0.8, 1.5, 0.2**2
+    tint = np.array([[0.9, 0.6, 0.4]])
+    e = coat_albedo(np.array([max(mu, 0.0)]), np.array([alpha]), np.array([eta]))[0]
+    cos_t = math.sqrt(1 - (1 - mu * mu) / eta**2)
+    expect = (1 - w * e) * (1 - w + w * tint[0] ** (1 / cos_t))
+    a = coat_attenuation(np.full(1, w), np.full(1, eta), tint, np.full(1, mu), np.full(1, alpha))
+    np.testing.assert_allclose(a[0], expect, atol=2e-3)
 
 
 @pytest.mark.parametrize("z", [0.9, 0.4, 0.05])

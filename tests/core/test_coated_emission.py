@@ -4,7 +4,8 @@ found by BSDF-sampled rays and sampled by next-event estimation alike."""
 import numpy as np
 import pytest
 
-from sampling_lab.core.materials.coat import coat_attenuation
+from sampling_lab.core.materials.coat import DEFAULT_COAT_ROUGHNESS, coat_attenuation
+from sampling_lab.core.materials.microfacet import alpha_from_roughness
 from sampling_lab.core.render import render
 from sampling_lab.core.scene import MAT_LAYERED, Camera, Lights, Materials, Scene
 from tests.helpers import assert_mean_within_ci, plain_settings
@@ -39,7 +40,8 @@ def test_lamp_seen_from_below_is_attenuated_by_the_coat():
     img = render(scene, plain_settings(spp=2, max_bounces=0, seed=1)).combined()[..., :3]
     mu = np.cos(np.radians(30))
     expect = EMISSION * coat_attenuation(np.array([0.9]), np.array([1.8]),
-                                         np.array([[0.4, 0.7, 1.0]]), np.array([mu]))[0]
+                                         np.array([[0.4, 0.7, 1.0]]), np.array([mu]),
+                                         alpha_from_roughness(DEFAULT_COAT_ROUGHNESS))[0]
     # Seen directly every sample is exact: the coat's attenuation at the view angle.
     np.testing.assert_allclose(img.reshape(-1, 3), np.tile(expect, (64, 1)), rtol=1e-5)
     assert expect[0] < 0.5 * EMISSION[0]  # the coat matters in this test

@@ -124,9 +124,9 @@ def test_coated_rows_seen_from_below_keep_only_the_coats_attenuation():
     f = B.eval_bsdf(q, wo2, wi)
     np.testing.assert_array_equal(f[0], 0.0)
     assert (B.eval_bsdf(p.take([0]), wo2[:1], wo2[:1] * [-1, -1, 1]) > 0).all()  # the lobe
-    mu = abs(wo[1, 2])
+    mu = wo[1, 2]  # the real view, below the coat's normal: its albedo read at grazing
     coat = coat_attenuation(p.coat_weight[1:2], p.coat_eta[1:2], p.coat_tint[1:2],
-                            np.array([mu]))[0]
+                            np.array([mu]), p.coat_alpha[1:2])[0]
     grazing = layered.specular_albedo(np.zeros(1), p.alpha[1:2], p.eta[1:2], p.tint[1:2])
     np.testing.assert_allclose(f[1], p.color[1] * (1 - grazing.max()) * coat * wi[1, 2]
                                / np.pi, rtol=1e-12)
