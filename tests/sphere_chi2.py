@@ -9,24 +9,24 @@ Method (after the chi-square tests of Mitsuba 3 and pbrt-v4, with cells that fol
   value, found over the *whole band* (a scan in theta and phi, the sampler's own directions as
   extra candidates, then a local zoom), not only on the plane of incidence: a sharp lobe
   anywhere (an anisotropic highlight, a tilted coat, a view at any azimuth) spans many cells.
-- **Expected counts.** The mass of every cell is an adaptive quadrature of the pdf: a 4 x 4
+- **Expected counts.** The mass of every cell is an adaptive cubature of the pdf: a 4 x 4
   Gauss-Legendre rule on a square, compared with the sum of the rule on its four quarters;
   squares whose two estimates differ by more than ``RTOL`` of their mass are split again, up
   to ``MAX_LEVEL`` times, unless their differences fit in an absolute budget of ``ATOL`` of
-  the sphere's total mass. The estimates are exact
-  for polynomials of degree 7 in each coordinate, so the error estimate is conservative on a
-  smooth pdf (not across a discontinuity that cuts cells, such as a tilted coat's horizon:
-  there it measured 2.8 times too small on a spherical cap, whose mass came out 7.8e-5 too
-  high, 8 of 1e5 samples spread over the rim's cells). Each cell keeps its error estimate, and the test refuses to run if the errors
-  could move the statistic, ``n sum(err^2 / mass)``, by more than ``MAX_QUAD_CHI2`` (an
-  unexpected kink or singularity that the cubature could not resolve): a chi-square value
-  of a few hundred dof does not notice that.
+  the sphere's total mass. The rule is exact for polynomials of degree 7 in each coordinate,
+  so the error estimate is conservative on a smooth pdf; across a discontinuity that cuts
+  cells (a tilted coat's horizon) it is not (on a spherical cap it measured 2.8 times too
+  small: the mass came out 7.8e-5 too high, 8 of 1e5 samples spread over the rim's cells).
+  Each cell keeps its error estimate, and the test refuses to run if the errors could move
+  the statistic, ``n sum(err^2 / mass)``, by more than ``MAX_QUAD_CHI2`` (a kink or
+  singularity the cubature could not resolve): a statistic of hundreds of dof does not notice
+  that much.
 - **Pooling.** Cells expected to hold fewer than 5 samples are pooled
   (:func:`tests.helpers.chi_square_counts`); a sample in a cell of probability zero fails.
 - **Significance.** Every chi-square test of the suite that uses this module gets
   ``ALPHA = SUITE_ALPHA / CHI_TESTS`` (Bonferroni): with at most ``CHI_TESTS`` such tests, a
   correct implementation fails any of them with probability below ``SUITE_ALPHA`` for a fresh
-  set of seeds.
+  set of seeds (about 170 tests use it today).
 
 Power: ``tests/core/test_chi2_power.py`` feeds the checker wrong samplers (a pdf off by a
 factor in one region, a lobe rotated slightly, a missing component, a slightly different
