@@ -421,6 +421,27 @@ def test_rough_albedo_matches_the_integral_of_eval_and_is_at_most_one(case):
         assert integral > 0.9
 
 
+@pytest.mark.parametrize("roughness", [0.6, 1.0])
+@pytest.mark.parametrize("z", [0.9, 0.2, -0.9, -0.2])
+def test_multiscatter_glass_flux_albedo_is_true_over_tabulated_albedo(roughness, z):
+    # Radiance mode divides the single-scattering lobe by the tabulated albedo of wo's side, so
+    # reflection plus transmission in flux terms (the refracted samples' 1 / etap^2 undone) is
+    # E(mu_o) / E_table(mu_o): one up to the table's interpolation, and exactly that ratio. A
+    # factor read from the other side's table would miss it by 14-85 % (measured). The
+    # quadrature of E errs by < 1e-3 (tests/core/test_rough_glass.py).
+    from sampling_lab.core.materials.glass_albedo import albedo_lookup, glass_albedo
+    ior, n = 1.45, 200_000
+    rng = np.random.default_rng(23)
+    s = Case(B.KIND_DIELECTRIC_MS, roughness, ior, z, phi=1.1).sample(rng.random(n),
+                                                                       rng.random((n, 2)))
+    side = ior if z > 0 else 1.0 / ior
+    flux = s.weight[:, 0] * np.where(s.wi[:, 2] * z < 0, side**2, 1.0)
+    args = np.array([abs(z)]), np.array([roughness**2]), np.array([side])
+    e_true, e_table = glass_albedo(*args, n=256)[0], albedo_lookup(*args)[0]
+    assert_mean_within_ci(flux, e_true / e_table, P_FALSE, atol=1e-3 / e_table,
+                          what=f"multiscatter glass flux albedo r{roughness} z{z}")
+
+
 @pytest.mark.parametrize("roughness", [0.0, 0.2, 1.0])
 @pytest.mark.parametrize("ior", [1.05, 1.5, 2.5])
 @pytest.mark.parametrize("z", [1.0, 0.2])
