@@ -107,8 +107,8 @@ def integrate_cells(density, res, rtol=RTOL, atol=None):
     then split in four until its estimate and its quarters' agree to ``rtol``, or until their
     differences fit in the absolute budget ``atol`` (by default ``ATOL`` of the total; each
     level may accept its smallest differences up to half of what is left), at most
-    ``MAX_LEVEL`` times. (Where the density has a kink across a square, the
-    estimate of the error is not a bound: a tighter ``rtol`` shrinks the error itself.)
+    ``MAX_LEVEL`` times. (Where the density jumps or kinks across a square, the error
+    estimate is not a bound: see the module docstring.)
 
     Returns
     -------
