@@ -76,6 +76,11 @@ def take_params(params, rows, lambert=False):
     return BSDFParams(**out)
 
 
+# Float columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth
+# shading only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone.
+_STORED = ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm")
+
+
 def _vertex_views(table, depth, n):
     """Per vertex ``j``, rows ``j * n .. (j + 1) * n`` of ``table`` as views."""
     return [table.take(slice(j * n, (j + 1) * n)) for j in range(depth)]
@@ -138,17 +143,23 @@ class Subpath:
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
-        allocation would page its memory in again for every batch."""
+        allocation would page its memory in again for every batch.
+
+        The columns that :func:`walk` writes whole at every vertex it makes (:data:`_STORED`,
+        the BSDF table) are reset at vertex 0 only: at vertices ``1..D-1`` they keep the last
+        batch's values where no vertex is (no reader looks there: they gather valid vertices
+        only; ``tests/core/test_subpath_tables.py`` fills them with NaN to check it). That
+        saves most of the reset's memory traffic."""
         for name, value in (("valid", False), ("prim", 0), ("connectible", False),
                             ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
                             ("d_prev", np.inf), ("cos_prev", 1.0), ("passed", 0)):
             getattr(self, name).fill(value)
-        for name in ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm"):
-            getattr(self, name).fill(0.0)
-        table = self.all_params
+        for name in _STORED:
+            getattr(self, name)[0].fill(0.0)
+        table, n = self.all_params, self.valid.shape[1]
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
                               (table.eta, 1.0), (table.tint, 0.0)):
-            column.fill(value)
+            column[:n].fill(value)
         if any(table.has(group) for group in OPTIONAL_GROUPS):
             # Back to the base columns, as empty() makes them: the next batch adds what it uses.
             self._set_table(BSDFParams(table.kind, table.color, table.alpha, table.eta,
@@ -467,11 +478,12 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
     for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("fs", frame[0]),
-                        ("ft", frame[1]), ("fn", frame[2]), ("wo", si.wo), ("wo_local", wo_l),
+                        ("ft", frame[1]), ("fn", frame[2]), ("wo_local", wo_l),
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
         put_rows(getattr(sub, name)[j], r, value)
-    if si.nm is not None:
-        sub.nm[j][r] = si.nm
+    if si.nm is not None:  # smooth shading (corner normals): what Gathered reads then
+        put_rows(sub.wo[j], r, si.wo)
+        put_rows(sub.nm[j], r, si.nm)
     sub.store_params(j, r, params)
     return dist
