@@ -69,10 +69,10 @@ class _Context:
         buffer for ``side`` (``"camera"`` or ``"light"``) if it has that shape."""
         sub = getattr(self.buffers, side, None)
         if sub is None or sub.valid.shape != (depth, n):
-            sub = Subpath.empty(depth, n)
+            sub = Subpath.empty(depth, n, not self.smooth, self.prep.lambert_only)
             setattr(self.buffers, side, sub)
             return sub
-        return sub.reset()
+        return sub.recycle()
 
 
 def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):

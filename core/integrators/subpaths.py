@@ -125,31 +125,54 @@ class Subpath:
     nm: np.ndarray = None
     passed: np.ndarray = None
 
+    # Set by empty(): whether fn is ng itself (flat shading: the frame's normal is the
+    # geometric normal, one column stored), and whether only Lambert BSDFs are stored (their
+    # alpha, eta and tint are not: every gather then stands constants in for them,
+    # take_params with lambert=True).
+    flat_frames: bool = False
+    lambert: bool = False
+
     @staticmethod
-    def empty(depth, n):
+    def empty(depth, n, flat_frames=False, lambert=False):
         """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
         views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
         is row ``j * n + i``, as in :meth:`flat`), with the base columns only: a group of
         optional columns (coat, sheen, ...) is added by :meth:`store_params` when a vertex
-        has it."""
+        has it. ``flat_frames``: the walk's frames are around the geometric normal (no
+        smooth shading), so ``fn`` is the same array as ``ng``; ``lambert``: every BSDF is
+        a plain diffuse one (``PreparedScene.lambert_only``), whose glossy columns are not
+        stored."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
         table = _empty_params(depth * n)
         params = _vertex_views(table, depth, n)
-        return Subpath(np.zeros((depth, n), bool), z3(), z3(), np.zeros((depth, n), np.int64),
-                       z3(), z3(), z3(), z3(), z3(), params,
+        ng = z3()
+        return Subpath(np.zeros((depth, n), bool), z3(), ng, np.zeros((depth, n), np.int64),
+                       z3(), z3(), ng if flat_frames else z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
-                       np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32))
+                       np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32),
+                       flat_frames, lambert)
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
-        allocation would page its memory in again for every batch.
+        allocation would page its memory in again for every batch."""
+        self.recycle()
+        for name in _STORED:
+            getattr(self, name)[1:].fill(0.0)
+        table, n = self.all_params, self.valid.shape[1]
+        for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
+                              (table.eta, 1.0), (table.tint, 0.0)):
+            column[n:].fill(value)
+        return self
 
-        The columns that :func:`walk` writes whole at every vertex it makes (:data:`_STORED`,
-        the BSDF table) are reset at vertex 0 only: at vertices ``1..D-1`` they keep the last
-        batch's values where no vertex is (no reader looks there: they gather valid vertices
-        only; ``tests/core/test_subpath_tables.py`` fills them with NaN to check it). That
-        saves most of the reset's memory traffic."""
+    def recycle(self):
+        """:meth:`reset` for the next batch's walk, at a fraction of its memory traffic: the
+        columns that say which vertices exist (``valid``, ``connectible``, ``delta``, the
+        densities, ...) and vertex 0 are reset; the columns that :func:`walk` writes whole
+        at every vertex it makes (:data:`_STORED`, the BSDF table) keep the last batch's
+        values at vertices ``1..D-1`` where no vertex is now. No reader looks there (they
+        gather valid vertices only; ``tests/core/test_subpath_tables.py`` fills them with NaN
+        to check it)."""
         for name, value in (("valid", False), ("prim", 0), ("connectible", False),
                             ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
                             ("d_prev", np.inf), ("cos_prev", 1.0), ("passed", 0)):
@@ -181,8 +204,10 @@ class Subpath:
         for group in OPTIONAL_GROUPS:
             if view.has(group) and not params.has(group):
                 params = params.with_neutral(group)
-        for dst, src in zip(view.columns(), params.columns()):
-            if dst is not None:
+        skip = _NOT_LAMBERT if self.lambert else ()
+        for name, src in vars(params).items():
+            dst = getattr(view, name)
+            if dst is not None and name not in skip:
                 put_rows(dst, rows, src)
 
     def _set_table(self, table):
@@ -478,10 +503,12 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
     for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("fs", frame[0]),
-                        ("ft", frame[1]), ("fn", frame[2]), ("wo_local", wo_l),
-                        ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
+                        ("ft", frame[1]), ("wo_local", wo_l), ("connectible", ~delta_only),
+                        ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
         put_rows(getattr(sub, name)[j], r, value)
+    if not sub.flat_frames:  # else fn is ng, stored above (the frame's normal is si.ng)
+        put_rows(sub.fn[j], r, frame[2])
     if si.nm is not None:  # smooth shading (corner normals): what Gathered reads then
         put_rows(sub.wo[j], r, si.wo)
         put_rows(sub.nm[j], r, si.nm)

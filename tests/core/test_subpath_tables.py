@@ -1,16 +1,17 @@
 """BDPT's subpath tables between batches (issue 12, sixth round: the walks).
 
-A worker thread reuses its subpath tables from one chunk to the next; the reset clears the
-columns that decide which vertices exist (``valid``, ``connectible``, ``delta``, the
-densities) but leaves the columns that the walk writes whole at every vertex it makes
+A worker thread reuses its subpath tables from one chunk to the next; ``Subpath.recycle``
+clears the columns that decide which vertices exist (``valid``, ``connectible``, ``delta``,
+the densities) but leaves the columns that the walk writes whole at every vertex it makes
 (position, normals, frame, directions, throughput, BSDF table) at vertices ``1..D-1`` as the
-last chunk left them.
+last chunk left them. In a flat-shaded scene ``fn`` is ``ng``; in a Lambert-only one the
+glossy BSDF columns are never stored.
 
-Property: no reader looks at those stale entries. Each reset here fills them with NaN (and the
-BSDF kinds with an unknown code, which every BSDF call refuses); the BDPT passes (combined,
-variance and the strategy layers) must equal, bit for bit, those of the plain reset, over
-several chunks per thread, on a diffuse scene, a smooth-shaded rough coated ball (the
-smooth-only columns) and a scene with coat, sheen and anisotropy groups.
+Property: no reader looks at those stale or unstored entries. Each recycle here fills them
+with NaN (and the BSDF kinds with an unknown code, which every BSDF call refuses); the BDPT
+passes (combined, variance and the strategy layers) must equal, bit for bit, those of the
+plain recycle, over several chunks per thread, on a diffuse scene, a smooth-shaded rough
+coated ball (the smooth-only columns) and a scene with coat, sheen and anisotropy groups.
 
 Smallest error detected: any read of a stale entry that reaches the film (a NaN or an error
 where there was a number), and any other difference at all.
@@ -44,7 +45,7 @@ def _layered():
 
 
 def _passes(scene):
-    # 24 x 24 x 64 = 36,864 paths: three chunks on the one thread, so two resets of reused tables.
+    # 24 x 24 x 64 = 36,864 paths: three chunks on the one thread, so two recycles of each side's tables.
     settings = plain_settings(integrator="bdpt", spp=64, seed=5, threads=1, max_bounces=5,
                               strategy_views=True, strategy_max_length=3)
     result = render(scene, settings)
@@ -53,10 +54,10 @@ def _passes(scene):
 
 
 def _poisoning(monkeypatch, calls):
-    reset = subpaths.Subpath.reset
+    recycle = subpaths.Subpath.recycle
 
-    def reset_then_poison(self):
-        out = reset(self)
+    def recycle_then_poison(self):
+        out = recycle(self)
         calls.append(1)
         for name in subpaths._STORED:
             getattr(out, name)[1:].fill(np.nan)
@@ -66,12 +67,12 @@ def _poisoning(monkeypatch, calls):
             column[n:] = np.nan
         return out
 
-    monkeypatch.setattr(subpaths.Subpath, "reset", reset_then_poison)
+    monkeypatch.setattr(subpaths.Subpath, "recycle", recycle_then_poison)
 
 
 @pytest.mark.parametrize("make_scene", [_diffuse, _smooth_coat, _layered],
                          ids=["diffuse", "smooth coat", "coat sheen aniso"])
-def test_bdpt_never_reads_the_entries_a_reset_leaves(make_scene, monkeypatch):
+def test_bdpt_never_reads_the_entries_a_recycle_leaves(make_scene, monkeypatch):
     plain = _passes(make_scene())
     calls = []
     with monkeypatch.context() as m:
