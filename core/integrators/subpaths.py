@@ -443,6 +443,11 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
             break
+        if keep.size == alive.size:  # every path goes on: no compaction (same arrays)
+            rows, d, o = r, wi, prep.accel.offset_origin(si.p, si.ng, si.prim, wi)
+            pdf_prev, prev_delta, vis = smp.pdf, smp.delta, ray_class(smp.lobe)
+            tmax = np.full(keep.size, np.inf)
+            continue
         rows = r[keep]
         rr_scale = rr_scale[keep]
         if passes is not None:
