@@ -146,7 +146,7 @@ class Subpath:
         table = _empty_params(depth * n)
         params = _vertex_views(table, depth, n)
         ng = z3()
-        return Subpath(np.zeros((depth, n), bool), z3(), ng, np.zeros((depth, n), np.int64),
+        return Subpath(np.zeros((depth, n), bool), z3(), ng, np.zeros((depth, n), np.int32),
                        z3(), z3(), ng if flat_frames else z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
