@@ -61,12 +61,19 @@ def _diffuse_pdf(p, wo, wi):
 def _diffuse_sample(p, wo, u_lobe, u, mode):
     # Cosine-weighted directions around (0, 0, side): the hemisphere sample with its y and z
     # mirrored below the surface, as :func:`.lambert.sample_lambert`'s frame around -Z maps it.
+    # (Column by column and without np.where when every pdf is positive: NumPy's broadcasts
+    # of (k, 1) against (k, 3) cost several times the plain operations.)
     wi = sample_cosine_hemisphere(u)
     pdf = cosine_hemisphere_pdf(wi[:, 2])
-    wi[:, 1:] *= _diffuse_side(wo)[:, None]
-    ok = (pdf > 0.0)[:, None]
-    return (np.where(ok, wi, 0.0), np.where(ok, p.color, 0.0), pdf,
-            np.zeros(wo.shape[0], bool))
+    side = _diffuse_side(wo)
+    wi[:, 1] *= side
+    wi[:, 2] *= side
+    weight = p.color.copy()
+    bad = ~(pdf > 0.0)
+    if bad.any():
+        wi[bad] = 0.0
+        weight[bad] = 0.0
+    return wi, weight, pdf, np.zeros(wo.shape[0], bool)
 
 
 def _diffuse_kind(p, wo, u_lobe, delta):
