@@ -26,7 +26,7 @@ from .camera_hits import camera_emission
 from .common import camera_rays, finite_rows, max_component, strategy_pass_names
 from .connections import camera_splatter, connect_camera
 from .strategy_views import Tally
-from .subpaths import Subpath, walk
+from .subpaths import Subpath, triangle_frames, walk
 
 # Paths per chunk: keeps the subpath arrays (depth x paths) small.
 CHUNK = 8192
@@ -63,6 +63,7 @@ class _Context:
         # (:class:`.transparent_passes.Passes`; None while every surface is opaque).
         self.vertex_passes = None
         self.buffers = integrator.buffers
+        self.triangle_frames = integrator.triangle_frames
 
     def subpath(self, side, depth, n):
         """An empty :class:`Subpath` of ``depth`` vertices for ``n`` samples: this thread's
@@ -178,6 +179,8 @@ class Bidirectional(Integrator):
                             (self.window[2] - self.window[0]) * (self.window[3] - self.window[1]))
         # Each worker thread's subpath arrays, reused from one chunk to the next.
         self.buffers = threading.local()
+        # The walks' shading frames of flat triangles (None with smooth shading or tangents).
+        self.triangle_frames = triangle_frames(prep)
 
     def camera_depth(self, depth):
         """Vertices of the camera subpaths when light subpaths have ``depth``."""

@@ -333,6 +333,19 @@ class Gathered:
         return pdf_bsdf(self.params, w_l, self.wo_l)
 
 
+def triangle_frames(prep):
+    """Per triangle, the tangents ``(s, t)`` (two ``(T, 3)`` arrays) of the shading frame
+    :func:`.frame.shading_frame` makes around its geometric normal: what the walk's frames
+    are under flat shading without anisotropic tangents, gathered per hit instead of made
+    per hit (the same values: the frame is a row-wise function of the normal). None under
+    smooth shading or with tangents, where the frame depends on the hit point."""
+    scene = prep.scene
+    if scene.corner_normals is not None or scene.aniso_tangents is not None:
+        return None
+    fs, ft, _ = shading_frame(prep.tri_normal)
+    return fs, ft
+
+
 def to_area(pdf_sa, cos_at, dist):
     """Solid-angle density -> area density at a point ``dist`` away (cosine ``cos_at`` there);
     unchanged toward infinite endpoints (``dist = inf``)."""
@@ -408,6 +421,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         if ctx.smooth:
             front = np.where(dot(si.ns, si.ng) < 0, -1.0, 1.0)
             fs, ft, fn = shading_frame(si.ns * front[:, None], tangent)
+        elif ctx.triangle_frames is not None:  # the hit triangles' own frames, made once
+            fs, ft, fn = (take_rows(ctx.triangle_frames[0], si.prim),
+                          take_rows(ctx.triangle_frames[1], si.prim), si.ng)
         else:
             fs, ft, fn = shading_frame(si.ng, tangent)
         wo_l = to_local(si.wo, fs, ft, fn)
