@@ -91,6 +91,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..rows import put_rows
 from . import bump_correction, coat, dielectric, sheen
 from .coat import DEFAULT_COAT_IOR, DEFAULT_COAT_ROUGHNESS, coat_rows
 from .dielectric import IMPORTANCE, RADIANCE, TRANSPORT_MODES, _check_mode, is_smooth_dielectric
@@ -627,9 +628,12 @@ def _sample_bases(params, wo, u_lobe, u, mode):
             kind_bits = label(params, wo, u_lobe, delta)
         else:
             p = _kind_rows(params, kind, rows)
-            wi[rows], weight[rows], pdf[rows], delta[rows] = sample(p, wo[rows], u_lobe[rows],
-                                                                    u[rows], mode)
-            kind_bits[rows] = label(p, wo[rows], u_lobe[rows], delta[rows])
+            wo_k, u_lobe_k = np.take(wo, rows, axis=0), u_lobe[rows]
+            wi_k, weight_k, pdf[rows], delta[rows] = sample(p, wo_k, u_lobe_k,
+                                                            np.take(u, rows, axis=0), mode)
+            put_rows(wi, rows, wi_k)
+            put_rows(weight, rows, weight_k)
+            kind_bits[rows] = label(p, wo_k, u_lobe_k, delta[rows])
     side = np.where(crosses_surface(params, wo, wi), LOBE_TRANSMIT,
                     LOBE_REFLECT).astype(np.uint8)
     lobe = np.where(pdf > 0.0, side | kind_bits, 0).astype(np.uint8)
