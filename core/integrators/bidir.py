@@ -23,7 +23,7 @@ from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .camera_hits import camera_emission
-from .common import camera_rays, finite_rows, max_component, strategy_pass_names
+from .common import camera_rays, finite_rows, max_component, strategy_pass_names, take_rows
 from .connections import camera_splatter, connect_camera
 from .strategy_views import Tally
 from .subpaths import Subpath, triangle_frames, walk
@@ -92,7 +92,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     ctx.light_points = pts
     if L is not None:
         L.valid[0] = pts.index >= 0
-        L.p[0] = np.where(pts.infinite[:, None], origin, pts.p)
+        L.p[0] = np.where(pts.infinite[:, None], origin, pts.p) if pts.infinite.any() else pts.p
         L.ng[0] = pts.normal
         L.pdf_fwd[0] = pts.pdf_origin
         L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
@@ -101,18 +101,19 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
         beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & finite_rows(beta)
     rows = np.nonzero(good)[0]
-    rows = rows[max_component(beta[rows]) > 0]
+    rows = rows[max_component(take_rows(beta, rows)) > 0]
     if depth < 2 or rows.size == 0:
         return L
     # Rays leave lamps (not geometry) from the point itself, emissive triangles pushed off.
-    o = origin[rows]
+    o, w = take_rows(origin, rows), take_rows(w, rows)
     k = prep.lights.n_lights
     tri = np.nonzero((pts.index[rows] >= k) & ~pts.infinite[rows])[0]
     if tri.size:
         prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
-        o[tri] = prep.accel.offset_origin(o[tri], pts.normal[rows][tri], prim, w[rows][tri])
-    walk(ctx, L if on_vertex is None else None, o, w[rows], np.full(rows.size, np.inf),
-         beta[rows], pdf_dir[rows], np.zeros(rows.size, bool),
+        o[tri] = prep.accel.offset_origin(take_rows(o, tri), take_rows(pts.normal, rows[tri]),
+                                          prim, take_rows(w, tri))
+    walk(ctx, L if on_vertex is None else None, o, w, np.full(rows.size, np.inf),
+         take_rows(beta, rows), pdf_dir[rows], np.zeros(rows.size, bool),
          np.full(rows.size, VIS_SHADOW, np.int32), rows, stream, IMPORTANCE,
          lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX, depth,
          on_vertex=on_vertex)

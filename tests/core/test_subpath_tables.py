@@ -45,7 +45,7 @@ def _layered():
 
 
 def _passes(scene):
-    # 24 x 24 x 64 = 36,864 paths: three chunks on the one thread, so two recycles of each side's tables.
+    # 24 x 24 x 64 = 36,864 paths: three chunks on the one thread (two recycles per side).
     settings = plain_settings(integrator="bdpt", spp=64, seed=5, threads=1, max_bounces=5,
                               strategy_views=True, strategy_max_length=3)
     result = render(scene, settings)
