@@ -435,9 +435,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
                                          bends_normals(prep.scene, si.prim) if ctx.smooth
                                          else None)
         if sub is not None:
-            back = to_area(back, sub.cos_prev[j, r], dist)
-            sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
-            sub.delta[j, r] = smp.delta
+            back = to_area(back, sub.cos_prev[j][r], dist)
+            sub.pdf_rev[j - 1][r] = np.where(smp.delta, 1.0, back)
+            sub.delta[j][r] = smp.delta
         beta = beta * weight
         alive = (smp.pdf > 0) & finite_rows(beta)
         rr_scale = rr_scale[live]
@@ -499,11 +499,11 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     # alone after an infinite endpoint, whose rays are parallel).
     if j == 1:
         dist = np.linalg.norm(si.p - take_rows(sub.p[0], r), axis=1)
-        dist = np.where(np.isfinite(sub.d_prev[0, r]), dist, np.inf)
-        sub.cos_prev[j, r] = sub.cos_prev[0, r]
+        dist = np.where(np.isfinite(sub.d_prev[0][r]), dist, np.inf)
+        sub.cos_prev[j][r] = sub.cos_prev[0][r]
     else:
         dist = hits.t[live]
-        sub.cos_prev[j, r] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
+        sub.cos_prev[j][r] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
     cos_here = np.abs(dot(si.ng, si.wo))
     fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
                    to_area(pdf_prev[live], cos_here, dist))
