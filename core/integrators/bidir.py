@@ -70,7 +70,8 @@ class _Context:
         buffer for ``side`` (``"camera"`` or ``"light"``) if it has that shape."""
         sub = getattr(self.buffers, side, None)
         if sub is None or sub.valid.shape != (depth, n):
-            sub = Subpath.empty(depth, n, not self.smooth, self.prep.lambert_only)
+            sub = Subpath.empty(depth, n, not self.smooth, self.prep.lambert_only,
+                                self.triangle_frames)
             setattr(self.buffers, side, sub)
             return sub
         return sub.recycle()

@@ -114,12 +114,14 @@ class Subpath:
     # Set by empty(): whether fn is ng itself (flat shading: the frame's normal is the
     # geometric normal, one column stored), and whether only Lambert BSDFs are stored (their
     # alpha, eta and tint are not: every gather then stands constants in for them,
-    # take_params with lambert=True).
+    # take_params with lambert=True). tri_frames: the walk's frames are each hit triangle's
+    # own (triangle_frames; fs and ft are then not stored but gathered by prim).
     flat_frames: bool = False
     lambert: bool = False
+    tri_frames: tuple = None
 
     @staticmethod
-    def empty(depth, n, flat_frames=False, lambert=False):
+    def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None):
         """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
         views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
         is row ``j * n + i``, as in :meth:`flat`), with the base columns only: a group of
@@ -127,7 +129,8 @@ class Subpath:
         has it. ``flat_frames``: the walk's frames are around the geometric normal (no
         smooth shading), so ``fn`` is the same array as ``ng``; ``lambert``: every BSDF is
         a plain diffuse one (``PreparedScene.lambert_only``), whose glossy columns are not
-        stored."""
+        stored; ``tri_frames``: :func:`triangle_frames` when the walk uses them (``fs`` and
+        ``ft`` are then not stored: :class:`Gathered` gathers them by triangle)."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
         table = _empty_params(depth * n)
         params = _vertex_views(table, depth, n)
@@ -137,7 +140,7 @@ class Subpath:
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
                        np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32),
-                       flat_frames, lambert)
+                       flat_frames, lambert, tri_frames)
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
@@ -208,6 +211,18 @@ class Subpath:
         return a.reshape((-1,) + a.shape[2:])
 
 
+def _gather_frames(sub, column, ng):
+    """The shading frames ``(fs, ft, fn)`` of some vertices of ``sub``: ``column(name)``
+    gathers a stored column for them, ``ng`` is their gathered geometric normal (the frames'
+    normal under flat shading). The same values as gathering ``fs, ft, fn`` themselves."""
+    if sub.tri_frames is not None:  # not stored: each vertex's triangle's frame
+        prim = column("prim")
+        fs, ft = (take_rows(a, prim) for a in sub.tri_frames)
+    else:
+        fs, ft = column("fs"), column("ft")
+    return fs, ft, ng if sub.flat_frames else column("fn")
+
+
 class Gathered:
     """Vertex ``j`` of a subpath for the rows of one connection: what evaluating its BSDF
     needs, gathered once (parameters, shading frame, incoming direction)."""
@@ -215,10 +230,10 @@ class Gathered:
     def __init__(self, ctx, sub, j, rows, mode):
         self.smooth, self.mode, self.lambert = ctx.smooth, mode, ctx.prep.lambert_only
         self.params = take_params(sub.params[j], rows, self.lambert)
-        self.fs, self.ft, self.fn = (take_rows(sub.fs[j], rows), take_rows(sub.ft[j], rows),
-                                     take_rows(sub.fn[j], rows))
         self.wo = take_rows(sub.wo[j], rows) if ctx.smooth else None
         self.wo_l, self.ng = take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows)
+        self.fs, self.ft, self.fn = _gather_frames(
+            sub, lambda name: take_rows(getattr(sub, name)[j], rows), self.ng)
         self.nm = take_rows(sub.nm[j], rows) if self.smooth else None
         self.bends = (bends_normals(ctx.prep.scene, take_rows(sub.prim[j], rows))
                       if self.smooth else None)
@@ -229,11 +244,11 @@ class Gathered:
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`Subpath.flat` (each any vertex
         of any subpath), gathered once."""
         lambert = ctx.prep.lambert_only
+        ng = take_rows(sub.flat("ng"), index)
         return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index, lambert),
-                           [take_rows(sub.flat(a), index) for a in ("fs", "ft", "fn")],
+                           _gather_frames(sub, lambda name: take_rows(sub.flat(name), index), ng),
                            take_rows(sub.flat("wo"), index) if ctx.smooth else None,
-                           take_rows(sub.flat("wo_local"), index),
-                           take_rows(sub.flat("ng"), index),
+                           take_rows(sub.flat("wo_local"), index), ng,
                            take_rows(sub.flat("nm"), index) if ctx.smooth else None, lambert,
                            bends_normals(ctx.prep.scene, take_rows(sub.flat("prim"), index))
                            if ctx.smooth else None)
@@ -509,11 +524,13 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
                    to_area(pdf_prev[live], cos_here, dist))
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
-    for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("fs", frame[0]),
-                        ("ft", frame[1]), ("wo_local", wo_l), ("connectible", ~delta_only),
-                        ("beta", beta), ("d_prev", dist),
+    for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("wo_local", wo_l),
+                        ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
         put_rows(getattr(sub, name)[j], r, value)
+    if sub.tri_frames is None:  # else gathered by prim (_gather_frames)
+        put_rows(sub.fs[j], r, frame[0])
+        put_rows(sub.ft[j], r, frame[1])
     if not sub.flat_frames:  # else fn is ng, stored above (the frame's normal is si.ng)
         put_rows(sub.fn[j], r, frame[2])
     if si.nm is not None:  # smooth shading (corner normals): what Gathered reads then

@@ -4,8 +4,9 @@ A worker thread reuses its subpath tables from one chunk to the next; ``Subpath.
 clears the columns that decide which vertices exist (``valid``, ``connectible``, ``delta``,
 the densities) but leaves the columns that the walk writes whole at every vertex it makes
 (position, normals, frame, directions, throughput, BSDF table) at vertices ``1..D-1`` as the
-last chunk left them. In a flat-shaded scene ``fn`` is ``ng``; in a Lambert-only one the
-glossy BSDF columns are never stored.
+last chunk left them. In a flat-shaded scene ``fn`` is ``ng`` (and without anisotropic
+tangents ``fs`` and ``ft`` are never stored, but gathered from each triangle's frame); in a
+Lambert-only one the glossy BSDF columns are never stored.
 
 Property: no reader looks at those stale or unstored entries. Each recycle here fills them
 with NaN (and the BSDF kinds with an unknown code, which every BSDF call refuses); the BDPT
