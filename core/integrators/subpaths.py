@@ -385,6 +385,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     rr_scale = np.where(start > 0, 1.0 / np.where(start > 0, start, 1.0), 1.0)
     last = depth + int(on_segment is not None)
     passes = Passes(rows.size) if has_passes(prep) else None
+    # Plain diffuse BSDFs under flat shading choose no lobe, component or pass: the lobe's
+    # number is not drawn (its dimension is skipped, as the path tracer skips it).
+    draws_lobe = not (prep.lambert_only and not ctx.smooth and passes is None)
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         ctx.counters.rays += o.shape[0]
@@ -411,7 +414,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         else:
             path_stream.compact(live)
         path_stream.skip_to(dims_of(j))
-        u_lobe = path_stream.next_1d()
+        u_lobe = next_1d_if(path_stream, draws_lobe)
+        if u_lobe is None:
+            u_lobe = np.zeros(r.size)
         if u_pass is not None:  # the number left after the choices of the passes
             u_lobe = np.where(np.isnan(u_pass[live]), u_lobe, u_pass[live])
         u_bsdf = path_stream.next_2d()
