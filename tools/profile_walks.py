@@ -2,7 +2,8 @@
 
 Calls BDPT's camera and light subpath stages (``bidir._camera_subpath``,
 ``bidir._light_subpath``) directly on this thread, work unit by work unit (BDPT's own unit
-size; independent sampler, power light selection, 8 bounces), with exclusive thread-CPU timers
+size; independent sampler unless ``--sampler`` says otherwise, power light selection, 8
+bounces), with exclusive thread-CPU timers
 (:mod:`stage_timer`) around the stages of :func:`core.integrators.subpaths.walk`, and prints
 thread CPU nanoseconds per camera sample per stage, best of ``--repeats`` (the run with the
 smallest total; the stages are that run's). The path tracer's ``render_samples`` is timed the
@@ -99,10 +100,10 @@ def _setup(args, name):
 
     scene = load_scene(args.scene, args.width, args.height)
     settings = RenderSettings(integrator=name, spp=4, threads=1, seed=0,
-                              sampler="independent", light_selection="power",
+                              sampler=args.sampler, light_selection="power",
                               **_bounces(RenderSettings, 8))
     integ = integrator_class(name)(prepare(scene, "power"), settings)
-    sampler = make_sampler("independent", seed=0, spp=4, width=args.width)
+    sampler = make_sampler(args.sampler, seed=0, spp=4, width=args.width)
     pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
     w, h = args.width, args.height
 
@@ -175,6 +176,8 @@ def main(argv=None):
     parser.add_argument("--units", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-path", action="store_true", help="the walks only")
+    parser.add_argument("--sampler", default="independent",
+                        help="independent (default) or a render's sobol")
     args = parser.parse_args(argv)
     print(f"load average at start: {os.getloadavg()}")
     if not args.no_path:
