@@ -85,8 +85,8 @@ def eval_conductor(f0, alpha, wo, wi, multiscatter=False, mode=RADIANCE):
     (k, 3) float64
     """
     smooth = mf.is_smooth(alpha)
-    if smooth.all():  # perfect mirrors only: no density off the delta lobe
-        return np.zeros(wo.shape[0])
+    if smooth.all():  # perfect mirrors only: nothing off the delta lobe
+        return np.zeros((wo.shape[0], 3))
     side = side_of(wo)
     wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
     co, ci = wo_[:, 2], wi_[:, 2]
