@@ -26,7 +26,8 @@ from .camera_hits import camera_emission
 from .common import camera_rays, finite_rows, max_component, strategy_pass_names, take_rows
 from .connections import camera_splatter, connect_camera
 from .strategy_views import Tally
-from .subpaths import Subpath, triangle_frames, walk
+from .subpaths import Subpath, walk
+from .vertex_frames import triangle_frames
 
 # Paths per chunk: keeps the subpath arrays (depth x paths) small.
 CHUNK = 8192

@@ -24,6 +24,7 @@ from .common import (bends_normals, coat_normals_in_front, finite_rows, intersec
                      shading_tangents, surface_hits, surface_interaction, take_rows,
                      with_bump_normals, with_coat_normals)
 from .transparent_passes import Passes, has_passes
+from .vertex_frames import gather_frames
 
 
 def dot(a, b):
@@ -115,7 +116,7 @@ class Subpath:
     # geometric normal, one column stored), and whether only Lambert BSDFs are stored (their
     # alpha, eta and tint are not: every gather then stands constants in for them,
     # take_params with lambert=True). tri_frames: the walk's frames are each hit triangle's
-    # own (triangle_frames; fs and ft are then not stored but gathered by prim).
+    # own (vertex_frames.triangle_frames; fs and ft are then not stored but gathered by prim).
     flat_frames: bool = False
     lambert: bool = False
     tri_frames: tuple = None
@@ -129,8 +130,9 @@ class Subpath:
         has it. ``flat_frames``: the walk's frames are around the geometric normal (no
         smooth shading), so ``fn`` is the same array as ``ng``; ``lambert``: every BSDF is
         a plain diffuse one (``PreparedScene.lambert_only``), whose glossy columns are not
-        stored; ``tri_frames``: :func:`triangle_frames` when the walk uses them (``fs`` and
-        ``ft`` are then not stored: :class:`Gathered` gathers them by triangle)."""
+        stored; ``tri_frames``: :func:`.vertex_frames.triangle_frames` when the walk uses
+        them (``fs`` and ``ft`` are then not stored: :class:`Gathered` gathers them by
+        triangle)."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
         table = _empty_params(depth * n)
         params = _vertex_views(table, depth, n)
@@ -211,18 +213,6 @@ class Subpath:
         return a.reshape((-1,) + a.shape[2:])
 
 
-def _gather_frames(sub, column, ng):
-    """The shading frames ``(fs, ft, fn)`` of some vertices of ``sub``: ``column(name)``
-    gathers a stored column for them, ``ng`` is their gathered geometric normal (the frames'
-    normal under flat shading). The same values as gathering ``fs, ft, fn`` themselves."""
-    if sub.tri_frames is not None:  # not stored: each vertex's triangle's frame
-        prim = column("prim")
-        fs, ft = (take_rows(a, prim) for a in sub.tri_frames)
-    else:
-        fs, ft = column("fs"), column("ft")
-    return fs, ft, ng if sub.flat_frames else column("fn")
-
-
 class Gathered:
     """Vertex ``j`` of a subpath for the rows of one connection: what evaluating its BSDF
     needs, gathered once (parameters, shading frame, incoming direction)."""
@@ -232,7 +222,7 @@ class Gathered:
         self.params = take_params(sub.params[j], rows, self.lambert)
         self.wo = take_rows(sub.wo[j], rows) if ctx.smooth else None
         self.wo_l, self.ng = take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows)
-        self.fs, self.ft, self.fn = _gather_frames(
+        self.fs, self.ft, self.fn = gather_frames(
             sub, lambda name: take_rows(getattr(sub, name)[j], rows), self.ng)
         self.nm = take_rows(sub.nm[j], rows) if self.smooth else None
         self.bends = (bends_normals(ctx.prep.scene, take_rows(sub.prim[j], rows))
@@ -246,7 +236,7 @@ class Gathered:
         lambert = ctx.prep.lambert_only
         ng = take_rows(sub.flat("ng"), index)
         return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index, lambert),
-                           _gather_frames(sub, lambda name: take_rows(sub.flat(name), index), ng),
+                           gather_frames(sub, lambda name: take_rows(sub.flat(name), index), ng),
                            take_rows(sub.flat("wo"), index) if ctx.smooth else None,
                            take_rows(sub.flat("wo_local"), index), ng,
                            take_rows(sub.flat("nm"), index) if ctx.smooth else None, lambert,
@@ -334,19 +324,6 @@ class Gathered:
         return pdf_bsdf(self.params, w_l, self.wo_l)
 
 
-def triangle_frames(prep):
-    """Per triangle, the tangents ``(s, t)`` (two ``(T, 3)`` arrays) of the shading frame
-    :func:`.frame.shading_frame` makes around its geometric normal: what the walk's frames
-    are under flat shading without anisotropic tangents, gathered per hit instead of made
-    per hit (the same values: the frame is a row-wise function of the normal). None under
-    smooth shading or with tangents, where the frame depends on the hit point."""
-    scene = prep.scene
-    if scene.corner_normals is not None or scene.aniso_tangents is not None:
-        return None
-    fs, ft, _ = shading_frame(prep.tri_normal)
-    return fs, ft
-
-
 def to_area(pdf_sa, cos_at, dist):
     """Solid-angle density -> area density at a point ``dist`` away (cosine ``cos_at`` there);
     unchanged toward infinite endpoints (``dist = inf``)."""
@@ -427,7 +404,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         if ctx.smooth:
             front = np.where(dot(si.ns, si.ng) < 0, -1.0, 1.0)
             fs, ft, fn = shading_frame(si.ns * front[:, None], tangent)
-        elif ctx.triangle_frames is not None:  # the hit triangles' own frames, made once
+        elif ctx.triangle_frames is not None:  # the hit triangles' own (.vertex_frames)
             fs, ft, fn = (take_rows(ctx.triangle_frames[0], si.prim),
                           take_rows(ctx.triangle_frames[1], si.prim), si.ng)
         else:
@@ -533,7 +510,7 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
         put_rows(getattr(sub, name)[j], r, value)
-    if sub.tri_frames is None:  # else gathered by prim (_gather_frames)
+    if sub.tri_frames is None:  # else gathered by prim (gather_frames)
         put_rows(sub.fs[j], r, frame[0])
         put_rows(sub.ft[j], r, frame[1])
     if not sub.flat_frames:  # else fn is ng, stored above (the frame's normal is si.ng)
