@@ -23,10 +23,11 @@ from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .camera_hits import camera_emission
-from .common import camera_rays, finite_rows, max_component, strategy_pass_names
+from .common import camera_rays, finite_rows, max_component, strategy_pass_names, take_rows
 from .connections import camera_splatter, connect_camera
 from .strategy_views import Tally
 from .subpaths import Subpath, walk
+from .vertex_frames import triangle_frames
 
 # Paths per chunk: keeps the subpath arrays (depth x paths) small.
 CHUNK = 8192
@@ -63,16 +64,18 @@ class _Context:
         # (:class:`.transparent_passes.Passes`; None while every surface is opaque).
         self.vertex_passes = None
         self.buffers = integrator.buffers
+        self.triangle_frames = integrator.triangle_frames
 
     def subpath(self, side, depth, n):
         """An empty :class:`Subpath` of ``depth`` vertices for ``n`` samples: this thread's
         buffer for ``side`` (``"camera"`` or ``"light"``) if it has that shape."""
         sub = getattr(self.buffers, side, None)
         if sub is None or sub.valid.shape != (depth, n):
-            sub = Subpath.empty(depth, n)
+            sub = Subpath.empty(depth, n, not self.smooth, self.prep.lambert_only,
+                                self.triangle_frames)
             setattr(self.buffers, side, sub)
             return sub
-        return sub.reset()
+        return sub.recycle()
 
 
 def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
@@ -91,7 +94,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     ctx.light_points = pts
     if L is not None:
         L.valid[0] = pts.index >= 0
-        L.p[0] = np.where(pts.infinite[:, None], origin, pts.p)
+        L.p[0] = np.where(pts.infinite[:, None], origin, pts.p) if pts.infinite.any() else pts.p
         L.ng[0] = pts.normal
         L.pdf_fwd[0] = pts.pdf_origin
         L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
@@ -100,18 +103,19 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
         beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & finite_rows(beta)
     rows = np.nonzero(good)[0]
-    rows = rows[max_component(beta[rows]) > 0]
+    rows = rows[max_component(take_rows(beta, rows)) > 0]
     if depth < 2 or rows.size == 0:
         return L
     # Rays leave lamps (not geometry) from the point itself, emissive triangles pushed off.
-    o = origin[rows]
+    o, w = take_rows(origin, rows), take_rows(w, rows)
     k = prep.lights.n_lights
     tri = np.nonzero((pts.index[rows] >= k) & ~pts.infinite[rows])[0]
     if tri.size:
         prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
-        o[tri] = prep.accel.offset_origin(o[tri], pts.normal[rows][tri], prim, w[rows][tri])
-    walk(ctx, L if on_vertex is None else None, o, w[rows], np.full(rows.size, np.inf),
-         beta[rows], pdf_dir[rows], np.zeros(rows.size, bool),
+        o[tri] = prep.accel.offset_origin(take_rows(o, tri), take_rows(pts.normal, rows[tri]),
+                                          prim, take_rows(w, tri))
+    walk(ctx, L if on_vertex is None else None, o, w, np.full(rows.size, np.inf),
+         take_rows(beta, rows), pdf_dir[rows], np.zeros(rows.size, bool),
          np.full(rows.size, VIS_SHADOW, np.int32), rows, stream, IMPORTANCE,
          lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX, depth,
          on_vertex=on_vertex)
@@ -178,6 +182,8 @@ class Bidirectional(Integrator):
                             (self.window[2] - self.window[0]) * (self.window[3] - self.window[1]))
         # Each worker thread's subpath arrays, reused from one chunk to the next.
         self.buffers = threading.local()
+        # The walks' shading frames of flat triangles (None with smooth shading or tangents).
+        self.triangle_frames = triangle_frames(prep)
 
     def camera_depth(self, depth):
         """Vertices of the camera subpaths when light subpaths have ``depth``."""

@@ -17,12 +17,14 @@ import numpy as np
 from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSample, eval_bsdf,
                               pdf_bsdf, sample_bsdf)
 from ..materials.frame import shading_frame, to_local, to_world
+from ..rows import put_rows
 from .adjoint_normals import VertexNormals
 from .common import (bends_normals, coat_normals_in_front, finite_rows, intersect_by_class,
                      max_component, next_1d_if, ray_class, roulette_at, russian_roulette,
                      shading_tangents, surface_hits, surface_interaction, take_rows,
                      with_bump_normals, with_coat_normals)
 from .transparent_passes import Passes, has_passes
+from .vertex_frames import gather_frames
 
 
 def dot(a, b):
@@ -35,21 +37,6 @@ def _empty_params(n):
     # gathers and evaluates none.
     return BSDFParams(np.zeros(n, np.int32), np.zeros((n, 3)), np.ones(n), np.ones(n),
                       np.zeros((n, 3)))
-
-
-def put_rows(dst, rows, src):
-    """``dst[rows] = src`` for a C-contiguous ``dst (n,)`` or ``(n, c)``; ``src (k,)`` or
-    ``(k, c)`` (or a scalar). Rows of ``(n, c)`` arrays are scattered as single ``c``-element
-    items (``np.put`` on a byte-row view): about 3 x faster than ``dst[rows] = src``, which
-    scatters element by element; the stored values are the same."""
-    if dst.ndim == 1:
-        dst[rows] = src
-        return
-    item = np.dtype((np.void, dst.strides[0]))
-    shape = (rows.size,) + dst.shape[1:]
-    src = np.ascontiguousarray(src if np.shape(src) == shape else np.broadcast_to(src, shape),
-                               dst.dtype)
-    np.put(dst.view(item).reshape(-1), rows, src.view(item).reshape(-1))
 
 
 # Columns a diffuse BSDF never reads, and the constant stand-ins a Lambert gather gives them.
@@ -74,6 +61,11 @@ def take_params(params, rows, lambert=False):
         else:
             out[name] = np.take(c, rows, axis=0)
     return BSDFParams(**out)
+
+
+# Float columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth
+# shading only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone.
+_STORED = ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm")
 
 
 def _vertex_views(table, depth, n):
@@ -120,35 +112,68 @@ class Subpath:
     nm: np.ndarray = None
     passed: np.ndarray = None
 
+    # Set by empty(): whether fn is ng itself (flat shading: the frame's normal is the
+    # geometric normal, one column stored), and whether only Lambert BSDFs are stored (their
+    # alpha, eta and tint are not: every gather then stands constants in for them,
+    # take_params with lambert=True). tri_frames: the walk's frames are each hit triangle's
+    # own (vertex_frames.triangle_frames; fs and ft are then not stored but gathered by prim).
+    flat_frames: bool = False
+    lambert: bool = False
+    tri_frames: tuple = None
+
     @staticmethod
-    def empty(depth, n):
+    def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None):
         """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
         views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
         is row ``j * n + i``, as in :meth:`flat`), with the base columns only: a group of
         optional columns (coat, sheen, ...) is added by :meth:`store_params` when a vertex
-        has it."""
+        has it. ``flat_frames``: the walk's frames are around the geometric normal (no
+        smooth shading), so ``fn`` is the same array as ``ng``; ``lambert``: every BSDF is
+        a plain diffuse one (``PreparedScene.lambert_only``), whose glossy columns are not
+        stored; ``tri_frames``: :func:`.vertex_frames.triangle_frames` when the walk uses
+        them (``fs`` and ``ft`` are then not stored: :class:`Gathered` gathers them by
+        triangle)."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
         table = _empty_params(depth * n)
         params = _vertex_views(table, depth, n)
-        return Subpath(np.zeros((depth, n), bool), z3(), z3(), np.zeros((depth, n), np.int64),
-                       z3(), z3(), z3(), z3(), z3(), params,
+        ng = z3()
+        return Subpath(np.zeros((depth, n), bool), z3(), ng, np.zeros((depth, n), np.int32),
+                       z3(), z3(), ng if flat_frames else z3(), z3(), z3(), params,
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
-                       np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32))
+                       np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32),
+                       flat_frames, lambert, tri_frames)
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
         allocation would page its memory in again for every batch."""
+        self.recycle()
+        for name in _STORED:
+            getattr(self, name)[1:].fill(0.0)
+        table, n = self.all_params, self.valid.shape[1]
+        for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
+                              (table.eta, 1.0), (table.tint, 0.0)):
+            column[n:].fill(value)
+        return self
+
+    def recycle(self):
+        """:meth:`reset` for the next batch's walk, at a fraction of its memory traffic: the
+        columns that say which vertices exist (``valid``, ``connectible``, ``delta``, the
+        densities, ...) and vertex 0 are reset; the columns that :func:`walk` writes whole
+        at every vertex it makes (:data:`_STORED`, the BSDF table) keep the last batch's
+        values at vertices ``1..D-1`` where no vertex is now. No reader looks there (they
+        gather valid vertices only; ``tests/core/test_subpath_tables.py`` fills them with NaN
+        to check it)."""
         for name, value in (("valid", False), ("prim", 0), ("connectible", False),
                             ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
                             ("d_prev", np.inf), ("cos_prev", 1.0), ("passed", 0)):
             getattr(self, name).fill(value)
-        for name in ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm"):
-            getattr(self, name).fill(0.0)
-        table = self.all_params
+        for name in _STORED:
+            getattr(self, name)[0].fill(0.0)
+        table, n = self.all_params, self.valid.shape[1]
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
                               (table.eta, 1.0), (table.tint, 0.0)):
-            column.fill(value)
+            column[:n].fill(value)
         if any(table.has(group) for group in OPTIONAL_GROUPS):
             # Back to the base columns, as empty() makes them: the next batch adds what it uses.
             self._set_table(BSDFParams(table.kind, table.color, table.alpha, table.eta,
@@ -170,8 +195,10 @@ class Subpath:
         for group in OPTIONAL_GROUPS:
             if view.has(group) and not params.has(group):
                 params = params.with_neutral(group)
-        for dst, src in zip(view.columns(), params.columns()):
-            if dst is not None:
+        skip = _NOT_LAMBERT if self.lambert else ()
+        for name, src in vars(params).items():
+            dst = getattr(view, name)
+            if dst is not None and name not in skip:
                 put_rows(dst, rows, src)
 
     def _set_table(self, table):
@@ -193,10 +220,10 @@ class Gathered:
     def __init__(self, ctx, sub, j, rows, mode):
         self.smooth, self.mode, self.lambert = ctx.smooth, mode, ctx.prep.lambert_only
         self.params = take_params(sub.params[j], rows, self.lambert)
-        self.fs, self.ft, self.fn = (take_rows(sub.fs[j], rows), take_rows(sub.ft[j], rows),
-                                     take_rows(sub.fn[j], rows))
         self.wo = take_rows(sub.wo[j], rows) if ctx.smooth else None
         self.wo_l, self.ng = take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows)
+        self.fs, self.ft, self.fn = gather_frames(
+            sub, lambda name: take_rows(getattr(sub, name)[j], rows), self.ng)
         self.nm = take_rows(sub.nm[j], rows) if self.smooth else None
         self.bends = (bends_normals(ctx.prep.scene, take_rows(sub.prim[j], rows))
                       if self.smooth else None)
@@ -207,11 +234,11 @@ class Gathered:
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`Subpath.flat` (each any vertex
         of any subpath), gathered once."""
         lambert = ctx.prep.lambert_only
+        ng = take_rows(sub.flat("ng"), index)
         return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index, lambert),
-                           [take_rows(sub.flat(a), index) for a in ("fs", "ft", "fn")],
+                           gather_frames(sub, lambda name: take_rows(sub.flat(name), index), ng),
                            take_rows(sub.flat("wo"), index) if ctx.smooth else None,
-                           take_rows(sub.flat("wo_local"), index),
-                           take_rows(sub.flat("ng"), index),
+                           take_rows(sub.flat("wo_local"), index), ng,
                            take_rows(sub.flat("nm"), index) if ctx.smooth else None, lambert,
                            bends_normals(ctx.prep.scene, take_rows(sub.flat("prim"), index))
                            if ctx.smooth else None)
@@ -335,6 +362,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     rr_scale = np.where(start > 0, 1.0 / np.where(start > 0, start, 1.0), 1.0)
     last = depth + int(on_segment is not None)
     passes = Passes(rows.size) if has_passes(prep) else None
+    # Plain diffuse BSDFs under flat shading choose no lobe, component or pass: the lobe's
+    # number is not drawn (its dimension is skipped, as the path tracer skips it).
+    draws_lobe = not (prep.lambert_only and not ctx.smooth and passes is None)
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         ctx.counters.rays += o.shape[0]
@@ -361,7 +391,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         else:
             path_stream.compact(live)
         path_stream.skip_to(dims_of(j))
-        u_lobe = path_stream.next_1d()
+        u_lobe = next_1d_if(path_stream, draws_lobe)
+        if u_lobe is None:
+            u_lobe = np.zeros(r.size)
         if u_pass is not None:  # the number left after the choices of the passes
             u_lobe = np.where(np.isnan(u_pass[live]), u_lobe, u_pass[live])
         u_bsdf = path_stream.next_2d()
@@ -372,6 +404,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         if ctx.smooth:
             front = np.where(dot(si.ns, si.ng) < 0, -1.0, 1.0)
             fs, ft, fn = shading_frame(si.ns * front[:, None], tangent)
+        elif ctx.triangle_frames is not None:  # the hit triangles' own (.vertex_frames)
+            fs, ft, fn = (take_rows(ctx.triangle_frames[0], si.prim),
+                          take_rows(ctx.triangle_frames[1], si.prim), si.ng)
         else:
             fs, ft, fn = shading_frame(si.ng, tangent)
         wo_l = to_local(si.wo, fs, ft, fn)
@@ -397,9 +432,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
                                          bends_normals(prep.scene, si.prim) if ctx.smooth
                                          else None)
         if sub is not None:
-            back = to_area(back, sub.cos_prev[j, r], dist)
-            sub.pdf_rev[j - 1, r] = np.where(smp.delta, 1.0, back)
-            sub.delta[j, r] = smp.delta
+            back = to_area(back, sub.cos_prev[j][r], dist)
+            sub.pdf_rev[j - 1][r] = np.where(smp.delta, 1.0, back)
+            sub.delta[j][r] = smp.delta
         beta = beta * weight
         alive = (smp.pdf > 0) & finite_rows(beta)
         rr_scale = rr_scale[live]
@@ -407,6 +442,11 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
             break
+        if keep.size == alive.size:  # every path goes on: no compaction (same arrays)
+            rows, d, o = r, wi, prep.accel.offset_origin(si.p, si.ng, si.prim, wi)
+            pdf_prev, prev_delta, vis = smp.pdf, smp.delta, ray_class(smp.lobe)
+            tmax = np.full(keep.size, np.inf)
+            continue
         rows = r[keep]
         rr_scale = rr_scale[keep]
         if passes is not None:
@@ -456,22 +496,27 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     # alone after an infinite endpoint, whose rays are parallel).
     if j == 1:
         dist = np.linalg.norm(si.p - take_rows(sub.p[0], r), axis=1)
-        dist = np.where(np.isfinite(sub.d_prev[0, r]), dist, np.inf)
-        sub.cos_prev[j, r] = sub.cos_prev[0, r]
+        dist = np.where(np.isfinite(sub.d_prev[0][r]), dist, np.inf)
+        sub.cos_prev[j][r] = sub.cos_prev[0][r]
     else:
         dist = hits.t[live]
-        sub.cos_prev[j, r] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
+        sub.cos_prev[j][r] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
     cos_here = np.abs(dot(si.ng, si.wo))
     fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
                    to_area(pdf_prev[live], cos_here, dist))
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
-    for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("fs", frame[0]),
-                        ("ft", frame[1]), ("fn", frame[2]), ("wo", si.wo), ("wo_local", wo_l),
+    for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("wo_local", wo_l),
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
         put_rows(getattr(sub, name)[j], r, value)
-    if si.nm is not None:
-        sub.nm[j][r] = si.nm
+    if sub.tri_frames is None:  # else gathered by prim (gather_frames)
+        put_rows(sub.fs[j], r, frame[0])
+        put_rows(sub.ft[j], r, frame[1])
+    if not sub.flat_frames:  # else fn is ng, stored above (the frame's normal is si.ng)
+        put_rows(sub.fn[j], r, frame[2])
+    if si.nm is not None:  # smooth shading (corner normals): what Gathered reads then
+        put_rows(sub.wo[j], r, si.wo)
+        put_rows(sub.nm[j], r, si.nm)
     sub.store_params(j, r, params)
     return dist

@@ -91,6 +91,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..rows import put_rows
 from . import bump_correction, coat, dielectric, sheen
 from .coat import DEFAULT_COAT_IOR, DEFAULT_COAT_ROUGHNESS, coat_rows
 from .dielectric import IMPORTANCE, RADIANCE, TRANSPORT_MODES, _check_mode, is_smooth_dielectric
@@ -460,6 +461,19 @@ def _groups(params):
     return [(c, rows) for c, rows in groups if rows.size]
 
 
+def _kind_rows(params, kind, rows):
+    """``params.take(rows)`` for the family of ``kind`` (:data:`.families.FAMILIES`): the
+    diffuse family reads the colour alone, so its other columns are not gathered but
+    read-only constants (its values are the same; several gathers fewer on the diffuse rows
+    of every mixed batch)."""
+    if kind != KIND_DIFFUSE:
+        return params.take(rows)
+    k = rows.size
+    return BSDFParams(np.take(params.kind, rows), np.take(params.color, rows, axis=0),
+                      np.broadcast_to(1.0, (k,)), np.broadcast_to(1.0, (k,)),
+                      np.broadcast_to(0.0, (k, 3)))
+
+
 def _check(params, wo, mode=RADIANCE):
     _check_mode(mode)
     if wo.shape != (len(params), 3):
@@ -504,7 +518,7 @@ def _eval_kinds(params, wo, wi, mode):
         if rows is None:
             out = fn(params, wo, wi, mode)
         else:
-            out[rows] = fn(params.take(rows), wo[rows], wi[rows], mode)
+            out[rows] = fn(_kind_rows(params, kind, rows), wo[rows], wi[rows], mode)
     return out
 
 
@@ -539,7 +553,7 @@ def _pdf_below_sheen(params, wo, wi):
         if rows is None:
             out = fn(params, wo, wi)
         else:
-            out[rows] = fn(params.take(rows), wo[rows], wi[rows])
+            out[rows] = fn(_kind_rows(params, kind, rows), wo[rows], wi[rows])
     coated = coat_rows(params)
     if coated.size:
         out[coated] = coat.pdf_coated(params.take(coated), wo[coated], wi[coated], out[coated])
@@ -613,10 +627,13 @@ def _sample_bases(params, wo, u_lobe, u, mode):
             wi, weight, pdf, delta = sample(params, wo, u_lobe, u, mode)
             kind_bits = label(params, wo, u_lobe, delta)
         else:
-            p = params.take(rows)
-            wi[rows], weight[rows], pdf[rows], delta[rows] = sample(p, wo[rows], u_lobe[rows],
-                                                                    u[rows], mode)
-            kind_bits[rows] = label(p, wo[rows], u_lobe[rows], delta[rows])
+            p = _kind_rows(params, kind, rows)
+            wo_k, u_lobe_k = np.take(wo, rows, axis=0), u_lobe[rows]
+            wi_k, weight_k, pdf[rows], delta[rows] = sample(p, wo_k, u_lobe_k,
+                                                            np.take(u, rows, axis=0), mode)
+            put_rows(wi, rows, wi_k)
+            put_rows(weight, rows, weight_k)
+            kind_bits[rows] = label(p, wo_k, u_lobe_k, delta[rows])
     side = np.where(crosses_surface(params, wo, wi), LOBE_TRANSMIT,
                     LOBE_REFLECT).astype(np.uint8)
     lobe = np.where(pdf > 0.0, side | kind_bits, 0).astype(np.uint8)

@@ -84,11 +84,14 @@ def eval_conductor(f0, alpha, wo, wi, multiscatter=False, mode=RADIANCE):
     -------
     (k, 3) float64
     """
+    smooth = mf.is_smooth(alpha)
+    if smooth.all():  # perfect mirrors only: nothing off the delta lobe
+        return np.zeros((wo.shape[0], 3))
     side = side_of(wo)
     wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
-    ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(alpha)
+    ok &= (co > 0.0) & (ci > 0.0) & ~smooth
     val = mf.ggx_d(h[:, 2], alpha) * mf.ggx_visibility(co, ci, alpha) * ci
     f = fresnel_schlick(f0, dot(wo_, h)) * val[:, None]
     if multiscatter:
@@ -102,11 +105,14 @@ def pdf_conductor(alpha, wo, wi):
     ``D_wo(h) / (4 wo.h) = D(h) / (4 A(wo))`` with ``A`` the projected microsurface area
     (:func:`.microfacet.ggx_projected_area`).
     """
+    smooth = mf.is_smooth(alpha)
+    if smooth.all():  # perfect mirrors only: no density off the delta lobe
+        return np.zeros(wo.shape[0])
     side = side_of(wo)
     wo_, wi_ = flip_to_upper(wo, side), flip_to_upper(wi, side)
     co, ci = wo_[:, 2], wi_[:, 2]
     h, ok = normalize(wo_ + wi_)
-    ok &= (co > 0.0) & (ci > 0.0) & ~mf.is_smooth(alpha)
+    ok &= (co > 0.0) & (ci > 0.0) & ~smooth
     pdf = mf.ggx_d(h[:, 2], alpha) / (4.0 * mf.ggx_projected_area(co, alpha))
     return np.where(ok, pdf, 0.0)
 
@@ -136,6 +142,10 @@ def sample_conductor(f0, alpha, wo, u, multiscatter=False, mode=RADIANCE):
     delta : (k,) bool
         Smooth rows.
     """
+    delta = mf.is_smooth(alpha)
+    if delta.all():  # perfect mirrors only (the rough lobe below would be discarded)
+        wi_d, weight_d, pdf_d, _ = sample_mirror(f0, wo)
+        return wi_d, weight_d, pdf_d, delta
     side = side_of(wo)
     wo_ = flip_to_upper(wo, side)
     co = wo_[:, 2]
@@ -149,7 +159,6 @@ def sample_conductor(f0, alpha, wo, u, multiscatter=False, mode=RADIANCE):
     pdf = mf.ggx_d(wm[:, 2], alpha) / (4.0 * mf.ggx_projected_area(co, alpha))
     wi = flip_to_upper(wi_, side)
 
-    delta = mf.is_smooth(alpha)
     wi_d, weight_d, pdf_d, _ = sample_mirror(f0, wo)
     wi = np.where(delta[:, None], wi_d, np.where(ok[:, None], wi, 0.0))
     weight = np.where(delta[:, None], weight_d, np.where(ok[:, None], weight, 0.0))

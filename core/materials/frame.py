@@ -52,7 +52,10 @@ def shading_frame(n, tangent=None):
 
 def to_local(v, s, t, n):
     """World vectors ``v : (k, 3)`` in the frames ``(s, t, n)`` -> local ``(k, 3)``."""
-    return np.stack([dot(v, s), dot(v, t), dot(v, n)], axis=-1)
+    out = np.empty((v.shape[0], 3), np.result_type(v, s, t, n))
+    for column, axis in enumerate((s, t, n)):  # each dot product straight into its column
+        np.einsum("ij,ij->i", v, axis, out=out[:, column])
+    return out
 
 
 def to_world(v, s, t, n):

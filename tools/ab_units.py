@@ -1,0 +1,128 @@
+"""CPU time per camera sample of two trees in ONE process, alternated unit by unit (a
+measurement, not a test).
+
+On a loaded machine two trees timed in turn, process after process, see different loads;
+here the base tree is imported a second time under another package name
+(``sampling_lab_base``: the package uses relative imports, so any name works) and each round
+times one work unit of each tree in turn, on the same thread, so that a load spike hits both
+alike. For each measure it prints the minimum and the median over the rounds of thread CPU
+microseconds per camera sample, and head / base.
+
+Measures (``--measures``): ``bdpt_walks`` (BDPT's camera and light subpath walks alone, as
+:mod:`tools.profile_walks`), ``bdpt``, ``light`` and ``path`` (the integrator's
+``render_samples`` of one work unit; BDPT two units per round). Independent sampler, power
+light selection, 8 bounces, each integrator's own unit size. The head is the tree that
+``sampling_lab`` resolves to::
+
+    PYTHONPATH=/path/to/parent python tools/ab_units.py --base /tmp/base/sampling_lab \\
+        --rounds 5 --scene bench
+    ... --scene mirror_ball --size 96      # a bench-scenes scene (needs bpy)
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from stage_timer import uniform_bounces as _bounces
+
+BASE = "sampling_lab_base"
+HEAD = "sampling_lab"
+
+
+def _import_base(path):
+    """Make the base tree's package importable as :data:`BASE` (a symbolic link)."""
+    folder = tempfile.mkdtemp(prefix="ab_units_")
+    os.symlink(os.path.abspath(path), os.path.join(folder, BASE))
+    sys.path.insert(0, folder)
+
+
+def _scene(pkg, args):
+    if args.scene == "bench":
+        return importlib.import_module(f"{pkg}.core.scenes").cornell_box(args.size, args.size,
+                                                                         light="mesh")
+    from profile_path import load_scene  # built by the head's exporter, read by both trees
+
+    return load_scene(args.scene, args.size, args.size)
+
+
+def _runner(pkg, measure, scene, size):
+    """``(run(units), paths per unit)`` of ``measure`` in package ``pkg``."""
+    core = lambda name: importlib.import_module(f"{pkg}.core.{name}")  # noqa: E731
+    name = "bdpt" if measure == "bdpt_walks" else measure
+    settings_class = core("render").RenderSettings
+    settings = settings_class(integrator=name, spp=4, threads=1, seed=0, sampler="independent",
+                              light_selection="power", **_bounces(settings_class, 8))
+    integ = core("integrators").integrator_class(name)(core("prepare").prepare(scene, "power"),
+                                                       settings)
+    sampler = core("sampling.samplers").make_sampler("independent", seed=0, spp=4, width=size)
+    pixel_filter = core("film").PixelFilter(settings.filter_type, settings.filter_width)
+    counters = core("integrators.base").Counters
+    n = integ.unit_paths
+
+    def streams(units):
+        for u in range(units):
+            pixels = (np.arange(n) + u * n) % (size * size)
+            yield sampler.stream(pixels, np.full(n, u * n // (size * size)))
+
+    if measure != "bdpt_walks":
+        def run(units):
+            for stream in streams(units):
+                integ.render_samples(stream, pixel_filter, counters())
+        return run, n
+    bidir, tally = core("integrators.bidir"), core("integrators.strategy_views").Tally
+    depth = settings.max_bounces + 2
+    base = bidir.DIMS_CAMERA + (depth + 1) * bidir.DIMS_PER_CAMERA_VERTEX
+
+    def walks(units):
+        for stream in streams(units):
+            ctx = bidir._Context(integ, counters(), pixel_filter)
+            bidir._camera_subpath(ctx, pixel_filter, stream, n, depth, tally(n, 0))
+            bidir._light_subpath(ctx, stream, n, base, depth)
+    return walks, n
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--base", required=True, help="the base tree's package folder")
+    parser.add_argument("--scene", default="bench")
+    parser.add_argument("--size", type=int, default=256, help="square image side")
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--measures", default="bdpt_walks,bdpt,light,path")
+    args = parser.parse_args(argv)
+    _import_base(args.base)
+    measures = args.measures.split(",")
+    runs = {}
+    for pkg in (BASE, HEAD):
+        scene = _scene(pkg if args.scene == "bench" else HEAD, args)
+        for measure in measures:
+            runs[pkg, measure] = _runner(pkg, measure, scene, args.size)
+            runs[pkg, measure][0](1)  # warm-up: buffers, first-call costs
+    print(f"load average at start: {os.getloadavg()}")
+    times = {key: [] for key in runs}
+    for _ in range(args.rounds):
+        for measure in measures:
+            units = 2 if measure.startswith("bdpt") else 1
+            for pkg in (BASE, HEAD):
+                run, n = runs[pkg, measure]
+                t0 = time.thread_time()
+                run(units)
+                times[pkg, measure].append(1e6 * (time.thread_time() - t0) / (units * n))
+    for measure in measures:
+        b, h = times[BASE, measure], times[HEAD, measure]
+        mb, mh = statistics.median(b), statistics.median(h)
+        print(f"{measure:>10}: base min {min(b):.3f} median {mb:.3f} | head min {min(h):.3f} "
+              f"median {mh:.3f} us per camera sample | head / base: min {min(h) / min(b):.3f}, "
+              f"median {mh / mb:.3f}")
+    print(f"load average at end: {os.getloadavg()}")
+
+
+if __name__ == "__main__":
+    main()
