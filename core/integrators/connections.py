@@ -18,6 +18,7 @@ from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import bends_normals, finite_rows, max_component, take_rows
+from .lambert_vertices import LambertVertices, all_lambert, gatherer
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
 from .mis_sums import RunningSums, summable
 from .subpaths import Gathered, dot, take_params, to_area
@@ -59,8 +60,9 @@ def connect_all(ctx, L, C, fresh, out):
     camera vertex ``t - 1`` by a shadow ray): one gather per vertex, one BSDF evaluation,
     one batch of shadow rays for all of them. MIS weights and contributions follow strategy by
     strategy, by ``t`` then ``s`` (the order of a loop over strategies)."""
-    parts = [p for p in (_connect_emitters(ctx, L, C, fresh), _connect_vertices(ctx, L, C))
-             if p is not None]
+    gather = gatherer(ctx, L, C)
+    parts = [p for p in (_connect_emitters(ctx, L, C, fresh, gather),
+                         _connect_vertices(ctx, L, C, gather)) if p is not None]
     if not parts:
         return
     key = np.concatenate([p.t * (C.valid.shape[0] + 2) + p.s for p in parts])
@@ -95,15 +97,16 @@ def _vertex_pairs(depth):
                     np.int64).reshape(-1, 2)
 
 
-def _connect_vertices(ctx, L, C):
+def _connect_vertices(ctx, L, C, gather):
     """Strategies ``s >= 2, t >= 2``: every connectible light vertex joined to every
-    connectible camera vertex of its sample (paths of at most ``depth`` segments)."""
+    connectible camera vertex of its sample (paths of at most ``depth`` segments), their ends
+    gathered by ``gather`` (:func:`.lambert_vertices.gatherer`)."""
     depth, n = C.valid.shape
     pairs = _vertex_pairs(depth)
     both = (C.valid & C.connectible)[pairs[:, 0]] & (L.valid & L.connectible)[pairs[:, 1]]
     pair, row = np.nonzero(both)
     return _in_pieces(lambda e: _join_vertices(ctx, L, C, pairs[pair[e], 0], pairs[pair[e], 1],
-                                               row[e]), row.size)
+                                               row[e], gather), row.size)
 
 
 def _in_pieces(join, m):
@@ -117,7 +120,7 @@ def _in_pieces(join, m):
     return _Joined(*(np.concatenate(col) for col in zip(*parts)))
 
 
-def _join_vertices(ctx, L, C, zj, yj, row):
+def _join_vertices(ctx, L, C, zj, yj, row, gather):
     """Light vertices ``yj (m,)`` joined to camera vertices ``zj (m,)`` of samples ``row``."""
     n = C.valid.shape[1]
     at_z = zj * n + row
@@ -125,14 +128,14 @@ def _join_vertices(ctx, L, C, zj, yj, row):
     to_y = take_rows(L.flat("p"), yj * n + row) - z
     dist = np.linalg.norm(to_y, axis=1)
     w = to_y / np.maximum(dist, 1e-300)[:, None]  # z -> y
-    zv = Gathered.at(ctx, C, at_z, RADIANCE)
+    zv = gather(C, at_z, RADIANCE)
     w_z = zv.local(w)
     f_z = zv.f(w, w_z)
     # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
     # which is dropped as well): its light side is not gathered.
     e = np.nonzero(max_component(f_z) > 0)[0]
     at_y, w_e, dist_e = (yj * n + row)[e], take_rows(w, e), dist[e]
-    yv = Gathered.at(ctx, L, at_y, IMPORTANCE)
+    yv = gather(L, at_y, IMPORTANCE)
     w_y = yv.local(-w_e)
     value = (take_rows(L.flat("beta"), at_y) * yv.f(-w_e, w_y) * take_rows(f_z, e)
              * take_rows(C.flat("beta"), at_z[e]))
@@ -156,16 +159,16 @@ def _join_vertices(ctx, L, C, zj, yj, row):
                    ctx.light_points.delta_light[row])
 
 
-def _connect_emitters(ctx, L, C, fresh):
+def _connect_emitters(ctx, L, C, fresh, gather):
     """Strategy ``s = 1``: the fresh points on emitters joined to their camera vertices."""
     if fresh is None:
         return None
     return _in_pieces(lambda e: _join_emitters(
-        ctx, L, C, fresh.zj[e], fresh.row[e], EmitterPoints(*(a[e] for a in fresh.points))),
-        fresh.row.size)
+        ctx, L, C, fresh.zj[e], fresh.row[e], EmitterPoints(*(a[e] for a in fresh.points)),
+        gather), fresh.row.size)
 
 
-def _join_emitters(ctx, L, C, zj, row, pts):
+def _join_emitters(ctx, L, C, zj, row, pts, gather):
     """Points ``pts`` on emitters joined to camera vertices ``zj (m,)`` of samples ``row``."""
     em = ctx.emission
     n = C.valid.shape[1]
@@ -175,7 +178,7 @@ def _join_emitters(ctx, L, C, zj, row, pts):
     to_y = np.where(infinite[:, None], -pts.w_inf, pts.p - z)
     dist = np.where(infinite, np.inf, np.linalg.norm(to_y, axis=1))
     w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y
-    zv = Gathered.at(ctx, C, at_z, RADIANCE)
+    zv = gather(C, at_z, RADIANCE)
     w_z = zv.local(w)
     le = em.radiance(pts.index, pts.p, pts.normal, -w, z)
     point = pts.delta_light & ~infinite
@@ -236,9 +239,20 @@ def connect_camera(ctx, L, s, out):
     if rows.size == 0:
         return
     splat_vertices(ctx, s, rows, take_rows(L.p[yj], rows), L.prim[yj, rows],
-                   lambda seen: Gathered(ctx, L, yj, rows[seen], IMPORTANCE),
+                   _light_vertex_gather(ctx, L, yj, rows),
                    lambda seen: take_rows(L.beta[yj], rows[seen]), out, L,
                    connection_budget(ctx.settings.transparent_max_bounces, L.passed[yj, rows]))
+
+
+def _light_vertex_gather(ctx, L, yj, rows):
+    """``gather(seen)`` of :func:`splat_vertices` for light vertex ``yj`` of subpaths
+    ``rows (m,)``: plain Lambert vertices as connect_all gathers them
+    (:mod:`.lambert_vertices`) where every vertex at that depth is one, else
+    :class:`.subpaths.Gathered`."""
+    if all_lambert(ctx.smooth, (L,), yj):
+        at = yj * L.valid.shape[1] + rows
+        return lambda seen: LambertVertices.at(L, at[seen])
+    return lambda seen: Gathered(ctx, L, yj, rows[seen], IMPORTANCE)
 
 
 def camera_splatter(ctx, out):
