@@ -22,7 +22,7 @@ from .lambert_vertices import LambertVertices, all_lambert, gatherer
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
 from .mis_sums import RunningSums, summable
 from .subpaths import Gathered, dot, take_params, to_area
-from .transparent_passes import connection_budget, transmitted
+from .transparent_passes import connection_budget, has_passes, transmitted
 
 # Connections joined per batch of array operations (see _in_pieces).
 PIECE = 8192
@@ -140,8 +140,9 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     value = (take_rows(L.flat("beta"), at_y) * yv.f(-w_e, w_y) * take_rows(f_z, e)
              * take_rows(C.flat("beta"), at_z[e]))
     value = value * (1.0 / np.maximum(dist_e ** 2, 1e-300))[:, None]
-    budget = connection_budget(ctx.settings.transparent_max_bounces,
-                               C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
+    budget = (connection_budget(ctx.settings.transparent_max_bounces,
+                                C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
+              if has_passes(ctx.prep) else None)  # not read where all is opaque
     kept = _unblocked(ctx, C, at_z[e], take_rows(z, e), w_e, dist_e, yv.ng, value, dist_e > 0,
                       budget)
     if kept.size == 0:
@@ -188,7 +189,8 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
     g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
     value = value * g[:, None]
     y_normal = np.where(infinite[:, None], 0.0, pts.normal)
-    budget = connection_budget(ctx.settings.transparent_max_bounces, C.flat("passed")[at_z])
+    budget = (connection_budget(ctx.settings.transparent_max_bounces, C.flat("passed")[at_z])
+              if has_passes(ctx.prep) else None)  # not read where all is opaque
     keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0, budget)
     if keep.size == 0:
         return None
@@ -217,7 +219,8 @@ def _reverse_at_z(C, zv, w_z, zj, row):
 def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok, budget):
     """Connections ``(k,)`` (indices) with a contribution whose shadow ray gets through
     (through at most ``budget (m,)`` transparent surfaces, whose transparency then scales
-    their rows of ``value`` in place, :mod:`.transparent_passes`)."""
+    their rows of ``value`` in place, :mod:`.transparent_passes`; None where every
+    surface is opaque)."""
     ok = ok & (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
@@ -225,7 +228,8 @@ def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok, budget):
     at = at_z[cand]
     through, transmit = transmitted(ctx, *ctx.prep.accel.shadow_rays(
         take_rows(z, cand), take_rows(C.flat("ng"), at), C.flat("prim")[at], take_rows(w, cand),
-        dist[cand], take_rows(y_normal, cand)), budget[cand], VIS_SHADOW)
+        dist[cand], take_rows(y_normal, cand)), None if budget is None else budget[cand],
+        VIS_SHADOW)
     ctx.counters.rays += cand.size
     if transmit is not None:
         value[cand[through]] *= transmit
