@@ -61,13 +61,13 @@ def connect_all(ctx, L, C, fresh, out):
     one batch of shadow rays for all of them. MIS weights and contributions follow strategy by
     strategy, by ``t`` then ``s`` (the order of a loop over strategies)."""
     gather = gatherer(ctx, L, C)
-    parts = [p for p in (_connect_emitters(ctx, L, C, fresh, gather),
-                         _connect_vertices(ctx, L, C, gather)) if p is not None]
+    # The pieces of both kinds, joined and sorted once.
+    parts = [*_connect_emitters(ctx, L, C, fresh, gather), *_connect_vertices(ctx, L, C, gather)]
     if not parts:
         return
     key = np.concatenate([p.t * (C.valid.shape[0] + 2) + p.s for p in parts])
     order = np.argsort(key, kind="stable")
-    j = _Joined(*(np.concatenate(col)[order] for col in zip(*parts)))
+    j = _Joined(*(take_rows(np.concatenate(col), order) for col in zip(*parts)))
     starts = np.flatnonzero(np.diff(key[order], prepend=-1))
     groups = [slice(a, b) for a, b in zip(starts, [*starts[1:], order.size])]
     weight = _connection_weights(ctx, L, C, j, groups)
@@ -100,7 +100,8 @@ def _vertex_pairs(depth):
 def _connect_vertices(ctx, L, C, gather):
     """Strategies ``s >= 2, t >= 2``: every connectible light vertex joined to every
     connectible camera vertex of its sample (paths of at most ``depth`` segments), their ends
-    gathered by ``gather`` (:func:`.lambert_vertices.gatherer`)."""
+    gathered by ``gather`` (:func:`.lambert_vertices.gatherer`); a list of :class:`_Joined`
+    pieces."""
     depth, n = C.valid.shape
     pairs = _vertex_pairs(depth)
     both = (C.valid & C.connectible)[pairs[:, 0]] & (L.valid & L.connectible)[pairs[:, 1]]
@@ -110,14 +111,11 @@ def _connect_vertices(ctx, L, C, gather):
 
 
 def _in_pieces(join, m):
-    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time, joined in order:
-    arrays of a few thousand rows stay in the processor's cache through a stage's many
-    operations (and need no fresh pages of memory)."""
+    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time: the list of the
+    :class:`_Joined` pieces, in order (arrays of a few thousand rows stay in the processor's
+    cache through a stage's many operations, and need no fresh pages of memory)."""
     parts = [join(slice(a, min(a + PIECE, m))) for a in range(0, m, PIECE)]
-    parts = [p for p in parts if p is not None]
-    if not parts:
-        return None
-    return _Joined(*(np.concatenate(col) for col in zip(*parts)))
+    return [p for p in parts if p is not None]
 
 
 def _join_vertices(ctx, L, C, zj, yj, row, gather):
@@ -161,9 +159,10 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
 
 
 def _connect_emitters(ctx, L, C, fresh, gather):
-    """Strategy ``s = 1``: the fresh points on emitters joined to their camera vertices."""
+    """Strategy ``s = 1``: the fresh points on emitters joined to their camera vertices (a
+    list of :class:`_Joined` pieces)."""
     if fresh is None:
-        return None
+        return []
     return _in_pieces(lambda e: _join_emitters(
         ctx, L, C, fresh.zj[e], fresh.row[e], EmitterPoints(*(a[e] for a in fresh.points)),
         gather), fresh.row.size)
