@@ -1,5 +1,5 @@
 """Connection ends on plain Lambert vertices under flat shading: ``f`` and both densities from
-one cosine per direction, with a third of the gathers of :class:`.subpaths.Gathered`.
+one cosine per direction, with about half the gathered columns of :class:`.subpaths.Gathered`.
 
 Where shading is flat (no corner normals) and a vertex's BSDF is a plain two-sided Lambert row
 (kind ``KIND_DIFFUSE``, none of the optional column groups), everything a connection reads
