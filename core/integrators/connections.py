@@ -18,10 +18,11 @@ from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import bends_normals, finite_rows, max_component, take_rows
+from .lambert_vertices import LambertVertices, all_lambert, gatherer
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
 from .mis_sums import RunningSums, summable
 from .subpaths import Gathered, dot, take_params, to_area
-from .transparent_passes import connection_budget, transmitted
+from .transparent_passes import connection_budget, has_passes, transmitted
 
 # Connections joined per batch of array operations (see _in_pieces).
 PIECE = 8192
@@ -59,13 +60,14 @@ def connect_all(ctx, L, C, fresh, out):
     camera vertex ``t - 1`` by a shadow ray): one gather per vertex, one BSDF evaluation,
     one batch of shadow rays for all of them. MIS weights and contributions follow strategy by
     strategy, by ``t`` then ``s`` (the order of a loop over strategies)."""
-    parts = [p for p in (_connect_emitters(ctx, L, C, fresh), _connect_vertices(ctx, L, C))
-             if p is not None]
+    gather = gatherer(ctx, L, C)
+    # The pieces of both kinds, joined and sorted once.
+    parts = [*_connect_emitters(ctx, L, C, fresh, gather), *_connect_vertices(ctx, L, C, gather)]
     if not parts:
         return
     key = np.concatenate([p.t * (C.valid.shape[0] + 2) + p.s for p in parts])
     order = np.argsort(key, kind="stable")
-    j = _Joined(*(np.concatenate(col)[order] for col in zip(*parts)))
+    j = _Joined(*(take_rows(np.concatenate(col), order) for col in zip(*parts)))
     starts = np.flatnonzero(np.diff(key[order], prepend=-1))
     groups = [slice(a, b) for a, b in zip(starts, [*starts[1:], order.size])]
     weight = _connection_weights(ctx, L, C, j, groups)
@@ -95,29 +97,28 @@ def _vertex_pairs(depth):
                     np.int64).reshape(-1, 2)
 
 
-def _connect_vertices(ctx, L, C):
+def _connect_vertices(ctx, L, C, gather):
     """Strategies ``s >= 2, t >= 2``: every connectible light vertex joined to every
-    connectible camera vertex of its sample (paths of at most ``depth`` segments)."""
+    connectible camera vertex of its sample (paths of at most ``depth`` segments), their ends
+    gathered by ``gather`` (:func:`.lambert_vertices.gatherer`); a list of :class:`_Joined`
+    pieces."""
     depth, n = C.valid.shape
     pairs = _vertex_pairs(depth)
     both = (C.valid & C.connectible)[pairs[:, 0]] & (L.valid & L.connectible)[pairs[:, 1]]
     pair, row = np.nonzero(both)
     return _in_pieces(lambda e: _join_vertices(ctx, L, C, pairs[pair[e], 0], pairs[pair[e], 1],
-                                               row[e]), row.size)
+                                               row[e], gather), row.size)
 
 
 def _in_pieces(join, m):
-    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time, joined in order:
-    arrays of a few thousand rows stay in the processor's cache through a stage's many
-    operations (and need no fresh pages of memory)."""
+    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time: the list of the
+    :class:`_Joined` pieces, in order (arrays of a few thousand rows stay in the processor's
+    cache through a stage's many operations, and need no fresh pages of memory)."""
     parts = [join(slice(a, min(a + PIECE, m))) for a in range(0, m, PIECE)]
-    parts = [p for p in parts if p is not None]
-    if not parts:
-        return None
-    return _Joined(*(np.concatenate(col) for col in zip(*parts)))
+    return [p for p in parts if p is not None]
 
 
-def _join_vertices(ctx, L, C, zj, yj, row):
+def _join_vertices(ctx, L, C, zj, yj, row, gather):
     """Light vertices ``yj (m,)`` joined to camera vertices ``zj (m,)`` of samples ``row``."""
     n = C.valid.shape[1]
     at_z = zj * n + row
@@ -125,20 +126,21 @@ def _join_vertices(ctx, L, C, zj, yj, row):
     to_y = take_rows(L.flat("p"), yj * n + row) - z
     dist = np.linalg.norm(to_y, axis=1)
     w = to_y / np.maximum(dist, 1e-300)[:, None]  # z -> y
-    zv = Gathered.at(ctx, C, at_z, RADIANCE)
+    zv = gather(C, at_z, RADIANCE)
     w_z = zv.local(w)
     f_z = zv.f(w, w_z)
     # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
     # which is dropped as well): its light side is not gathered.
     e = np.nonzero(max_component(f_z) > 0)[0]
     at_y, w_e, dist_e = (yj * n + row)[e], take_rows(w, e), dist[e]
-    yv = Gathered.at(ctx, L, at_y, IMPORTANCE)
+    yv = gather(L, at_y, IMPORTANCE)
     w_y = yv.local(-w_e)
     value = (take_rows(L.flat("beta"), at_y) * yv.f(-w_e, w_y) * take_rows(f_z, e)
              * take_rows(C.flat("beta"), at_z[e]))
     value = value * (1.0 / np.maximum(dist_e ** 2, 1e-300))[:, None]
-    budget = connection_budget(ctx.settings.transparent_max_bounces,
-                               C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
+    budget = (connection_budget(ctx.settings.transparent_max_bounces,
+                                C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
+              if has_passes(ctx.prep) else None)  # not read where all is opaque
     kept = _unblocked(ctx, C, at_z[e], take_rows(z, e), w_e, dist_e, yv.ng, value, dist_e > 0,
                       budget)
     if kept.size == 0:
@@ -156,16 +158,17 @@ def _join_vertices(ctx, L, C, zj, yj, row):
                    ctx.light_points.delta_light[row])
 
 
-def _connect_emitters(ctx, L, C, fresh):
-    """Strategy ``s = 1``: the fresh points on emitters joined to their camera vertices."""
+def _connect_emitters(ctx, L, C, fresh, gather):
+    """Strategy ``s = 1``: the fresh points on emitters joined to their camera vertices (a
+    list of :class:`_Joined` pieces)."""
     if fresh is None:
-        return None
+        return []
     return _in_pieces(lambda e: _join_emitters(
-        ctx, L, C, fresh.zj[e], fresh.row[e], EmitterPoints(*(a[e] for a in fresh.points))),
-        fresh.row.size)
+        ctx, L, C, fresh.zj[e], fresh.row[e], EmitterPoints(*(a[e] for a in fresh.points)),
+        gather), fresh.row.size)
 
 
-def _join_emitters(ctx, L, C, zj, row, pts):
+def _join_emitters(ctx, L, C, zj, row, pts, gather):
     """Points ``pts`` on emitters joined to camera vertices ``zj (m,)`` of samples ``row``."""
     em = ctx.emission
     n = C.valid.shape[1]
@@ -175,7 +178,7 @@ def _join_emitters(ctx, L, C, zj, row, pts):
     to_y = np.where(infinite[:, None], -pts.w_inf, pts.p - z)
     dist = np.where(infinite, np.inf, np.linalg.norm(to_y, axis=1))
     w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y
-    zv = Gathered.at(ctx, C, at_z, RADIANCE)
+    zv = gather(C, at_z, RADIANCE)
     w_z = zv.local(w)
     le = em.radiance(pts.index, pts.p, pts.normal, -w, z)
     point = pts.delta_light & ~infinite
@@ -185,7 +188,8 @@ def _join_emitters(ctx, L, C, zj, row, pts):
     g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
     value = value * g[:, None]
     y_normal = np.where(infinite[:, None], 0.0, pts.normal)
-    budget = connection_budget(ctx.settings.transparent_max_bounces, C.flat("passed")[at_z])
+    budget = (connection_budget(ctx.settings.transparent_max_bounces, C.flat("passed")[at_z])
+              if has_passes(ctx.prep) else None)  # not read where all is opaque
     keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0, budget)
     if keep.size == 0:
         return None
@@ -214,7 +218,8 @@ def _reverse_at_z(C, zv, w_z, zj, row):
 def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok, budget):
     """Connections ``(k,)`` (indices) with a contribution whose shadow ray gets through
     (through at most ``budget (m,)`` transparent surfaces, whose transparency then scales
-    their rows of ``value`` in place, :mod:`.transparent_passes`)."""
+    their rows of ``value`` in place, :mod:`.transparent_passes`; None where every
+    surface is opaque)."""
     ok = ok & (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
@@ -222,7 +227,8 @@ def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok, budget):
     at = at_z[cand]
     through, transmit = transmitted(ctx, *ctx.prep.accel.shadow_rays(
         take_rows(z, cand), take_rows(C.flat("ng"), at), C.flat("prim")[at], take_rows(w, cand),
-        dist[cand], take_rows(y_normal, cand)), budget[cand], VIS_SHADOW)
+        dist[cand], take_rows(y_normal, cand)), None if budget is None else budget[cand],
+        VIS_SHADOW)
     ctx.counters.rays += cand.size
     if transmit is not None:
         value[cand[through]] *= transmit
@@ -236,9 +242,20 @@ def connect_camera(ctx, L, s, out):
     if rows.size == 0:
         return
     splat_vertices(ctx, s, rows, take_rows(L.p[yj], rows), L.prim[yj, rows],
-                   lambda seen: Gathered(ctx, L, yj, rows[seen], IMPORTANCE),
+                   _light_vertex_gather(ctx, L, yj, rows),
                    lambda seen: take_rows(L.beta[yj], rows[seen]), out, L,
                    connection_budget(ctx.settings.transparent_max_bounces, L.passed[yj, rows]))
+
+
+def _light_vertex_gather(ctx, L, yj, rows):
+    """``gather(seen)`` of :func:`splat_vertices` for light vertex ``yj`` of subpaths
+    ``rows (m,)``: plain Lambert vertices as connect_all gathers them
+    (:mod:`.lambert_vertices`) where every vertex at that depth is one, else
+    :class:`.subpaths.Gathered`."""
+    if all_lambert(ctx.smooth, (L,), yj):
+        at = yj * L.valid.shape[1] + rows
+        return lambda seen: LambertVertices.at(L, at[seen])
+    return lambda seen: Gathered(ctx, L, yj, rows[seen], IMPORTANCE)
 
 
 def camera_splatter(ctx, out):

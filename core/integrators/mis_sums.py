@@ -108,38 +108,45 @@ class RunningSums:
         ``t (m,) >= 2``, of the subpaths ``row (m,)``, with the densities ``near`` (a
         :class:`.mis_densities.Near` of ``(m,)`` columns) that the connections made; equal to
         :func:`.mis_densities.connection_weight` strategy by strategy, to rounding."""
+        n = C.valid.shape[1]
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            total = 1.0 + self._light_side(L, s, row, near) + self._camera_side(C, t, row, near)
+            total = (1.0 + self._light_side(L, s, row, near, n)
+                     + self._camera_side(C, t, row, near, n))
             w = 1.0 / total
         return np.where(np.isfinite(w), w, 0.0)
 
-    def _light_side(self, L, s, row, near):
+    def _light_side(self, L, s, row, near, n):
         """Sum over ``s' < s``: strategy ``s - 1`` (factor ``a1``), ``s - 2`` (``a1 a2``) and
-        the stored rest (``a1 a2 light[s - 1]``)."""
+        the stored rest (``a1 a2 light[s - 1]``). ``n``: subpaths of the batch."""
         h = self.h
         one, two = s == 1, s == 2
         y = s - 1
-        a1 = _ratio(near.camera_s1, np.where(one, near.light_0, L.pdf_fwd[y, row]))
+        # Rows of the (depth, n) tables as flat indices (np.take gathers them faster than
+        # two-index fancy indexing, same values).
+        at_y = y * n + row
+        at_back = np.maximum(y - 1, 0) * n + row
+        a1 = _ratio(near.camera_s1, np.where(one, near.light_0, np.take(L.pdf_fwd, at_y)))
         # Strategy s - 1 connects x_{s-2} (impossible where it is delta) to y (never counted
         # delta: the connection evaluates its BSDF). Vertex 0's flag is never set (false).
-        p1 = np.where(one, ~near.delta_light, ~L.delta[np.maximum(y - 1, 0), row])
-        back = np.maximum(y - 1, 0)
-        a2 = _ratio(near.camera_s2, np.where(two, near.light_0, L.pdf_fwd[back, row]))
+        delta_back = np.take(L.delta, at_back)
+        p1 = np.where(one, ~near.delta_light, ~delta_back)
+        a2 = _ratio(near.camera_s2, np.where(two, near.light_0, np.take(L.pdf_fwd, at_back)))
         p2 = np.where(two, ~near.delta_light,
-                      ~L.delta[np.maximum(y - 2, 0), row] & ~L.delta[back, row])
-        rest = h(a2) * (p2 + self.light[y, row])
+                      ~np.take(L.delta, np.maximum(y - 2, 0) * n + row) & ~delta_back)
+        rest = h(a2) * (p2 + np.take(self.light, at_y))
         return h(a1) * (p1 + np.where(one, 0.0, rest))
 
-    def _camera_side(self, C, t, row, near):
+    def _camera_side(self, C, t, row, near, n):
         """Sum over ``s' > s``: strategy ``s + 1`` (factor ``b1``), ``s + 2`` (``b1 b2``) and
-        the stored rest (``b1 b2 camera[t - 1]``)."""
+        the stored rest (``b1 b2 camera[t - 1]``). ``n``: subpaths of the batch."""
         h = self.h
         z = t - 1
-        b1 = _ratio(near.light_s, C.pdf_fwd[z, row])
+        at_z, at_prev = z * n + row, (z - 1) * n + row
+        b1 = _ratio(near.light_s, np.take(C.pdf_fwd, at_z))
         # Strategy s + 1 connects z = x_s (never counted delta) to z_{t-2} (impossible where
         # it is delta; the pinhole z_0's flag is never set).
-        p1 = ~C.delta[z - 1, row]
-        b2 = _ratio(near.light_s1, C.pdf_fwd[z - 1, row])
-        p2 = ~C.delta[np.maximum(z - 2, 0), row] & p1
-        rest = h(b2) * (p2 + self.camera[z, row])
+        p1 = ~np.take(C.delta, at_prev)
+        b2 = _ratio(near.light_s1, np.take(C.pdf_fwd, at_prev))
+        p2 = ~np.take(C.delta, np.maximum(z - 2, 0) * n + row) & p1
+        rest = h(b2) * (p2 + np.take(self.camera, at_z))
         return h(b1) * (p1 + np.where(t == 2, 0.0, rest))

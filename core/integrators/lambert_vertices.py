@@ -1,0 +1,114 @@
+"""Connection ends on plain Lambert vertices under flat shading: ``f`` and both densities from
+one cosine per direction, with about half the gathered columns of :class:`.subpaths.Gathered`.
+
+Where shading is flat (no corner normals) and a vertex's BSDF is a plain two-sided Lambert row
+(kind ``KIND_DIFFUSE``, none of the optional column groups), everything a connection reads
+from it depends on the albedo and on the z components of directions in its frame: with
+``c_o = wo_local.z``, ``c = w . fn`` (the z component :func:`core.materials.frame.to_local`
+computes), and ``N = +1`` where ``c_o >= 0`` else ``-1`` (the lobe flipped to ``wo``'s side,
+:func:`core.materials.families._diffuse_normal`):
+
+- ``f |cos| = albedo max(N c, 0) / pi`` (:func:`core.materials.lambert.eval_lambert`),
+- the density of sampling ``w`` from ``wo``: ``max(N c, 0) / pi``,
+- the density of sampling ``wo`` from ``w``: ``max(N' c_o, 0) / pi`` with ``N'`` on ``c``'s
+  side.
+
+:func:`core.materials.bsdf.eval_bsdf` and :func:`~core.materials.bsdf.pdf_bsdf` compute the
+same numbers through the whole local vectors (``N . w_l``, whose x and y terms are exact
+zeros), so the values here equal theirs to the last bit, up to the sign of a zero; the frame's
+two tangents, the BSDF's other columns and the densities' second gather are not needed.
+:func:`gatherer` picks this form for a batch only where every vertex that may be connected
+qualifies, and :class:`.subpaths.Gathered` everywhere else (tests:
+``tests/core/test_lambert_vertices.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..materials.bsdf import KIND_DIFFUSE, OPTIONAL_GROUPS
+from ..materials.frame import dot
+from ..sampling.warps import INV_PI, cosine_hemisphere_pdf
+from .common import take_rows
+from .subpaths import Gathered
+
+
+class LambertVertices:
+    """Plain Lambert vertices of a subpath for the rows of one connection (the part of the
+    :class:`.subpaths.Gathered` interface the connections use).
+
+    Attributes
+    ----------
+    color : (m, 3) float64 or None
+        Albedo (None once only densities are needed).
+    fn : (m, 3) float64 or None
+        The frame's normal (the geometric normal, flat shading).
+    wo_z : (m,) float64
+        The incoming direction's z in the frame.
+    ng : (m, 3) float64
+        Geometric normal.
+    """
+
+    __slots__ = ("color", "fn", "wo_z", "ng")
+
+    def __init__(self, color, fn, wo_z, ng):
+        self.color, self.fn, self.wo_z, self.ng = color, fn, wo_z, ng
+
+    @staticmethod
+    def at(sub, index):
+        """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`.subpaths.Subpath.flat`."""
+        # Fancy indexing reads the strided z column in place (np.take would copy it whole).
+        return LambertVertices(take_rows(sub.all_params.color, index),
+                               take_rows(sub.flat("fn"), index),
+                               sub.flat("wo_local")[index, 2], take_rows(sub.flat("ng"), index))
+
+    def for_densities(self, idx):
+        """The rows ``idx`` for :meth:`pdf_toward`, :meth:`pdf_back` and ``ng`` only."""
+        return LambertVertices(None, None, self.wo_z[idx], take_rows(self.ng, idx))
+
+    def local(self, w):
+        """``(m,)``: the z components of world directions ``w (m, 3)`` in the frames (all that
+        the other methods read of a local direction)."""
+        return dot(w, self.fn)
+
+    def _lobe_side(self, cos):
+        return np.where(cos >= 0.0, 1.0, -1.0)
+
+    def f(self, w, w_l):
+        """``f |cos|`` ``(m, 3)`` toward ``w_l`` (from :meth:`local`; ``w`` unused)."""
+        cos = self._lobe_side(self.wo_z) * w_l
+        return self.color * (np.maximum(cos, 0.0) * INV_PI)[:, None]
+
+    def pdf_toward(self, w_l):
+        """Solid-angle density ``(m,)`` of sampling ``w_l`` given the incoming direction."""
+        return cosine_hemisphere_pdf(self._lobe_side(self.wo_z) * w_l)
+
+    def pdf_back(self, w_l):
+        """Solid-angle density ``(m,)`` of sampling the incoming direction given ``w_l``."""
+        return cosine_hemisphere_pdf(self._lobe_side(w_l) * self.wo_z)
+
+
+def all_lambert(smooth, subs, j=None):
+    """Whether every vertex of the subpaths ``subs`` that a connection may use (valid and
+    connectible; at depth ``j`` only, if given) is a plain Lambert row under flat shading."""
+    if smooth:
+        return False
+    for sub in subs:
+        table = sub.all_params
+        if any(table.has(group) for group in OPTIONAL_GROUPS):
+            return False
+        kind, valid, connectible = table.kind.reshape(sub.valid.shape), sub.valid, sub.connectible
+        if j is not None:
+            kind, valid, connectible = kind[j], valid[j], connectible[j]
+        if np.any((kind != KIND_DIFFUSE) & valid & connectible):
+            return False
+    return True
+
+
+def gatherer(ctx, *subs):
+    """``gather(sub, index, mode)``: the connection ends ``index`` of ``sub`` as
+    :class:`LambertVertices` where :func:`all_lambert` holds for ``subs``, else as
+    :meth:`.subpaths.Gathered.at` (``mode``: radiance or importance)."""
+    if all_lambert(ctx.smooth, subs):
+        return lambda sub, index, mode: LambertVertices.at(sub, index)
+    return lambda sub, index, mode: Gathered.at(ctx, sub, index, mode)

@@ -1,0 +1,123 @@
+"""BDPT's connection ends on plain Lambert vertices (:mod:`core.integrators.lambert_vertices`)
+give the general gather's values to the last bit, and are used only where they apply.
+
+Restructuring only: every comparison here is exact (``assert_array_equal``), so any change of
+a value, a density, an MIS weight or a dropped row fails.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sampling_lab.core import scenes
+from sampling_lab.core.film import PixelFilter
+from sampling_lab.core.integrators import connections, lambert_vertices
+from sampling_lab.core.integrators.base import Counters
+from sampling_lab.core.integrators.bdpt import BDPT
+from sampling_lab.core.integrators.lambert_vertices import LambertVertices, all_lambert
+from sampling_lab.core.integrators.subpaths import Gathered
+from sampling_lab.core.materials.bsdf import IMPORTANCE, RADIANCE, KIND_DIFFUSE, BSDFParams
+from sampling_lab.core.materials.frame import shading_frame, to_local
+from sampling_lab.core.prepare import prepare
+from sampling_lab.core.render import render
+from sampling_lab.core.sampling.samplers import make_sampler
+from tests.helpers import plain_settings
+
+
+def _unit(rng, m):
+    v = rng.normal(size=(m, 3))
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+@pytest.mark.parametrize("mode", [RADIANCE, IMPORTANCE])
+def test_lambert_vertex_values_equal_the_general_gathers_bit_for_bit(mode):
+    rng = np.random.default_rng(7)
+    m = 4000
+    ng = _unit(rng, m)
+    frame = shading_frame(ng)
+    wo, w = _unit(rng, m), _unit(rng, m)
+    w[:50] = frame[0][:50]  # in the tangent plane: z exactly zero
+    wo[50:100] = frame[1][50:100]
+    color = rng.uniform(0.0, 1.0, (m, 3))
+    params = BSDFParams(np.full(m, KIND_DIFFUSE, np.int32), color, np.ones(m), np.ones(m),
+                        np.zeros((m, 3)))
+    wo_l = to_local(wo, *frame)
+    general = Gathered.of(False, mode, params, frame, None, wo_l, ng)
+    lean = LambertVertices(color, frame[2], wo_l[:, 2], ng)
+    w_l, z = general.local(w), lean.local(w)
+    np.testing.assert_array_equal(z, w_l[:, 2])
+    np.testing.assert_array_equal(lean.f(w, z), general.f(w, w_l))
+    np.testing.assert_array_equal(lean.pdf_toward(z), general.pdf_toward(w_l))
+    np.testing.assert_array_equal(lean.pdf_back(z), general.pdf_back(w_l))
+    keep = np.arange(0, m, 3)
+    dens, ref = lean.for_densities(keep), general.for_densities(keep)
+    np.testing.assert_array_equal(dens.pdf_back(z[keep]), ref.pdf_back(w_l[keep]))
+    np.testing.assert_array_equal(dens.ng, ref.ng)
+    # Both sides of the surface and both lobes occur (the test is not one-sided).
+    assert (lean.f(w, z).max(axis=1) > 0).mean() > 0.3 and (lean.pdf_back(z) == 0).mean() > 0.3
+
+
+def _mirror_ball():
+    return scenes.cornell_sphere(16, 16, ball="mirror", light="area")
+
+
+def _rough_ball():
+    return scenes.cornell_sphere(16, 16, ball="mirror", light="area", roughness=0.3)
+
+
+def _passes(scene, monkeypatch, general):
+    """Combined, variance and every strategy layer of a small BDPT render, with the lean
+    gather where it applies or (``general``) the general one everywhere; and the lean
+    gathers made."""
+    made = []
+    lean_at = LambertVertices.at
+
+    def counted(sub, index):
+        made.append(index.size)
+        return lean_at(sub, index)
+
+    with monkeypatch.context() as m:
+        m.setattr(LambertVertices, "at", staticmethod(counted))
+        if general:  # the connections' and the t = 1 splats' lean gathers both off
+            never = lambda *args: False  # noqa: E731
+            m.setattr(lambert_vertices, "all_lambert", never)
+            m.setattr(connections, "all_lambert", never)
+        settings = plain_settings(integrator="bdpt", spp=2, seed=3, threads=1, max_bounces=4,
+                                  strategy_views=True, strategy_max_length=3)
+        result = render(scene, settings)
+    layers = result.layers()
+    return [result.combined(), result.variance(), *[layers[n] for n in result.layer_names]], made
+
+
+@pytest.mark.parametrize("make_scene", [lambda: scenes.cornell_box(16, 16, "mesh"), _mirror_ball],
+                         ids=["diffuse box", "mirror ball"])
+def test_bdpt_image_is_the_same_with_lambert_vertices(make_scene, monkeypatch):
+    lean, made = _passes(make_scene(), monkeypatch, general=False)
+    full, none = _passes(make_scene(), monkeypatch, general=True)
+    assert sum(made) > 1000 and not none  # the lean gather was taken, then not
+    assert len(lean) == len(full) > 2
+    for a, b in zip(lean, full):
+        np.testing.assert_array_equal(a, b)
+    assert np.isfinite(lean[0]).all() and lean[0].max() > 0
+
+
+@pytest.mark.parametrize("make_scene, expected", [
+    (lambda: scenes.cornell_box(16, 16, "mesh"), True),
+    (_mirror_ball, True),  # the delta mirror's vertices are never connected
+    (_rough_ball, False),  # a rough conductor is
+    (lambda: scenes.cornell_sphere(16, 16, ball="mirror", light="area", smooth=True), False),
+], ids=["diffuse box", "mirror ball", "rough ball", "smooth shading"])
+def test_lambert_vertices_only_where_every_connected_vertex_is_lambert(make_scene, expected):
+    class Probe(BDPT):
+        def connect(self, ctx, stream, C, L, out):
+            self.seen = all_lambert(ctx.smooth, (L, C))
+
+    scene = make_scene()
+    settings = plain_settings(integrator="bdpt", spp=1, max_bounces=4)
+    integ = Probe(prepare(scene), settings)
+    sampler = make_sampler("independent", seed=1, spp=1, width=16)
+    integ.render_samples(sampler.stream(np.arange(256), np.zeros(256, np.int64)),
+                         PixelFilter(settings.filter_type, settings.filter_width), Counters())
+    assert integ.seen is expected
+    assert lambert_vertices.all_lambert(True, ()) is False
