@@ -41,3 +41,31 @@ def test_queued_units_give_the_same_image_as_one_unit_in_flight(monkeypatch):
     one = render(scene, settings, unit_paths=256)
     assert np.array_equal(queued.combined(), one.combined())
     assert np.array_equal(queued.variance(), one.variance())
+
+
+def test_next_pass_units_are_queued_before_a_pass_is_shown(monkeypatch):
+    """Pipelined passes: when a pass's last unit is awaited, units of the next pass are
+    already handed to the workers (no worker idles at a pass's end), and the image is that of
+    one unit at a time (bit for bit)."""
+    events, pool = [], render_module.ThreadPoolExecutor
+
+    class Recording(pool):
+        def submit(self, fn, unit, *args, **kwargs):
+            events.append(("submit", unit[2]))  # the unit's first sample index
+            return super().submit(fn, unit, *args, **kwargs)
+
+    monkeypatch.setattr(render_module, "ThreadPoolExecutor", Recording)
+    scene = scenes.cornell_box(24, 24, "area")
+    settings = plain_settings(spp=6, threads=2, seed=4)
+    # 256-path units: 3 samples per pixel per pass, 7 units per pass, two passes.
+    piped = render(scene, settings, unit_paths=256,
+                   on_update=lambda result: events.append(("pass", None)))
+    first_shown = events.index(("pass", None))
+    assert ("submit", 3) in events[:first_shown]
+    assert [e for e in events if e[0] == "pass"] == [("pass", None)] * 2
+    monkeypatch.setattr(render_module, "IN_FLIGHT", 1)
+    monkeypatch.setattr(render_module, "ThreadPoolExecutor", pool)
+    settings = plain_settings(spp=6, threads=1, seed=4)
+    one = render(scene, settings, unit_paths=256)
+    assert np.array_equal(piped.combined(), one.combined())
+    assert np.array_equal(piped.variance(), one.variance())
