@@ -542,6 +542,8 @@ class _Passes:
         self.total_spp = settings.spp if settings.spp > 0 else None
         # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
         self.unit_paths = unit_paths or integrator.unit_paths
+        # Final renders may run several units as one batch; passes keep the units' size.
+        self.batch_paths = self.unit_paths * (1 if unit_paths else integrator.batch_units)
         # Sized by the whole frame, so a region's pixels sum their samples in the same passes as
         # a full-frame render (bit-identical pixels).
         self.spp_per_pass = max(1, min(self.unit_paths * PASS_UNITS // (cam.width * cam.height),
@@ -637,7 +639,7 @@ class _Passes:
         while self.total_spp is None or done < self.total_spp:
             k = (self.spp_per_pass if self.total_spp is None
                  else min(self.spp_per_pass, self.total_spp - done))
-            units = _units(self.film.n_pixels, done, k, self.unit_paths)
+            units = _units(self.film.n_pixels, done, k, self.batch_paths)
             for index, unit in enumerate(units):
                 yield k, unit, index, len(units)
             done += k
