@@ -273,6 +273,7 @@ class PathTracer(Integrator):
             shading = self._shading(si, hits, live, u_lobe)
             if self.use_nee:
                 self._sample_lights(shading, si, path, u_sel, u_light, L, counters)
+                stream.check_abort()  # mid-bounce too: a cancel waits for half a bounce
             if not self._scatter(shading, si, path, u_bsdf, u_rr, step, stream):
                 break
             o, d, tmax = path.o, path.d, None  # bounce rays are unbounded
