@@ -23,7 +23,17 @@ same file profiles an older worktree of the renderer when ``PYTHONPATH`` names t
 render with one thread, with ``--threads`` threads in one process, and as ``--threads``
 one-thread processes at once (their samples summed over the slowest one's time). Processes
 share the cores and memory but not the GIL, the allocator or the render loop: if processes
-scale much better than threads, what is shared inside the process is the limit.
+scale much better than threads, what is shared inside the process is the limit. Each line
+also gives the process CPU seconds per wall second (1 and 2 on a quiet machine: lower, the
+load took the rest, and the ratios mean nothing). The scene is built once and sent to the
+processes (a spawned child cannot import ``bpy``).
+
+Figures that hold better under load (a shared machine): ``--busy`` (how much of the time the worker
+threads spend in work units), ``--counts`` (Python and C-function calls per camera sample,
+and ``tracemalloc``'s peak per work unit), and ``--once`` (one render, nothing else) for
+``valgrind --tool=cachegrind --D1=49152,12,64 --LL=1048576,16,64 python tools/profile_path.py
+--scene bench --threads 1 --once ...`` (instructions and cache misses; subtract a 1-spp run
+for the process's fixed part). ``--unit-paths N`` sets the path tracer's units.
 """
 
 from __future__ import annotations
@@ -309,7 +319,6 @@ def counts(args):
     C-function calls and are not counted: a lower bound of NumPy calls), and the peak of
     memory traced by ``tracemalloc`` (NumPy's arrays included) above what the render held
     before its first unit, per work unit."""
-    import sys
     import tracemalloc
 
     from sampling_lab.core.render import render

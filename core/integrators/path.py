@@ -242,6 +242,7 @@ class PathTracer(Integrator):
             # Intersect, then add what the ray sees of emitters: world, lamps, emissive triangles.
             hits = intersect_by_class(prep.accel, o, d, tmax, path.vis)
             counters.rays += o.shape[0]
+            stream.check_abort()  # and after the closest hits: a cancel waits for a stage
             _add_emitters(prep, L, path.beta, o, d, hits, path.rows_of, path.pdf_prev,
                           path.use_mis, path.camera_ray, self.mis, path.n_prev, path.o_mis,
                           path.t_mis)
@@ -273,7 +274,7 @@ class PathTracer(Integrator):
             shading = self._shading(si, hits, live, u_lobe)
             if self.use_nee:
                 self._sample_lights(shading, si, path, u_sel, u_light, L, counters)
-                stream.check_abort()  # mid-bounce too: a cancel waits for half a bounce
+                stream.check_abort()
             if not self._scatter(shading, si, path, u_bsdf, u_rr, step, stream):
                 break
             o, d, tmax = path.o, path.d, None  # bounce rays are unbounded
