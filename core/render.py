@@ -544,6 +544,8 @@ class _Passes:
         self.total_spp = settings.spp if settings.spp > 0 else None
         # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
         self.unit_paths = unit_paths or integrator.unit_paths
+        # Final renders may run several units as one batch; passes keep the units' size.
+        self.batch_paths = self.unit_paths * (1 if unit_paths else integrator.batch_units)
         # Sized by the whole frame, so a region's pixels sum their samples in the same passes as
         # a full-frame render (bit-identical pixels).
         self.spp_per_pass = max(1, min(self.unit_paths * PASS_UNITS // (cam.width * cam.height),
@@ -551,6 +553,7 @@ class _Passes:
         self.threads = thread_count(settings)
         self.counters = Counters()
         self.done_spp = 0
+        self.unshown = 0  # units added to the film since on_pass() was last called
         self.t_start = time.perf_counter()
         # Set once cancel() says so: the units in flight stop at their next bounce.
         self.stop = threading.Event()
@@ -587,6 +590,7 @@ class _Passes:
         """Add one unit's output to the film (in unit order: the image is deterministic);
         ``taps``: the splats' filter taps if :meth:`run_unit` made them."""
         film, pixel_filter = self.film, self.pixel_filter
+        self.unshown += 1
         self.counters.add(local)
         film.add_samples(pixels, out.radiance, out.transparency)
         if taps is not None:
@@ -620,31 +624,79 @@ class _Passes:
 
     def _run_unit_passes(self, on_pass):
         """:meth:`run` for integrators that render work units."""
-        cancelled = False
         pool = ThreadPoolExecutor(max_workers=self.threads)
         try:
-            while not cancelled:
-                if self.total_spp is not None and self.done_spp >= self.total_spp:
-                    break
-                if self.out_of_time():
-                    break
-                k = (self.spp_per_pass if self.total_spp is None
-                     else min(self.spp_per_pass, self.total_spp - self.done_spp))
-                units = _units(self.film.n_pixels, self.done_spp, k, self.unit_paths)
-                finished, cancelled = self._run_pass(pool, units, k)
-                if finished == len(units):
-                    self.done_spp += k
-                    self.report(self.done_spp / self.total_spp if self.total_spp
-                                else self.elapsed() / self.settings.time_limit)
-                on_pass()
-                if finished < len(units):
-                    break
+            return self._run_units(pool, on_pass)
         except BaseException:
             self.stop.set()  # a unit failed: the others stop at their next bounce
             raise
         finally:
             pool.shutdown(wait=True)
-        return cancelled
+
+    def _planned_units(self):
+        """Every work unit of the render, pass after pass: ``(k, unit, index, count)``, ``k``
+        the pass's samples per pixel, ``index`` the unit's place among the pass's ``count``
+        units (an endless sequence under a time limit alone)."""
+        done = self.done_spp
+        while self.total_spp is None or done < self.total_spp:
+            k = (self.spp_per_pass if self.total_spp is None
+                 else min(self.spp_per_pass, self.total_spp - done))
+            units = _units(self.film.n_pixels, done, k, self.batch_paths)
+            for index, unit in enumerate(units):
+                yield k, unit, index, len(units)
+            done += k
+
+    def _run_units(self, pool, on_pass):
+        """Run the planned units, up to :data:`IN_FLIGHT` per thread at a time, and add them
+        to the film in plan order (the image does not depend on timing). The next pass's units
+        start while the last ones of a pass run, so no worker idles at a pass's end (small
+        images have few units per pass). A render stopped part-way calls ``on_pass()`` once
+        more for the units it kept. Returns whether the render was cancelled."""
+        planned, pending = self._planned_units(), []
+        while True:
+            while len(pending) < IN_FLIGHT * self.threads and not self.out_of_time():
+                nxt = next(planned, None)
+                if nxt is None:
+                    break
+                pending.append((pool.submit(self.run_unit, nxt[1]), nxt))
+            if not pending:
+                return False
+            future, (k, _, index, count) = pending.pop(0)
+            futures = [f for f, _ in pending]
+            if self._cancelled_while_waiting(future):
+                self._abort([future] + futures)
+                break
+            self.accumulate(*future.result())
+            self._unit_done(k, index + 1, count, on_pass)
+            if self.cancel is not None and self.cancel():
+                self._abort(futures)
+                break
+            if self.out_of_time():
+                for f in _started(futures):  # finish what runs; its samples are kept
+                    self.accumulate(*f.result())
+                self._show(on_pass)
+                return False
+        self._show(on_pass)
+        return True
+
+    def _unit_done(self, k, finished, count, on_pass):
+        """Report progress after the ``finished``-th of a pass's ``count`` units; at the last,
+        count the pass's ``k`` samples per pixel as done and call ``on_pass()``."""
+        total_spp = self.total_spp
+        if finished < count:
+            self.report((self.done_spp + k * finished / count) / total_spp if total_spp
+                        else self.elapsed() / self.settings.time_limit)
+            return
+        self.done_spp += k
+        self.report(self.done_spp / total_spp if total_spp
+                    else self.elapsed() / self.settings.time_limit)
+        self._show(on_pass)
+
+    def _show(self, on_pass):
+        """``on_pass()`` if units were added to the film since it was last called."""
+        if self.unshown:
+            self.unshown = 0
+            on_pass()
 
     def run_whole_passes(self, on_pass):
         """Passes of an integrator that renders a whole pass itself (``whole_passes``, SPPM):
@@ -703,37 +755,6 @@ class _Passes:
             if self.cancel is not None and self.cancel():
                 return True
         return False
-
-    def _run_pass(self, pool, units, k):
-        """Run the ``units`` of one pass of ``k`` samples per pixel. Returns the number of
-        units finished and whether the render was cancelled."""
-        cancel, total_spp = self.cancel, self.total_spp
-        # Up to IN_FLIGHT units per thread are submitted: a worker that finishes before the unit
-        # the render loop waits for (units are accumulated in order) starts the next one at once
-        # instead of idling; units not yet started are dropped by a time limit or a cancel.
-        pending = []
-        finished = 0
-        i = 0
-        while i < len(units) or pending:
-            while i < len(units) and len(pending) < IN_FLIGHT * self.threads:
-                pending.append(pool.submit(self.run_unit, units[i]))
-                i += 1
-            if self._cancelled_while_waiting(pending[0]):
-                return finished, self._abort(pending)
-            self.accumulate(*pending.pop(0).result())
-            finished += 1
-            if finished < len(units):  # the end of a pass is reported by run()
-                if total_spp:
-                    self.report((self.done_spp + k * finished / len(units)) / total_spp)
-                else:
-                    self.report(self.elapsed() / self.settings.time_limit)
-            if cancel is not None and cancel():
-                return finished, self._abort(pending)
-            if self.out_of_time():
-                for f in _started(pending):  # finish what is running; its samples are kept
-                    self.accumulate(*f.result())
-                return finished, False
-        return finished, False
 
     def _abort(self, pending):
         """Stop the units in flight at their next bounce; keep those that finished first."""

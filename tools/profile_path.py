@@ -23,7 +23,17 @@ same file profiles an older worktree of the renderer when ``PYTHONPATH`` names t
 render with one thread, with ``--threads`` threads in one process, and as ``--threads``
 one-thread processes at once (their samples summed over the slowest one's time). Processes
 share the cores and memory but not the GIL, the allocator or the render loop: if processes
-scale much better than threads, what is shared inside the process is the limit.
+scale much better than threads, what is shared inside the process is the limit. Each line
+also gives the process CPU seconds per wall second (1 and 2 on a quiet machine: lower, the
+load took the rest, and the ratios mean nothing). The scene is built once and sent to the
+processes (a spawned child cannot import ``bpy``).
+
+Figures that hold better under load (a shared machine): ``--busy`` (how much of the time the worker
+threads spend in work units), ``--counts`` (Python and C-function calls per camera sample,
+and ``tracemalloc``'s peak per work unit), and ``--once`` (one render, nothing else) for
+``valgrind --tool=cachegrind --D1=49152,12,64 --LL=1048576,16,64 python tools/profile_path.py
+--scene bench --threads 1 --once ...`` (instructions and cache misses; subtract a 1-spp run
+for the process's fixed part). ``--unit-paths N`` sets the path tracer's units.
 """
 
 from __future__ import annotations
@@ -114,14 +124,34 @@ def main(argv=None):
     parser.add_argument("--gil-check", action="store_true",
                         help="one thread, --threads threads, and --threads one-thread "
                              "processes at once: samples/s of each (see the module's doc)")
+    parser.add_argument("--busy", action="store_true",
+                        help="how busy the worker threads stay (see busy())")
+    parser.add_argument("--counts", action="store_true",
+                        help="calls and traced memory per camera sample, one thread "
+                             "(see counts())")
+    parser.add_argument("--once", action="store_true",
+                        help="one render, no warm-up, no profile (under valgrind)")
+    parser.add_argument("--unit-paths", type=int,
+                        help="paths per work unit instead of the path tracer's own")
     args = parser.parse_args(argv)
+    set_unit_paths(args.unit_paths)
 
     from sampling_lab.core.render import render
 
     if args.gil_check:
         gil_check(args)
         return
+    if args.busy:
+        busy(args)
+        return
+    if args.counts:
+        counts(args)
+        return
     scene, settings = _scene_and_settings(args)
+    if args.once:
+        res = render(scene, settings)
+        print(f"one render: {res.stats['samples']} samples")
+        return
     render(scene, settings)  # warm-up: imports, Embree build, table caches
     res = render(scene, settings)
     s = res.stats
@@ -181,49 +211,160 @@ def _lasting_threads_cpu():
     return out
 
 
-def _timed_render(args, threads, barrier=None):
-    """Camera samples and wall seconds of one render (after a warm-up render), started
-    together with the other processes when ``barrier`` is given."""
+def _timed_render(scene, settings, threads, barrier=None):
+    """Camera samples, wall seconds and process CPU seconds of one render (after a warm-up
+    render), started together with the other processes when ``barrier`` is given."""
     from sampling_lab.core.render import render
 
-    scene, settings = _scene_and_settings(args)
     settings = dataclasses.replace(settings, threads=threads)
     render(scene, settings)
     if barrier is not None:
         barrier.wait()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     res = render(scene, settings)
-    return res.stats["samples"], time.perf_counter() - t0
+    return res.stats["samples"], time.perf_counter() - t0, time.process_time() - c0
 
 
-def _process_render(args, barrier, queue):
-    queue.put(_timed_render(args, 1, barrier))
+def set_unit_paths(paths):
+    """Give the path tracer ``paths`` per work unit (None: keep its own)."""
+    if paths:
+        from sampling_lab.core.integrators.path import PathTracer
+
+        PathTracer.unit_paths = paths
+
+
+def _process_render(scene, settings, barrier, queue, unit_paths=None):
+    set_unit_paths(unit_paths)
+    try:
+        queue.put(_timed_render(scene, settings, 1, barrier))
+    except BaseException as exc:  # the parent must not wait for a result forever
+        barrier.abort()
+        queue.put(exc)
+        raise
 
 
 def gil_check(args, repeats=2):
-    """Print samples/s of one thread, of ``args.threads`` threads in one process and of
-    ``args.threads`` one-thread processes at once (best of ``repeats`` each, interleaved)."""
+    """Print samples/s and CPU use (process CPU seconds per wall second: at most the thread
+    count) of one thread, of ``args.threads`` threads in one process and of ``args.threads``
+    one-thread processes at once (best of ``repeats`` each, interleaved). The scene is built
+    once, here, and sent to the processes (``bpy`` cannot be imported in a spawned child)."""
     n = args.threads
+    scene, settings = _scene_and_settings(args)
     ctx = multiprocessing.get_context("spawn")
-    best = {"1 thread": 0.0, f"{n} threads, one process": 0.0,
-            f"{n} processes of 1 thread": 0.0}
+    labels = ("1 thread", f"{n} threads, one process", f"{n} processes of 1 thread")
+    best = {label: (0.0, 0.0) for label in labels}
     for _ in range(repeats):
-        for label, threads in (("1 thread", 1), (f"{n} threads, one process", n)):
-            samples, wall = _timed_render(args, threads)
-            best[label] = max(best[label], samples / wall)
-        barrier, queue = ctx.Barrier(n), ctx.Queue()
-        procs = [ctx.Process(target=_process_render, args=(args, barrier, queue))
-                 for _ in range(n)]
-        for p in procs:
-            p.start()
-        out = [queue.get() for _ in procs]
-        for p in procs:
-            p.join()
-        label = f"{n} processes of 1 thread"
-        best[label] = max(best[label], sum(s for s, _ in out) / max(w for _, w in out))
-    one = best["1 thread"]
-    for label, sps in best.items():
-        print(f"{label:>26}: {sps / 1e6:.3f} M samples/s ({sps / one:.2f} x one thread)")
+        runs = [_timed_render(scene, settings, 1), _timed_render(scene, settings, n),
+                _processes_render(ctx, scene, settings, n, args.unit_paths)]
+        for label, (samples, wall, cpu) in zip(labels, runs):
+            best[label] = max(best[label], (samples / wall, cpu / wall))
+    one = best["1 thread"][0]
+    for label, (sps, cores) in best.items():
+        print(f"{label:>26}: {sps / 1e6:.3f} M samples/s ({sps / one:.2f} x one thread), "
+              f"CPU {cores:.2f} s per wall s")
+
+
+def _processes_render(ctx, scene, settings, n, unit_paths=None):
+    """``(samples, wall, cpu)`` of ``n`` one-thread processes rendering at once: their samples
+    and CPU summed, over the slowest one's wall time."""
+    barrier, queue = ctx.Barrier(n), ctx.Queue()
+    procs = [ctx.Process(target=_process_render, args=(scene, settings, barrier, queue, unit_paths))
+             for _ in range(n)]
+    for p in procs:
+        p.start()
+    out = [queue.get(timeout=600) for _ in procs]
+    for p in procs:
+        p.join()
+    failed = [o for o in out if isinstance(o, BaseException)]
+    if failed:
+        raise RuntimeError(f"a render process failed: {failed[0]!r}")
+    return (sum(s for s, _, _ in out), max(w for _, w, _ in out), sum(c for _, _, c in out))
+
+
+def busy(args):
+    """Print how busy the worker threads stay: the share of ``threads x`` the wall time from
+    the first unit's start to the last one's end that they spend in work units (the rest:
+    waiting at a pass's end, or for the render loop to hand them a unit)."""
+    from sampling_lab.core import render as render_mod
+
+    scene, settings = _scene_and_settings(args)
+    units = []
+    run_unit = render_mod._Passes.run_unit
+
+    def timed_unit(self, unit):
+        t0 = time.perf_counter()
+        try:
+            return run_unit(self, unit)
+        finally:
+            units.append((t0, time.perf_counter()))
+
+    render_mod._Passes.run_unit = timed_unit
+    try:
+        render_mod.render(scene, settings)  # warm-up
+        units.clear()
+        res = render_mod.render(scene, settings)
+    finally:
+        render_mod._Passes.run_unit = run_unit
+    n = settings.threads
+    span = max(t for _, t in units) - min(t for t, _ in units)
+    work = sum(t1 - t0 for t0, t1 in units)
+    print(f"busy: {len(units)} units, {res.stats['samples']} samples, {span:.3f} s; workers "
+          f"in units {100 * work / (n * span):.1f} % of {n} x that time, idle "
+          f"{100 * (1 - work / (n * span)):.1f} %")
+
+
+def counts(args):
+    """Print, per camera sample of a one-thread render: Python function calls and calls of
+    C functions and methods (``sys.setprofile``; NumPy's operators and ufunc calls are not
+    C-function calls and are not counted: a lower bound of NumPy calls), and the peak of
+    memory traced by ``tracemalloc`` (NumPy's arrays included) above what the render held
+    before its first unit, per work unit."""
+    import tracemalloc
+
+    from sampling_lab.core.render import render
+
+    scene, settings = _scene_and_settings(args)
+    settings = dataclasses.replace(settings, threads=1)
+    render(scene, settings)
+    tally = {"call": 0, "c_call": 0}
+
+    def profiler(frame, event, arg):
+        if event in tally:
+            tally[event] += 1
+
+    threading_profile(profiler)
+    try:
+        res = render(scene, settings)
+    finally:
+        threading_profile(None)
+    n = res.stats["samples"]
+    print(f"per camera sample: {tally['call'] / n:.4f} Python calls, "
+          f"{tally['c_call'] / n:.4f} C-function calls ({n} samples)")
+    from sampling_lab.core import render as render_mod
+
+    run_unit, units = render_mod._Passes.run_unit, []
+    render_mod._Passes.run_unit = lambda self, unit: units.append(unit) or run_unit(self, unit)
+    tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        base = tracemalloc.get_traced_memory()[0]
+        res = render(scene, settings)
+        peak = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+        render_mod._Passes.run_unit = run_unit
+    paths = res.stats["samples"] / max(1, len(units))
+    print(f"tracemalloc peak above the start: {peak / 2**20:.1f} MiB "
+          f"(about {peak / paths:.0f} bytes per path of a {paths:.0f}-path unit)")
+
+
+def threading_profile(fn):
+    """``sys.setprofile`` in this thread and in threads started from now on."""
+    import sys
+    import threading
+
+    sys.setprofile(fn)
+    threading.setprofile(fn)
 
 
 if __name__ == "__main__":

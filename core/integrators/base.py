@@ -14,6 +14,11 @@ What the render loop reads from an integrator:
     progress stay prompt), large enough to amortise NumPy's per-call cost. Expensive samples
     (BDPT) ask for smaller units. The pass size follows from it, so it is part of what makes an
     image bit-identical: changing it changes the order in which splats are summed.
+``batch_units`` (class attribute)
+    How many of those units a final render runs as one batch (the viewport: one), to spread
+    the per-call cost over more paths where the memory allows. The pass size stays that of
+    ``unit_paths``, and every pixel's samples of a pass stay in one batch, so without splats
+    the image is the same bit for bit.
 ``splats`` (class attribute)
     Whether :meth:`~Integrator.render_samples` returns light-path splats (light tracing, BDPT)
     besides one radiance per camera sample.
@@ -164,6 +169,7 @@ class Integrator:
     """
 
     unit_paths: ClassVar[int] = UNIT_PATHS
+    batch_units: ClassVar[int] = 1
     splats: ClassVar[bool] = False
     strategy_views: ClassVar[bool] = False
     whole_passes: ClassVar[bool] = False

@@ -252,6 +252,8 @@ def test_a_render_failing_half_way_keeps_its_samples_and_says_so(empty_scene, tm
     scenes.set_sampling_lab(empty_scene, samples=4)
     path = importlib.import_module(f"{ADDON_MODULE}.core.integrators.path")
     original = path.PathTracer.render_samples
+    # One 64 k-path unit per batch: the frame's 76,800 paths are then two units.
+    monkeypatch.setattr(path.PathTracer, "batch_units", 1)
 
     def render_samples(self, stream, *args):
         # Every unit but the first (pixel 0, sample 0) breaks. Chosen by what the unit holds,
@@ -341,6 +343,7 @@ def test_a_bug_half_way_keeps_the_samples_and_prints_its_traceback(empty_scene, 
     empty_scene.render.threads_mode, empty_scene.render.threads = 'FIXED', 1
     path = importlib.import_module(f"{ADDON_MODULE}.core.integrators.path")
     original, calls = path.PathTracer.render_samples, []
+    monkeypatch.setattr(path.PathTracer, "batch_units", 1)  # two 64 k-path units
 
     def render_samples(self, *args):  # the second work unit meets a NumPy-style ValueError
         calls.append(1)

@@ -99,7 +99,9 @@ def test_a_render_that_fails_half_way_keeps_the_units_finished_before(monkeypatc
 def test_the_cli_writes_a_failed_render_marked_partial_and_exits_1(monkeypatch, tmp_path,
                                                                     capsys):
     from sampling_lab import cli
+    from sampling_lab.core.integrators.path import PathTracer
 
+    monkeypatch.setattr(PathTracer, "batch_units", 1)  # the frame is two 64 k-path units
     _fail_path_tracer(monkeypatch, fail_at=2)
     out = tmp_path / "failed.exr"
     code = cli.main(["render", "cornell", "--resolution", "160x120", "--spp", "4",

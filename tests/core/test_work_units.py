@@ -41,3 +41,62 @@ def test_queued_units_give_the_same_image_as_one_unit_in_flight(monkeypatch):
     one = render(scene, settings, unit_paths=256)
     assert np.array_equal(queued.combined(), one.combined())
     assert np.array_equal(queued.variance(), one.variance())
+
+
+def test_next_pass_units_are_queued_before_a_pass_is_shown(monkeypatch):
+    """Pipelined passes: when a pass's last unit is awaited, units of the next pass are
+    already handed to the workers (no worker idles at a pass's end), and the image is that of
+    one unit at a time (bit for bit)."""
+    events, pool = [], render_module.ThreadPoolExecutor
+
+    class Recording(pool):
+        def submit(self, fn, unit, *args, **kwargs):
+            events.append(("submit", unit[2]))  # the unit's first sample index
+            return super().submit(fn, unit, *args, **kwargs)
+
+    monkeypatch.setattr(render_module, "ThreadPoolExecutor", Recording)
+    scene = scenes.cornell_box(24, 24, "area")
+    settings = plain_settings(spp=6, threads=2, seed=4)
+    # 256-path units: 3 samples per pixel per pass, 7 units per pass, two passes.
+    piped = render(scene, settings, unit_paths=256,
+                   on_update=lambda result: events.append(("pass", None)))
+    first_shown = events.index(("pass", None))
+    assert ("submit", 3) in events[:first_shown]
+    assert [e for e in events if e[0] == "pass"] == [("pass", None)] * 2
+    monkeypatch.setattr(render_module, "IN_FLIGHT", 1)
+    monkeypatch.setattr(render_module, "ThreadPoolExecutor", pool)
+    settings = plain_settings(spp=6, threads=1, seed=4)
+    one = render(scene, settings, unit_paths=256)
+    assert np.array_equal(piped.film.sum, one.film.sum)
+    assert np.array_equal(piped.film.sum_sq, one.film.sum_sq)
+
+
+def _batches_and_image(monkeypatch, scene, settings, batch_units):
+    """The work units run and the image of a final render with ``batch_units``, the path
+    tracer's units being 256 paths (so that a small image has many)."""
+    from sampling_lab.core.integrators.path import PathTracer
+
+    monkeypatch.setattr(PathTracer, "unit_paths", 256)
+    monkeypatch.setattr(PathTracer, "batch_units", batch_units)
+    units, run_unit = [], render_module._Passes.run_unit
+    monkeypatch.setattr(render_module._Passes, "run_unit",
+                        lambda self, unit: units.append(unit) or run_unit(self, unit))
+    res = render(scene, settings)
+    return units, res
+
+
+def test_batched_units_give_the_same_image_bit_for_bit(monkeypatch):
+    """``batch_units``: a final render that runs several units per batch keeps the pass size
+    and each pixel's samples of a pass in one batch, so every pixel sums the same numbers in
+    the same order (the BSDF path, with a glass ball and a point light, and the Lambert
+    path; several passes, a filter wider than a pixel)."""
+    for scene in (scenes.cornell_sphere(20, 20, ball="glass"), scenes.cornell_box(20, 20)):
+        settings = plain_settings(spp=9, threads=2, seed=3, filter_width=2.0)
+        one_units, one = _batches_and_image(monkeypatch, scene, settings, 1)
+        three_units, three = _batches_and_image(monkeypatch, scene, settings, 3)
+        assert len(three_units) < len(one_units)  # the batches really differ
+        assert one.stats["spp"] == three.stats["spp"] == 9
+        # The film's float64 sums, not the float32 image: regrouped sums differ in last bits.
+        assert np.array_equal(one.film.sum, three.film.sum)
+        assert np.array_equal(one.film.sum_sq, three.film.sum_sq)
+        assert np.array_equal(one.film.count, three.film.count)
