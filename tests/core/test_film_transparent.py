@@ -140,12 +140,7 @@ def path_on_transparent_film():
     return render(_floor_under_sky(True), plain_settings(spp=512, max_bounces=2, seed=1))
 
 
-# MLT's colour is a Markov chain's histogram: statistical agreement only (its alpha and the world
-# it leaves out: tests/core/test_film_transparent_mlt_radiosity.py).
-COLOUR_ESTIMATORS = {**ESTIMATORS, "mlt": dict(integrator="mlt")}
-
-
-@pytest.mark.parametrize("integrator", sorted(COLOUR_ESTIMATORS))
+@pytest.mark.parametrize("integrator", sorted(ESTIMATORS))
 def test_other_estimators_colour_on_a_transparent_film_agrees_with_path_tracing(
         integrator, path_on_transparent_film):
     # Eight seeds of 64 spp against the path tracer's 512 spp, image and 8 x 8 block means
@@ -157,7 +152,7 @@ def test_other_estimators_colour_on_a_transparent_film_agrees_with_path_tracing(
     # several times over.
     path = path_on_transparent_film
     reps = np.array([render(_floor_under_sky(True), plain_settings(
-        spp=64, max_bounces=2, seed=10 + s, **COLOUR_ESTIMATORS[integrator])).film.mean()
+        spp=64, max_bounces=2, seed=10 + s, **ESTIMATORS[integrator])).film.mean()
         for s in range(8)])
     assert_images_agree(path.film.mean(), path.film.variance(), reps, block=8,
                         detect=(0.04, 0.40), what=f"{integrator} vs path, transparent film")
