@@ -255,7 +255,8 @@ def test_transparent_film_alpha_of_the_other_estimators_agrees_with_cycles(empty
     spp less), so 0.03 is over 5 standard errors; a film left opaque (alpha 1) misses the
     image mean by the sky's share of the view, the leaf ignored (alpha 0 or 1 behind it) its
     blocks by 0.5. Sky pixels are dark in RGB (the world is not drawn) while the plane is lit.
-    Measured: alpha means 0.6289-0.6293 (MLT 0.6289) against Cycles' 0.6293-0.6294, worst blocks 0.002-0.003."""
+    Measured: alpha means 0.6289-0.6293 (MLT 0.6289) against Cycles' 0.6293-0.6294, worst
+    blocks 0.002-0.003."""
     from test_cycles_light_paths import RESOLUTION, add_leaf
 
     scene = empty_scene
