@@ -2,6 +2,8 @@
 camera rays (core/integrators/camera_alpha.py for MLT), the world seen directly left out of the
 colour, the world still lighting the scene."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -112,3 +114,29 @@ def test_mlt_colour_on_a_transparent_film_agrees_with_path_tracing():
                      for s in range(16)])
     assert_images_agree(path.film.mean(), path.film.variance(), reps, block=8,
                         detect=(0.02, 0.40), what="mlt vs path, transparent film")
+
+
+def _two_sheets():
+    """The floor under the sky behind two full Transparent sheets (z = 1 and z = 1.5)."""
+    scene = _floor_under_sky(True, sheet=FULL_SHEET)
+    v = np.asarray(scene.vertices)
+    second = v[-4:] + np.array([0, 0, 0.5], np.float32)
+    return dataclasses.replace(
+        scene, vertices=np.concatenate([v, second]),
+        triangles=np.concatenate([scene.triangles, scene.triangles[-2:] + 4]),
+        material=np.concatenate([scene.material, scene.material[-2:]]))
+
+
+@pytest.mark.parametrize("limit,expected", [(1, 1.0), (2, 1.0 - (0.36 + 0.16 + 0.04) / 3)])
+def test_transparent_limit_changes_mlts_alpha_as_the_path_tracers(limit, expected):
+    # The Transparent limit is used by MLT (used_settings: the path tracer's): behind two
+    # sheets a camera ray reaches the sky only if it may pass two surfaces, then with
+    # transparency mean((0.6, 0.4, 0.2)^2) = 0.187; with a limit of one it stops at the second
+    # sheet (alpha 1). Both estimators pass every sheet with its colour (no choice), so the
+    # path tracer's alpha is exact too; an alpha error of 1e-6 is detected.
+    scene = _two_sheets()
+    kw = dict(spp=2, max_bounces=2, transparent_max_bounces=limit)
+    mlt = render(scene, plain_settings(integrator="mlt", **kw)).combined()[..., 3]
+    path = render(scene, plain_settings(**kw)).combined()[..., 3]
+    np.testing.assert_allclose(mlt[[0, -1]].ravel(), expected, rtol=1e-6)
+    np.testing.assert_allclose(path[[0, -1]].ravel(), expected, rtol=1e-6)
