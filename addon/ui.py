@@ -244,10 +244,11 @@ class SAMPLINGLAB_RENDER_PT_film(SamplingLabButtonsPanel, Panel):
         col = layout.column()
         col.prop(settings, "filter_type")
         col.prop(settings, "filter_width")
-        # Blender's own Film > Transparent, which the estimators with camera paths render as
-        # alpha (MLT and radiosity report an opaque background).
+        # Blender's own Film > Transparent, rendered as alpha by every estimator (from the
+        # camera rays that escape; core.render.FILM_TRANSPARENT_INTEGRATORS).
         sub = col.column()
-        sub.active = settings.integrator in {'PATH', 'LIGHT', 'BDPT', 'PHOTON', 'SPPM'}
+        sub.active = settings.integrator in {'PATH', 'LIGHT', 'BDPT', 'PHOTON', 'SPPM', 'MLT',
+                                             'RADIOSITY'}
         sub.prop(context.scene.render, "film_transparent", text="Transparent")
 
 

@@ -53,7 +53,8 @@ from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 PHOTON_INTEGRATORS = ("photon", "sppm")
 # Integrators whose camera paths honour Film > Transparent (alpha from the camera rays that
 # escape, the world they see left out).
-FILM_TRANSPARENT_INTEGRATORS = ("path", "light", "bdpt", *PHOTON_INTEGRATORS)
+FILM_TRANSPARENT_INTEGRATORS = ("path", "light", "bdpt", *PHOTON_INTEGRATORS, "mlt",
+                                "radiosity")
 
 # Seconds between polls of ``cancel()`` while work units run.
 POLL_S = 0.05
@@ -524,8 +525,7 @@ def _messages(scene, settings, integrator):
                         f"visibility are honoured by path tracing only; camera paths "
                         f"bounce with Camera visibility, light paths with Shadow")
     if scene.film_transparent and settings.integrator not in FILM_TRANSPARENT_INTEGRATORS:
-        messages.append(f"{settings.integrator}: Film > Transparent is honoured by path "
-                        f"tracing, light tracing, BDPT, photon mapping and SPPM only; the "
+        messages.append(f"{settings.integrator}: Film > Transparent is not honoured; the "
                         f"background is rendered opaque")
     return messages
 

@@ -49,8 +49,22 @@ When it fails
     should take many more steps than it needs to forget its start, so small budgets get small
     batches although they use the CPU less well. The samplers' stratification
     is lost (chains move freely), so on
-    easy scenes path tracing wins at equal time. Every pixel shares ``b``'s error. Film >
-    Transparent is not honoured (the background is opaque).
+    easy scenes path tracing wins at equal time. Every pixel shares ``b``'s error.
+Film > Transparent
+    The alpha does not follow the chains: their pixels are visited in proportion to
+    luminance, and the share of a pixel's camera rays that reach the background is not
+    luminance-weighted. Each pass traces one stratified camera sample per pixel of its own
+    (the sampler's sample ``pass``, as the path tracer's camera rays) and takes what reaches
+    the background, also through transparent surfaces, in expectation
+    (:mod:`.camera_alpha`): the alpha has the path tracer's expectation, and equals it bit for
+    bit where no transparent surface is crossed. The world seen directly (by camera rays, also
+    through transparent passes) is *removed from the target function*: the path tracer the
+    chains explore leaves it out on a transparent film, so ``f`` is the luminance of the
+    transparent film's measurement and the chains estimate exactly that, with the start-up
+    weighting above (any non-negative ``f`` will do). Subtracting it afterwards would also be
+    unbiased in expectation, but the chains would spend mutations on the sky in proportion to
+    its brightness, and a pixel's difference of two noisy estimates can go negative, which
+    the film's clamp to zero would bias. The world still lights the scene.
 
 Render loop: :meth:`MLT.render_pass` (``whole_passes``, like SPPM). The first pass traces the
 bootstrap in chunks on the worker threads; every pass then runs each batch of chains for its
@@ -66,6 +80,7 @@ from ..sampling.primary_space import (Chains, PrimarySampleStream, chain_random,
                                       metropolis_step, normalisation, resample,
                                       uniform_vectors)
 from .base import Counters, Integrator
+from .camera_alpha import pass_transparency
 
 # Batches of chains: fixed (not the thread count), so the image does not depend on threads.
 CHAIN_BATCHES = 4
@@ -129,6 +144,7 @@ class MLT(Integrator):
         self.batches = None
         self.b = self.b_se = 0.0
         self.sums = None
+        self.clear = None  # Film > Transparent: the passes' transparency summed per pixel
         self.mutations = 0
         self.bootstrap_rays = 0
 
@@ -220,6 +236,12 @@ class MLT(Integrator):
                 return None
             self.sums = np.zeros((n, 3))
             counters.rays += self.bootstrap_rays
+        clear = None
+        if self.prep.scene.film_transparent:
+            clear = pass_transparency(self.prep, self.settings, pass_index, frame_pixels,
+                                      sampler, pixel_filter, counters, map_chunks)
+            if clear is None:
+                return None
         if self.batches:
             tasks = self._schedule(pass_index, n)
             done = map_chunks(lambda task: self._run_batch(task, window, pixel_filter, abort),
@@ -231,8 +253,15 @@ class MLT(Integrator):
                 counters.add(local)
         else:
             counters.camera_samples += n  # no bootstrap path carried light: a black image
+        if clear is not None:
+            self.clear = clear if self.clear is None else self.clear + clear
         self.mutations += n
         return self.image()
+
+    def pass_transparency(self):
+        """Per-pixel sum ``(n_pixels,)`` over the passes of the camera samples' transparency
+        on a transparent film (the alpha, :mod:`.camera_alpha`); None on an opaque one."""
+        return self.clear
 
     def _schedule(self, pass_index, n):
         """Tasks ``(batch, pass, steps, extra rows)``: every chain mutates ``n // chains``

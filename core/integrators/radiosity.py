@@ -19,6 +19,13 @@ Display (``radiosity_display``)
     the solution, with next-event estimation for direct light, so shadows are as sharp as the
     path tracer's and only the indirect part comes from the patches. Emitters seen by camera
     rays (emissive surfaces, visible lamps, the world) are added exactly in every mode.
+Film > Transparent
+    The camera rays that escape give alpha 0 and do not add the world (which still lights
+    the scene through the solve and, in ``final_gather``, next-event estimation): a pixel's
+    alpha is the share of its camera samples that hit a surface, as the path tracer's where
+    no transparent surface is in view. Radiosity renders every surface diffuse, transparent
+    ones too (reported), so its camera rays stop at a Transparent BSDF or an Alpha sheet and
+    the alpha behind one is 1 (the path tracer's passes through it).
 Materials
     Every surface is diffuse with its Base Color as albedo: glossy, metal and glass materials,
     and image textures, are approximated this way and the render says so once.
@@ -148,14 +155,18 @@ class Radiosity(Integrator):
         o, d, tmax = camera_rays(prep, pixel_filter, stream)
         hits = intersect_by_class(prep.accel, o, d, tmax, np.full(n, VIS_CAMERA, np.int32))
         counters.rays += n
+        clear_film = prep.scene.film_transparent
         add_emitters_along_rays(prep, L, np.ones((n, 3)), o, d, hits, np.arange(n),
-                                np.zeros(n), np.zeros(n, bool), True, self.mis)
+                                np.zeros(n), np.zeros(n, bool), True, self.mis,
+                                world=not clear_film)
+        # Film > Transparent: a camera ray that escapes reaches the background (alpha 0).
+        clear = (~hits.hit).astype(np.float64) if clear_film else None
         live = surface_hits(prep, hits)
         layers = {}
         if self.layers:
             layers[PATCHES_PASS] = self._patch_colors(hits, d, live, n)
         if live.size == 0:
-            return BatchOutput(L, camera_layers=layers)
+            return BatchOutput(L, camera_layers=layers, transparency=clear)
         back = np.einsum("ij,ij->i", d[live], prep.tri_normal[hits.prim[live]]) > 0
         if self.display == "final_gather":
             si = surface_interaction(prep, hits, d, live)
@@ -165,7 +176,7 @@ class Radiosity(Integrator):
                                   smooth=self.display == "gouraud")
             L[live] += B / np.pi
         return BatchOutput(np.nan_to_num(np.maximum(L, 0.0), nan=0.0, posinf=0.0),
-                           camera_layers=layers)
+                           camera_layers=layers, transparency=clear)
 
     def _patch_colors(self, hits, d, live, n):
         """The "Radiosity Patches" pass: a random colour per patch, dimmed by its radiosity."""

@@ -239,10 +239,11 @@ def test_non_finite_pixels_are_transparent_black(empty_scene, export):
     np.testing.assert_array_equal(color[[0, 1], [0, 1]], 0.0)
 
 
-# Film > Transparent with every estimator that has camera paths (path tracing is checked in
-# test_cycles_light_paths.py): the scene of that test, a plane under a sun and a dim world with
-# the Alpha 0.5 leaf in front of part of the sky.
-FILM_SPP = {"LIGHT": 128, "BDPT": 128, "PHOTON": 128, "SPPM": 128}
+# Film > Transparent with every estimator (path tracing is checked in
+# test_cycles_light_paths.py; radiosity, which renders the leaf diffuse, apart): the scene of
+# that test, a plane under a sun and a dim world with the Alpha 0.5 leaf in front of part of
+# the sky.
+FILM_SPP = {"LIGHT": 128, "BDPT": 128, "PHOTON": 128, "SPPM": 128, "MLT": 128}
 
 
 def test_transparent_film_alpha_of_the_other_estimators_agrees_with_cycles(empty_scene,
@@ -254,7 +255,8 @@ def test_transparent_film_alpha_of_the_other_estimators_agrees_with_cycles(empty
     spp less), so 0.03 is over 5 standard errors; a film left opaque (alpha 1) misses the
     image mean by the sky's share of the view, the leaf ignored (alpha 0 or 1 behind it) its
     blocks by 0.5. Sky pixels are dark in RGB (the world is not drawn) while the plane is lit.
-    Measured: alpha means 0.6290-0.6293 against Cycles' 0.6293-0.6294, worst blocks 0.002-0.003."""
+    Measured: alpha means 0.6289-0.6293 (MLT 0.6289) against Cycles' 0.6293-0.6294, worst
+    blocks 0.002-0.003."""
     from test_cycles_light_paths import RESOLUTION, add_leaf
 
     scene = empty_scene
@@ -282,3 +284,27 @@ def test_transparent_film_alpha_of_the_other_estimators_agrees_with_cycles(empty
         # The world (0.05, 0.07, 0.1) not drawn: sky pixels hold only light-path splats that
         # the pixel filter spreads past the plane's edge (light tracing, BDPT).
         assert ours[alpha == 0.0, :3].mean() < 0.005 and ours[alpha == 1.0, :3].min() > 0.0
+    _check_radiosity_alpha(scene, tmp_path, cycles_alpha)
+
+
+def _check_radiosity_alpha(scene, tmp_path, cycles_alpha):
+    """Radiosity renders the leaf diffuse (reported), so its camera rays stop there. Above the
+    two bottom rows (where the leaf's lower edge hangs in front of the sky) its alpha is
+    Cycles': the mean within 1 % and every 8 x 8 block within 0.03 (128 spp: a block's
+    standard error under 0.5 / sqrt(128 x 64) = 0.0055; a film left opaque misses the mean
+    by the sky's share, the world drawn shows in the sky's RGB). In the bottom rows the leaf
+    (Alpha 0.5) is opaque: measured 0.338 against Cycles' 0.169; at least 1.5 times
+    Cycles' is required (a leaf passed as Cycles does gives 1)."""
+    S.set_sampling_lab(scene, samples=128, seed=11)
+    scene.sampling_lab.integrator = 'RADIOSITY'
+    ours = S.render_to_exr(scene, tmp_path / "radiosity.exr")["Combined"]
+    alpha = ours[..., 3]
+    top, cycles_top = alpha[:-2], cycles_alpha[:-2]
+    blocks = lambda a: a[:24].reshape(3, 8, 4, 8).mean(axis=(1, 3))  # noqa: E731
+    print(f"RADIOSITY: alpha mean {top.mean():.4f} above the leaf, Cycles {cycles_top.mean():.4f};"
+          f" worst block {np.abs(blocks(alpha) - blocks(cycles_alpha)).max():.4f}; bottom rows "
+          f"{alpha[-2:].mean():.4f}, Cycles {cycles_alpha[-2:].mean():.4f}")
+    assert abs(top.mean() - cycles_top.mean()) < 0.01 * cycles_top.mean()
+    assert np.abs(blocks(alpha) - blocks(cycles_alpha)).max() < 0.03
+    assert alpha[-2:].mean() > 1.5 * cycles_alpha[-2:].mean()
+    assert ours[alpha == 0.0, :3].max() == 0.0 and ours[alpha == 1.0, :3].min() > 0.0

@@ -84,14 +84,6 @@ def test_exr_keeps_the_alpha_channel(tmp_path):
     assert back[..., 3].min() == 0.0 and back[..., 3].max() == 1.0
 
 
-@pytest.mark.parametrize("integrator", ["mlt", "radiosity"])
-def test_other_integrators_say_the_film_stays_opaque(integrator):
-    res = render(_floor_under_sky(True, size=8), plain_settings(integrator=integrator, spp=1,
-                                                               max_bounces=1))
-    assert any("Film > Transparent" in m for m in res.messages)
-    assert (res.combined()[..., 3] == 1.0).all()
-
-
 # Light tracing, BDPT, photon mapping and SPPM make the alpha from their camera rays as the path
 # tracer does (core/integrators/camera_hits.py, core/photons/visible.py).
 ESTIMATORS = {
