@@ -25,9 +25,10 @@ import sys
 import tempfile
 
 from .core import scenes as builtin_scenes
+from .core.applied_settings import unused_options
 from .core.errors import RenderRefused
 from .core.options import OPTIONS
-from .core.render import RenderSettings, render, unused_options
+from .core.render import RenderSettings, render
 
 PROG = "sampling_lab"
 DESCRIPTION = ("Sampling Lab: render scenes with Monte Carlo estimators and samplers, and "
@@ -258,7 +259,7 @@ def _flag_text(name, value):
 
 
 def _notes(settings, given):
-    """Tell the user once about each flag the render ignores (:func:`core.render.unused_options`)
+    """Tell the user once about each flag the render ignores (:func:`core.applied_settings.unused_options`)
     or replaces with another value."""
     unused = unused_options(settings)
     for name in given:

@@ -55,7 +55,7 @@ def frame_seed(props):
 
 def used_text(stats):
     """The strategy settings a render used, as the stats line shows them (options that did
-    not apply are left out: ``core.render.used_settings``)."""
+    not apply are left out: ``core.applied_settings.used_settings``)."""
     parts = []
     heuristic = stats.get("mis_heuristic", "n/a")
     if heuristic != "n/a":

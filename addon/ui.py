@@ -76,13 +76,13 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         # light tracing always starts at a light.
         sub.active = light_tracing or settings.mis_heuristic != 'BSDF'
         if radiosity:
-            # Radiosity samples lights only in its final gather (core.render.used_settings).
+            # Radiosity samples lights only in its final gather (core.applied_settings.used_settings).
             sub.active = settings.radiosity_display == 'FINAL_GATHER'
         sub.prop(settings, "light_selection")
         area = sub.column()
         # The path tracer, photon mapping's direct light and radiosity's final gather sample
         # emitters toward a receiving point (Metropolis runs the path tracer): light and BDPT
-        # paths start on emitters sampled by area (core.render.used_settings).
+        # paths start on emitters sampled by area (core.applied_settings.used_settings).
         area.active = sub.active and (settings.integrator in {'PATH', 'MLT', 'RADIOSITY'}
                                       or photon)
         area.prop(settings, "light_sampling")
@@ -118,7 +118,7 @@ class SAMPLINGLAB_RENDER_PT_photons(SamplingLabButtonsPanel, Panel):
         layout, settings = settings_layout(self, context)
 
         # Biased but consistent estimators: only they read these settings
-        # (core.render.used_settings says which ones each uses).
+        # (core.applied_settings.used_settings says which ones each uses).
         jensen = settings.integrator == 'PHOTON'
         sppm = settings.integrator == 'SPPM'
         col = layout.column()
@@ -139,7 +139,7 @@ class SAMPLINGLAB_RENDER_PT_photons(SamplingLabButtonsPanel, Panel):
         row.active = sppm or (jensen and settings.photon_lookup == 'RADIUS')
         row.prop(settings, "photon_radius")
         row = col.column()
-        # Footprint radii replace the automatic initial radius only (core.render.used_settings).
+        # Footprint radii replace the automatic initial radius only (core.applied_settings.used_settings).
         row.active = sppm and settings.photon_radius == 0.0
         row.prop(settings, "sppm_radius")
         row = col.column()
@@ -161,7 +161,7 @@ class SAMPLINGLAB_RENDER_PT_mlt(SamplingLabButtonsPanel, Panel):
         layout, settings = settings_layout(self, context)
 
         col = layout.column()
-        # Only Metropolis light transport mutates paths (core.render.used_settings).
+        # Only Metropolis light transport mutates paths (core.applied_settings.used_settings).
         col.active = settings.integrator == 'MLT'
         col.prop(settings, "mlt_large_step")
         col.prop(settings, "mlt_bootstrap")
@@ -187,7 +187,7 @@ class SAMPLINGLAB_RENDER_PT_radiosity(SamplingLabButtonsPanel, Panel):
         col.prop(settings, "radiosity_patch_size")
         col.prop(settings, "radiosity_samples")
         adaptive = col.column()
-        # Hierarchical radiosity's links adapt instead (core.render.used_settings).
+        # Hierarchical radiosity's links adapt instead (core.applied_settings.used_settings).
         adaptive.active = col.active and settings.radiosity_solver != 'HIERARCHICAL'
         adaptive.prop(settings, "radiosity_adaptive")
         col.prop(settings, "radiosity_display")
@@ -208,7 +208,7 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         # Radiosity has no path bounces: its transport is the solved system.
         col.active = settings.integrator != 'RADIOSITY'
         # Cycles' Light Paths > Max Bounces layout: Total, then one limit per kind, which
-        # only the path tracer counts (core.render.used_settings).
+        # only the path tracer counts (core.applied_settings.used_settings).
         bounces = col.column(align=True, heading="Max Bounces")
         bounces.prop(settings, "max_bounces")
         kinds = col.column(align=True)

@@ -1,10 +1,4 @@
-"""The render loop: progressive passes of wavefront batches on worker threads.
-
-A pass adds ``spp_per_pass`` samples to every pixel. Each pass is cut into work units (a range of
-pixels times a range of sample indices) that worker threads (``threads``, one per core by default)
-run concurrently; Embree and large NumPy operations release the GIL. Units cover disjoint pixels and their results are accumulated in
-unit order, and every random number is a function of (pixel, sample index, dimension, seed), so the
-same seed gives a bit-identical image whatever the thread count or timing.
+"""The render loop: prepare the scene, run progressive passes (:mod:`core.passes`), report.
 
 Render region: with ``settings.region`` only the pixels of that window of the frame are traced
 (camera samples ``region pixels x spp``), and the film is that window. Sample streams are indexed
@@ -17,7 +11,7 @@ Halting: after ``spp`` samples per pixel, or when ``time_limit`` seconds have pa
 under way is finished unit by unit until the clock runs out), or when ``cancel()`` says so; a
 cancelled render keeps every work unit it finished (pixels may then hold different sample
 counts). ``cancel()`` is polled from the thread that called :func:`render` (Blender's
-``test_break`` must not be called from worker threads) every :data:`POLL_S` seconds while
+``test_break`` must not be called from worker threads) every :data:`core.passes.POLL_S` seconds while
 units run; once it says so, the units in flight stop at their next bounce
 (:class:`core.sampling.stream.Aborted`) and their unfinished paths are dropped, so a render
 answers a cancel within a bounce's time rather than a whole unit's.
@@ -28,44 +22,29 @@ from __future__ import annotations
 import copy
 import dataclasses
 import hashlib
-import os
-import threading
 import time
 import traceback
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import RenderRefused
-from .film import Film, PixelFilter, check_film_memory, to_float32
+from .applied_settings import PHOTON_INTEGRATORS, used_settings
+from .film import Film, check_film_memory, to_float32
 from .integrators import integrator_class
 from .integrators.adjoint_normals import unsampled_bent_mirrors
-from .integrators.base import UNIT_PATHS, Counters
 from .options import DEFAULTS, validate
+from .passes import Passes
 from .prepare import PreparedScene, prepare
 from .sampling.mis import HEURISTICS
 from .sampling.samplers import make_sampler
 from .sampling.stream import Aborted
 from .scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
-# Integrators that estimate by photon density (biased, consistent): their own settings apply.
-PHOTON_INTEGRATORS = ("photon", "sppm")
 # Integrators whose camera paths honour Film > Transparent (alpha from the camera rays that
 # escape, the world they see left out).
 FILM_TRANSPARENT_INTEGRATORS = ("path", "light", "bdpt", *PHOTON_INTEGRATORS, "mlt",
                                 "radiosity")
-
-# Seconds between polls of ``cancel()`` while work units run.
-POLL_S = 0.05
-
-# Work units per pass when the image is small: a pass keeps several threads busy. The pass size
-# must not depend on the thread count, or the film's sums would be added in another order.
-PASS_UNITS = 8
-
-# Work units submitted per worker thread at a time (see _Passes._run_pass).
-IN_FLIGHT = 2
-
 
 @dataclass
 class RenderSettings:
@@ -200,164 +179,6 @@ class RenderResult:
                 for name in self.layer_names}
 
 
-def _units(n_pixels, first_sample, spp_in_pass, unit_paths=UNIT_PATHS):
-    """Work units of a pass: (pixel_start, pixel_stop, first_sample, n_samples).
-
-    Units hold at most ``unit_paths`` paths (one pixel at least) and are of equal size, so no
-    small leftover unit runs alone at the end of a pass. The split does not depend on the
-    thread count: splats from several units reach the same pixels, and their sums must be
-    added in the same order whatever the threads.
-    """
-    count = -(-n_pixels * spp_in_pass // max(1, unit_paths))
-    per_unit = -(-n_pixels // max(1, min(count, n_pixels)))
-    return [(p, min(p + per_unit, n_pixels), first_sample, spp_in_pass)
-            for p in range(0, n_pixels, per_unit)]
-
-
-def used_settings(settings):
-    """The sampling-strategy settings a render really uses; ``'n/a'`` where its integrator has
-    nothing to apply them to.
-
-    Light tracing has one strategy per path (no MIS weights); light and BDPT paths start on
-    emitters sampled by area (a light vertex needs no receiving point, and BDPT's MIS weights
-    use area densities), so ``light_sampling`` is ``'area'`` for them, and they choose those
-    emitters by power when ``light_selection`` is ``'tree'`` (which needs a receiving point);
-    the path tracer's ``bsdf`` setting never samples lights (``distribution`` still draws mixed
-    materials' components). The render stats report these values, and the add-on greys out
-    the same options. Radiosity weighs no strategies and samples lights only for its final
-    gather (uniformly over what the light sampler offers, without MIS); its own options are
-    ``'n/a'`` for every other integrator.
-
-    Parameters
-    ----------
-    settings : RenderSettings
-
-    Returns
-    -------
-    dict
-        ``mis_heuristic``, ``mis_beta``, ``mis_alpha``, ``light_selection``,
-        ``light_sampling``, ``distribution``, the photon-mapping settings ``photons``,
-        ``sppm_alpha``, ``photon_memory``, ``photon_lookup``, ``photon_k``, ``photon_radius``,
-        ``photon_kernel``, ``gather_rays``, the ``radiosity_*`` options and the per-kind
-        bounce limits ``diffuse_bounces``, ``glossy_bounces``, ``transmission_bounces`` and
-        ``transparent_max_bounces`` (path tracing only, and the transparent limit for light
-        tracing, BDPT, photon mapping and SPPM: the other integrators stop paths at
-        ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
-        estimators use no MIS: one strategy per light contribution).
-    """
-    if settings.integrator == "radiosity":
-        return _radiosity_used(settings)
-    if settings.integrator == "mlt":
-        # Metropolis explores the path tracer's numbers: the path tracer's settings apply.
-        path = used_settings(dataclasses.replace(settings, integrator="path"))
-        return {**path, **{name: getattr(settings, name) for name in MLT_OPTIONS}}
-    photon = settings.integrator in PHOTON_INTEGRATORS
-    jensen = settings.integrator == "photon"
-    # Photon mapping's next-event estimation at visible points samples lights as the path
-    # tracer does (with the tree, from the point); it has one strategy, so no MIS.
-    path = settings.integrator == "path" or photon
-    weighs = (settings.integrator != "light" and not photon
-              and settings.mis_heuristic in HEURISTICS)
-    samples_lights = not (settings.integrator == "path" and settings.mis_heuristic == "bsdf")
-    na = "n/a"
-    return {
-        "mis_heuristic": (settings.mis_heuristic if settings.integrator != "light" and not photon
-                          else na),
-        "mis_beta": settings.mis_beta if weighs and settings.mis_heuristic == "power" else na,
-        "mis_alpha": settings.mis_alpha if weighs and settings.mis_heuristic == "cutoff" else na,
-        "light_selection": ((settings.light_selection
-                             if path or settings.light_selection != "tree" else "power")
-                            if samples_lights else na),
-        "light_sampling": ((settings.light_sampling if path else "area")
-                           if samples_lights else na),
-        "distribution": settings.distribution,
-        "photons": settings.photons if photon else na,
-        "sppm_alpha": settings.sppm_alpha if settings.integrator == "sppm" else na,
-        "photon_memory": settings.photon_memory if photon else na,
-        "photon_lookup": settings.photon_lookup if jensen else na,
-        "photon_k": settings.photon_k if jensen and settings.photon_lookup == "knn" else na,
-        # SPPM counts photons (uniform); k nearest ignores the radius setting.
-        "photon_radius": (settings.photon_radius if settings.integrator == "sppm"
-                          or (jensen and settings.photon_lookup == "radius") else na),
-        "photon_kernel": settings.photon_kernel if jensen else na,
-        "photon_surface_test": settings.photon_surface_test if photon else na,
-        "sppm_coverage": settings.sppm_coverage if settings.integrator == "sppm" else na,
-        # Footprint radii replace the automatic initial radius only (Radius 0).
-        "sppm_radius": (settings.sppm_radius if settings.integrator == "sppm"
-                        and not settings.photon_radius else na),
-        "gather_rays": settings.gather_rays if jensen else na,
-        **{name: na for name in RADIOSITY_OPTIONS},
-        **{name: na for name in MLT_OPTIONS},
-        # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
-        # light tracing's and BDPT's subpaths and connections cross at most the Transparent
-        # limit's surfaces (core.integrators.transparent_passes), photons and the photon
-        # estimators' camera paths each as many (core.photons.passes).
-        **{name: getattr(settings, name) if settings.integrator == "path"
-           or (settings.integrator in ("light", "bdpt", *PHOTON_INTEGRATORS)
-               and name == "transparent_max_bounces")
-           else na for name in BOUNCE_KIND_OPTIONS},
-    }
-
-
-PHOTON_OPTIONS = ("photons", "sppm_alpha", "photon_memory", "photon_lookup", "photon_k",
-                  "photon_radius", "photon_kernel", "gather_rays")
-BOUNCE_KIND_OPTIONS = ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
-                       "transparent_max_bounces")
-MLT_OPTIONS = ("mlt_large_step", "mlt_bootstrap", "mlt_chains")
-RADIOSITY_OPTIONS = ("radiosity_solver", "radiosity_patch_size", "radiosity_samples",
-                     "radiosity_adaptive", "radiosity_display", "radiosity_patches")
-
-
-def _radiosity_used(settings):
-    """:func:`used_settings` of a radiosity render: MIS never applies; the light sampler's
-    settings only with the final gather's next-event estimation (which draws no MIS weights)."""
-    na = "n/a"
-    gather = settings.radiosity_display == "final_gather"
-    return {
-        "mis_heuristic": na, "mis_beta": na, "mis_alpha": na,
-        "light_selection": settings.light_selection if gather else na,
-        "light_sampling": settings.light_sampling if gather else na,
-        "distribution": settings.distribution,
-        **{name: na for name in PHOTON_OPTIONS},
-        **{name: na for name in BOUNCE_KIND_OPTIONS},
-        **{name: na for name in MLT_OPTIONS},
-        **{name: getattr(settings, name) for name in RADIOSITY_OPTIONS},
-        # Hierarchical radiosity's links adapt instead; its leaves stay uniform.
-        "radiosity_adaptive": (settings.radiosity_adaptive
-                               if settings.radiosity_solver != "hierarchical" else na),
-    }
-
-
-def unused_options(settings):
-    """The options a render with ``settings`` ignores, each with the value it uses instead
-    (``'n/a'``: nothing): :func:`used_settings`' strategy options, and the light-path options
-    the add-on greys out too (radiosity has no path bounces; photon mapping's paths use no
-    Russian roulette settings; the roulette threshold needs roulette; strategy views are
-    BDPT's alone and their path length needs them on).
-
-    Returns
-    -------
-    dict
-        Option name -> the value used instead, or ``'n/a'``; options that apply are absent.
-    """
-    unused = {name: value for name, value in used_settings(settings).items()
-              if value != getattr(settings, name)}
-    na = "n/a"
-    integrator = settings.integrator
-    if integrator == "radiosity":
-        unused.update(max_bounces=na, use_russian_roulette=na, rr_min_bounces=na)
-    if integrator in PHOTON_INTEGRATORS:
-        unused.update(use_russian_roulette=na, rr_min_bounces=na)
-    if not settings.use_russian_roulette:
-        unused["rr_min_bounces"] = na
-    views = integrator_class(integrator).strategy_views
-    if not views:
-        unused["strategy_views"] = na
-    if not (views and settings.strategy_views):
-        unused["strategy_max_length"] = na
-    return unused
-
-
 def check_settings(scene, settings):
     """Raise :class:`core.errors.RenderRefused` (a ``ValueError``) with a user-facing message
     for settings that cannot render."""
@@ -444,7 +265,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                           + _messages(scene, settings, integrator),
                           layer_names=list(integrator.layers), prepared=prep)
     keep_freed_memory()
-    passes = _Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths)
+    passes = Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths)
     try:
         result.cancelled = solve_cancelled or passes.run(
             lambda: on_update is not None and on_update(result))
@@ -530,284 +351,6 @@ def _messages(scene, settings, integrator):
     return messages
 
 
-class _Passes:
-    """The passes of one render: work units run on worker threads, accumulated into the film
-    in unit order, with progress, cancel and the time limit checked between units."""
-
-    def __init__(self, settings, integrator, sampler, film, cam, progress, cancel,
-                 unit_paths=None):
-        self.settings, self.integrator = settings, integrator
-        self.sampler, self.film = sampler, film
-        self.frame_width = cam.width
-        self.progress, self.cancel = progress, cancel
-        self.pixel_filter = PixelFilter(settings.filter_type, settings.filter_width)
-        self.total_spp = settings.spp if settings.spp > 0 else None
-        # Integrators whose samples cost more (BDPT) ask for smaller units: cancel stays prompt.
-        self.unit_paths = unit_paths or integrator.unit_paths
-        # Final renders may run several units as one batch; passes keep the units' size.
-        self.batch_paths = self.unit_paths * (1 if unit_paths else integrator.batch_units)
-        # Sized by the whole frame, so a region's pixels sum their samples in the same passes as
-        # a full-frame render (bit-identical pixels).
-        self.spp_per_pass = max(1, min(self.unit_paths * PASS_UNITS // (cam.width * cam.height),
-                                       64))
-        self.threads = thread_count(settings)
-        self.counters = Counters()
-        self.done_spp = 0
-        self.unshown = 0  # units added to the film since on_pass() was last called
-        self.t_start = time.perf_counter()
-        # Set once cancel() says so: the units in flight stop at their next bounce.
-        self.stop = threading.Event()
-
-    def elapsed(self):
-        return time.perf_counter() - self.t_start
-
-    def out_of_time(self):
-        return self.settings.time_limit > 0 and self.elapsed() >= self.settings.time_limit
-
-    def run_unit(self, unit):
-        """Render one work unit ``(pixel_start, pixel_stop, first_sample, n_samples)``."""
-        film = self.film
-        p0, p1, s0, k = unit
-        pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
-        samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
-        # Streams and camera rays are indexed by frame pixel, the film by window pixel.
-        frame_pixels = ((film.y0 + pixels // film.width) * self.frame_width + film.x0
-                        + pixels % film.width)
-        local = Counters()
-        stream = self.sampler.stream(frame_pixels, samples)
-        stream.abort = self.stop.is_set
-        try:
-            out = self.integrator.render_samples(stream, self.pixel_filter, local)
-        except Aborted:
-            return None
-        # The filter taps of the light-path splats are made here, on the worker: the render
-        # loop, whose thread the next unit waits for, only adds them up.
-        taps = (film.splat_taps(out.splats.xy, out.splats.value, self.pixel_filter)
-                if out.splats is not None and len(out.splats.xy) else None)
-        return pixels, out, local, taps
-
-    def accumulate(self, pixels, out, local, taps=None):
-        """Add one unit's output to the film (in unit order: the image is deterministic);
-        ``taps``: the splats' filter taps if :meth:`run_unit` made them."""
-        film, pixel_filter = self.film, self.pixel_filter
-        self.unshown += 1
-        self.counters.add(local)
-        film.add_samples(pixels, out.radiance, out.transparency)
-        if taps is not None:
-            film.add_splat_taps(*taps)
-        elif out.splats is not None and len(out.splats.xy):
-            film.splat(out.splats.xy, out.splats.value, pixel_filter)
-        film.add_splat_paths(out.light_paths)
-        for name, values in out.camera_layers.items():
-            film.add_layer(name, pixels, values)
-        for name, splats in out.splat_layers.items():
-            film.splat_layer(name, splats.xy, splats.value, pixel_filter)
-
-    def report(self, fraction):
-        if self.progress is None:
-            return
-        el = self.elapsed()
-        counters = self.counters
-        sps = counters.camera_samples / el if el > 0 else 0.0
-        spp_txt = f"{self.done_spp}/{self.total_spp}" if self.total_spp else f"{self.done_spp}"
-        self.progress(min(fraction, 1.0),
-                      f"Sample {spp_txt} | {sps / 1e6:.2f} M samples/s | "
-                      f"{counters.rays / max(el, 1e-9) / 1e6:.2f} M rays/s | "
-                      f"{distribution_text(self.integrator.prep.lights, counters)}")
-
-    def run(self, on_pass):
-        """Run passes until the sample count, the time limit or ``cancel``; calls ``on_pass()``
-        after every pass. Returns whether the render was cancelled."""
-        if self.integrator.whole_passes:
-            return self.run_whole_passes(on_pass)
-        return self._run_unit_passes(on_pass)
-
-    def _run_unit_passes(self, on_pass):
-        """:meth:`run` for integrators that render work units."""
-        pool = ThreadPoolExecutor(max_workers=self.threads)
-        try:
-            return self._run_units(pool, on_pass)
-        except BaseException:
-            self.stop.set()  # a unit failed: the others stop at their next bounce
-            raise
-        finally:
-            pool.shutdown(wait=True)
-
-    def _planned_units(self):
-        """Every work unit of the render, pass after pass: ``(k, unit, index, count)``, ``k``
-        the pass's samples per pixel, ``index`` the unit's place among the pass's ``count``
-        units (an endless sequence under a time limit alone)."""
-        done = self.done_spp
-        while self.total_spp is None or done < self.total_spp:
-            k = (self.spp_per_pass if self.total_spp is None
-                 else min(self.spp_per_pass, self.total_spp - done))
-            units = _units(self.film.n_pixels, done, k, self.batch_paths)
-            for index, unit in enumerate(units):
-                yield k, unit, index, len(units)
-            done += k
-
-    def _run_units(self, pool, on_pass):
-        """Run the planned units, up to :data:`IN_FLIGHT` per thread at a time, and add them
-        to the film in plan order (the image does not depend on timing). The next pass's units
-        start while the last ones of a pass run, so no worker idles at a pass's end (small
-        images have few units per pass). A render stopped part-way calls ``on_pass()`` once
-        more for the units it kept. Returns whether the render was cancelled."""
-        planned, pending = self._planned_units(), []
-        while True:
-            while len(pending) < IN_FLIGHT * self.threads and not self.out_of_time():
-                nxt = next(planned, None)
-                if nxt is None:
-                    break
-                pending.append((pool.submit(self.run_unit, nxt[1]), nxt))
-            if not pending:
-                return False
-            future, (k, _, index, count) = pending.pop(0)
-            futures = [f for f, _ in pending]
-            if self._cancelled_while_waiting(future):
-                self._abort([future] + futures)
-                break
-            self.accumulate(*future.result())
-            self._unit_done(k, index + 1, count, on_pass)
-            if self.cancel is not None and self.cancel():
-                self._abort(futures)
-                break
-            if self.out_of_time():
-                for f in _started(futures):  # finish what runs; its samples are kept
-                    self.accumulate(*f.result())
-                self._show(on_pass)
-                return False
-        self._show(on_pass)
-        return True
-
-    def _unit_done(self, k, finished, count, on_pass):
-        """Report progress after the ``finished``-th of a pass's ``count`` units; at the last,
-        count the pass's ``k`` samples per pixel as done and call ``on_pass()``."""
-        total_spp = self.total_spp
-        if finished < count:
-            self.report((self.done_spp + k * finished / count) / total_spp if total_spp
-                        else self.elapsed() / self.settings.time_limit)
-            return
-        self.done_spp += k
-        self.report(self.done_spp / total_spp if total_spp
-                    else self.elapsed() / self.settings.time_limit)
-        self._show(on_pass)
-
-    def _show(self, on_pass):
-        """``on_pass()`` if units were added to the film since it was last called."""
-        if self.unshown:
-            self.unshown = 0
-            on_pass()
-
-    def run_whole_passes(self, on_pass):
-        """Passes of an integrator that renders a whole pass itself (``whole_passes``, SPPM):
-        one pass is one sample per pixel; the film shows the integrator's image after each.
-        The time limit is checked between passes (a pass under way is finished); cancel is
-        polled between the pass's chunks, and a cancelled pass is dropped."""
-        film, integrator = self.film, self.integrator
-        pixels = np.arange(film.n_pixels, dtype=np.int64)
-        frame_pixels = ((film.y0 + pixels // film.width) * self.frame_width + film.x0
-                        + pixels % film.width)
-        sampler = _AbortingSampler(self.sampler, self.stop.is_set)
-        with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            while self.total_spp is None or self.done_spp < self.total_spp:
-                if self.out_of_time():
-                    break
-                image = integrator.render_pass(
-                    self.done_spp, frame_pixels, sampler, self.pixel_filter,
-                    self.counters, lambda fn, items: self._map_chunks(pool, fn, items))
-                if image is None:
-                    return True
-                self.done_spp += 1
-                show_estimate(film, image, self.done_spp, integrator.pass_sum_sq(),
-                              integrator.pass_transparency())
-                self.report(self.done_spp / self.total_spp if self.total_spp
-                            else self.elapsed() / self.settings.time_limit)
-                on_pass()
-        return False
-
-    def _map_chunks(self, pool, fn, items):
-        """``[fn(item) for item in items]`` on the worker threads (at most ``threads`` in
-        flight, results in order); None as soon as ``cancel()`` says so."""
-        items, results, pending = list(items), [], []
-        i = 0
-        while i < len(items) or pending:
-            while i < len(items) and len(pending) < self.threads:
-                pending.append(pool.submit(fn, items[i]))
-                i += 1
-            cancelled = self._cancelled_while_waiting(pending[0])
-            if not cancelled:
-                results.append(pending.pop(0).result())
-                cancelled = self.cancel is not None and self.cancel()
-            if cancelled:
-                self.stop.set()
-                for f in pending:  # they stop at their next bounce
-                    try:
-                        f.result()
-                    except Aborted:
-                        pass
-                return None
-        return results
-
-    def _cancelled_while_waiting(self, future):
-        """Wait for ``future``, polling ``cancel()`` every :data:`POLL_S` s; True if it said so
-        first."""
-        while not wait([future], timeout=POLL_S, return_when=FIRST_COMPLETED)[0]:
-            if self.cancel is not None and self.cancel():
-                return True
-        return False
-
-    def _abort(self, pending):
-        """Stop the units in flight at their next bounce; keep those that finished first."""
-        self.stop.set()
-        for f in _started(pending):
-            out = f.result()
-            if out is not None:
-                self.accumulate(*out)
-        return True
-
-
-def _started(pending):
-    """The futures of ``pending`` (in submission order) that a worker has started; the rest
-    are cancelled. The pool starts them first in, first out, so the started ones come first
-    and the accumulation order is kept."""
-    for j, f in enumerate(pending):
-        if f.cancel():
-            for rest in pending[j + 1:]:
-                rest.cancel()
-            return pending[:j]
-    return pending
-
-
-class _AbortingSampler:
-    """``sampler`` whose streams stop at their next bounce once ``abort()`` says so (the
-    whole-pass integrators make their own streams from the sampler they are given)."""
-
-    def __init__(self, sampler, abort):
-        self.sampler, self.abort = sampler, abort
-
-    def stream(self, pixel, sample_index):
-        stream = self.sampler.stream(pixel, sample_index)
-        stream.abort = self.abort
-        return stream
-
-    def __getattr__(self, name):
-        return getattr(self.sampler, name)
-
-
-def show_estimate(film, image, passes, sum_sq=None, transparency=None):
-    """Make ``film`` show ``image (n_pixels, 3)`` as the estimate of ``passes`` samples per
-    pixel (integrators with ``whole_passes``: the film's sums are replaced). ``sum_sq
-    (n_pixels, 3)``: the sum of the squared per-pass estimates whose mean ``image`` is (SPPM),
-    which gives the Variance pass; None: the variance is zero (not estimated).
-    ``transparency (n_pixels,)``: the sum over the passes of what reached a transparent film's
-    background (the alpha); None: an opaque film."""
-    film.count[:] = passes
-    film.sum[:] = image * passes
-    film.sum_sq[:] = image * image * passes if sum_sq is None else sum_sq
-    if transparency is not None:
-        film.transparency = np.array(transparency, np.float64)
-
-
 def preparation_key(scene, settings):
     """A digest of everything :func:`core.prepare.prepare` derives its tables from: the scene
     but its camera and messages, and the light-sampling settings. Two renders with the same key
@@ -885,14 +428,3 @@ def keep_freed_memory():
         mallopt(-3, 32 << 20)  # M_MMAP_THRESHOLD (glibc's largest)
         mallopt(-1, 256 << 20)  # M_TRIM_THRESHOLD
 
-
-def thread_count(settings):
-    """Worker threads of a render: ``settings.threads``, or one per CPU core if it is 0."""
-    return settings.threads if settings.threads > 0 else max(1, os.cpu_count() or 1)
-
-
-def distribution_text(lights, counters):
-    """One phrase on the light choice's cost: table kind, build time, sampling time so far."""
-    kind = "alias table" if lights.method == "alias" else "CDF"
-    return (f"lights by {kind}: build {1e3 * lights.build_s:.2f} ms, "
-            f"sampling {1e3 * counters.distribution_s:.1f} ms")

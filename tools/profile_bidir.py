@@ -49,7 +49,7 @@ BSDF_EVAL = "connections: BSDF eval + pdf (gathered vertices)"
 MIS = "MIS densities + weights"
 # (module under sampling_lab.core, attribute path, row name): the rows of the profile table.
 STAGES = [
-    ("render", "_Passes.run_unit", "other (render_samples bookkeeping, render loop)"),
+    ("passes", "Passes.run_unit", "other (render_samples bookkeeping, render loop)"),
     ("integrators.bidir", "_camera_subpath", "subpaths: camera setup (rays, pdfs)"),
     ("integrators.bidir", "_light_subpath", "subpaths: light setup (emitter points, directions)"),
     ("integrators.subpaths", "walk", "subpaths: walk bookkeeping"),

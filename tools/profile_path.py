@@ -51,12 +51,12 @@ from stage_timer import uniform_bounces as _bounces
 
 def install_timers():
     """Wrap the stages; the names are the rows of the profile table."""
-    from sampling_lab.core import accel, film, render
+    from sampling_lab.core import accel, film, passes
     from sampling_lab.core.integrators import path
     from sampling_lab.core.lights import sampler
     from sampling_lab.core.sampling import mis, stream
 
-    _patch(render._Passes, "run_unit", "other (render_samples bookkeeping, render loop)")
+    _patch(passes.Passes, "run_unit", "other (render_samples bookkeeping, render loop)")
     _patch(path, "camera_rays", "generate camera rays")
     _patch(accel.Accel, "intersect", "intersect (Embree closest hit + hit arrays)")
     _patch(path, "intersect_by_class", "intersect (Embree closest hit + hit arrays)")
@@ -76,7 +76,7 @@ def install_timers():
     _patch(accel.Accel, "offset_origin", "next rays (offset origins)")
     for attr in ("next_1d", "next_2d", "skip_to", "compact"):
         _patch(stream.SampleStream, attr, "sample stream (draws, compaction)")
-    _patch(render._Passes, "accumulate", "film accumulation")
+    _patch(passes.Passes, "accumulate", "film accumulation")
     _patch(film.Film, "add_samples", "film accumulation")
 
 
@@ -285,11 +285,12 @@ def busy(args):
     """Print how busy the worker threads stay: the share of ``threads x`` the wall time from
     the first unit's start to the last one's end that they spend in work units (the rest:
     waiting at a pass's end, or for the render loop to hand them a unit)."""
+    from sampling_lab.core import passes as passes_mod
     from sampling_lab.core import render as render_mod
 
     scene, settings = _scene_and_settings(args)
     units = []
-    run_unit = render_mod._Passes.run_unit
+    run_unit = passes_mod.Passes.run_unit
 
     def timed_unit(self, unit):
         t0 = time.perf_counter()
@@ -298,13 +299,13 @@ def busy(args):
         finally:
             units.append((t0, time.perf_counter()))
 
-    render_mod._Passes.run_unit = timed_unit
+    passes_mod.Passes.run_unit = timed_unit
     try:
         render_mod.render(scene, settings)  # warm-up
         units.clear()
         res = render_mod.render(scene, settings)
     finally:
-        render_mod._Passes.run_unit = run_unit
+        passes_mod.Passes.run_unit = run_unit
     n = settings.threads
     span = max(t for _, t in units) - min(t for t, _ in units)
     work = sum(t1 - t0 for t0, t1 in units)
@@ -340,10 +341,10 @@ def counts(args):
     n = res.stats["samples"]
     print(f"per camera sample: {tally['call'] / n:.4f} Python calls, "
           f"{tally['c_call'] / n:.4f} C-function calls ({n} samples)")
-    from sampling_lab.core import render as render_mod
+    from sampling_lab.core import passes as passes_mod
 
-    run_unit, units = render_mod._Passes.run_unit, []
-    render_mod._Passes.run_unit = lambda self, unit: units.append(unit) or run_unit(self, unit)
+    run_unit, units = passes_mod.Passes.run_unit, []
+    passes_mod.Passes.run_unit = lambda self, unit: units.append(unit) or run_unit(self, unit)
     tracemalloc.start()
     try:
         tracemalloc.reset_peak()
@@ -352,7 +353,7 @@ def counts(args):
         peak = tracemalloc.get_traced_memory()[1] - base
     finally:
         tracemalloc.stop()
-        render_mod._Passes.run_unit = run_unit
+        passes_mod.Passes.run_unit = run_unit
     paths = res.stats["samples"] / max(1, len(units))
     print(f"tracemalloc peak above the start: {peak / 2**20:.1f} MiB "
           f"(about {peak / paths:.0f} bytes per path of a {paths:.0f}-path unit)")

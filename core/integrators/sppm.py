@@ -119,7 +119,7 @@ class SPPM(Integrator):
         self.peak_bytes = 0
         self.photons_stored = 0
         self.photon_s = 0.0
-        from ..render import thread_count  # the render loop imports the integrators
+        from ..passes import thread_count  # the render loop imports the integrators
 
         self.workers = thread_count(settings)
 
@@ -207,7 +207,7 @@ class SPPM(Integrator):
 
     def pass_sum_sq(self):
         """Per-pixel sum ``(n_pixels, 3)`` of the squared per-pass estimates, for the film's
-        Variance pass (:func:`core.render.show_estimate`): the image is their mean (Knaus and
+        Variance pass (:func:`core.passes.show_estimate`): the image is their mean (Knaus and
         Zwicker 2011), so sample variance / passes estimates the variance of the image *given
         the radii* (the photons of different passes are independent). It is the variance of a
         biased estimator, not its error (MSE): the bias is not in it. The pass estimates'

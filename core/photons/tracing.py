@@ -341,7 +341,7 @@ def trace_photon_chunks(prep, settings, sampler, n, pass_index, map_chunks, coun
     """``n`` photons of pass ``pass_index`` (:func:`photon_chunk`), traced in chunks (one per
     worker thread at least, :func:`spans`) by ``map_chunks`` (the render loop's worker
     threads); None if the render was cancelled meanwhile."""
-    from ..render import thread_count  # the render loop imports the integrators
+    from ..passes import thread_count  # the render loop imports the integrators
 
     parts = map_chunks(lambda span: photon_chunk(prep, settings, sampler, pass_index, span),
                        spans(n, thread_count(settings)))

@@ -2,7 +2,7 @@
 
 - Our bounce-limit properties have Cycles' names and defaults (read from ``scene.cycles`` of a
   new scene), and the Light Paths panel greys out the per-kind limits exactly where
-  ``core.render.used_settings`` says the integrator does not read them.
+  ``core.applied_settings.used_settings`` says the integrator does not read them.
 - Cycles agreement (unbiased Cycles, several seeds; image mean per channel and every 8 x 8
   block mean within confidence intervals, as ``test_cycles_mixtures.py``) on the Cornell box
   with a Principled plane of Alpha 0.5 hanging under the lamp, so that shadow rays toward the

@@ -112,7 +112,7 @@ def test_time_limit_stops_early_and_keeps_samples(empty_scene, tmp_path, monkeyp
     limit, polls_before_limit, backstop = 10.0, 3, 50
     scenes.set_sampling_lab(empty_scene, samples=1 << 24, time_limit=limit)
     clock = _FakeClock()
-    monkeypatch.setattr(importlib.import_module(f"{ADDON_MODULE}.core.render"), "time", clock)
+    monkeypatch.setattr(importlib.import_module(f"{ADDON_MODULE}.core.passes"), "time", clock)
     polls = []
 
     def cancel_requested(self):

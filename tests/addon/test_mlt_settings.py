@@ -1,6 +1,6 @@
 """Metropolis light transport in real Blender: the Metropolis panel's rows, and the path
 tracer's rows that MLT reads (per-kind bounces, area-light sampling), are active exactly where
-the render uses them (``core.render.used_settings``), and an MLT render shows its image pass by
+the render uses them (``core.applied_settings.used_settings``), and an MLT render shows its image pass by
 pass and writes a finite EXR."""
 
 import numpy as np

@@ -1,5 +1,5 @@
 """Photon mapping in real Blender: the Photon Mapping panel greys out every row the chosen
-integrator does not read (as ``core.render.used_settings`` reports), and an SPPM render shows
+integrator does not read (as ``core.applied_settings.used_settings`` reports), and an SPPM render shows
 its image pass by pass and writes a finite EXR."""
 
 import bpy

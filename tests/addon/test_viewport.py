@@ -30,6 +30,7 @@ from scenes import ADDON_MODULE
 from sampling_lab.core import progressive
 from sampling_lab.core.camera import generate_rays
 from sampling_lab.core.integrators import integrator_class
+from sampling_lab.core.passes import PASS_UNITS
 from sampling_lab.core.view_camera import camera_frame, film_camera, zoom_factor
 
 
@@ -363,9 +364,9 @@ class Recorder:
 
 
 def one_spp_pass_size(core_render, settings):
-    """A film size whose passes take one sample per pixel (see core.render.render)."""
+    """A film size whose passes take one sample per pixel (see core.passes.Passes)."""
     unit = progressive.unit_paths(settings)
-    n = unit * core_render.PASS_UNITS // 2 + 1
+    n = unit * PASS_UNITS // 2 + 1
     width = 4 * int(math.ceil(math.sqrt(n / 12)))
     return width, int(math.ceil(n / width))
 
@@ -465,7 +466,7 @@ def test_worker_polls_cancel_between_bounded_units_and_stops_after_those_in_flig
     # to whole pixels of one pass).
     unit = progressive.unit_paths(settings)
     assert unit == integrator_class("path").unit_paths // 4
-    spp_per_pass = max(1, min(unit * core_render.PASS_UNITS // (128 * 128), 64))
+    spp_per_pass = max(1, min(unit * PASS_UNITS // (128 * 128), 64))
     # (core.render reads the flag once more to tell a cancel from a time limit.)
     assert cancel_at <= CancelAtThirdPoll.polls <= cancel_at + 1
     assert 0 < stats["samples"] <= (cancel_at + stats["threads"] - 1) * (unit + spp_per_pass)

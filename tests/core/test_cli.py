@@ -312,7 +312,7 @@ def test_flags_the_integrator_does_not_use_print_one_note_each(cli_runs):
 
 
 def test_unused_options_are_the_ones_the_panels_grey_out():
-    from sampling_lab.core.render import unused_options
+    from sampling_lab.core.applied_settings import unused_options
 
     def unused(**kw):
         return unused_options(RenderSettings(**kw))

@@ -17,7 +17,8 @@ import pytest
 
 from sampling_lab import cli
 from sampling_lab.core import scenes
-from sampling_lab.core.render import render, unused_options, used_settings
+from sampling_lab.core.applied_settings import unused_options, used_settings
+from sampling_lab.core.render import render
 from tests.helpers import assert_replicates_agree, plain_settings
 
 # The lower three quarters of a 32 x 32 Cornell box: the area light, seen directly, is left

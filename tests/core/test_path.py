@@ -93,10 +93,10 @@ class _FakeClock:
 def test_time_limit_halts_the_render(monkeypatch, spp):
     """With no sample count (0) or one far beyond reach, the render stops once the time limit
     has passed, keeping the samples taken, and is not reported as cancelled."""
-    from sampling_lab.core import render as render_module
+    from sampling_lab.core import passes as passes_module
 
     clock = _FakeClock()
-    monkeypatch.setattr(render_module, "time", clock)
+    monkeypatch.setattr(passes_module, "time", clock)
     limit, units_before_limit, backstop = 10.0, 3, 50
     progress_calls, cancel_polls = [], []
 

@@ -5,7 +5,7 @@ from concurrent.futures import Future
 
 import numpy as np
 
-from sampling_lab.core import render as render_module
+from sampling_lab.core import passes as passes_module
 from sampling_lab.core import scenes
 from sampling_lab.core.render import render
 from tests.helpers import plain_settings
@@ -20,7 +20,7 @@ def _futures(started, queued):
 
 def test_started_keeps_running_units_in_order_and_cancels_the_queued_ones():
     futures = _futures(started=2, queued=3)
-    kept = render_module._started(futures)
+    kept = passes_module._started(futures)
     assert kept == futures[:2]
     assert all(f.cancelled() for f in futures[2:])
     assert not any(f.cancelled() for f in futures[:2])
@@ -28,7 +28,7 @@ def test_started_keeps_running_units_in_order_and_cancels_the_queued_ones():
 
 def test_started_keeps_every_unit_when_all_have_started():
     futures = _futures(started=3, queued=0)
-    assert render_module._started(futures) == futures
+    assert passes_module._started(futures) == futures
 
 
 def test_queued_units_give_the_same_image_as_one_unit_in_flight(monkeypatch):
@@ -37,7 +37,7 @@ def test_queued_units_give_the_same_image_as_one_unit_in_flight(monkeypatch):
     scene = scenes.cornell_box(24, 24, "area")
     settings = plain_settings(spp=6, threads=2, seed=4)
     queued = render(scene, settings, unit_paths=256)
-    monkeypatch.setattr(render_module, "IN_FLIGHT", 1)
+    monkeypatch.setattr(passes_module, "IN_FLIGHT", 1)
     one = render(scene, settings, unit_paths=256)
     assert np.array_equal(queued.combined(), one.combined())
     assert np.array_equal(queued.variance(), one.variance())
@@ -47,14 +47,14 @@ def test_next_pass_units_are_queued_before_a_pass_is_shown(monkeypatch):
     """Pipelined passes: when a pass's last unit is awaited, units of the next pass are
     already handed to the workers (no worker idles at a pass's end), and the image is that of
     one unit at a time (bit for bit)."""
-    events, pool = [], render_module.ThreadPoolExecutor
+    events, pool = [], passes_module.ThreadPoolExecutor
 
     class Recording(pool):
         def submit(self, fn, unit, *args, **kwargs):
             events.append(("submit", unit[2]))  # the unit's first sample index
             return super().submit(fn, unit, *args, **kwargs)
 
-    monkeypatch.setattr(render_module, "ThreadPoolExecutor", Recording)
+    monkeypatch.setattr(passes_module, "ThreadPoolExecutor", Recording)
     scene = scenes.cornell_box(24, 24, "area")
     settings = plain_settings(spp=6, threads=2, seed=4)
     # 256-path units: 3 samples per pixel per pass, 7 units per pass, two passes.
@@ -63,8 +63,8 @@ def test_next_pass_units_are_queued_before_a_pass_is_shown(monkeypatch):
     first_shown = events.index(("pass", None))
     assert ("submit", 3) in events[:first_shown]
     assert [e for e in events if e[0] == "pass"] == [("pass", None)] * 2
-    monkeypatch.setattr(render_module, "IN_FLIGHT", 1)
-    monkeypatch.setattr(render_module, "ThreadPoolExecutor", pool)
+    monkeypatch.setattr(passes_module, "IN_FLIGHT", 1)
+    monkeypatch.setattr(passes_module, "ThreadPoolExecutor", pool)
     settings = plain_settings(spp=6, threads=1, seed=4)
     one = render(scene, settings, unit_paths=256)
     assert np.array_equal(piped.film.sum, one.film.sum)
@@ -78,8 +78,8 @@ def _batches_and_image(monkeypatch, scene, settings, batch_units):
 
     monkeypatch.setattr(PathTracer, "unit_paths", 256)
     monkeypatch.setattr(PathTracer, "batch_units", batch_units)
-    units, run_unit = [], render_module._Passes.run_unit
-    monkeypatch.setattr(render_module._Passes, "run_unit",
+    units, run_unit = [], passes_module.Passes.run_unit
+    monkeypatch.setattr(passes_module.Passes, "run_unit",
                         lambda self, unit: units.append(unit) or run_unit(self, unit))
     res = render(scene, settings)
     return units, res
