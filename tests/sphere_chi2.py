@@ -335,3 +335,19 @@ def chi_square_bsdf(sample_fn, pdf_fn, wo_z, eta=None, n=N_CHI, seed=0, what="bs
         "to the chi-square statistic)")
     return chi_square_counts(cell_counts(w, grids), live.sum() * mass / total, alpha=alpha,
                              what=what)
+
+
+def chi_square_bsdf_rows(params, wo, eta=None, seed=0, what="bsdf", alpha=ALPHA):
+    """:func:`chi_square_bsdf` of the BSDF ``params(k)`` (a :class:`BSDFParams` of ``k``
+    identical rows) seen from ``wo (3,)`` in its local frame. Returns the p-value."""
+    from sampling_lab.core.materials import bsdf as B
+
+    def sample(u_lobe, u):
+        k = len(u_lobe)
+        s = B.sample_bsdf(params(k), np.tile(wo, (k, 1)), u_lobe, u)
+        return s.wi, s.pdf, s.delta
+
+    def pdf(w):
+        return B.pdf_bsdf(params(len(w)), np.tile(wo, (len(w), 1)), w)
+
+    return chi_square_bsdf(sample, pdf, float(wo[2]), eta, seed=seed, what=what, alpha=alpha)

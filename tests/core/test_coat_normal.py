@@ -14,7 +14,8 @@ from sampling_lab.core.integrators.common import with_coat_normals
 from sampling_lab.core.materials import bsdf as B
 from sampling_lab.core.materials.coat import coat_attenuation
 from sampling_lab.core.materials.frame import shading_frame, to_local
-from tests.core.test_bsdfs import _wo, chi_square_bsdf
+from tests.core.test_bsdfs import _wo
+from tests.sphere_chi2 import chi_square_bsdf_rows
 
 TILTED = np.array([0.35, -0.2, 0.915])
 TILTED /= np.linalg.norm(TILTED)
@@ -101,17 +102,9 @@ def test_tilted_coat_samples_follow_their_pdf(coat_roughness, z, sheen):
     def params(k):
         return coated(k, coat_roughness=coat_roughness, coat_weight=0.6, sheen_weight=sheen)
 
-    def sample(u_lobe, u):
-        k = len(u_lobe)
-        s = B.sample_bsdf(params(k), np.tile(wo, (k, 1)), u_lobe, u)
-        return s.wi, s.pdf, s.delta
-
-    def pdf(w):
-        return B.pdf_bsdf(params(len(w)), np.tile(wo, (len(w), 1)), w)
-
-    chi_square_bsdf(sample, pdf, z, None,
-                    seed=zlib.crc32(f"{coat_roughness}{z}{sheen}".encode()),
-                    what=f"tilted coat {coat_roughness}")
+    chi_square_bsdf_rows(params, wo, None,
+                         seed=zlib.crc32(f"{coat_roughness}{z}{sheen}".encode()),
+                         what=f"tilted coat {coat_roughness}")
 
 
 @pytest.mark.parametrize("mode", [B.RADIANCE, B.IMPORTANCE])
