@@ -29,13 +29,15 @@ def hash_u32(x):
             x = x ^ (x >> np.uint32(15))
             x = x * _M2
             return x ^ (x >> np.uint32(16))
-    # One copy, then in place: this runs several times per sample slot.
+    # One copy and one scratch array, then in place: this runs several times per sample slot.
     x = x.copy()
-    x ^= x >> np.uint32(16)
-    x *= _M1
-    x ^= x >> np.uint32(15)
-    x *= _M2
-    x ^= x >> np.uint32(16)
+    t = np.empty_like(x)
+    for shift, multiplier in ((16, _M1), (15, _M2)):
+        np.right_shift(x, np.uint32(shift), out=t)
+        x ^= t
+        x *= multiplier
+    np.right_shift(x, np.uint32(16), out=t)
+    x ^= t
     return x
 
 

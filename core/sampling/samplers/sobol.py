@@ -48,7 +48,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..lowdiscrepancy import (
-    laine_karras_permutation, reverse_bits, sobol_reversed, sub_key, unit_from_u32,
+    laine_karras_permutation, reverse_bits, slot_keys, sobol_reversed, sub_keys, unit_from_u32,
+    unit_from_u32_into,
 )
 from .padded import PaddedStream
 
@@ -63,12 +64,23 @@ def sobol_2d_u32(key, index, count, reversed_index=None):
     """
     if reversed_index is None:
         reversed_index = reverse_bits(np.asarray(index).astype(np.uint32))  # past 2^32 wraps
-    shuffled = reverse_bits(laine_karras_permutation(reversed_index, sub_key(key, 0)))
-    out = np.empty((count, shuffled.shape[0]), np.uint32)
-    for c in range(count):
-        out[c] = laine_karras_permutation(sobol_reversed(c, shuffled), sub_key(key, 1 + c))
-    # Both coordinates back from bit-reversed form in one pass.
-    return reverse_bits(out).T
+    return _scrambled_rows(key, reversed_index, count).T
+
+
+def _scrambled_rows(key, reversed_index, count):
+    """The coordinates of :func:`sobol_2d_u32` as rows: ``(count, n)`` uint32.
+
+    Written for few NumPy calls per slot: the sub-keys in one hash, both coordinates'
+    scrambles in one call on the ``(count, n)`` rows, both back from bit-reversed form in one
+    pass.
+    """
+    keys = sub_keys(key, 1 + count)
+    shuffled = reverse_bits(laine_karras_permutation(reversed_index, keys[0]))
+    rows = np.empty((count, shuffled.shape[0]), np.uint32)
+    rows[:] = shuffled  # dimension 0 in bit-reversed form is the index itself
+    if count == 2:
+        rows[1] = sobol_reversed(1, shuffled)
+    return reverse_bits(laine_karras_permutation(rows, keys[1:]))
 
 
 class SobolStream(PaddedStream):
@@ -82,6 +94,15 @@ class SobolStream(PaddedStream):
     def _compact_state(self, keep):
         super()._compact_state(keep)
         self._reversed_index = self._reversed_index[keep]
+
+    def sample(self, dimension, count):
+        # The padded slots of PaddedStream.sample, each converted straight into ``out``.
+        out = np.empty((len(self), count))
+        for d in range(0, count, 2):
+            c = min(2, count - d)
+            rows = _scrambled_rows(slot_keys(self._key, dimension + d), self._reversed_index, c)
+            unit_from_u32_into(rows, out[:, d:d + c].T)
+        return out
 
     def _sample_1d(self, key, dimension):
         return unit_from_u32(sobol_2d_u32(key, None, 1, self._reversed_index)[:, 0])
