@@ -2,9 +2,10 @@
 
 Times ``stream.sample(d, 1)`` and ``stream.sample(d, 2)`` of the Sobol and the independent
 sampler on one unit of ``--paths`` paths (thread CPU time, the minimum over ``--repeats``
-draws, in nanoseconds per path and dimension), and, for Sobol, the stages of one 2-D draw of
-the base tree's form (slot key, the three sub-keys, the index shuffle, the two coordinates'
-scrambles, bit reversal, conversion to doubles). With ``--base`` the base tree's streams are
+draws, in nanoseconds per path and dimension); for Sobol, one path-tracer bounce's five
+slots drawn call by call and with ``next_slots`` at several path counts, and the stages of
+one 2-D draw of the base tree's form (slot key, the three sub-keys, the index shuffle, the
+two coordinates' scrambles, bit reversal, conversion to doubles). With ``--base`` the base tree's streams are
 timed in the same process, one right after the other (as :mod:`tools.ab_units`), so a load
 spike hits both alike. Memory is kept as in a render (``core.render.keep_freed_memory``)::
 
@@ -40,6 +41,12 @@ def _streams(pkg, n):
     pixel, index = np.arange(n) % 9216, np.arange(n) // 9216
     return {name: samplers.make_sampler(name, seed=0, spp=16, width=96).stream(pixel, index)
             for name in ("sobol", "independent")}
+
+
+def _bounce(stream):
+    """The path tracer's draws of one bounce, call by call."""
+    stream.skip_to(9)
+    stream.next_1d(), stream.next_2d(), stream.next_1d(), stream.next_2d(), stream.next_1d()
 
 
 def _stages(pkg, stream, repeats):
@@ -82,6 +89,17 @@ def main(argv=None):
                 t = _min_time(lambda: s.sample(7, count), args.repeats)
                 cells.append(f"{pkg}: {1e9 * t / (args.paths * count):6.2f}")
             print(f"{name:>11} {count}-D: ns per path and dimension | " + " | ".join(cells))
+    print("one path-tracer bounce (slots 1, 2, 1, 2, 1), ns per path:")
+    for n in (4096, 16384, 65536):
+        cells = []
+        for pkg in pkgs:
+            s = _streams(pkg, n)["sobol"]
+            t = _min_time(lambda: _bounce(s), args.repeats)
+            cells.append(f"{pkg}: calls {1e9 * t / n:6.2f}")
+            if hasattr(s, "next_slots"):
+                t = _min_time(lambda: s.next_slots((1, 2, 1, 2, 1)), args.repeats)
+                cells[-1] += f", next_slots {1e9 * t / n:6.2f}"
+        print(f"  {n:>6} paths: " + " | ".join(cells))
     print("Sobol 2-D draw by stage (base form), ns per path:")
     stages = {pkg: _stages(pkg, streams[pkg]["sobol"], args.repeats) for pkg in pkgs}
     for stage in stages[pkgs[0]]:

@@ -97,12 +97,21 @@ def slot_keys(path_key, dimension, extra=None):
 
     ``extra`` (e.g. the epoch of a finite point set, ``(n,)``) is hashed in when given.
     """
-    # hash_combine(path_key, hash(dimension) + constant), its scalar half cached.
-    word = _combine_word((int(_scalar_hash(int(dimension))) + 0x632BE5AB) & 0xFFFFFFFF)
-    k = hash_u32(np.asarray(path_key, np.uint32) ^ word)
+    k = hash_u32(np.asarray(path_key, np.uint32) ^ slot_word(dimension))
     if extra is not None:
         k = hash_combine(k, np.asarray(extra).astype(np.uint32))
     return k
+
+
+def slot_word(dimension):
+    """The word :func:`slot_keys` hashes into a path key for ``dimension``: uint32."""
+    # hash_combine(path_key, hash(dimension) + constant), its scalar half cached.
+    return _combine_word((int(_scalar_hash(int(dimension))) + 0x632BE5AB) & 0xFFFFFFFF)
+
+
+def salt_word(salt):
+    """The word :func:`sub_key` hashes into a key for ``salt``: uint32."""
+    return _scalar_hash(int(salt))
 
 
 def sub_key(key, salt):
@@ -112,7 +121,7 @@ def sub_key(key, salt):
 
 def sub_keys(key, count):
     """``sub_key(key, s)`` for s = 0 .. count - 1 in one hash: ``(count, n)`` uint32."""
-    words = np.array([_scalar_hash(s) for s in range(count)], np.uint32)
+    words = np.array([salt_word(s) for s in range(count)], np.uint32)
     return hash_u32(np.asarray(key, np.uint32)[None, :] ^ words[:, None])
 
 

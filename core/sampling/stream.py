@@ -110,6 +110,30 @@ class SampleStream:
         self.dimension += 2
         return u
 
+    def next_slots(self, sizes):
+        """The draws of consecutive calls in one: size 1 is ``next_1d()``, 2 is ``next_2d()``,
+        0 skips one dimension (as :func:`core.integrators.common.next_1d_if` when the number is
+        not needed) and gives None. Returns one entry per size, the same values as the calls
+        one by one (a 2-D value may be a transposed view). Streams that draw several slots
+        more cheaply together override :meth:`_draw_slots`."""
+        slots, d = [], self.dimension
+        for size in sizes:
+            if size:
+                slots.append((d, size))
+            d += max(size, 1)
+        values = iter(self._draw_slots(slots))
+        self.dimension = d
+        return [next(values) if size else None for size in sizes]
+
+    def _draw_slots(self, slots):
+        """Values of the slots ``(dimension, size)``, in order: one ``next_1d`` / ``next_2d``
+        each."""
+        out = []
+        for dimension, size in slots:
+            self.dimension = dimension
+            out.append(self.next_1d() if size == 1 else self.next_2d())
+        return out
+
     def sample(self, dimension, count):
         """Sample values of dimensions ``dimension .. dimension + count - 1``: ``(n, count)``."""
         raise NotImplementedError

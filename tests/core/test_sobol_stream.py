@@ -61,3 +61,30 @@ def test_sub_keys_rows_equal_sub_key_and_unit_into_equals_unit_from_u32():
     out = np.empty((500, 3))
     ld.unit_from_u32_into(rows.copy(), out.T)
     np.testing.assert_array_equal(out, ld.unit_from_u32(rows).T)
+
+
+@pytest.mark.parametrize("sampler", ["sobol", "independent", "stratified"])
+def test_next_slots_equals_the_calls_one_by_one(sampler):
+    """A bounce's draws in one call (the path tracer's 1, 2, 1, 2, 1 with skipped dimensions)
+    give exactly the values of next_1d / next_2d / a skipped dimension, and the same final
+    dimension."""
+    from sampling_lab.core.sampling.samplers import make_sampler
+    rng = np.random.default_rng(4)
+    pixel, index = rng.integers(0, 9216, 1500), rng.integers(0, 64, 1500)
+    make = make_sampler(sampler, seed=3, spp=64, width=96)
+    for sizes in [(1, 2, 1, 2, 1), (1, 2, 0, 2, 0), (2,), (1,), (0, 0), (2, 2, 1)]:
+        one, many = make.stream(pixel, index), make.stream(pixel, index)
+        one.skip_to(9)
+        many.skip_to(9)
+        want = []
+        for size in sizes:
+            if size == 0:
+                one.skip_to(one.dimension + 1)
+            want.append(None if size == 0 else one.next_1d() if size == 1 else one.next_2d())
+        got = many.next_slots(sizes)
+        assert many.dimension == one.dimension
+        for w, g in zip(want, got):
+            if w is None:
+                assert g is None
+            else:
+                np.testing.assert_array_equal(g, w)
