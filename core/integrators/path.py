@@ -64,7 +64,7 @@ from .base import BatchOutput, Integrator
 from .bounces import BounceCounts, BounceLimits
 from .shadows import shadow_transmittance
 from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows,
-                     geometric_side_valid, intersect_by_class, max_component, next_1d_if,
+                     geometric_side_valid, intersect_by_class, max_component,
                      ray_class, roulette_at, russian_roulette, shading_tangents,
                      surface_hits, surface_interaction, take_rows,
                      valid_reflection_normals, with_base_normals, with_bump_normals,
