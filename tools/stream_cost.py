@@ -5,9 +5,10 @@ sampler on one unit of ``--paths`` paths (thread CPU time, the minimum over ``--
 draws, in nanoseconds per path and dimension); for Sobol, one path-tracer bounce's five
 slots drawn call by call and with ``next_slots`` at several path counts, and the stages of
 one 2-D draw of the base tree's form (slot key, the three sub-keys, the index shuffle, the
-two coordinates' scrambles, bit reversal, conversion to doubles). With ``--base`` the base tree's streams are
-timed in the same process, one right after the other (as :mod:`tools.ab_units`), so a load
-spike hits both alike. Memory is kept as in a render (``core.render.keep_freed_memory``)::
+two coordinates' scrambles, bit reversal, conversion to doubles). With ``--base`` the base
+tree's streams are timed in the same process, one right after the other (as
+:mod:`tools.ab_units`), so a load spike hits both alike. Memory is kept as in a render
+(``core.render.keep_freed_memory``)::
 
     PYTHONPATH=/path/to/parent python tools/stream_cost.py --base /tmp/base/sampling_lab
 """
