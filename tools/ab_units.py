@@ -10,9 +10,9 @@ microseconds per camera sample, and head / base.
 
 Measures (``--measures``): ``bdpt_walks`` (BDPT's camera and light subpath walks alone, as
 :mod:`tools.profile_walks`), ``bdpt``, ``light`` and ``path`` (the integrator's
-``render_samples`` of one work unit; BDPT two units per round). Independent sampler, power
-light selection, 8 bounces, each integrator's own unit size. The head is the tree that
-``sampling_lab`` resolves to::
+``render_samples`` of one work unit; BDPT two units per round). Independent sampler (or
+``--sampler``), power light selection, 8 bounces, each integrator's own unit size. The head
+is the tree that ``sampling_lab`` resolves to::
 
     PYTHONPATH=/path/to/parent python tools/ab_units.py --base /tmp/base/sampling_lab \\
         --rounds 5 --scene bench
@@ -53,16 +53,16 @@ def _scene(pkg, args):
     return load_scene(args.scene, args.size, args.size)
 
 
-def _runner(pkg, measure, scene, size):
+def _runner(pkg, measure, scene, size, sampler_name="independent"):
     """``(run(units), paths per unit)`` of ``measure`` in package ``pkg``."""
     core = lambda name: importlib.import_module(f"{pkg}.core.{name}")  # noqa: E731
     name = "bdpt" if measure == "bdpt_walks" else measure
     settings_class = core("render").RenderSettings
-    settings = settings_class(integrator=name, spp=4, threads=1, seed=0, sampler="independent",
+    settings = settings_class(integrator=name, spp=4, threads=1, seed=0, sampler=sampler_name,
                               light_selection="power", **_bounces(settings_class, 8))
     integ = core("integrators").integrator_class(name)(core("prepare").prepare(scene, "power"),
                                                        settings)
-    sampler = core("sampling.samplers").make_sampler("independent", seed=0, spp=4, width=size)
+    sampler = core("sampling.samplers").make_sampler(sampler_name, seed=0, spp=4, width=size)
     pixel_filter = core("film").PixelFilter(settings.filter_type, settings.filter_width)
     counters = core("integrators.base").Counters
     n = integ.unit_paths
@@ -96,6 +96,8 @@ def main(argv=None):
     parser.add_argument("--size", type=int, default=256, help="square image side")
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--measures", default="bdpt_walks,bdpt,light,path")
+    parser.add_argument("--sampler", default="independent",
+                        help="sampler of both trees (sobol: the default of a render)")
     args = parser.parse_args(argv)
     _import_base(args.base)
     measures = args.measures.split(",")
@@ -103,7 +105,7 @@ def main(argv=None):
     for pkg in (BASE, HEAD):
         scene = _scene(pkg if args.scene == "bench" else HEAD, args)
         for measure in measures:
-            runs[pkg, measure] = _runner(pkg, measure, scene, args.size)
+            runs[pkg, measure] = _runner(pkg, measure, scene, args.size, args.sampler)
             runs[pkg, measure][0](1)  # warm-up: buffers, first-call costs
     print(f"load average at start: {os.getloadavg()}")
     times = {key: [] for key in runs}

@@ -86,9 +86,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     em, prep = ctx.emission, ctx.prep
     L = ctx.subpath("light", depth, n) if on_vertex is None else None
     stream.skip_to(base)
-    u_sel = stream.next_1d()
-    u_pos = stream.next_2d()
-    u_dir = stream.next_2d()
+    u_sel, u_pos, u_dir = stream.next_slots((1, 2, 2))
     pts = em.sample_points(u_sel, u_pos, ctx.counters)
     origin, w, pdf_dir, cos_l, le = em.sample_directions(pts, u_dir)
     ctx.light_points = pts

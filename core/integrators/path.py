@@ -64,7 +64,7 @@ from .base import BatchOutput, Integrator
 from .bounces import BounceCounts, BounceLimits
 from .shadows import shadow_transmittance
 from .common import (add_emitters_along_rays, add_rows, camera_rays, finite_rows,
-                     geometric_side_valid, intersect_by_class, max_component, next_1d_if,
+                     geometric_side_valid, intersect_by_class, max_component,
                      ray_class, roulette_at, russian_roulette, shading_tangents,
                      surface_hits, surface_interaction, take_rows,
                      valid_reflection_normals, with_base_normals, with_bump_normals,
@@ -265,12 +265,10 @@ class PathTracer(Integrator):
             # Numbers nothing reads are skipped, not drawn (a Lambert-only scene chooses no
             # lobe; roulette starts after rr_min_bounces): every number is a function of its
             # dimension, so the others keep their values.
+            # One call for all (stream.next_slots: 1-D, 2-D, 1-D or skipped, 2-D, 1-D or skipped).
             stream.skip_to(DIMS_CAMERA + step * DIMS_PER_BOUNCE)
-            u_sel = stream.next_1d()
-            u_light = stream.next_2d()
-            u_lobe = next_1d_if(stream, not prep.lambert_only)
-            u_bsdf = stream.next_2d()
-            u_rr = next_1d_if(stream, roulette_at(self.settings, step))
+            u_sel, u_light, u_lobe, u_bsdf, u_rr = stream.next_slots(
+                (1, 2, int(not prep.lambert_only), 2, int(roulette_at(self.settings, step))))
             shading = self._shading(si, hits, live, u_lobe)
             if self.use_nee:
                 self._sample_lights(shading, si, path, u_sel, u_light, L, counters)

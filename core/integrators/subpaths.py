@@ -20,7 +20,7 @@ from ..materials.frame import shading_frame, to_local, to_world
 from ..rows import put_rows
 from .adjoint_normals import VertexNormals
 from .common import (bends_normals, coat_normals_in_front, finite_rows, intersect_by_class,
-                     max_component, next_1d_if, ray_class, roulette_at, russian_roulette,
+                     max_component, ray_class, roulette_at, russian_roulette,
                      shading_tangents, surface_hits, surface_interaction, take_rows,
                      with_bump_normals, with_coat_normals)
 from .transparent_passes import Passes, has_passes
@@ -391,13 +391,13 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         else:
             path_stream.compact(live)
         path_stream.skip_to(dims_of(j))
-        u_lobe = next_1d_if(path_stream, draws_lobe)
+        # Lobe (or skipped), BSDF and roulette (or skipped) numbers in one call.
+        u_lobe, u_bsdf, u_rr = path_stream.next_slots(
+            (int(draws_lobe), 2, int(roulette_at(settings, j - 1))))
         if u_lobe is None:
             u_lobe = np.zeros(r.size)
         if u_pass is not None:  # the number left after the choices of the passes
             u_lobe = np.where(np.isnan(u_pass[live]), u_lobe, u_pass[live])
-        u_bsdf = path_stream.next_2d()
-        u_rr = next_1d_if(path_stream, roulette_at(settings, j - 1))
         params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
                                                       hits.v[live])
         tangent = shading_tangents(prep, si)

@@ -97,17 +97,39 @@ def slot_keys(path_key, dimension, extra=None):
 
     ``extra`` (e.g. the epoch of a finite point set, ``(n,)``) is hashed in when given.
     """
-    # hash_combine(path_key, hash(dimension) + constant), its scalar half cached.
-    word = _combine_word((int(_scalar_hash(int(dimension))) + 0x632BE5AB) & 0xFFFFFFFF)
-    k = hash_u32(np.asarray(path_key, np.uint32) ^ word)
+    k = hash_u32(np.asarray(path_key, np.uint32) ^ slot_word(dimension))
     if extra is not None:
         k = hash_combine(k, np.asarray(extra).astype(np.uint32))
     return k
 
 
+def slot_word(dimension):
+    """The word :func:`slot_keys` hashes into a path key for ``dimension``: uint32."""
+    # hash_combine(path_key, hash(dimension) + constant), its scalar half cached.
+    return _combine_word((int(_scalar_hash(int(dimension))) + 0x632BE5AB) & 0xFFFFFFFF)
+
+
+def salt_word(salt):
+    """The word :func:`sub_key` hashes into a key for ``salt``: uint32."""
+    return _scalar_hash(int(salt))
+
+
 def sub_key(key, salt):
     """An independent key derived from ``key`` for another use (index shuffle, x, y, ...)."""
     return hash_u32(np.asarray(key, np.uint32) ^ _scalar_hash(int(salt)))
+
+
+def sub_keys(key, count):
+    """``sub_key(key, s)`` for s = 0 .. count - 1 in one hash: ``(count, n)`` uint32."""
+    words = np.array([salt_word(s) for s in range(count)], np.uint32)
+    return hash_u32(np.asarray(key, np.uint32)[None, :] ^ words[:, None])
+
+
+def unit_from_u32_into(x, out):
+    """:func:`unit_from_u32` of uint32 ``x`` written into the float64 array ``out`` (any
+    strides, ``x``'s shape); ``x`` is overwritten (shifted right by 8)."""
+    np.right_shift(x, _U32(8), out=x)
+    np.multiply(x, 1.0 / (1 << 24), out=out)
 
 
 def unit_from_u32(x):
@@ -158,11 +180,16 @@ def laine_karras_permutation(x, seed):
     """
     x = np.array(x, np.uint32)  # a copy: updated in place below
     seed = np.asarray(seed, np.uint32)
-    x ^= x * _U32(0x3D20ADEA)
+    t = np.empty_like(x)
+    np.multiply(x, _U32(0x3D20ADEA), out=t)
+    x ^= t
     x += seed
-    x *= (seed >> _U32(16)) | _U32(1)
-    x ^= x * _U32(0x05526C56)
-    x ^= x * _U32(0x53A22864)
+    factor = seed >> _U32(16)
+    factor |= _U32(1)
+    x *= factor
+    for multiplier in (0x05526C56, 0x53A22864):
+        np.multiply(x, _U32(multiplier), out=t)
+        x ^= t
     return x
 
 

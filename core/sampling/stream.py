@@ -29,13 +29,15 @@ def hash_u32(x):
             x = x ^ (x >> np.uint32(15))
             x = x * _M2
             return x ^ (x >> np.uint32(16))
-    # One copy, then in place: this runs several times per sample slot.
+    # One copy and one scratch array, then in place: this runs several times per sample slot.
     x = x.copy()
-    x ^= x >> np.uint32(16)
-    x *= _M1
-    x ^= x >> np.uint32(15)
-    x *= _M2
-    x ^= x >> np.uint32(16)
+    t = np.empty_like(x)
+    for shift, multiplier in ((16, _M1), (15, _M2)):
+        np.right_shift(x, np.uint32(shift), out=t)
+        x ^= t
+        x *= multiplier
+    np.right_shift(x, np.uint32(16), out=t)
+    x ^= t
     return x
 
 
@@ -107,6 +109,30 @@ class SampleStream:
         u = self.sample(self.dimension, 2)
         self.dimension += 2
         return u
+
+    def next_slots(self, sizes):
+        """The draws of consecutive calls in one: size 1 is ``next_1d()``, 2 is ``next_2d()``,
+        0 skips one dimension (as :func:`core.integrators.common.next_1d_if` when the number is
+        not needed) and gives None. Returns one entry per size, the same values as the calls
+        one by one (a 2-D value may be a transposed view). Streams that draw several slots
+        more cheaply together override :meth:`_draw_slots`."""
+        slots, d = [], self.dimension
+        for size in sizes:
+            if size:
+                slots.append((d, size))
+            d += max(size, 1)
+        values = iter(self._draw_slots(slots))
+        self.dimension = d
+        return [next(values) if size else None for size in sizes]
+
+    def _draw_slots(self, slots):
+        """Values of the slots ``(dimension, size)``, in order: one ``next_1d`` / ``next_2d``
+        each."""
+        out = []
+        for dimension, size in slots:
+            self.dimension = dimension
+            out.append(self.next_1d() if size == 1 else self.next_2d())
+        return out
 
     def sample(self, dimension, count):
         """Sample values of dimensions ``dimension .. dimension + count - 1``: ``(n, count)``."""
