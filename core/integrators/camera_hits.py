@@ -18,7 +18,6 @@ import numpy as np
 
 from .common import max_component, take_rows
 from .mis_densities import camera_hit_weight
-from .mis_sums import CameraHitSums, summable
 
 
 def camera_emission(ctx, cam_sub, out):
@@ -29,7 +28,6 @@ def camera_emission(ctx, cam_sub, out):
     prep, em = ctx.prep, ctx.emission
     ls = prep.lights
     clear_film = prep.scene.film_transparent
-    sums = CameraHitSums(ctx.mis, cam_sub) if ctx.weighs and summable(ctx.mis) else None
 
     def handle(j, rows, o, d, hits, beta, pdf_prev, prev_delta, t0=None):
         found = []  # (local rows, emitter index, point, normal, distance)
@@ -77,7 +75,7 @@ def camera_emission(ctx, cam_sub, out):
                 elif t0 is not None:  # after transparent passes: from z_{j-1}, not the pass
                     t = t + t0[lr]
                 weight = camera_hit_weight(ctx, cam_sub, j, r, index, q, normal, t, -d[lr],
-                                           pdf_prev[lr], prev_delta[lr], sums)
+                                           pdf_prev[lr], prev_delta[lr])
             out.add(0, j + 1, r, value, weight)
 
     return handle

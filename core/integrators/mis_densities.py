@@ -82,36 +82,22 @@ def _step(ratio, num, den):
     return np.divide(ratio * num, den, out=np.zeros(den.shape), where=den > 0)
 
 
-def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_delta,
-                      sums=None):
-    """MIS weight of emitters found by the camera subpath's segment from ``z_{j-1}``: by the
-    running sums ``sums`` (a :class:`.mis_sums.CameraHitSums` of the batch, for the summed
-    heuristics), else strategy by strategy (:func:`hit_weight`)."""
+def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, prev_delta):
+    """MIS weight of emitters found by the camera subpath's segment from ``z_{j-1}``."""
     em = ctx.emission
-    infinite = em.is_infinite(index)
-    light_0 = em.pdf_origin(index, w_travel)
-    cos_l = np.where(infinite, 1.0, np.abs(dot(normal, w_travel)))
-    camera_0 = np.where(prev_delta, 1.0, to_area(pdf_prev, cos_l, t))
-    light_1 = None
-    if j >= 2 or sums is None:  # the emitter makes z_{j-1} by its direction density
-        cos_z = np.abs(dot(take_rows(cam.ng[j - 1], r), w_travel))
-        pdf_dir = em.pdf_direction(index, normal, w_travel)
-        light_1 = np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, t))
-    if sums is not None:
-        return sums.weight(j, r, light_0, camera_0, light_1, ~infinite)
-    return hit_weight(ctx.mis, cam, j, r, light_0, camera_0, light_1, ~infinite)
-
-
-def hit_weight(mis, cam, j, r, light_0, camera_0, light_1, direct):
-    """MIS weight ``(m,)`` of strategy ``s = 0`` for the emitters ``x_0`` found by segment
-    ``j`` of the camera subpaths ``r (m,)``, strategy by strategy: the light side's densities
-    of ``x_0`` and ``x_1 = z_{j-1}`` (``light_0``, ``light_1``), the camera side's of ``x_0``
-    (``camera_0``), and whether ``s' = 1, t' = 1`` can make a one-segment path (``direct``)."""
     k = j
     m = r.size
-    p_light = [light_0, light_1] + [None] * (k - 1)
-    p_camera = [camera_0] + [None] * k
+    infinite = em.is_infinite(index)
+    p_light = [None] * (k + 1)
+    p_camera = [None] * (k + 1)
     delta = [np.zeros(m, bool)] * (k + 1)  # read only; entries are replaced, not written
+    p_light[0] = em.pdf_origin(index, w_travel)
+    cos_l = np.where(infinite, 1.0, np.abs(dot(normal, w_travel)))
+    p_camera[0] = np.where(prev_delta, 1.0, to_area(pdf_prev, cos_l, t))
+    # The emitter makes z_{j-1} by its direction density.
+    cos_z = np.abs(dot(take_rows(cam.ng[j - 1], r), w_travel))
+    pdf_dir = em.pdf_direction(index, normal, w_travel)
+    p_light[1] = np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, t))
     for i in range(1, k + 1):
         zi = k - i
         p_camera[i] = cam.pdf_fwd[zi, r] if zi > 0 else np.ones(m)
@@ -119,7 +105,8 @@ def hit_weight(mis, cam, j, r, light_0, camera_0, light_1, direct):
             p_light[i] = cam.pdf_rev[zi, r] if zi > 0 else np.ones(m)
         if 0 < zi:
             delta[i] = cam.delta[zi, r]
-    return strategy_weight(mis, p_light, p_camera, delta, 0, np.zeros(m, bool), direct=direct)
+    delta_light = np.zeros(m, bool)
+    return strategy_weight(ctx.mis, p_light, p_camera, delta, 0, delta_light, direct=~infinite)
 
 
 class Near(NamedTuple):

@@ -24,9 +24,6 @@ is the same along the camera subpath. :class:`RunningSums` builds both tables on
 (``depth`` operations over the batch) and :meth:`RunningSums.weights` weighs every connection
 of the batch, of every strategy, in one pass.
 
-Strategy ``s = 0`` (an emitter found by the camera walk) is the camera side's sum alone,
-kept along the walk by :class:`CameraHitSums`.
-
 The 'maximum' and 'cutoff' heuristics compare each ratio with the largest one: not a sum, so
 they keep the per-strategy weights of :func:`.mis_densities.connection_weight` (the reference
 these sums are tested against, ``tests/core/test_mis_sums.py``).
@@ -43,16 +40,6 @@ SUMMED = ("balance", "power", "none")
 def summable(mis):
     """Whether the weights of ``mis`` (a :class:`core.sampling.mis.MIS`) are running sums."""
     return mis.setting in SUMMED
-
-
-def _h(mis, r):
-    """The function ``h`` of the heuristic ``mis`` of density ratios ``r >= 0``."""
-    if mis.setting == "balance":
-        return r
-    if mis.setting == "power":
-        with np.errstate(over="ignore"):
-            return r ** mis.beta
-    return (r > 0).astype(np.float64)  # 'none': count the strategies that can
 
 
 def _ratio(num, den):
@@ -91,7 +78,13 @@ class RunningSums:
 
     def h(self, r):
         """The heuristic's function of a density ratio ``r >= 0``."""
-        return _h(self.mis, r)
+        setting = self.mis.setting
+        if setting == "balance":
+            return r
+        if setting == "power":
+            with np.errstate(over="ignore"):
+                return r ** self.mis.beta
+        return (r > 0).astype(np.float64)  # 'none': count the strategies that can
 
     def _table(self, sub, first_possible):
         """``out[j + 2] = G[j]`` of the recurrence along ``sub`` (``out[0] = out[1] = 0``).
@@ -157,62 +150,3 @@ class RunningSums:
         p2 = ~np.take(C.delta, np.maximum(z - 2, 0) * n + row) & p1
         rest = h(b2) * (p2 + np.take(self.camera, at_z))
         return h(b1) * (p1 + np.where(t == 2, 0.0, rest))
-
-
-class CameraHitSums:
-    """Running sums for strategy ``s = 0`` (an emitter ``x_0`` found by the camera walk's
-    segment from camera vertex ``z_{j-1} = x_1``, a path of ``k = j`` segments), kept along
-    the camera walk of one batch.
-
-    The weight is ``1 / (1 + h(r_1) (p_1 + h(b_2) (p_2 + G[j - 2])))`` with ``r_1`` and ``b_2``
-    the two ratios the hit itself makes (the light side's density of ``x_0`` over the camera
-    side's; the emitter's density of ``x_1`` over the camera walk's), ``p_1``, ``p_2`` whether
-    strategies ``s' = 1, 2`` can make the path, and ``G`` the camera side's recurrence of
-    :class:`RunningSums` (strategies ``s' >= 3``): ``G[c]`` is computed once per depth, for the
-    whole batch, when a segment first needs it (the walk stores ``pdf_rev[c]`` when it samples
-    at ``z_{c+1}``, before tracing the segment from there). Equal to
-    :func:`.mis_densities.camera_hit_weight`'s per-strategy weight to rounding.
-
-    Parameters
-    ----------
-    mis : core.sampling.mis.MIS
-        One of :data:`SUMMED`.
-    C : core.integrators.subpaths.Subpath
-        The camera subpaths being walked, ``(depth, n)`` vertices.
-    """
-
-    def __init__(self, mis, C):
-        self.mis, self.C = mis, C
-        self.g = [np.zeros(C.valid.shape[1])]  # g[c] = G[c]; G[0] = 0
-
-    def h(self, r):
-        """The heuristic's function of a density ratio ``r >= 0``."""
-        return _h(self.mis, r)
-
-    def _stored(self, c):
-        """``G[c] (n,)``, extending the table up to ``c``."""
-        C = self.C
-        while len(self.g) <= c:
-            i = len(self.g)
-            possible = ~C.delta[i - 1] & ~C.delta[i]
-            with np.errstate(invalid="ignore", over="ignore"):
-                self.g.append(self.h(_ratio(C.pdf_rev[i], C.pdf_fwd[i])) * (possible + self.g[-1]))
-        return self.g[c]
-
-    def weight(self, j, r, light_0, camera_0, light_1, direct):
-        """MIS weights ``(m,)`` of the emitters found by segment ``j`` of the subpaths
-        ``r (m,)``: the light side's density of ``x_0`` (``light_0``) and ``x_1``
-        (``light_1``, read for ``j >= 2``), the camera side's of ``x_0`` (``camera_0``), and
-        whether ``s' = 1, t' = 1`` could make a path of one segment (``direct``)."""
-        C, h = self.C, self.h
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            if j == 1:
-                total = 1.0 + h(_ratio(light_0, camera_0)) * direct
-            else:
-                p1 = ~C.delta[j - 1, r]
-                b2 = _ratio(light_1, C.pdf_fwd[j - 1, r])
-                p2 = p1 & ~C.delta[j - 2, r] if j >= 3 else p1
-                rest = p2 + (self._stored(j - 2)[r] if j >= 3 else 0.0)
-                total = 1.0 + h(_ratio(light_0, camera_0)) * (p1 + h(b2) * rest)
-            w = 1.0 / total
-        return np.where(np.isfinite(w), w, 0.0)

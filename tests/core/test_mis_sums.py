@@ -8,9 +8,6 @@ subpaths (including the vertices next to the connection), delta lights and a fre
 point (``s = 1``); and on the real subpaths of BDPT renders with mirrors, glass, point and
 sphere lights, and paths cut by the bounce limit. Smallest error detected: a weight off by a
 relative 1e-9 in one connection (a missing or extra strategy changes weights by far more).
-The same for strategy ``s = 0`` (emitters the camera walk finds: ``CameraHitSums`` against
-``hit_weight``), on random camera subpaths segment by segment and on rendered paths; an index
-off by one in the stored sum, or a dropped delta flag, fails them.
 """
 
 from types import SimpleNamespace
@@ -19,8 +16,8 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
-from sampling_lab.core.integrators import connections, mis_densities, mis_sums
-from sampling_lab.core.integrators.mis_densities import Near, connection_weight, hit_weight
+from sampling_lab.core.integrators import connections, mis_sums
+from sampling_lab.core.integrators.mis_densities import Near, connection_weight
 from sampling_lab.core.render import render
 from sampling_lab.core.sampling.mis import MIS
 from tests.helpers import plain_settings
@@ -117,63 +114,6 @@ def test_connect_all_uses_the_running_sums_only_for_summed_heuristics(monkeypatc
     calls = []
     monkeypatch.setattr(connections, "connection_weight",
                         lambda *a, **k: calls.append(1) or connection_weight(*a, **k))
-    scene = scenes.cornell_box(8, 8, "area")
-    for h, used in (("power", False), ("maximum", True)):
-        calls.clear()
-        render(scene, plain_settings(integrator="bdpt", spp=1, seed=1, threads=1,
-                                     max_bounces=3, mis_heuristic=h))
-        assert bool(calls) == used, h
-
-
-# Strategy s = 0 (emitters the camera walk finds): CameraHitSums against hit_weight.
-
-
-@pytest.mark.parametrize("mis", SUMMED, ids=lambda m: f"{m.setting} {m.beta}")
-def test_camera_hit_sums_equal_the_per_strategy_weights_on_random_paths(mis):
-    rng = np.random.default_rng(12)
-    depth, n, m = 8, 500, 300
-    C = _random_subpath(rng, depth, n)
-    sums = mis_sums.CameraHitSums(mis, C)
-    all_w = []
-    for j in range(1, depth + 1):  # in the walk's order: segment j after vertex j - 1
-        r = rng.choice(n, m, replace=False)
-        light_0, camera_0, light_1 = _random_near(rng, m)[:3]
-        direct = rng.random(m) < 0.7
-        want = hit_weight(mis, C, j, r, light_0, camera_0, light_1, direct)
-        got = sums.weight(j, r, light_0, camera_0, light_1, direct)
-        np.testing.assert_allclose(got, want, rtol=RTOL, atol=1e-300, err_msg=f"segment {j}")
-        all_w.append(want)
-    want = np.concatenate(all_w)
-    assert want.min() < 0.2 and want.max() > 0.9 and np.unique(want).size > 5
-
-
-@pytest.mark.parametrize("ball, light", [("mirror", "area"), ("glass", "sphere")])
-@pytest.mark.parametrize("mis", [MIS("power", 2.0), MIS("balance"), MIS("none")],
-                         ids=lambda m: m.setting)
-def test_camera_hit_sums_equal_the_per_strategy_weights_on_rendered_paths(
-        monkeypatch, ball, light, mis):
-    seen = []
-    weight = mis_sums.CameraHitSums.weight
-
-    def both(self, j, r, light_0, camera_0, light_1, direct):
-        got = weight(self, j, r, light_0, camera_0, light_1, direct)
-        want = hit_weight(self.mis, self.C, j, r, light_0, camera_0, light_1, direct)
-        np.testing.assert_allclose(got, want, rtol=RTOL, atol=1e-300, err_msg=f"segment {j}")
-        seen.append(got)
-        return got
-
-    monkeypatch.setattr(mis_sums.CameraHitSums, "weight", both)
-    scene = scenes.cornell_sphere(12, 12, ball=ball, light=light, light_radius=0.2)
-    render(scene, plain_settings(integrator="bdpt", spp=16, seed=5, threads=1, max_bounces=4,
-                                 mis_heuristic=mis.setting, mis_beta=mis.beta))
-    got = np.concatenate(seen)
-    assert got.size > 100 and np.unique(got).size > 5
-
-
-def test_camera_hits_use_the_running_sums_only_for_summed_heuristics(monkeypatch):
-    calls = []
-    monkeypatch.setattr(mis_densities, "hit_weight",
-                        lambda *a, **k: calls.append(1) or hit_weight(*a, **k))
     scene = scenes.cornell_box(8, 8, "area")
     for h, used in (("power", False), ("maximum", True)):
         calls.clear()
