@@ -307,8 +307,12 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
     yv = gather(seen)
     w_y = yv.local(w)
+    if ctx.weighs:  # the density back toward y's predecessor from the same dispatch
+        f_y, _, back_y = yv.values(w, w_y)
+    else:
+        f_y, back_y = yv.f(w, w_y), None
     we = importance(cam, cos_theta)
-    value = beta_of(seen) * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
+    value = beta_of(seen) * f_y * (we / np.maximum(dist * dist, 1e-300))[:, None]
     ok = (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
@@ -329,9 +333,8 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     if not ctx.weighs:
         weight = np.ones(keep.size)
     else:
-        weight = splat_weight(ctx, L, s, rows[keep], yv.for_densities(keep),
-                              take_rows(w, keep), take_rows(w_y, keep), dist[keep],
-                              cos_theta[keep])
+        weight = splat_weight(ctx, L, s, rows[keep], take_rows(yv.ng, keep), back_y[keep],
+                              take_rows(w, keep), dist[keep], cos_theta[keep])
     out.splat(s, film_xy, value, weight)
 
 
