@@ -168,11 +168,10 @@ def connection_weight(mis, L, C, s, t, rows, near):
     return strategy_weight(mis, p_light, p_camera, delta, s, near.delta_light)
 
 
-def splat_weight(ctx, L, s, rows, ng, pdf_back, w, dist, cos_theta):
-    """MIS weight of strategy ``t = 1``: light vertex ``y = x_{s-1}`` (geometric normal
-    ``ng (m, 3)``, ``w`` toward the pinhole, ``dist`` away, at ``cos_theta`` to the view axis)
-    seen by the pinhole; ``pdf_back (m,)``: the solid-angle density of sampling, at ``y``, the
-    direction back toward ``x_{s-2}`` given ``w``."""
+def splat_weight(ctx, L, s, rows, yv, w, w_y, dist, cos_theta):
+    """MIS weight of strategy ``t = 1``: light vertex ``y = x_{s-1}`` (gathered as ``yv``, with
+    ``w`` toward the pinhole, ``w_y`` in its frame, ``dist`` away, at ``cos_theta`` to the view
+    axis) seen by the pinhole."""
     yj = s - 1
     k = s
     m = rows.size
@@ -182,8 +181,8 @@ def splat_weight(ctx, L, s, rows, ng, pdf_back, w, dist, cos_theta):
     p_camera = [None] * (k + 1)
     p_camera[k] = np.ones(m)
     pdf_cam = camera_pdf(ctx.cam, cos_theta, ctx.film_pixels)
-    p_camera[s - 1] = to_area(pdf_cam, np.abs(dot(ng, w)), dist)
-    p_camera[s - 2] = to_area(pdf_back, L.cos_prev[yj, rows], L.d_prev[yj, rows])
+    p_camera[s - 1] = to_area(pdf_cam, np.abs(dot(yv.ng, w)), dist)
+    p_camera[s - 2] = to_area(yv.pdf_back(w_y), L.cos_prev[yj, rows], L.d_prev[yj, rows])
     for i in range(s - 2):
         p_camera[i] = L.pdf_rev[i, rows]
     return strategy_weight(ctx.mis, p_light, p_camera, delta, s,
