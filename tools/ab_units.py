@@ -17,6 +17,9 @@ is the tree that ``sampling_lab`` resolves to::
     PYTHONPATH=/path/to/parent python tools/ab_units.py --base /tmp/base/sampling_lab \\
         --rounds 5 --scene bench
     ... --scene mirror_ball --size 96      # a bench-scenes scene (needs bpy)
+    ... --scene rough_mirror --size 96     # the Cornell box around a rough (0.3) ball:
+                                           # rough_mirror, rough_glass, rough_coat,
+                                           # rough_mirror_smooth (smooth shading)
 """
 
 from __future__ import annotations
@@ -45,9 +48,13 @@ def _import_base(path):
 
 
 def _scene(pkg, args):
+    scenes = importlib.import_module(f"{pkg}.core.scenes")
     if args.scene == "bench":
-        return importlib.import_module(f"{pkg}.core.scenes").cornell_box(args.size, args.size,
-                                                                         light="mesh")
+        return scenes.cornell_box(args.size, args.size, light="mesh")
+    if args.scene.startswith("rough_"):  # rough_mirror, rough_glass_smooth, ...
+        ball, _, smooth = args.scene[len("rough_"):].partition("_")
+        return scenes.cornell_sphere(args.size, args.size, ball=ball, light="area",
+                                     roughness=0.3, smooth=smooth == "smooth")
     from profile_path import load_scene  # built by the head's exporter, read by both trees
 
     return load_scene(args.scene, args.size, args.size)
@@ -103,7 +110,8 @@ def main(argv=None):
     measures = args.measures.split(",")
     runs = {}
     for pkg in (BASE, HEAD):
-        scene = _scene(pkg if args.scene == "bench" else HEAD, args)
+        scene = _scene(pkg if args.scene == "bench" or args.scene.startswith("rough_")
+                       else HEAD, args)
         for measure in measures:
             runs[pkg, measure] = _runner(pkg, measure, scene, args.size, args.sampler)
             runs[pkg, measure][0](1)  # warm-up: buffers, first-call costs

@@ -80,6 +80,8 @@ STAGES = [
     ("integrators.subpaths", "Gathered.f", BSDF_EVAL),
     ("integrators.subpaths", "Gathered.pdf_toward", BSDF_EVAL),
     ("integrators.subpaths", "Gathered.pdf_back", BSDF_EVAL),
+    ("integrators.subpaths", "Gathered.values", BSDF_EVAL),
+    ("integrators.lambert_vertices", "LambertVertices.values", BSDF_EVAL),
     ("integrators.camera_hits", "camera_emission", "s = 0: camera hits (emitters found)"),
     ("integrators.connections", "connect", "s >= 1, t >= 2: connect bookkeeping"),
     ("integrators.connections", "connect_all", "s >= 1, t >= 2: connect bookkeeping"),

@@ -128,14 +128,14 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     w = to_y / np.maximum(dist, 1e-300)[:, None]  # z -> y
     zv = gather(C, at_z, RADIANCE)
     w_z = zv.local(w)
-    f_z = zv.f(w, w_z)
+    f_z, toward_z, back_z = zv.values(w, w_z)
     # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
     # which is dropped as well): its light side is not gathered.
     e = np.nonzero(max_component(f_z) > 0)[0]
     at_y, w_e, dist_e = (yj * n + row)[e], take_rows(w, e), dist[e]
     yv = gather(L, at_y, IMPORTANCE)
-    w_y = yv.local(-w_e)
-    value = (take_rows(L.flat("beta"), at_y) * yv.f(-w_e, w_y) * take_rows(f_z, e)
+    f_y, toward_y, back_y = yv.values(-w_e, yv.local(-w_e))
+    value = (take_rows(L.flat("beta"), at_y) * f_y * take_rows(f_z, e)
              * take_rows(C.flat("beta"), at_z[e]))
     value = value * (1.0 / np.maximum(dist_e ** 2, 1e-300))[:, None]
     budget = (connection_budget(ctx.settings.transparent_max_bounces,
@@ -146,15 +146,13 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     if kept.size == 0:
         return None
     keep = e[kept]
-    zv, yv = zv.for_densities(keep), yv.for_densities(kept)
-    w, dist, w_z, w_y = (take_rows(w, keep), dist[keep], take_rows(w_z, keep),
-                         take_rows(w_y, kept))
-    cos_z, cos_y = np.abs(dot(zv.ng, w)), np.abs(dot(yv.ng, w))
+    w, dist = take_rows(w, keep), dist[keep]
+    cos_z, cos_y = np.abs(dot(take_rows(zv.ng, keep), w)), np.abs(dot(take_rows(yv.ng, kept), w))
     yj, zj, row = yj[keep], zj[keep], row[keep]
     return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), L.pdf_fwd[0, row],
-                   to_area(yv.pdf_toward(w_y), cos_z, dist), _reverse_at_z(C, zv, w_z, zj, row),
-                   to_area(zv.pdf_toward(w_z), cos_y, dist),
-                   to_area(yv.pdf_back(w_y), L.cos_prev[yj, row], L.d_prev[yj, row]),
+                   to_area(toward_y[kept], cos_z, dist),
+                   _reverse_at_z(C, back_z[keep], zj, row), to_area(toward_z[keep], cos_y, dist),
+                   to_area(back_y[kept], L.cos_prev[yj, row], L.d_prev[yj, row]),
                    ctx.light_points.delta_light[row])
 
 
@@ -184,7 +182,8 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
     point = pts.delta_light & ~infinite
     cos_y = np.where(infinite | point, 1.0, np.abs(dot(pts.normal, w)))
     beta_y = 1.0 / np.where(pts.pdf_origin > 0, pts.pdf_origin, np.inf)
-    value = le * cos_y[:, None] * zv.f(w, w_z) * take_rows(C.flat("beta"), at_z) * beta_y[:, None]
+    f_z, toward_z, back_z = zv.values(w, w_z)
+    value = le * cos_y[:, None] * f_z * take_rows(C.flat("beta"), at_z) * beta_y[:, None]
     g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
     value = value * g[:, None]
     y_normal = np.where(infinite[:, None], 0.0, pts.normal)
@@ -193,26 +192,25 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
     keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0, budget)
     if keep.size == 0:
         return None
-    zv, w, dist = zv.for_densities(keep), take_rows(w, keep), dist[keep]
-    w_z = take_rows(w_z, keep)
+    w, dist = take_rows(w, keep), dist[keep]
     zj, row = zj[keep], row[keep]
     infinite, cos_y, index = infinite[keep], cos_y[keep], pts.index[keep]
-    cos_z = np.abs(dot(zv.ng, w))
+    cos_z = np.abs(dot(take_rows(zv.ng, keep), w))
     pdf_dir = em.pdf_direction(index, take_rows(y_normal, keep), -w)
-    pdf_zy = zv.pdf_toward(w_z)
+    pdf_zy = toward_z[keep]
     return _Joined(np.ones(keep.size, np.int64), zj + 1, row, take_rows(value, keep),
                    pts.pdf_origin[keep],
                    np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, dist)),
-                   _reverse_at_z(C, zv, w_z, zj, row),
+                   _reverse_at_z(C, back_z[keep], zj, row),
                    np.where(infinite, pdf_zy, to_area(pdf_zy, cos_y, dist)),
                    np.ones(keep.size), pts.delta_light[keep])
 
 
-def _reverse_at_z(C, zv, w_z, zj, row):
-    """The light side's area density of ``z_{t-2}``, sampled at ``z = z_{t-1}`` (``t >= 3``;
-    unused, and one, for ``t = 2``)."""
+def _reverse_at_z(C, back_z, zj, row):
+    """The light side's area density of ``z_{t-2}``, sampled at ``z = z_{t-1}`` from the
+    solid-angle density ``back_z (m,)`` (``t >= 3``; unused, and one, for ``t = 2``)."""
     far = zj >= 2
-    return np.where(far, to_area(zv.pdf_back(w_z), C.cos_prev[zj, row], C.d_prev[zj, row]), 1.0)
+    return np.where(far, to_area(back_z, C.cos_prev[zj, row], C.d_prev[zj, row]), 1.0)
 
 
 def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok, budget):

@@ -79,6 +79,10 @@ class LambertVertices:
         cos = self._lobe_side(self.wo_z) * w_l
         return self.color * (np.maximum(cos, 0.0) * INV_PI)[:, None]
 
+    def values(self, w, w_l):
+        """:meth:`f`, :meth:`pdf_toward` and :meth:`pdf_back` of ``w_l`` in one call."""
+        return self.f(w, w_l), self.pdf_toward(w_l), self.pdf_back(w_l)
+
     def pdf_toward(self, w_l):
         """Solid-angle density ``(m,)`` of sampling ``w_l`` given the incoming direction."""
         return cosine_hemisphere_pdf(self._lobe_side(self.wo_z) * w_l)

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSample, eval_bsdf,
                               pdf_bsdf, sample_bsdf)
+from ..materials.bsdf_values import eval_with_pdfs
 from ..materials.frame import shading_frame, to_local, to_world
 from ..rows import put_rows
 from .adjoint_normals import VertexNormals
@@ -302,6 +303,14 @@ class Gathered:
                 return self._adjoint().f_importance(self.wo, w)
             return self._adjoint().f_radiance(self.wo, w)
         return eval_bsdf(self.params, self.wo_l, w_l, self.mode)
+
+    def values(self, w, w_l):
+        """:meth:`f`, :meth:`pdf_toward` and :meth:`pdf_back` of ``w`` / ``w_l`` in one call
+        (under flat shading one dispatch and one gather per BSDF family,
+        :func:`core.materials.bsdf_values.eval_with_pdfs`): ``(m, 3), (m,), (m,)``."""
+        if self.smooth:
+            return self.f(w, w_l), self.pdf_toward(w_l), self.pdf_back(w_l)
+        return eval_with_pdfs(self.params, self.wo_l, w_l, self.mode)
 
     def pdf_toward(self, w_l):
         """Solid-angle density of sampling ``w_l`` given the incoming direction (this side's
