@@ -27,6 +27,7 @@ from sampling_lab.core.integrators.bdpt import BDPT
 from sampling_lab.core.prepare import prepare
 from sampling_lab.core.render import render
 from sampling_lab.core.sampling.samplers import make_sampler
+from tests.bdpt_probes import bdpt_images, layered_cornell, seen_at_connect
 from tests.helpers import plain_settings
 
 
@@ -35,22 +36,11 @@ def _diffuse_scene():
 
 
 def _layered_scene():
-    """The Cornell box with a rough anisotropic metal ball, a coated white and a sheened red
-    wall: three optional groups, on different rows of every subpath."""
-    scene = scenes.cornell_sphere(16, 16, ball="mirror", light="area", roughness=0.3)
-    mats = scene.materials
-    mats.coat_weight[0] = 0.5
-    mats.sheen_weight[1] = 0.8
-    mats.aniso_scale[3] = 2.0
-    return scene
+    return layered_cornell(16)
 
 
 def _passes(scene):
-    settings = plain_settings(integrator="bdpt", spp=2, seed=3, threads=1, max_bounces=4,
-                              strategy_views=True, strategy_max_length=3)
-    result = render(scene, settings)
-    layers = result.layers()
-    return [result.combined(), result.variance(), *[layers[n] for n in result.layer_names]]
+    return bdpt_images(scene, spp=2, seed=3, max_bounces=4)
 
 
 def _with_every_group(monkeypatch):
@@ -83,18 +73,10 @@ def test_bdpt_image_is_the_same_with_only_the_groups_the_scene_uses(make_scene, 
                                                   (_layered_scene, {"coat", "sheen", "aniso"})],
                          ids=["diffuse", "coat sheen aniso"])
 def test_subpath_tables_hold_the_groups_the_materials_use(make_scene, expected):
-    class Probe(BDPT):
-        def connect(self, ctx, stream, C, L, out):
-            self.seen = {g for g in ("coat", "sheen", "aniso", "bump")
-                         if C.all_params.has(g) or L.all_params.has(g)}
-
-    scene = make_scene()
-    settings = plain_settings(integrator="bdpt", spp=1, max_bounces=4)
-    integ = Probe(prepare(scene), settings)
-    sampler = make_sampler("independent", seed=1, spp=1, width=16)
-    integ.render_samples(sampler.stream(np.arange(256), np.zeros(256, np.int64)),
-                         PixelFilter(settings.filter_type, settings.filter_width), Counters())
-    assert integ.seen == expected
+    seen = seen_at_connect(make_scene(), lambda ctx, C, L: {
+        g for g in ("coat", "sheen", "aniso", "bump")
+        if C.all_params.has(g) or L.all_params.has(g)})
+    assert seen == expected
 
 
 @pytest.mark.parametrize("make_scene", [_diffuse_scene, _layered_scene],

@@ -11,17 +11,13 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
-from sampling_lab.core.film import PixelFilter
 from sampling_lab.core.integrators import connections, lambert_vertices
-from sampling_lab.core.integrators.base import Counters
-from sampling_lab.core.integrators.bdpt import BDPT
 from sampling_lab.core.integrators.lambert_vertices import LambertVertices, all_lambert
 from sampling_lab.core.integrators.subpaths import Gathered
 from sampling_lab.core.materials.bsdf import IMPORTANCE, RADIANCE, KIND_DIFFUSE, BSDFParams
 from sampling_lab.core.materials.frame import shading_frame, to_local
-from sampling_lab.core.prepare import prepare
 from sampling_lab.core.render import render
-from sampling_lab.core.sampling.samplers import make_sampler
+from tests.bdpt_probes import seen_at_connect
 from tests.helpers import plain_settings
 
 
@@ -109,15 +105,6 @@ def test_bdpt_image_is_the_same_with_lambert_vertices(make_scene, monkeypatch):
     (lambda: scenes.cornell_sphere(16, 16, ball="mirror", light="area", smooth=True), False),
 ], ids=["diffuse box", "mirror ball", "rough ball", "smooth shading"])
 def test_lambert_vertices_only_where_every_connected_vertex_is_lambert(make_scene, expected):
-    class Probe(BDPT):
-        def connect(self, ctx, stream, C, L, out):
-            self.seen = all_lambert(ctx.smooth, (L, C))
-
-    scene = make_scene()
-    settings = plain_settings(integrator="bdpt", spp=1, max_bounces=4)
-    integ = Probe(prepare(scene), settings)
-    sampler = make_sampler("independent", seed=1, spp=1, width=16)
-    integ.render_samples(sampler.stream(np.arange(256), np.zeros(256, np.int64)),
-                         PixelFilter(settings.filter_type, settings.filter_width), Counters())
-    assert integ.seen is expected
+    seen = seen_at_connect(make_scene(), lambda ctx, C, L: all_lambert(ctx.smooth, (L, C)))
+    assert seen is expected
     assert lambert_vertices.all_lambert(True, ()) is False

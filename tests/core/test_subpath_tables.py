@@ -23,8 +23,7 @@ import pytest
 
 from sampling_lab.core import scenes
 from sampling_lab.core.integrators import subpaths
-from sampling_lab.core.render import render
-from tests.helpers import plain_settings
+from tests.bdpt_probes import bdpt_images, layered_cornell
 
 
 def _diffuse():
@@ -37,21 +36,12 @@ def _smooth_coat():
 
 
 def _layered():
-    scene = scenes.cornell_sphere(24, 24, ball="mirror", light="area", roughness=0.3)
-    mats = scene.materials
-    mats.coat_weight[0] = 0.5
-    mats.sheen_weight[1] = 0.8
-    mats.aniso_scale[3] = 2.0
-    return scene
+    return layered_cornell(24)
 
 
 def _passes(scene):
     # 24 x 24 x 64 = 36,864 paths: three chunks on the one thread (two recycles per side).
-    settings = plain_settings(integrator="bdpt", spp=64, seed=5, threads=1, max_bounces=5,
-                              strategy_views=True, strategy_max_length=3)
-    result = render(scene, settings)
-    layers = result.layers()
-    return [result.combined(), result.variance(), *[layers[n] for n in result.layer_names]]
+    return bdpt_images(scene, spp=64, seed=5, max_bounces=5)
 
 
 def _poisoning(monkeypatch, calls):
