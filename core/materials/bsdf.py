@@ -444,7 +444,7 @@ class BSDFSample(NamedTuple):
     lobe: np.ndarray    # (k,) uint8, LOBE_* bits; 0 where the sample failed
 
 
-def _groups(params):
+def kind_groups(params):
     """``(kind, rows)`` per kind present; ``rows`` is None when one kind covers the batch."""
     kind = params.kind
     if kind.size == 0:
@@ -461,7 +461,7 @@ def _groups(params):
     return [(c, rows) for c, rows in groups if rows.size]
 
 
-def _kind_rows(params, kind, rows):
+def kind_rows(params, kind, rows):
     """``params.take(rows)`` for the family of ``kind`` (:data:`.families.FAMILIES`): the
     diffuse family reads the colour alone, so its other columns are not gathered but
     read-only constants (its values are the same; several gathers fewer on the diffuse rows
@@ -474,7 +474,8 @@ def _kind_rows(params, kind, rows):
                       np.broadcast_to(0.0, (k, 3)))
 
 
-def _check(params, wo, mode=RADIANCE):
+def check_rows(params, wo, mode=RADIANCE):
+    """Raise ``ValueError`` unless ``mode`` is known and ``wo`` is ``(len(params), 3)``."""
     _check_mode(mode)
     if wo.shape != (len(params), 3):
         raise ValueError(f"wo has shape {wo.shape}, expected ({len(params)}, 3)")
@@ -496,7 +497,7 @@ def eval_bsdf(params, wo, wi, mode=RADIANCE):
     (k, 3) float64, >= 0 and finite.
     """
     wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
-    _check(params, wo, mode)
+    check_rows(params, wo, mode)
     out = _eval_below_sheen(params, wo, wi, mode)
     rows = sheen.sheen_rows(params)
     if rows.size:
@@ -513,12 +514,12 @@ def eval_bsdf(params, wo, wi, mode=RADIANCE):
 def _eval_kinds(params, wo, wi, mode):
     """:func:`eval_bsdf` of the rows' own kinds, without coat, sheen or bump correction."""
     out = np.zeros((len(params), 3))
-    for kind, rows in _groups(params):
+    for kind, rows in kind_groups(params):
         fn = FAMILIES[kind][0]
         if rows is None:
             out = fn(params, wo, wi, mode)
         else:
-            out[rows] = fn(_kind_rows(params, kind, rows), wo[rows], wi[rows], mode)
+            out[rows] = fn(kind_rows(params, kind, rows), wo[rows], wi[rows], mode)
     return out
 
 
@@ -537,7 +538,7 @@ def _eval_below_sheen(params, wo, wi, mode):
 def pdf_bsdf(params, wo, wi):
     """Solid-angle density of :func:`sample_bsdf`'s non-delta samples at ``wi``. ``(k,)``."""
     wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
-    _check(params, wo)
+    check_rows(params, wo)
     out = _pdf_below_sheen(params, wo, wi)
     rows = sheen.sheen_rows(params)
     if rows.size:
@@ -548,12 +549,12 @@ def pdf_bsdf(params, wo, wi):
 def _pdf_below_sheen(params, wo, wi):
     """:func:`pdf_bsdf` of the coat over the kinds, without any sheen."""
     out = np.zeros(len(params))
-    for kind, rows in _groups(params):
+    for kind, rows in kind_groups(params):
         fn = FAMILIES[kind][1]
         if rows is None:
             out = fn(params, wo, wi)
         else:
-            out[rows] = fn(_kind_rows(params, kind, rows), wo[rows], wi[rows])
+            out[rows] = fn(kind_rows(params, kind, rows), wo[rows], wi[rows])
     coated = coat_rows(params)
     if coated.size:
         out[coated] = coat.pdf_coated(params.take(coated), wo[coated], wi[coated], out[coated])
@@ -577,7 +578,7 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
         ``wi (k, 3)``, ``weight (k, 3)``, ``pdf (k,)``, ``delta (k,)``, ``lobe (k,)``.
     """
     wo = np.asarray(wo, np.float64)
-    _check(params, wo, mode)
+    check_rows(params, wo, mode)
     u_lobe = np.asarray(u_lobe, np.float64).reshape(-1)
     u = np.asarray(u, np.float64)
     rows = sheen.sheen_rows(params)
@@ -621,13 +622,13 @@ def _sample_bases(params, wo, u_lobe, u, mode):
     pdf = np.zeros(k)
     delta = np.zeros(k, bool)
     kind_bits = np.zeros(k, np.uint8)
-    for kind, rows in _groups(params):
+    for kind, rows in kind_groups(params):
         sample, label = FAMILIES[kind][2:]
         if rows is None:
             wi, weight, pdf, delta = sample(params, wo, u_lobe, u, mode)
             kind_bits = label(params, wo, u_lobe, delta)
         else:
-            p = _kind_rows(params, kind, rows)
+            p = kind_rows(params, kind, rows)
             wo_k, u_lobe_k = np.take(wo, rows, axis=0), u_lobe[rows]
             wi_k, weight_k, pdf[rows], delta[rows] = sample(p, wo_k, u_lobe_k,
                                                             np.take(u, rows, axis=0), mode)

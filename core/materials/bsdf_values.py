@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import coat, sheen
-from .bsdf import _check, _groups, _kind_rows, eval_bsdf, pdf_bsdf
+from .bsdf import check_rows, eval_bsdf, kind_groups, kind_rows, pdf_bsdf
 from .coat import coat_rows
 from .dielectric import RADIANCE
 from .families import FAMILIES
@@ -46,7 +46,7 @@ def eval_with_pdfs(params, wo, wi, mode=RADIANCE):
     wo, wi = np.asarray(wo, np.float64), np.asarray(wi, np.float64)
     if params.bump_normal is not None:
         return eval_bsdf(params, wo, wi, mode), pdf_bsdf(params, wo, wi), pdf_bsdf(params, wi, wo)
-    _check(params, wo, mode)
+    check_rows(params, wo, mode)
     f, pdf_wi, pdf_wo = _kinds(params, wo, wi, mode)
     for rows, layer in ((coat_rows(params), _coated), (sheen.sheen_rows(params), _sheened)):
         if rows.size:
@@ -60,11 +60,11 @@ def _kinds(params, wo, wi, mode):
     once."""
     k = len(params)
     f, pdf_wi, pdf_wo = np.zeros((k, 3)), np.zeros(k), np.zeros(k)
-    for kind, rows in _groups(params):
+    for kind, rows in kind_groups(params):
         ev, pdf = FAMILIES[kind][:2]
         if rows is None:
             return ev(params, wo, wi, mode), pdf(params, wo, wi), pdf(params, wi, wo)
-        p, wo_r, wi_r = _kind_rows(params, kind, rows), wo[rows], wi[rows]
+        p, wo_r, wi_r = kind_rows(params, kind, rows), wo[rows], wi[rows]
         f[rows], pdf_wi[rows], pdf_wo[rows] = ev(p, wo_r, wi_r, mode), pdf(p, wo_r, wi_r), pdf(
             p, wi_r, wo_r)
     return f, pdf_wi, pdf_wo
