@@ -217,6 +217,22 @@ def test_bump_map_correction_agrees_with_cycles(empty_scene, tmp_path, node_type
                                     block_rtol=block_rtol)
 
 
+def _render_tilted_sphere(scene, tmp_path, mat, world, our_spp, cycles_spp, seeds):
+    """Ours and Cycles' 48 x 48 renders of a smooth 0.8 m UV sphere of ``mat`` (tilted 30 deg
+    about x and 40 deg about z) under a 1 m 120 W area lamp and a grey world of value
+    ``world``; ``seeds``: (ours, Cycles')."""
+    ob = add_smooth_uv_sphere(scene, "Ball", (0.0, 0.0, 0.0), 0.8, mat)
+    ob.rotation_euler = (math.radians(30.0), 0.0, math.radians(40.0))
+    S.add_light(scene, 'AREA', "Area", (1.5, -1.5, 2.0), (math.radians(40), 0.0,
+                                                          math.radians(45)),
+                energy=120.0, size=1.0)
+    S.set_world(scene, (world, world, world), 1.0)
+    S.add_camera(scene, (0.0, -3.0, 0.0), (math.radians(90.0), 0.0, 0.0), lens=50.0)
+    S.set_resolution(scene, 48, 48)
+    return S.render_ours_and_cycles(scene, tmp_path, our_spp, cycles_spp, CYCLES_RUNS, BOUNCES,
+                                    our_seed=seeds[0], cycles_seed=seeds[1])
+
+
 @pytest.mark.parametrize("case", ["mapped", "mapped_corrected", "smooth"])
 def test_smooth_sphere_silhouettes_agree_with_cycles(empty_scene, tmp_path, case):
     """A smooth sphere, normal-mapped (Bump Map Correction off, then on) or not, under an area
@@ -232,16 +248,7 @@ def test_smooth_sphere_silhouettes_agree_with_cycles(empty_scene, tmp_path, case
                                               strength=0.8)
         mat.cycles.use_bump_map_correction = case == "mapped_corrected"
     bsdf.inputs["Base Color"].default_value = (0.3, 0.6, 0.8, 1.0)
-    ob = add_smooth_uv_sphere(scene, "Ball", (0.0, 0.0, 0.0), 0.8, mat)
-    ob.rotation_euler = (math.radians(30.0), 0.0, math.radians(40.0))
-    S.add_light(scene, 'AREA', "Area", (1.5, -1.5, 2.0), (math.radians(40), 0.0,
-                                                          math.radians(45)),
-                energy=120.0, size=1.0)
-    S.set_world(scene, (0.1, 0.1, 0.1), 1.0)
-    S.add_camera(scene, (0.0, -3.0, 0.0), (math.radians(90.0), 0.0, 0.0), lens=50.0)
-    S.set_resolution(scene, 48, 48)
-    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 256, 64, CYCLES_RUNS, BOUNCES,
-                                            our_seed=12, cycles_seed=801)
+    ours, cycles = _render_tilted_sphere(scene, tmp_path, mat, 0.1, 256, 64, seeds=(12, 801))
     # Sized for the default targets (2 % image mean, 5 % blocks, 99 % power): detects
     # 0.9-1.0 % image-mean and 3.3-4.9 % block errors (measured). Measured ours / Cycles
     # image mean 0.998 (mapped), 1.000 (corrected), 1.0003 (smooth), every block within
@@ -340,16 +347,7 @@ def test_coat_on_a_normal_mapped_sphere_agrees_with_cycles(empty_scene, tmp_path
     bsdf.inputs["Coat Roughness"].default_value = 0.2
     if coat_normal == "linked":
         mat.node_tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Coat Normal"])
-    ob = add_smooth_uv_sphere(scene, "Ball", (0.0, 0.0, 0.0), 0.8, mat)
-    ob.rotation_euler = (math.radians(30.0), 0.0, math.radians(40.0))
-    S.add_light(scene, 'AREA', "Area", (1.5, -1.5, 2.0), (math.radians(40), 0.0,
-                                                          math.radians(45)),
-                energy=120.0, size=1.0)
-    S.set_world(scene, (0.5, 0.5, 0.5), 1.0)
-    S.add_camera(scene, (0.0, -3.0, 0.0), (math.radians(90.0), 0.0, 0.0), lens=50.0)
-    S.set_resolution(scene, 48, 48)
-    ours, cycles = S.render_ours_and_cycles(scene, tmp_path, 384, 256, CYCLES_RUNS, BOUNCES,
-                                            our_seed=13, cycles_seed=803)
+    ours, cycles = _render_tilted_sphere(scene, tmp_path, mat, 0.5, 384, 256, seeds=(13, 803))
     # Detects 1.0 % (unlinked) and 1.1 % (linked) image-mean and 4.1 % / 4.5 % block errors
     # with 99 % power (measured; 256 and 64 spp no longer reached the 5 % block target once the
     # silhouettes brightened). Measured ours / Cycles image mean 1.0010, 1.0009, 1.0009
