@@ -2,8 +2,8 @@
 monitor says so to Embree), Ctrl-C's handler runs meanwhile, and a build that is not cancelled
 gives the same hits and the same image as embreex's own.
 
-No wall-clock time is asserted but :data:`HANG_S`, a bound only a hang would break; the
-latency is measured by ``python -m sampling_lab bench-limits --bvh`` (docs/LIMITS.md).
+No wall-clock time is asserted (:data:`HANG_S` only bounds the waits for Embree's threads);
+the latency is measured by ``python -m sampling_lab bench-limits --bvh`` (docs/LIMITS.md).
 """
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import signal
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -65,9 +64,7 @@ def test_a_cancel_during_the_bvh_build_stops_it_through_the_progress_monitor(com
     returns cancelled, without samples, with an empty film."""
     started, reports = commits
     scene = many_triangles(BIG, 8, 6)
-    t0 = time.perf_counter()
     result = render(scene, plain_settings(spp=4, threads=2), cancel=started.is_set)
-    assert time.perf_counter() - t0 < HANG_S
     assert result.cancelled and result.stats["spp"] == 0
     assert result.sample_count().max() == 0 and np.isfinite(result.combined()).all()
     assert embree_commit.wait_abandoned(HANG_S)

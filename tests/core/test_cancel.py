@@ -1,13 +1,12 @@
 """Cancel (Esc in Blender, Ctrl-C on the command line) through the core's ``cancel`` hook, for
 every integrator: the render stops, says it was cancelled and keeps the samples it finished.
 
-No wall-clock time is asserted but a bound only a hang would break (:data:`HANG_S`); the
-latency itself is measured by ``python -m sampling_lab bench-limits`` (docs/LIMITS.md).
+No wall-clock time is asserted: a render that ignored the cancel would finish its samples
+(``0 < spp < SPP`` fails), and the latency itself is measured by ``python -m sampling_lab bench-limits`` (docs/LIMITS.md).
 """
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 import pytest
@@ -22,7 +21,6 @@ from sampling_lab.core.sampling.samplers import make_sampler
 from sampling_lab.core.sampling.stream import Aborted
 from tests.helpers import plain_settings
 
-HANG_S = 60.0
 SPP = 100_000  # far more than a test renders: only cancel stops it
 
 
@@ -38,13 +36,11 @@ def test_cancel_after_a_pass_keeps_the_finished_samples(integrator):
 
     def on_update(result):
         if not asked:
-            asked.append(time.perf_counter())
+            asked.append(True)
 
     result = render(scene, _settings(integrator), cancel=lambda: bool(asked),
                     on_update=on_update)
-    waited = time.perf_counter() - asked[0]
     assert result.cancelled
-    assert waited < HANG_S
     done = result.stats["spp"]
     assert 0 < done < SPP
     count = result.sample_count()
@@ -60,9 +56,7 @@ def test_cancel_at_once_renders_no_pass(integrator):
     at their next bounce, photon mapping and SPPM drop their pass, radiosity stops inside its
     solve) and the image is finite."""
     scene = scenes.cornell_box(64, 48, "point")
-    t0 = time.perf_counter()
     result = render(scene, _settings(integrator), cancel=lambda: True)
-    assert time.perf_counter() - t0 < HANG_S
     assert result.cancelled
     assert result.stats["spp"] == 0
     assert np.isfinite(result.combined()).all()
