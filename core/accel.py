@@ -23,6 +23,7 @@ import numpy as np
 
 from .embree_commit import build_scene
 from .scene import VIS_ALL, VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
+from .vec_rows import scaled
 
 RAY_CLASSES = (VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION, VIS_SHADOW)
 
@@ -186,15 +187,19 @@ class Accel:
         """
         origins = self.offset_origin(p, ng, prim, wi)
         finite = np.isfinite(dist)
-        q = p + wi * np.where(finite, dist, 0.0)[:, None]
+        # Row scalings one component at a time (.vec_rows: the same values, faster).
+        q = scaled(wi, np.where(finite, dist, 0.0))
+        q += p
         scale = np.maximum(max_abs_component(q), max_abs_component(p))
         eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(scale, 1e-30)
         toward = np.sign(np.einsum("ij,ij->i", light_normal, origins - q))
-        q = q + light_normal * (toward * eps)[:, None]
-        seg = q - origins
+        q += scaled(light_normal, toward * eps)
+        seg = np.subtract(q, origins, out=q)
         length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
         ok = finite & (length > 0)
-        directions = np.where(ok[:, None], seg / np.maximum(length, 1e-300)[:, None], wi)
+        directions = np.divide(seg, np.maximum(length, 1e-300)[:, None], out=seg)
+        if not ok.all():
+            directions[~ok] = wi[~ok]
         tmax = np.where(finite, np.where(ok, length - eps, 0.0), np.inf)
         return origins, directions, np.maximum(tmax, 0.0)
 
@@ -206,4 +211,6 @@ class Accel:
         """
         side = np.sign(np.einsum("ij,ij->i", ng, w))
         side[side == 0] = 1.0
-        return p + ng * (side * self.tri_offset[prim])[:, None]
+        out = scaled(ng, side * self.tri_offset[prim])
+        out += p
+        return out

@@ -17,6 +17,7 @@ from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..scene import VIS_CAMERA, VIS_SHADOW
+from ..vec_rows import norms, scaled
 from .common import bends_normals, finite_rows, max_component, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight
@@ -124,7 +125,7 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     at_z = zj * n + row
     z = take_rows(C.flat("p"), at_z)
     to_y = take_rows(L.flat("p"), yj * n + row) - z
-    dist = np.linalg.norm(to_y, axis=1)
+    dist = norms(to_y)
     w = to_y / np.maximum(dist, 1e-300)[:, None]  # z -> y
     zv = gather(C, at_z, RADIANCE)
     w_z = zv.local(w)
@@ -137,7 +138,7 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     f_y, toward_y, back_y = yv.values(-w_e, yv.local(-w_e))
     value = (take_rows(L.flat("beta"), at_y) * f_y * take_rows(f_z, e)
              * take_rows(C.flat("beta"), at_z[e]))
-    value = value * (1.0 / np.maximum(dist_e ** 2, 1e-300))[:, None]
+    scaled(value, 1.0 / np.maximum(dist_e ** 2, 1e-300), out=value)
     budget = (connection_budget(ctx.settings.transparent_max_bounces,
                                 C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
               if has_passes(ctx.prep) else None)  # not read where all is opaque
@@ -174,7 +175,7 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
     z = take_rows(C.flat("p"), at_z)
     infinite = pts.infinite
     to_y = np.where(infinite[:, None], -pts.w_inf, pts.p - z)
-    dist = np.where(infinite, np.inf, np.linalg.norm(to_y, axis=1))
+    dist = np.where(infinite, np.inf, norms(to_y))
     w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y
     zv = gather(C, at_z, RADIANCE)
     w_z = zv.local(w)
@@ -183,9 +184,10 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
     cos_y = np.where(infinite | point, 1.0, np.abs(dot(pts.normal, w)))
     beta_y = 1.0 / np.where(pts.pdf_origin > 0, pts.pdf_origin, np.inf)
     f_z, toward_z, back_z = zv.values(w, w_z)
-    value = le * cos_y[:, None] * f_z * take_rows(C.flat("beta"), at_z) * beta_y[:, None]
+    value = scaled(le, cos_y) * f_z * take_rows(C.flat("beta"), at_z)
+    scaled(value, beta_y, out=value)
     g = np.where(infinite, 1.0, 1.0 / np.maximum(np.where(infinite, 1.0, dist) ** 2, 1e-300))
-    value = value * g[:, None]
+    scaled(value, g, out=value)
     y_normal = np.where(infinite[:, None], 0.0, pts.normal)
     budget = (connection_budget(ctx.settings.transparent_max_bounces, C.flat("passed")[at_z])
               if has_passes(ctx.prep) else None)  # not read where all is opaque

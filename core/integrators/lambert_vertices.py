@@ -29,6 +29,7 @@ import numpy as np
 from ..materials.bsdf import KIND_DIFFUSE, OPTIONAL_GROUPS
 from ..materials.frame import dot
 from ..sampling.warps import INV_PI, cosine_hemisphere_pdf
+from ..vec_rows import scaled
 from .common import take_rows
 from .subpaths import Gathered
 
@@ -57,10 +58,13 @@ class LambertVertices:
     @staticmethod
     def at(sub, index):
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`.subpaths.Subpath.flat`."""
-        # Fancy indexing reads the strided z column in place (np.take would copy it whole).
+        ng = take_rows(sub.flat("ng"), index)
+        # The z column read as elements 3 i + 2 of the contiguous table (np.take of the
+        # strided column would copy it whole; fancy indexing of two axes is slower).
+        wo_z = np.take(sub.wo_local.reshape(-1), index * 3 + 2)
         return LambertVertices(take_rows(sub.all_params.color, index),
-                               take_rows(sub.flat("fn"), index),
-                               sub.flat("wo_local")[index, 2], take_rows(sub.flat("ng"), index))
+                               ng if sub.flat_frames else take_rows(sub.flat("fn"), index),
+                               wo_z, ng)
 
     def for_densities(self, idx):
         """The rows ``idx`` for :meth:`pdf_toward`, :meth:`pdf_back` and ``ng`` only."""
@@ -77,7 +81,7 @@ class LambertVertices:
     def f(self, w, w_l):
         """``f |cos|`` ``(m, 3)`` toward ``w_l`` (from :meth:`local`; ``w`` unused)."""
         cos = self._lobe_side(self.wo_z) * w_l
-        return self.color * (np.maximum(cos, 0.0) * INV_PI)[:, None]
+        return scaled(self.color, np.maximum(cos, 0.0) * INV_PI)
 
     def values(self, w, w_l):
         """:meth:`f`, :meth:`pdf_toward` and :meth:`pdf_back` of ``w_l`` in one call."""
