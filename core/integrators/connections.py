@@ -62,33 +62,47 @@ def connect_all(ctx, L, C, fresh, out):
     one batch of shadow rays for all of them. MIS weights and contributions follow strategy by
     strategy, by ``t`` then ``s`` (the order of a loop over strategies)."""
     gather = gatherer(ctx, L, C)
-    # The pieces of both kinds, joined and sorted once.
     parts = [*_connect_emitters(ctx, L, C, fresh, gather), *_connect_vertices(ctx, L, C, gather)]
     if not parts:
         return
-    key = np.concatenate([p.t * (C.valid.shape[0] + 2) + p.s for p in parts])
-    order = np.argsort(key, kind="stable")
-    j = _Joined(*(take_rows(np.concatenate(col), order) for col in zip(*parts)))
-    starts = np.flatnonzero(np.diff(key[order], prepend=-1))
-    groups = [slice(a, b) for a, b in zip(starts, [*starts[1:], order.size])]
-    weight = _connection_weights(ctx, L, C, j, groups)
-    for e in groups:
-        out.add(int(j.s[e.start]), int(j.t[e.start]), j.row[e], j.value[e], weight[e])
+    runs = _strategy_runs(parts)
+    weights = _connection_weights(ctx, L, C, parts, runs)
+    for s, t, i, e in runs:
+        out.add(s, t, parts[i].row[e], parts[i].value[e], weights[i][e])
 
 
-def _connection_weights(ctx, L, C, j, groups):
-    """MIS weights of the connections ``j`` (a :class:`_Joined`, sorted into the strategies'
-    slices ``groups``): by the subpaths' running sums in one pass (:mod:`.mis_sums`), or
-    strategy by strategy for the heuristics that compare with the largest density."""
-    near = Near(*j[4:])
+def _strategy_runs(parts):
+    """``(s, t, i, e)`` of every run ``e`` (a slice) of one strategy in piece ``parts[i]``
+    (each piece is in strategy order already: the emitters' by ``t``, the vertex pairs' by
+    ``t`` then ``s``), all in strategy order: no sort or gather of the pieces' rows. A
+    strategy's runs may come from several pieces; each adds to distinct camera samples, so
+    the sums are those of one run per strategy."""
+    runs = []
+    for i, p in enumerate(parts):
+        key = p.t * (int(p.s.max()) + 1) + p.s
+        starts = np.flatnonzero(np.diff(key, prepend=-1)).tolist()
+        runs += [(int(p.s[a]), int(p.t[a]), i, slice(a, b))
+                 for a, b in zip(starts, [*starts[1:], key.size])]
+    runs.sort(key=lambda r: (r[1], r[0], r[2]))
+    return runs
+
+
+def _connection_weights(ctx, L, C, parts, runs):
+    """MIS weights of the connections of ``parts`` (a list of :class:`_Joined`; one ``(m,)``
+    array each): by the subpaths' running sums in one pass over them all (:mod:`.mis_sums`),
+    or strategy by strategy (the ``runs`` of :func:`_strategy_runs`) for the heuristics that
+    compare with the largest density."""
     if summable(ctx.mis):
         sums = RunningSums(ctx.mis, L, C, ctx.light_points.delta_light)
-        return sums.weights(L, C, j.s, j.t, j.row, near)
-    weight = np.empty(j.row.size)
-    for e in groups:
-        weight[e] = connection_weight(ctx.mis, L, C, int(j.s[e.start]), int(j.t[e.start]),
-                                      j.row[e], Near(*(c[e] for c in near)))
-    return weight
+        cols = [np.concatenate([p[k] for p in parts]) if len(parts) > 1 else parts[0][k]
+                for k in range(len(_Joined._fields)) if k != 3]  # all but the values
+        weight = sums.weights(L, C, *cols[:3], Near(*cols[3:]))
+        return np.split(weight, np.cumsum([p.row.size for p in parts[:-1]]))
+    weights = [np.empty(p.row.size) for p in parts]
+    for s, t, i, e in runs:
+        weights[i][e] = connection_weight(ctx.mis, L, C, s, t, parts[i].row[e],
+                                          Near(*(c[e] for c in parts[i][4:])))
+    return weights
 
 
 def _vertex_pairs(depth):
@@ -122,18 +136,17 @@ def _in_pieces(join, m):
 def _join_vertices(ctx, L, C, zj, yj, row, gather):
     """Light vertices ``yj (m,)`` joined to camera vertices ``zj (m,)`` of samples ``row``."""
     n = C.valid.shape[1]
-    at_z = zj * n + row
+    at_z, at_y = zj * n + row, yj * n + row
     z = take_rows(C.flat("p"), at_z)
-    to_y = take_rows(L.flat("p"), yj * n + row) - z
+    to_y = take_rows(L.flat("p"), at_y) - z
     dist = norms(to_y)
     w = to_y / np.maximum(dist, 1e-300)[:, None]  # z -> y
     zv = gather(C, at_z, RADIANCE)
-    w_z = zv.local(w)
-    f_z, toward_z, back_z = zv.values(w, w_z)
+    f_z, toward_z, back_z = zv.values(w, zv.local(w))
     # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
     # which is dropped as well): its light side is not gathered.
     e = np.nonzero(max_component(f_z) > 0)[0]
-    at_y, w_e, dist_e = (yj * n + row)[e], take_rows(w, e), dist[e]
+    at_y, w_e, dist_e = at_y[e], take_rows(w, e), dist[e]
     yv = gather(L, at_y, IMPORTANCE)
     f_y, toward_y, back_y = yv.values(-w_e, yv.local(-w_e))
     value = (take_rows(L.flat("beta"), at_y) * f_y * take_rows(f_z, e)
@@ -142,19 +155,24 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     budget = (connection_budget(ctx.settings.transparent_max_bounces,
                                 C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
               if has_passes(ctx.prep) else None)  # not read where all is opaque
-    kept = _unblocked(ctx, C, at_z[e], take_rows(z, e), w_e, dist_e, yv.ng, value, dist_e > 0,
-                      budget)
+    kept = _unblocked(ctx, C, at_z, z, zv.ng, w, dist, yv.ng, value, dist_e > 0, budget, e)
     if kept.size == 0:
         return None
     keep = e[kept]
-    w, dist = take_rows(w, keep), dist[keep]
-    cos_z, cos_y = np.abs(dot(take_rows(zv.ng, keep), w)), np.abs(dot(take_rows(yv.ng, kept), w))
-    yj, zj, row = yj[keep], zj[keep], row[keep]
+    w, d2 = take_rows(w, keep), np.square(dist[keep])
+    cos_z, cos_y = dot(take_rows(zv.ng, keep), w), dot(take_rows(yv.ng, kept), w)
+    yj, zj, row, at_y = yj[keep], zj[keep], row[keep], at_y[kept]
     return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), L.pdf_fwd[0, row],
-                   to_area(toward_y[kept], cos_z, dist),
-                   _reverse_at_z(C, back_z[keep], zj, row), to_area(toward_z[keep], cos_y, dist),
-                   to_area(back_y[kept], L.cos_prev[yj, row], L.d_prev[yj, row]),
+                   _finite_area(toward_y[kept], cos_z, d2),
+                   _reverse_at_z(C, back_z[keep], zj, row), _finite_area(toward_z[keep], cos_y, d2),
+                   to_area(back_y[kept], np.take(L.cos_prev, at_y), np.take(L.d_prev, at_y)),
                    ctx.light_points.delta_light[row])
+
+
+def _finite_area(pdf_sa, cos_at, d2):
+    """:func:`.subpaths.to_area` of a finite distance whose square is ``d2`` (the same
+    values, without its tests for infinite ones)."""
+    return pdf_sa * np.abs(cos_at) / np.maximum(d2, 1e-300)
 
 
 def _connect_emitters(ctx, L, C, fresh, gather):
@@ -191,7 +209,7 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
     y_normal = np.where(infinite[:, None], 0.0, pts.normal)
     budget = (connection_budget(ctx.settings.transparent_max_bounces, C.flat("passed")[at_z])
               if has_passes(ctx.prep) else None)  # not read where all is opaque
-    keep = _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, dist > 0, budget)
+    keep = _unblocked(ctx, C, at_z, z, zv.ng, w, dist, y_normal, value, dist > 0, budget)
     if keep.size == 0:
         return None
     w, dist = take_rows(w, keep), dist[keep]
@@ -211,23 +229,26 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
 def _reverse_at_z(C, back_z, zj, row):
     """The light side's area density of ``z_{t-2}``, sampled at ``z = z_{t-1}`` from the
     solid-angle density ``back_z (m,)`` (``t >= 3``; unused, and one, for ``t = 2``)."""
-    far = zj >= 2
-    return np.where(far, to_area(back_z, C.cos_prev[zj, row], C.d_prev[zj, row]), 1.0)
+    at = zj * C.valid.shape[1] + row  # flat takes: the values of C.cos_prev[zj, row]
+    return np.where(zj >= 2, to_area(back_z, np.take(C.cos_prev, at), np.take(C.d_prev, at)),
+                    1.0)
 
 
-def _unblocked(ctx, C, at_z, z, w, dist, y_normal, value, ok, budget):
+def _unblocked(ctx, C, at_z, z, z_ng, w, dist, y_normal, value, ok, budget, ends=None):
     """Connections ``(k,)`` (indices) with a contribution whose shadow ray gets through
-    (through at most ``budget (m,)`` transparent surfaces, whose transparency then scales
-    their rows of ``value`` in place, :mod:`.transparent_passes`; None where every
-    surface is opaque)."""
+    (through at most ``budget (k,)`` transparent surfaces, whose transparency then scales
+    their rows of ``value (k, 3)`` in place, :mod:`.transparent_passes`; None where every
+    surface is opaque). Connection ``i`` leaves camera end ``ends[i]`` (None: ``i``): the
+    rows of ``at_z``, ``z``, its geometric normals ``z_ng``, the directions ``w`` and the
+    distances ``dist``, which are gathered here for the rays only."""
     ok = ok & (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
         return cand
-    at = at_z[cand]
+    end = cand if ends is None else ends[cand]
     through, transmit = transmitted(ctx, *ctx.prep.accel.shadow_rays(
-        take_rows(z, cand), take_rows(C.flat("ng"), at), C.flat("prim")[at], take_rows(w, cand),
-        dist[cand], take_rows(y_normal, cand)), None if budget is None else budget[cand],
+        take_rows(z, end), take_rows(z_ng, end), C.flat("prim")[at_z[end]], take_rows(w, end),
+        dist[end], take_rows(y_normal, cand)), None if budget is None else budget[cand],
         VIS_SHADOW)
     ctx.counters.rays += cand.size
     if transmit is not None:
