@@ -371,24 +371,25 @@ def connect_emitter_to_camera(ctx, L, out):
                       & (pts.pdf_origin > 0))[0]
     if rows.size == 0:
         return
-    p = pts.p[rows]
+    p = take_rows(pts.p, rows)
     film_xy, visible, cos_theta, dist = project(cam, p, ctx.film_margin, ctx.window)
     seen = np.nonzero(visible)[0]
     if seen.size == 0:
         return
-    rows, p, film_xy, cos_theta, dist = (rows[seen], p[seen], film_xy[seen], cos_theta[seen],
-                                         dist[seen])
+    rows, p, film_xy, cos_theta, dist = (rows[seen], take_rows(p, seen),
+                                         take_rows(film_xy, seen), cos_theta[seen], dist[seen])
     w = (ctx.cam_pos - p) / np.maximum(dist, 1e-300)[:, None]  # emitter -> camera
-    normal = pts.normal[rows]
+    normal = take_rows(pts.normal, rows)
     le = em.radiance(pts.index[rows], p, normal, w, np.broadcast_to(ctx.cam_pos, p.shape))
     cos_l = np.abs(dot(normal, w))
     g = importance(cam, cos_theta) * cos_l / np.maximum(dist * dist, 1e-300)
-    value = le * (g / pts.pdf_origin[rows])[:, None]
+    value = scaled(le, g / pts.pdf_origin[rows])
     ok = np.nonzero((max_component(value) > 0) & finite_rows(value))[0]
     if ok.size == 0:
         return
-    rows, w, dist, value, film_xy, cos_theta, cos_l = (rows[ok], w[ok], dist[ok], value[ok],
-                                                       film_xy[ok], cos_theta[ok], cos_l[ok])
+    rows, w, dist, value, film_xy, cos_theta, cos_l = (
+        rows[ok], take_rows(w, ok), dist[ok], take_rows(value, ok), take_rows(film_xy, ok),
+        cos_theta[ok], cos_l[ok])
     # From the pinhole toward the point, stopping just short of it (emissive triangles are
     # geometry; lamps are not).
     origins = np.broadcast_to(ctx.cam_pos, (rows.size, 3)).copy()
@@ -397,8 +398,9 @@ def connect_emitter_to_camera(ctx, L, out):
     ctx.counters.rays += rows.size
     if keep.size == 0:
         return
-    rows, dist, value, film_xy, cos_theta, cos_l = (rows[keep], dist[keep], value[keep],
-                                                    film_xy[keep], cos_theta[keep], cos_l[keep])
+    rows, dist, value, film_xy, cos_theta, cos_l = (
+        rows[keep], dist[keep], take_rows(value, keep), take_rows(film_xy, keep), cos_theta[keep],
+        cos_l[keep])
     if transmit is not None:  # through transparent surfaces (:mod:`.transparent_passes`)
         value = value * transmit
     weight = direct_weight(ctx, rows, cos_theta, cos_l, dist)

@@ -13,6 +13,7 @@ import numpy as np
 from ..rows import put_rows
 from ..vec_rows import scaled
 from .base import BatchOutput, Splats
+from .common import finite_rows
 
 
 class Tally:
@@ -50,19 +51,21 @@ class Tally:
 
     def splat(self, s, xy, value, weight):
         """Add strategy ``(s, 1)``'s contributions at film positions ``xy``."""
-        self.splats.append(Splats(xy, value * weight[:, None]))
+        weighted = scaled(value, weight)
+        self.splats.append(Splats(xy, weighted))
         if s <= self.view_length:
             key = f"Strategy s{s} t1"
-            for name, v in ((key, value), (key + " weighted", value * weight[:, None])):
+            for name, v in ((key, value), (key + " weighted", weighted)):
                 self.splat_layers.setdefault(name, []).append(Splats(xy, v))
 
     def output(self, light_paths):
         """The batch's :class:`BatchOutput`: no NaN, Inf or negative value in the image."""
         image = self.image
-        image[~np.isfinite(image).all(axis=1)] = 0.0
+        image[~finite_rows(image)] = 0.0
         splats = Splats.join(self.splats)
-        return BatchOutput(np.maximum(image, 0.0),
-                           Splats(splats.xy, np.maximum(splats.value, 0.0)), light_paths,
+        return BatchOutput(np.maximum(image, 0.0, out=image),
+                           Splats(splats.xy, np.maximum(splats.value, 0.0, out=splats.value)),
+                           light_paths,
                            {name: np.where(np.isfinite(v), v, 0.0)
                             for name, v in self.camera_layers.items()},
                            {name: Splats.join(parts) for name, parts in self.splat_layers.items()},
