@@ -120,7 +120,7 @@ def _connect_vertices(ctx, L, C, gather):
     depth, n = C.valid.shape
     pairs = _vertex_pairs(depth)
     both = (C.valid & C.connectible)[pairs[:, 0]] & (L.valid & L.connectible)[pairs[:, 1]]
-    pair, row = np.nonzero(both)
+    pair, row = np.divmod(np.flatnonzero(both), n)  # np.nonzero's order, about 3 x faster
     return _in_pieces(lambda e: _join_vertices(ctx, L, C, pairs[pair[e], 0], pairs[pair[e], 1],
                                                row[e], gather), row.size)
 
