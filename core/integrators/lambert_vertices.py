@@ -84,8 +84,10 @@ class LambertVertices:
         return scaled(self.color, np.maximum(cos, 0.0) * INV_PI)
 
     def values(self, w, w_l):
-        """:meth:`f`, :meth:`pdf_toward` and :meth:`pdf_back` of ``w_l`` in one call."""
-        return self.f(w, w_l), self.pdf_toward(w_l), self.pdf_back(w_l)
+        """:meth:`f`, :meth:`pdf_toward` and :meth:`pdf_back` of ``w_l`` in one call (``f``
+        is the albedo times the density toward ``w_l``: the same expression, formed once)."""
+        toward = self.pdf_toward(w_l)
+        return scaled(self.color, toward), toward, self.pdf_back(w_l)
 
     def pdf_toward(self, w_l):
         """Solid-angle density ``(m,)`` of sampling ``w_l`` given the incoming direction."""
