@@ -95,21 +95,15 @@ class RunningSums:
         ``G[0] = 0``."""
         depth, n = sub.valid.shape
         out = np.zeros((depth, n))
-        if depth <= 2:
-            return out
-        # The factors and flags of every vertex in a few whole-table operations; the
-        # recurrence then takes two per vertex (the same values, element by element).
-        with np.errstate(invalid="ignore", over="ignore"):
-            factor = self.h(_ratio(sub.pdf_rev[:depth - 2], sub.pdf_fwd[:depth - 2]))
-        possible = np.empty((depth - 2, n), bool)
-        possible[1:] = ~sub.delta[:depth - 3] & ~sub.delta[1:depth - 2]
-        if first_possible is not None:
-            possible[0] = first_possible
         g = np.zeros(n)
-        with np.errstate(invalid="ignore", over="ignore"):
-            for j in range(0 if first_possible is not None else 1, depth - 2):
-                g = np.add(possible[j], g, out=out[j + 2])
-                g *= factor[j]
+        for j in range(0 if first_possible is not None else 1, depth - 2):
+            possible = first_possible if j == 0 else ~(sub.delta[j - 1] | sub.delta[j])
+            with np.errstate(invalid="ignore", over="ignore"):
+                factor = self.h(_ratio(sub.pdf_rev[j], sub.pdf_fwd[j]))
+                # G[j] = factor * (possible + G[j - 1]), formed in its row of the table (row
+                # by row: the rows of the table stay in the processor's cache).
+                g = np.add(possible, g, out=out[j + 2])
+                g *= factor
         return out
 
     def weights(self, L, C, s, t, row, near):
