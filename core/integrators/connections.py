@@ -138,9 +138,9 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     n = C.valid.shape[1]
     at_z, at_y = zj * n + row, yj * n + row
     z = take_rows(C.flat("p"), at_z)
-    to_y = take_rows(L.flat("p"), at_y) - z
-    dist = norms(to_y)
-    w = to_y / np.maximum(dist, 1e-300)[:, None]  # z -> y
+    w = take_rows(L.flat("p"), at_y) - z
+    dist = norms(w)
+    np.divide(w, np.maximum(dist, 1e-300)[:, None], out=w)  # z -> y
     zv = gather(C, at_z, RADIANCE)
     f_z, toward_z, back_z = zv.values(w, zv.local(w))
     # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
@@ -149,8 +149,10 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     at_y, w_e, dist_e = at_y[e], take_rows(w, e), dist[e]
     yv = gather(L, at_y, IMPORTANCE)
     f_y, toward_y, back_y = yv.values(-w_e, yv.local(-w_e))
-    value = (take_rows(L.flat("beta"), at_y) * f_y * take_rows(f_z, e)
-             * take_rows(C.flat("beta"), at_z[e]))
+    value = take_rows(L.flat("beta"), at_y)
+    value *= f_y
+    value *= take_rows(f_z, e)
+    value *= take_rows(C.flat("beta"), at_z[e])
     scaled(value, 1.0 / np.maximum(dist_e ** 2, 1e-300), out=value)
     budget = (connection_budget(ctx.settings.transparent_max_bounces,
                                 C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
