@@ -2,14 +2,14 @@
 stage's thread CPU per camera sample alternated (a measurement, not a test).
 
 Like :mod:`tools.ab_units`, the base tree is imported a second time as ``sampling_lab_base``.
-``--check`` renders one BDPT work unit (8,192 paths or the integrator's unit if smaller; 4
-samples per pixel, independent sampler, power selection, 8 bounces) of each case with both
+``--check`` renders one BDPT work unit (8,192 paths or the integrator's unit if smaller;
+4 samples per pixel, independent sampler, power selection, 8 bounces) of each case with both
 trees and compares every array of the two outputs (image, splats, strategy layers) with
-``np.array_equal``. ``--time`` runs one work unit per tree, keeps what each tree's own
-:func:`~core.integrators.connections.connect_all` was given (the same subpaths: same seed,
-same walks; the integrator's own unit size), and then times that call alone, base and head in turn for ``--rounds`` rounds
-(each with its own tree's tally, accel and gathers): the minimum and the median of thread CPU
-microseconds per camera sample, and head / base::
+``np.array_equal``. ``--time`` runs one work unit per tree (the integrator's own unit size),
+keeps what each tree's own :func:`~core.integrators.connections.connect_all` was given (the
+same subpaths: same seed, same walks), and then times that call alone, base and head in turn
+for ``--rounds`` rounds (each with its own tree's tally, accel and gathers): the minimum and
+the median of thread CPU microseconds per camera sample, and head / base::
 
     PYTHONPATH=/path/to/parent:/path/to/parent/sampling_lab/tools \\
         python tools/ab_connect.py --base /tmp/base/sampling_lab --check --time
@@ -84,7 +84,8 @@ def check(cases):
         for pkg in (BASE, HEAD):
             integ, stream, pixel_filter, counters = _integrator(pkg, name, size, extra)
             outs.append(_arrays(integ.render_samples(stream, pixel_filter, counters())))
-        bad = [k for k in outs[0] if k not in outs[1] or not np.array_equal(outs[0][k], outs[1][k])]
+        bad = [k for k in outs[0]
+               if k not in outs[1] or not np.array_equal(outs[0][k], outs[1][k])]
         differ += len(bad) + len(set(outs[1]) - set(outs[0]))
         print(f"{name} {size} px {extra}: {len(outs[0])} arrays, "
               f"{'identical' if not bad else 'DIFFER: ' + ', '.join(bad)}")

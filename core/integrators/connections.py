@@ -166,7 +166,8 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     yj, zj, row, at_y = yj[keep], zj[keep], row[keep], at_y[kept]
     return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), np.take(L.pdf_fwd[0], row),
                    _finite_area(toward_y[kept], cos_z, d2),
-                   _reverse_at_z(C, back_z[keep], zj, row), _finite_area(toward_z[keep], cos_y, d2),
+                   _reverse_at_z(C, back_z[keep], zj, row),
+                   _finite_area(toward_z[keep], cos_y, d2),
                    to_area(back_y[kept], np.take(L.cos_prev, at_y), np.take(L.d_prev, at_y)),
                    ctx.light_points.delta_light[row])
 
