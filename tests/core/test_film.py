@@ -154,6 +154,32 @@ def test_add_samples_mean_variance_and_count_equal_numpy():
     assert count.dtype == np.float32 and count.sum() == len(pix)
 
 
+def test_add_samples_of_a_unit_span_sum_exactly_into_those_pixels():
+    """A work unit's samples cover a span of pixels away from pixel 0 (add_samples sums over
+    that span only): every sum equals a per-pixel sum in the samples' order, bit for bit
+    (rows in float32 too), and no pixel outside the span changes. An offset of the span by
+    one pixel, or a lost sample, fails the exact comparison."""
+    film = Film(9, 8)
+    rng = np.random.default_rng(21)
+    for lo, hi, dtype in ((17, 30, np.float64), (40, 41, np.float32), (3, 70, np.float64)):
+        pix = rng.integers(lo, hi, 500)
+        pix[[0, -1]] = lo, hi - 1
+        rad = rng.gamma(2.0, 1.0, (pix.size, 3)).astype(dtype)
+        before = film.sum.copy(), film.sum_sq.copy(), film.count.copy()
+        film.add_samples(pix, rad, transparency=rng.random(pix.size))
+        for p in range(film.n_pixels):
+            mine = rad[pix == p].astype(np.float64)
+            total, squares = np.zeros(3), np.zeros(3)
+            for r in mine:  # in order, as the film adds them
+                total, squares = total + r, squares + np.asarray(r ** 2, np.float64)
+            assert np.array_equal(film.sum[p], before[0][p] + total)
+            assert np.array_equal(film.count[p], before[2][p] + mine.shape[0])
+            if mine.shape[0] == 0:
+                assert np.array_equal(film.sum_sq[p], before[1][p])
+    film.add_samples(np.zeros(0, np.int64), np.zeros((0, 3)))  # an empty batch adds nothing
+    assert film.count.sum() == 1500
+
+
 def test_pixels_with_zero_or_one_sample_have_finite_zero_variance():
     film = Film(3, 1)
     film.add_samples(np.array([1]), np.array([[5.0, 6.0, 7.0]]))
