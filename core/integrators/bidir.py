@@ -24,7 +24,7 @@ from ..scene import VIS_CAMERA, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .camera_hits import camera_emission
 from .common import camera_rays, finite_rows, max_component, strategy_pass_names, take_rows
-from .connections import camera_splatter, connect_camera
+from .connections import camera_splatter, connect_cameras
 from .strategy_views import Tally
 from .subpaths import Subpath, walk
 from .vertex_frames import triangle_frames
@@ -214,9 +214,6 @@ class Bidirectional(Integrator):
         L = _light_subpath(ctx, stream, n, base, depth)
         stream.check_abort()  # the connections are most of BDPT's time
         self.connect(ctx, stream, C, L, out)
-        for s in range(2, depth + 1):
-            if not L.valid[s - 1].any():
-                break
-            stream.check_abort()
-            connect_camera(ctx, L, s, out)
+        stream.check_abort()
+        connect_cameras(ctx, L, out)  # t = 1, every s >= 2
         return out.output(n)
