@@ -352,6 +352,21 @@ def test_splats_reach_every_pixel_the_filter_covers_and_no_other(kind, width):
     assert film.splat_sum.any()
 
 
+@pytest.mark.parametrize("kind, width", [("BLACKMAN_HARRIS", 1.5), ("BOX", 1.0),
+                                         ("BLACKMAN_HARRIS", 3.0), ("GAUSSIAN", 1.5)])
+def test_filter_reach_holds_every_tap_the_filter_covers(kind, width):
+    """Splats visit only the offsets of PixelFilter.reach: every offset at which the filter
+    has weight, from positions all over a pixel (its edges included), must be in it; an
+    offset it leaves out would lose light at that distance."""
+    f = PixelFilter(kind, width)
+    frac = np.concatenate([np.linspace(0.0, 1.0, 4001)[:-1], [np.nextafter(1.0, 0.0)]])
+    taps = f.taps()
+    weight = f.pdf_1d(frac[None, :] - (taps[:, None] + 0.5))
+    covered = taps[(weight > 0).any(axis=1)]
+    assert set(covered) <= set(f.reach()) and set(f.reach()) <= set(taps)
+    assert 0 in covered
+
+
 def test_a_film_larger_than_half_the_memory_is_refused_before_allocation():
     from sampling_lab.core.film import FILM_BYTES_PER_PIXEL, check_film_memory
 
