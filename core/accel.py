@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .embree_commit import build_scene
+from .rows import combine_rows
 from .scene import VIS_ALL, VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
 
 RAY_CLASSES = (VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION, VIS_SHADOW)
@@ -206,4 +207,4 @@ class Accel:
         """
         side = np.sign(np.einsum("ij,ij->i", ng, w))
         side[side == 0] = 1.0
-        return p + ng * (side * self.tri_offset[prim])[:, None]
+        return combine_rows(((side * self.tri_offset[prim], ng),), base=p)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..materials.coat import coat_attenuation
 from ..materials.microfacet import alpha_from_roughness
-from ..rows import put_rows
+from ..rows import combine_rows, put_rows
 from ..sampling import warps
 from .area import area_point_pdf, solid_angle_pdf
 from .base import LUMINANCE, LightFamily, batch_rows, dot
@@ -126,7 +126,7 @@ class EmissiveTriangles(LightFamily):
     def _point(v0, e1, e2, u):
         """Uniform points ``(m, 3)`` on triangles ``v0, e1, e2 (m, 3)`` by ``u (m, 2)``."""
         b = warps.sample_uniform_triangle(u)
-        return v0 + b[:, 1:2] * e1 + b[:, 2:3] * e2
+        return combine_rows(((b[:, 1], e1), (b[:, 2], e2)), base=v0)
 
     # ------------------------------------------------------------------ next-event estimation
     def sample_li(self, m, e, p, u, pmf, out, counters=None):
