@@ -19,6 +19,7 @@ import numpy as np
 
 from ..camera import camera_pdf, camera_position
 from ..materials.bsdf import IMPORTANCE, RADIANCE
+from ..rows import combine_rows
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .base import BatchOutput, Integrator
@@ -98,7 +99,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
         L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
         L.d_prev[0] = np.where(pts.infinite, np.inf, 0.0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
+        beta = combine_rows(((cos_l / (pts.pdf_origin * pdf_dir), le),))
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & finite_rows(beta)
     rows = np.nonzero(good)[0]
     rows = rows[max_component(take_rows(beta, rows)) > 0]

@@ -16,6 +16,7 @@ import numpy as np
 from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
+from ..rows import combine_rows
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import bends_normals, finite_rows, max_component, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
@@ -337,7 +338,7 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     yv = gather(seen)
     w_y = yv.local(w)
     we = importance(cam, cos_theta)
-    value = beta_of(seen) * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
+    value = combine_rows(((we / np.maximum(dist * dist, 1e-300), beta_of(seen) * yv.f(w, w_y)),))
     ok = (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
