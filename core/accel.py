@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .embree_commit import build_scene
-from .rows import combine_rows
+from .rows import combine_rows, divide_rows
 from .scene import VIS_ALL, VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
 
 RAY_CLASSES = (VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION, VIS_SHADOW)
@@ -187,15 +187,17 @@ class Accel:
         """
         origins = self.offset_origin(p, ng, prim, wi)
         finite = np.isfinite(dist)
-        q = p + wi * np.where(finite, dist, 0.0)[:, None]
+        q = combine_rows(((np.where(finite, dist, 0.0), wi),), base=p)
         scale = np.maximum(max_abs_component(q), max_abs_component(p))
         eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(scale, 1e-30)
         toward = np.sign(np.einsum("ij,ij->i", light_normal, origins - q))
-        q = q + light_normal * (toward * eps)[:, None]
+        q = combine_rows(((toward * eps, light_normal),), base=q)
         seg = q - origins
         length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
         ok = finite & (length > 0)
-        directions = np.where(ok[:, None], seg / np.maximum(length, 1e-300)[:, None], wi)
+        directions = divide_rows(seg, np.maximum(length, 1e-300))
+        if not ok.all():
+            directions[~ok] = wi[~ok]
         tmax = np.where(finite, np.where(ok, length - eps, 0.0), np.inf)
         return origins, directions, np.maximum(tmax, 0.0)
 

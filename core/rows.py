@@ -49,3 +49,14 @@ def combine_rows(terms, base=None):
         for a, v in terms[1:]:
             column += a * v[:, c]
     return out
+
+
+def divide_rows(v, d):
+    """``v / d[:, None]`` for rows ``v (k, c)`` and divisors ``d (k,)``: the same values,
+    column by column on large float64 batches (as :func:`combine_rows`)."""
+    if d.shape[0] < COLUMNWISE_ROWS or v.dtype != np.float64 or d.dtype != np.float64:
+        return v / d[:, None]
+    out = np.empty(v.shape)
+    for c in range(v.shape[1]):
+        np.divide(v[:, c], d, out=out[:, c])
+    return out

@@ -12,7 +12,7 @@ from ..materials.bsdf import KIND_LAYERED, KIND_LAYERED_MS, LOBE_DIFFUSE, LOBE_T
 from ..materials.frame import to_local
 from ..bump import bump_mapped
 from ..normal_maps import normal_mapped
-from ..rows import combine_rows
+from ..rows import combine_rows, divide_rows
 from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 
@@ -72,7 +72,7 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
         q = max_component(beta)
         q = np.minimum(1.0, q if eta_scale is None else q * eta_scale)
         alive = alive & (u_rr < q)
-        beta = beta / np.maximum(q, 1e-12)[:, None]
+        beta = divide_rows(beta, np.maximum(q, 1e-12))
     return alive & (max_component(beta) > 0), beta
 
 

@@ -16,7 +16,7 @@ import numpy as np
 from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
-from ..rows import combine_rows
+from ..rows import combine_rows, divide_rows
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import bends_normals, finite_rows, max_component, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
@@ -334,7 +334,7 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
                                                prim[seen])
     if np.ndim(s):
         s = s[seen]
-    w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
+    w = divide_rows(ctx.cam_pos - y, np.maximum(dist, 1e-300))  # y -> camera
     yv = gather(seen)
     w_y = yv.local(w)
     we = importance(cam, cos_theta)

@@ -1,6 +1,6 @@
 """Row helpers (core/rows.py) give the values of the NumPy expressions they replace, bit for
-bit: ``combine_rows`` (weighted sums of (k, c) rows, column by column on large float64 batches)
-and ``put_rows`` (row scatters).
+bit: ``combine_rows`` (weighted sums of (k, c) rows) and ``divide_rows`` (rows over per-row
+divisors), column by column on large float64 batches, and ``put_rows`` (row scatters).
 
 Smallest error detected: any difference at all (arrays are compared for equality), on batches
 below and above the column-wise threshold, with a base and without, and in float32.
@@ -9,7 +9,7 @@ below and above the column-wise threshold, with a base and without, and in float
 import numpy as np
 import pytest
 
-from sampling_lab.core.rows import COLUMNWISE_ROWS, combine_rows, put_rows
+from sampling_lab.core.rows import COLUMNWISE_ROWS, combine_rows, divide_rows, put_rows
 
 
 @pytest.mark.parametrize("k", [0, 7, COLUMNWISE_ROWS - 1, COLUMNWISE_ROWS, 3 * COLUMNWISE_ROWS])
@@ -24,6 +24,17 @@ def test_combine_rows_is_the_broadcast_expression_bit_for_bit(k, dtype):
     got = combine_rows(((a, u), (b, v)), base=base)
     np.testing.assert_array_equal(got, base + a[:, None] * u + b[:, None] * v)
     assert got.dtype == (base + a[:, None] * u).dtype and got.shape == (k, 3)
+
+
+@pytest.mark.parametrize("k", [0, 5, COLUMNWISE_ROWS, 2 * COLUMNWISE_ROWS + 1])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_divide_rows_is_the_broadcast_division_bit_for_bit(k, dtype):
+    rng = np.random.default_rng(k + 1)
+    v = rng.normal(size=(k, 3)).astype(dtype)
+    d = rng.uniform(1e-3, 10.0, k).astype(dtype)
+    got = divide_rows(v, d)
+    np.testing.assert_array_equal(got, v / d[:, None])
+    assert got.dtype == (v / d[:, None]).dtype
 
 
 def test_combine_rows_keeps_nonfinite_values_where_the_expression_has_them():
