@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .allocator import keep_freed_batches
 from .errors import RenderRefused
 from .applied_settings import PHOTON_INTEGRATORS, used_settings
 from .film import Film, check_film_memory, to_float32
@@ -240,7 +239,6 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     RenderResult
     """
     check_settings(scene, settings)
-    allocator = keep_freed_batches()  # once per process: batch arrays reuse freed memory
     t0 = time.perf_counter()
     used = used_settings(settings)
     cam = scene.camera
@@ -293,7 +291,6 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         **used,
         "distribution_build_s": prep.lights.build_s,
         **prep.accel.build_stats(),
-        "allocator": allocator,
         "distribution_sample_s": counters.distribution_s,
         "distribution_samples": counters.distribution_samples,
         "distribution_ns_per_sample": (1e9 * counters.distribution_s

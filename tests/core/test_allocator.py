@@ -1,4 +1,5 @@
-"""core.allocator keeps the memory of freed batch arrays for the next batch (glibc).
+"""core.allocator keeps the memory of freed batch arrays for the next batch (glibc), for
+processes that run work units on their main thread.
 
 Property: a loop that makes and frees arrays the size of a work unit's columns (16k x 3
 float64, a few hundred KB, sizes varying as compaction shrinks them) page-faults its memory in
@@ -14,10 +15,7 @@ import textwrap
 
 import pytest
 
-from sampling_lab.core import scenes
 from sampling_lab.core.allocator import keep_freed_batches
-from sampling_lab.core.render import render
-from tests.helpers import plain_settings
 
 LOOP = textwrap.dedent("""
     import resource, sys
@@ -51,8 +49,7 @@ def test_batch_arrays_reuse_freed_memory_once_the_render_setting_is_made():
     assert tuned < 0.05 * plain, (tuned, plain)
 
 
-def test_render_reports_the_allocator_setting_and_makes_it_once():
+def test_the_setting_is_made_once_and_says_what_it_set():
     first = keep_freed_batches()
-    result = render(scenes.cornell_box(8, 8, "mesh"), plain_settings(integrator="path", spp=1))
-    assert result.stats["allocator"] == first == keep_freed_batches()
+    assert first == keep_freed_batches()
     assert first.startswith(("glibc", "default"))
