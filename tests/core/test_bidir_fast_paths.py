@@ -17,7 +17,8 @@
   (:func:`core.integrators.connections.connect_cameras`). Property: the same image and
   strategy views, bit for bit, as one batch per depth (``connect_camera`` for ``s = 2, 3,
   ...``), on plain diffuse vertices, on coated / sheen / anisotropic ones, under smooth
-  shading and through a transparent leaf.
+  shading and through a transparent leaf; and where depths mix plain-Lambert and general
+  gathers, the per-depth fallback is taken and equals the loop.
 
 Smallest error detected: any difference at all (the passes are compared for equality).
 """
@@ -180,3 +181,25 @@ def test_bdpt_splats_every_light_depth_at_once_as_depth_by_depth(make_scene, mon
     for a, b in zip(fused, loop):
         np.testing.assert_array_equal(a, b)
     assert np.isfinite(fused[0]).all() and fused[0].max() > 0
+
+
+def test_bdpt_splats_depth_by_depth_where_depths_gather_differently(monkeypatch):
+    """Where some light depths are all plain Lambert and others are not (gathered by
+    different code), connect_cameras falls back to one connect_camera per depth: the
+    fallback is taken, and the image equals the per-depth loop's."""
+    real = connections.all_lambert
+    mixed = lambda smooth, subs, j=None: real(smooth, subs, j) and (j is None or j % 2 == 1)  # noqa: E731
+    calls = []
+    one_depth = connections.connect_camera
+    with monkeypatch.context() as m:
+        m.setattr(connections, "all_lambert", mixed)
+        m.setattr(connections, "connect_camera", lambda *a: calls.append(a) or one_depth(*a))
+        fused = _passes(_diffuse_scene())
+    assert calls  # the fallback ran
+    with monkeypatch.context() as m:
+        m.setattr(connections, "all_lambert", mixed)
+        m.setattr(bidir, "connect_cameras", _depth_by_depth)
+        loop = _passes(_diffuse_scene())
+    for a, b in zip(fused, loop):
+        np.testing.assert_array_equal(a, b)
+    assert fused[0].max() > 0
