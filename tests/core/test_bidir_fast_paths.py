@@ -188,7 +188,10 @@ def test_bdpt_splats_depth_by_depth_where_depths_gather_differently(monkeypatch)
     different code), connect_cameras falls back to one connect_camera per depth: the
     fallback is taken, and the image equals the per-depth loop's."""
     real = connections.all_lambert
-    mixed = lambda smooth, subs, j=None: real(smooth, subs, j) and (j is None or j % 2 == 1)  # noqa: E731
+
+    def mixed(smooth, subs, j=None):  # odd depths Lambert, even depths general
+        return real(smooth, subs, j) and (j is None or j % 2 == 1)
+
     calls = []
     one_depth = connections.connect_camera
     with monkeypatch.context() as m:
