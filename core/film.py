@@ -111,6 +111,15 @@ class PixelFilter:
         reach = int(np.ceil(0.5 * self.support + 0.5))
         return np.arange(-reach, reach + 1)
 
+    def reach(self):
+        """The offsets of :meth:`taps` whose pixel the filter can cover from some position in
+        pixel ``floor(x)``: from a position ``f`` in ``[0, 1)`` of its pixel, pixel
+        ``floor(x) + d``'s centre is ``|f - d - 1/2|`` away, which comes as close as
+        ``max(|d| - 1/2, 0)``, and the filter covers distances below half its support
+        (Blackman-Harris of width 1.5: offsets -1, 0, 1 of -2..2)."""
+        taps = self.taps()
+        return taps[np.abs(taps) - 0.5 < 0.5 * self.support]
+
 
 class Film:
     """Accumulation buffers for a ``width`` x ``height`` image (row 0 at the bottom).
@@ -163,15 +172,20 @@ class Film:
         """Accumulate camera samples ``radiance (k, 3)`` into their pixels ``pixel (k,)``;
         ``transparency (k,)``: what of each reached a transparent film's background (None:
         nothing)."""
-        n = self.n_pixels
+        if pixel.size == 0:
+            return
+        # Over the span of pixels the batch touches (a work unit's own pixels), not the whole
+        # film: the same sums in the same order, without seven film-sized arrays per batch.
+        lo, hi = int(pixel.min()), int(pixel.max()) + 1
+        local, span = pixel - lo, hi - lo
         if transparency is not None:
             if self.transparency is None:
-                self.transparency = np.zeros(n)
-            self.transparency += np.bincount(pixel, transparency, minlength=n)
+                self.transparency = np.zeros(self.n_pixels)
+            self.transparency[lo:hi] += np.bincount(local, transparency, minlength=span)
         for c in range(3):
-            self.sum[:, c] += np.bincount(pixel, radiance[:, c], minlength=n)
-            self.sum_sq[:, c] += np.bincount(pixel, radiance[:, c] ** 2, minlength=n)
-        self.count += np.bincount(pixel, minlength=n)
+            self.sum[lo:hi, c] += np.bincount(local, radiance[:, c], minlength=span)
+            self.sum_sq[lo:hi, c] += np.bincount(local, radiance[:, c] ** 2, minlength=span)
+        self.count[lo:hi] += np.bincount(local, minlength=span)
 
     def splat(self, film_xy, value, pixel_filter=None):
         """Add light-path contributions ``value (k, 3)`` at film positions ``film_xy (k, 2)``.
@@ -188,14 +202,17 @@ class Film:
     def add_splat_taps(self, pixel, weighted):
         """Add the taps :meth:`splat_taps` made: ``pixel (m,)``, ``weighted (m, 3)``."""
         n = self.n_pixels
+        # Bin n gathers the taps outside the film (splat_taps): dropped.
         for c in range(3):
-            self.splat_sum[:, c] += np.bincount(pixel, weighted[:, c], minlength=n)
-            self.splat_sum_sq[:, c] += np.bincount(pixel, weighted[:, c] ** 2, minlength=n)
+            self.splat_sum[:, c] += np.bincount(pixel, weighted[:, c], minlength=n + 1)[:n]
+            self.splat_sum_sq[:, c] += np.bincount(pixel, weighted[:, c] ** 2,
+                                                   minlength=n + 1)[:n]
 
     def splat_taps(self, film_xy, value, pixel_filter):
         """Pixels ``(m,)`` and filter-weighted values ``(m, 3)`` of a batch of splats (see
-        :meth:`splat`). Reads nothing the film accumulates, so a worker thread may make them
-        while the render loop adds other units' taps (:meth:`add_splat_taps`)."""
+        :meth:`splat`); pixel ``n`` (the film's pixel count) holds the filter's taps outside
+        the film, which :meth:`add_splat_taps` drops. Reads nothing the film accumulates, so
+        a worker thread may make them while the render loop adds other units' taps."""
         film_xy = np.asarray(film_xy, np.float64).reshape(-1, 2)
         value = np.asarray(value, np.float64).reshape(-1, 3)
         # Column by column: an .all(axis=1) over three columns is about ten times slower.
@@ -210,27 +227,20 @@ class Film:
             y = np.floor(film_xy[:, 1]).astype(np.int64)
             inside = (x >= 0) & (x < self.width) & (y >= 0) & (y < self.height)
             return (y * self.width + x)[inside], value[inside]
-        taps = pixel_filter.taps()
-        x0 = np.floor(film_xy[:, 0]).astype(np.int64)
-        y0 = np.floor(film_xy[:, 1]).astype(np.int64)
-        # Each axis's filter weights and bounds once per tap, not once per pair of taps; taps
-        # the filter never reaches (the outer ones, for most positions) are skipped.
-        rows = [(y0 + dy, pixel_filter.pdf_1d(film_xy[:, 1] - (y0 + dy + 0.5))) for dy in taps]
-        rows = [(py, wy, (py >= 0) & (py < self.height)) for py, wy in rows if (wy > 0).any()]
-        pixels, values = [], []
-        for dx in taps:
-            px = x0 + dx
-            wx = pixel_filter.pdf_1d(film_xy[:, 0] - (px + 0.5))
-            if not (wx > 0).any():
-                continue
-            inside_x = (px >= 0) & (px < self.width)
-            for py, wy, inside_y in rows:
-                w = wx * wy
-                keep = np.nonzero((w > 0) & inside_x & inside_y)[0]
-                # np.take gathers rows several times faster than fancy indexing (same values).
-                pixels.append(np.take(py * self.width + px, keep))
-                values.append(np.take(value, keep, axis=0) * np.take(w, keep)[:, None])
-        return np.concatenate(pixels), np.concatenate(values)
+        n, k = self.n_pixels, value.shape[0]
+        px, wx = _axis_taps(film_xy[:, 0], pixel_filter, self.width, 1, n)
+        py, wy = _axis_taps(film_xy[:, 1], pixel_filter, self.height, self.width, n)
+        # Every pair of taps at once, (Tx, Ty, k): the order in which the pixels' sums add
+        # them (pair by pair, then splat by splat). Taps outside the film go to pixel n,
+        # which the sums drop; taps of weight zero add zeros, which change no sum.
+        pixel = np.minimum(py[None, :, :] + px[:, None, :], n).reshape(-1)
+        w = (wx[:, None, :] * wy[None, :, :]).reshape(wx.shape[0] * wy.shape[0], k)
+        # Channel by channel into a (3, m) table, returned as its (m, 3) transpose: each
+        # channel's column is contiguous for add_splat_taps' bincounts.
+        weighted = np.empty((3, w.size))
+        for c in range(3):
+            np.multiply(w, value[:, c], out=weighted[c].reshape(w.shape))
+        return pixel, weighted.T
 
     def add_splat_paths(self, k):
         self.splat_paths += int(k)
@@ -250,9 +260,9 @@ class Film:
     def splat_layer(self, name, film_xy, value, pixel_filter=None):
         """Splat ``value (k, 3)`` at ``film_xy (k, 2)`` into layer ``name`` (as :meth:`splat`)."""
         pixel, weighted = self.splat_taps(film_xy, value, pixel_filter)
-        acc = self._layer(name)[1]
-        for c in range(3):
-            acc[:, c] += np.bincount(pixel, weighted[:, c], minlength=self.n_pixels)
+        acc, n = self._layer(name)[1], self.n_pixels
+        for c in range(3):  # bin n: the taps outside the film (splat_taps), dropped
+            acc[:, c] += np.bincount(pixel, weighted[:, c], minlength=n + 1)[:n]
 
     def layer_mean(self, name):
         """Estimate ``(h, w, 3)`` float64 of layer ``name`` (zeros if nothing was added)."""
@@ -302,6 +312,17 @@ class Film:
         rgba[..., :3] = to_float32(self.mean())
         rgba[..., 3] = self.alpha()
         return rgba
+
+
+def _axis_taps(x, pixel_filter, size, stride, outside):
+    """One axis of splats at film coordinates ``x (k,)``: per tap of the filter that can
+    reach a splat (:meth:`PixelFilter.reach`), the pixel coordinate times ``stride`` (or
+    ``outside`` where the pixel is outside ``[0, size)``) and the filter weight there (zero
+    outside): two ``(T, k)`` arrays."""
+    p = np.floor(x).astype(np.int64)[None, :] + pixel_filter.reach()[:, None]
+    inside = (p >= 0) & (p < size)
+    w = pixel_filter.pdf_1d(x[None, :] - (p + 0.5))
+    return np.where(inside, p * stride, outside), np.where(inside, w, 0.0)
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)

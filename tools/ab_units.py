@@ -8,6 +8,11 @@ times one work unit of each tree in turn, on the same thread, so that a load spi
 alike. For each measure it prints the minimum and the median over the rounds of thread CPU
 microseconds per camera sample, and head / base.
 
+Units here run on the main thread, whose glibc arena page-faults the memory of large batch
+arrays in again batch after batch (0.2-0.3 faults per camera sample on the bench box) where a
+render's worker threads hardly do; ``--keep-freed`` (:mod:`core.allocator`, both trees) takes
+that cost out of both figures.
+
 Measures (``--measures``): ``bdpt_walks`` (BDPT's camera and light subpath walks alone, as
 :mod:`tools.profile_walks`), ``bdpt``, ``light`` and ``path`` (the integrator's
 ``render_samples`` of one work unit; BDPT two units per round). Independent sampler (or
@@ -105,7 +110,15 @@ def main(argv=None):
     parser.add_argument("--measures", default="bdpt_walks,bdpt,light,path")
     parser.add_argument("--sampler", default="independent",
                         help="sampler of both trees (sobol: the default of a render)")
+    parser.add_argument("--keep-freed", action="store_true",
+                        help="glibc keeps freed batch memory (core.allocator, both trees): "
+                             "units on this main thread then page-fault no more than a "
+                             "render's worker threads")
     args = parser.parse_args(argv)
+    if args.keep_freed:
+        from sampling_lab.core.allocator import keep_freed_batches
+
+        print(f"allocator: {keep_freed_batches()}")
     _import_base(args.base)
     measures = args.measures.split(",")
     runs = {}

@@ -89,6 +89,7 @@ STAGES = [
     ("integrators.connections", "_join_emitters", "s >= 1, t >= 2: connect bookkeeping"),
     ("integrators.bdpt", "_fresh_points", "emitter sampling (points, s = 1 and y_0)"),
     ("integrators.connections", "connect_camera", "t = 1: light tracing splats (bookkeeping)"),
+    ("integrators.connections", "connect_cameras", "t = 1: light tracing splats (bookkeeping)"),
     ("integrators.connections", "splat_vertices", "t = 1: light tracing splats (bookkeeping)"),
     ("integrators.connections", "project", "t = 1: light tracing splats (bookkeeping)"),
     ("integrators.connections", "connect_emitter_to_camera",

@@ -63,6 +63,8 @@ MIS densities of every strategy are in :mod:`.mis_densities`, the per-strategy i
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from ..lights.emission import EmitterPoints
@@ -122,9 +124,14 @@ def _fresh_points(ctx, stream, C):
         r = np.nonzero(reach[j])[0]
         if r.size == 0:
             continue
-        stream.skip_to(DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX + 4)
-        u_sel.append(stream.next_1d()[r])
-        u_pos.append(stream.next_2d()[r])
+        # Drawn for the rows r only (a compacted copy of the stream: the same numbers as
+        # drawing for every sample and keeping r, without hashing the dead paths' numbers).
+        part = copy.copy(stream)
+        part.compact(r)
+        part.skip_to(DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX + 4)
+        sel, pos = part.next_slots((1, 2))
+        u_sel.append(sel)
+        u_pos.append(pos)
         zj.append(np.full(r.size, j, np.int64))
         rows.append(r)
     if not rows:

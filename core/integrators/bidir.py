@@ -19,12 +19,13 @@ import numpy as np
 
 from ..camera import camera_pdf, camera_position
 from ..materials.bsdf import IMPORTANCE, RADIANCE
+from ..rows import combine_rows
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .camera_hits import camera_emission
 from .common import camera_rays, finite_rows, max_component, strategy_pass_names, take_rows
-from .connections import camera_splatter, connect_camera
+from .connections import camera_splatter, connect_cameras
 from .strategy_views import Tally
 from .subpaths import Subpath, walk
 from .vertex_frames import triangle_frames
@@ -98,7 +99,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
         L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
         L.d_prev[0] = np.where(pts.infinite, np.inf, 0.0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        beta = le * (cos_l / (pts.pdf_origin * pdf_dir))[:, None]
+        beta = combine_rows(((cos_l / (pts.pdf_origin * pdf_dir), le),))
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & finite_rows(beta)
     rows = np.nonzero(good)[0]
     rows = rows[max_component(take_rows(beta, rows)) > 0]
@@ -214,9 +215,6 @@ class Bidirectional(Integrator):
         L = _light_subpath(ctx, stream, n, base, depth)
         stream.check_abort()  # the connections are most of BDPT's time
         self.connect(ctx, stream, C, L, out)
-        for s in range(2, depth + 1):
-            if not L.valid[s - 1].any():
-                break
-            stream.check_abort()
-            connect_camera(ctx, L, s, out)
+        stream.check_abort()
+        connect_cameras(ctx, L, out)  # t = 1, every s >= 2
         return out.output(n)

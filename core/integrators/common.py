@@ -12,6 +12,7 @@ from ..materials.bsdf import KIND_LAYERED, KIND_LAYERED_MS, LOBE_DIFFUSE, LOBE_T
 from ..materials.frame import to_local
 from ..bump import bump_mapped
 from ..normal_maps import normal_mapped
+from ..rows import combine_rows, divide_rows
 from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 
@@ -71,7 +72,7 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
         q = max_component(beta)
         q = np.minimum(1.0, q if eta_scale is None else q * eta_scale)
         alive = alive & (u_rr < q)
-        beta = beta / np.maximum(q, 1e-12)[:, None]
+        beta = divide_rows(beta, np.maximum(q, 1e-12))
     return alive & (max_component(beta) > 0), beta
 
 
@@ -298,8 +299,8 @@ def surface_interaction(prep, hits, d, rows, keep_below=False):
     (``keep_below``: see :func:`shading_normals`)."""
     prim = hits.prim[rows]
     u, v = hits.u[rows], hits.v[rows]
-    p = (take_rows(prep.tri_v0, prim) + u[:, None] * take_rows(prep.tri_e1, prim)
-         + v[:, None] * take_rows(prep.tri_e2, prim))
+    p = combine_rows(((u, take_rows(prep.tri_e1, prim)), (v, take_rows(prep.tri_e2, prim))),
+                     base=take_rows(prep.tri_v0, prim))
     ng = take_rows(prep.tri_normal, prim)
     wo = take_rows(d, rows)
     np.negative(wo, out=wo)
@@ -312,7 +313,7 @@ def surface_interaction(prep, hits, d, rows, keep_below=False):
     n_coat = coat_reference_normals(prep, prim, u, v, ng)
     if n_coat is not None:
         n_coat *= side[:, None]
-    return Interaction(p, ng, ns * side[:, None], wo, prim, n_bump, nm, n_coat)
+    return Interaction(p, ng, combine_rows(((side, ns),)), wo, prim, n_bump, nm, n_coat)
 
 
 def bump_reference_normals(prep, prim, u, v, ng):

@@ -16,6 +16,7 @@ import numpy as np
 from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
+from ..rows import combine_rows, divide_rows
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from ..vec_rows import norms, scaled
 from .common import bends_normals, finite_rows, max_component, take_rows
@@ -286,6 +287,33 @@ def connect_camera(ctx, L, s, out):
                    connection_budget(ctx.settings.transparent_max_bounces, L.passed[yj, rows]))
 
 
+def connect_cameras(ctx, L, out):
+    """Strategy ``t = 1`` for every light vertex ``s - 1 >= 1`` of the stored subpaths ``L``
+    at once: one projection, one gather, one batch of shadow rays for every depth (MIS weights
+    and splats depth by depth). The same splats, in the same order, as :func:`connect_camera`
+    for ``s = 2, 3, ...``; where some depths hold only plain Lambert vertices and others do
+    not (their vertices are gathered differently), it is that loop."""
+    depth, n = L.valid.shape
+    reach = L.valid[1:] & L.connectible[1:]
+    lambert = [all_lambert(ctx.smooth, (L,), yj) for yj in range(1, depth)]
+    if any(lambert) and not all(lambert):
+        for s in range(2, depth + 1):
+            connect_camera(ctx, L, s, out)
+        return
+    level, rows = np.nonzero(reach)  # depth-major: the loop's order
+    if rows.size == 0:
+        return
+    at = (level + 1) * n + rows
+    if lambert[0]:
+        gather = lambda seen: LambertVertices.at(L, at[seen])  # noqa: E731
+    else:
+        gather = lambda seen: Gathered.at(ctx, L, at[seen], IMPORTANCE)  # noqa: E731
+    splat_vertices(ctx, level + 2, rows, take_rows(L.flat("p"), at), L.flat("prim")[at],
+                   gather, lambda seen: take_rows(L.flat("beta"), at[seen]), out, L,
+                   connection_budget(ctx.settings.transparent_max_bounces,
+                                     L.flat("passed")[at]))
+
+
 def _light_vertex_gather(ctx, L, yj, rows):
     """``gather(seen)`` of :func:`splat_vertices` for light vertex ``yj`` of subpaths
     ``rows (m,)``: plain Lambert vertices as connect_all gathers them
@@ -345,11 +373,13 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     rows, film_xy, cos_theta, dist, y, prim = (rows[seen], take_rows(film_xy, seen),
                                                cos_theta[seen], dist[seen], take_rows(y, seen),
                                                prim[seen])
-    w = (ctx.cam_pos - y) / np.maximum(dist, 1e-300)[:, None]  # y -> camera
+    if np.ndim(s):
+        s = s[seen]
+    w = divide_rows(ctx.cam_pos - y, np.maximum(dist, 1e-300))  # y -> camera
     yv = gather(seen)
     w_y = yv.local(w)
     we = importance(cam, cos_theta)
-    value = beta_of(seen) * yv.f(w, w_y) * (we / np.maximum(dist * dist, 1e-300))[:, None]
+    value = combine_rows(((we / np.maximum(dist * dist, 1e-300), beta_of(seen) * yv.f(w, w_y)),))
     ok = (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
     if cand.size == 0:
@@ -367,6 +397,15 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     if keep.size == 0:
         return
     film_xy = take_rows(film_xy, keep)
+    if np.ndim(s):  # several strategies (connect_cameras): weights and splats per strategy
+        s = s[keep]
+        for g in _runs(s):
+            k, s_g = keep[g], int(s[g.start])
+            weight = (splat_weight(ctx, L, s_g, rows[k], yv.for_densities(k), take_rows(w, k),
+                                   take_rows(w_y, k), dist[k], cos_theta[k])
+                      if ctx.weighs else np.ones(k.size))
+            out.splat(s_g, film_xy[g], value[g], weight)
+        return
     if not ctx.weighs:
         weight = np.ones(keep.size)
     else:
@@ -374,6 +413,12 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
                               take_rows(w, keep), take_rows(w_y, keep), dist[keep],
                               cos_theta[keep])
     out.splat(s, film_xy, value, weight)
+
+
+def _runs(values):
+    """Slices of the runs of equal entries of ``values (m,)`` (sorted), in order."""
+    cut = np.concatenate([[0], np.flatnonzero(values[1:] != values[:-1]) + 1, [values.size]])
+    return [slice(a, b) for a, b in zip(cut[:-1], cut[1:])]
 
 
 def connect_emitter_to_camera(ctx, L, out):

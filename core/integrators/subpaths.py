@@ -337,6 +337,8 @@ def to_area(pdf_sa, cos_at, dist):
     """Solid-angle density -> area density at a point ``dist`` away (cosine ``cos_at`` there);
     unchanged toward infinite endpoints (``dist = inf``)."""
     finite = np.isfinite(dist)
+    if finite.all():  # the usual case: no selection (the same values)
+        return pdf_sa * np.abs(cos_at) / np.maximum(dist * dist, 1e-300)
     d2 = np.where(finite, dist * dist, 1.0)
     return np.where(finite, pdf_sa * np.abs(cos_at) / np.maximum(d2, 1e-300), pdf_sa)
 

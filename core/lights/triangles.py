@@ -16,8 +16,9 @@ import numpy as np
 
 from ..materials.coat import coat_attenuation
 from ..materials.microfacet import alpha_from_roughness
+from ..rows import combine_rows, put_rows
 from ..sampling import warps
-from .area import area_point_pdf, cosine_from_faces, solid_angle_pdf
+from .area import area_point_pdf, solid_angle_pdf
 from .base import LUMINANCE, LightFamily, batch_rows, dot
 
 
@@ -75,6 +76,11 @@ class EmissiveTriangles(LightFamily):
         self.emit_group = np.repeat(np.arange(groups.size),
                                     np.diff(np.append(group_start, emissive.size)))
         self.emit_coat = _emitter_coats(scene.materials, scene.material[emissive])
+        # Row 2 i + f: face f (0 front, 1 back) of emitter i, its normal and the tangents
+        # warps.frame_from_normal makes around it: light paths gather them per sample instead
+        # of building a frame per sample (the same values: the frame is a function of the row).
+        self.face_normal = np.stack([self.emit_normal, -self.emit_normal], axis=1).reshape(-1, 3)
+        self.face_s, self.face_t = warps.frame_from_normal(self.face_normal)
 
     def coat_factor(self, e, cos):
         """What the Principled Coat over emitters ``e (j,)`` leaves of their emission seen at
@@ -120,7 +126,7 @@ class EmissiveTriangles(LightFamily):
     def _point(v0, e1, e2, u):
         """Uniform points ``(m, 3)`` on triangles ``v0, e1, e2 (m, 3)`` by ``u (m, 2)``."""
         b = warps.sample_uniform_triangle(u)
-        return v0 + b[:, 1:2] * e1 + b[:, 2:3] * e2
+        return combine_rows(((b[:, 1], e1), (b[:, 2], e2)), base=v0)
 
     # ------------------------------------------------------------------ next-event estimation
     def sample_li(self, m, e, p, u, pmf, out, counters=None):
@@ -187,18 +193,32 @@ class EmissiveTriangles(LightFamily):
 
     # ------------------------------------------------------------------ light paths
     def sample_le_origin(self, m, e, u, pmf, out):
-        out.p[m] = self._point(*self._corners(e), u[m])
-        out.normal[m] = self.emit_normal[e]
+        # Row gathers and scatters (np.take, put_rows): the values of fancy indexing, faster.
+        put_rows(out.p, m, self._point(*self._corners(e), np.take(u, m, axis=0)))
+        put_rows(out.normal, m, np.take(self.emit_normal, e, axis=0))
         out.pdf[m] = pmf[m] / self.emit_area[e]
 
     def sample_le_direction(self, m, e, pts, u, out):
-        """A cosine about either face."""
-        cosine_from_faces(m, pts.normal[m], u[m], np.ones(m.size, bool), out)
+        """A cosine about either face, each with probability 1/2 (the first number picks the
+        face and is rescaled): :func:`.area.cosine_from_faces` with both faces emitting, the
+        frame of each face gathered from :attr:`face_s`, :attr:`face_t` (the same values)."""
+        uu = np.take(u, m, axis=0)
+        back = uu[:, 0] >= 0.5
+        uu[:, 0] = np.minimum(np.where(back, 2 * uu[:, 0] - 1, 2 * uu[:, 0]), 1 - 1e-16)
+        face = 2 * e + back
+        local = warps.sample_cosine_hemisphere(uu)
+        put_rows(out.w, m, warps.to_world(local, np.take(self.face_s, face, axis=0),
+                                          np.take(self.face_t, face, axis=0),
+                                          np.take(self.face_normal, face, axis=0)))
+        out.pdf[m] = warps.cosine_hemisphere_pdf(local[:, 2]) * 0.5
+        out.cos_l[m] = local[:, 2]
 
     def le(self, m, e, cos, w, receiver, out):
-        out[m] = self.emit_radiance[e] * (cos[m] != 0)[:, None]
+        cos_m = cos[m]
+        le = np.take(self.emit_radiance, e, axis=0) * (cos_m != 0)[:, None]
         if self.emit_coat is not None:
-            out[m] *= self.coat_factor(e, cos[m])
+            le *= self.coat_factor(e, cos_m)
+        put_rows(out, m, le)
 
     def pdf_le_origin(self, m, e, sel, w, out):
         out[m] = sel[m] / self.emit_area[e]

@@ -428,7 +428,7 @@ class Segmented1D:
             return index, self.pmf_table[index], u_remapped
         start = self.cdf_start[segment]
         # As in PiecewiseConstant1D: the last CDF entry <= u, so zero-mass elements are skipped.
-        local = search_right(self.cdf, start, start + length + 1, u) - start - 1
+        local = self._search(start, length, u) - start - 1
         local = np.clip(local, 0, length - 1)
         lo = self.cdf[start + local]
         width = self.cdf[start + local + 1] - lo
@@ -440,6 +440,15 @@ class Segmented1D:
     def pmf(self, index):
         """Probability of global element ``index (k,)`` within its segment."""
         return self.pmf_table[index]
+
+    def _search(self, start, length, u):
+        """:func:`search_right` of ``u (k,)`` in the CDFs of its segments (``start``,
+        ``length``: theirs). With one segment (one emissive mesh, one image row) NumPy's own
+        binary search finds the same index (the first CDF entry above ``u``, else the end)
+        in one call instead of a Python loop of bisection steps."""
+        if self.lengths.size == 1:
+            return np.searchsorted(self.cdf, u, side="right")
+        return search_right(self.cdf, start, start + length + 1, u)
 
 
 class PiecewiseConstant2D:

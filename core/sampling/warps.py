@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..rows import combine_rows
+
 INV_PI = 1.0 / np.pi
 _ONE_MINUS = np.nextafter(1.0, 0.0)
 
@@ -211,7 +213,7 @@ def frame_from_normal(n):
 
 def to_world(local, s, t, n):
     """Express local ``(k, 3)`` vectors in the frame (s, t, n)."""
-    return local[:, 0:1] * s + local[:, 1:2] * t + local[:, 2:3] * n
+    return combine_rows(((local[:, 0], s), (local[:, 1], t), (local[:, 2], n)))
 
 
 # --------------------------------------------------------------------------------------------

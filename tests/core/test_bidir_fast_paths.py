@@ -13,6 +13,13 @@
   (:func:`core.integrators.shadows.shadow_transmittance`) that a scene with transparent
   materials takes.
 
+- BDPT's ``t = 1`` strategies splat the light vertices of every depth in one batch
+  (:func:`core.integrators.connections.connect_cameras`). Property: the same image and
+  strategy views, bit for bit, as one batch per depth (``connect_camera`` for ``s = 2, 3,
+  ...``), on plain diffuse vertices, on coated / sheen / anisotropic ones, under smooth
+  shading and through a transparent leaf; and where depths mix plain-Lambert and general
+  gathers, the per-depth fallback is taken and equals the loop.
+
 Smallest error detected: any difference at all (the passes are compared for equality).
 """
 
@@ -21,12 +28,13 @@ import pytest
 
 from sampling_lab.core import scenes
 from sampling_lab.core.film import PixelFilter
-from sampling_lab.core.integrators import subpaths
+from sampling_lab.core.integrators import bidir, connections, subpaths
 from sampling_lab.core.integrators.base import Counters
 from sampling_lab.core.integrators.bdpt import BDPT
 from sampling_lab.core.prepare import prepare
 from sampling_lab.core.render import render
 from sampling_lab.core.sampling.samplers import make_sampler
+from sampling_lab.tools.transparent import transparent_scene
 from tests.bdpt_probes import bdpt_images, layered_cornell, seen_at_connect
 from tests.helpers import plain_settings
 
@@ -143,3 +151,58 @@ def test_bdpt_batch_is_the_same_in_chunks_of_any_size():
         np.testing.assert_array_equal(splats(one.splat_layers[name]),
                                       splats(many.splat_layers[name]))
     assert one.radiance.max() > 0 and len(one.splats.xy) > 100
+
+
+def _depth_by_depth(ctx, L, out):
+    """``t = 1`` as before connect_cameras: one connect_camera call per light depth."""
+    for s in range(2, L.valid.shape[0] + 1):
+        if not L.valid[s - 1].any():
+            break
+        connections.connect_camera(ctx, L, s, out)
+
+
+@pytest.mark.parametrize("make_scene", [
+    _diffuse_scene, _layered_scene,
+    lambda: scenes.cornell_sphere(16, 16, ball="mirror", light="area", roughness=0.3,
+                                  smooth=True),
+    lambda: transparent_scene("leaf")], ids=["diffuse", "coat sheen aniso", "smooth rough",
+                                             "transparent leaf"])
+def test_bdpt_splats_every_light_depth_at_once_as_depth_by_depth(make_scene, monkeypatch):
+    calls = []
+    one_depth = connections.connect_camera
+    with monkeypatch.context() as m:
+        m.setattr(connections, "connect_camera", lambda *a: calls.append(a) or one_depth(*a))
+        fused = _passes(make_scene())
+    assert not calls  # every depth in one batch (not the per-depth fallback)
+    with monkeypatch.context() as m:
+        m.setattr(bidir, "connect_cameras", _depth_by_depth)
+        loop = _passes(make_scene())
+    assert len(fused) == len(loop) > 2
+    for a, b in zip(fused, loop):
+        np.testing.assert_array_equal(a, b)
+    assert np.isfinite(fused[0]).all() and fused[0].max() > 0
+
+
+def test_bdpt_splats_depth_by_depth_where_depths_gather_differently(monkeypatch):
+    """Where some light depths are all plain Lambert and others are not (gathered by
+    different code), connect_cameras falls back to one connect_camera per depth: the
+    fallback is taken, and the image equals the per-depth loop's."""
+    real = connections.all_lambert
+
+    def mixed(smooth, subs, j=None):  # odd depths Lambert, even depths general
+        return real(smooth, subs, j) and (j is None or j % 2 == 1)
+
+    calls = []
+    one_depth = connections.connect_camera
+    with monkeypatch.context() as m:
+        m.setattr(connections, "all_lambert", mixed)
+        m.setattr(connections, "connect_camera", lambda *a: calls.append(a) or one_depth(*a))
+        fused = _passes(_diffuse_scene())
+    assert calls  # the fallback ran
+    with monkeypatch.context() as m:
+        m.setattr(connections, "all_lambert", mixed)
+        m.setattr(bidir, "connect_cameras", _depth_by_depth)
+        loop = _passes(_diffuse_scene())
+    for a, b in zip(fused, loop):
+        np.testing.assert_array_equal(a, b)
+    assert fused[0].max() > 0

@@ -221,6 +221,22 @@ def test_segmented_cdf_never_chooses_empty_elements_even_at_cdf_boundaries():
     assert np.all(w[index] > 0) and np.all(pmf > 0)
 
 
+def test_one_segment_samples_exactly_as_the_bisection_of_many_segments():
+    """A one-segment Segmented1D (one emissive mesh) searches with np.searchsorted; the same
+    weights as segment 0 of a two-segment one (searched by bisection) must give the same
+    index, pmf and remapped u, bit for bit, at CDF boundaries and next to them too."""
+    w = np.array([0.0, 1.0, 0.0, 0.0, 2.0, 0.0, 3.0, 1e-9, 0.0, 5.0])
+    one = Segmented1D(w, np.array([0, w.size]), "cdf")
+    two = Segmented1D(np.concatenate([w, [1.0, 2.0]]), np.array([0, w.size, w.size + 2]), "cdf")
+    u = np.concatenate([one.cdf, np.nextafter(one.cdf, 0.0), np.nextafter(one.cdf, 1.0),
+                        np.random.default_rng(3).random(5000)])
+    u = u[(u >= 0.0) & (u < 1.0)]
+    zeros = np.zeros(u.size, np.int64)
+    for a, b in zip(one.sample(zeros, u), two.sample(zeros, u)):
+        np.testing.assert_array_equal(a, b)
+    assert one.sample(zeros, u)[0].max() == w.size - 1
+
+
 def test_search_right_is_a_batched_searchsorted():
     rng = np.random.default_rng(9)
     values = np.sort(rng.integers(0, 20, 500)).astype(np.float64)

@@ -154,6 +154,32 @@ def test_add_samples_mean_variance_and_count_equal_numpy():
     assert count.dtype == np.float32 and count.sum() == len(pix)
 
 
+def test_add_samples_of_a_unit_span_sum_exactly_into_those_pixels():
+    """A work unit's samples cover a span of pixels away from pixel 0 (add_samples sums over
+    that span only): every sum equals a per-pixel sum in the samples' order, bit for bit
+    (rows in float32 too), and no pixel outside the span changes. An offset of the span by
+    one pixel, or a lost sample, fails the exact comparison."""
+    film = Film(9, 8)
+    rng = np.random.default_rng(21)
+    for lo, hi, dtype in ((17, 30, np.float64), (40, 41, np.float32), (3, 70, np.float64)):
+        pix = rng.integers(lo, hi, 500)
+        pix[[0, -1]] = lo, hi - 1
+        rad = rng.gamma(2.0, 1.0, (pix.size, 3)).astype(dtype)
+        before = film.sum.copy(), film.sum_sq.copy(), film.count.copy()
+        film.add_samples(pix, rad, transparency=rng.random(pix.size))
+        for p in range(film.n_pixels):
+            mine = rad[pix == p].astype(np.float64)
+            total, squares = np.zeros(3), np.zeros(3)
+            for r in mine:  # in order, as the film adds them
+                total, squares = total + r, squares + np.asarray(r ** 2, np.float64)
+            assert np.array_equal(film.sum[p], before[0][p] + total)
+            assert np.array_equal(film.count[p], before[2][p] + mine.shape[0])
+            if mine.shape[0] == 0:
+                assert np.array_equal(film.sum_sq[p], before[1][p])
+    film.add_samples(np.zeros(0, np.int64), np.zeros((0, 3)))  # an empty batch adds nothing
+    assert film.count.sum() == 1500
+
+
 def test_pixels_with_zero_or_one_sample_have_finite_zero_variance():
     film = Film(3, 1)
     film.add_samples(np.array([1]), np.array([[5.0, 6.0, 7.0]]))
@@ -324,6 +350,21 @@ def test_splats_reach_every_pixel_the_filter_covers_and_no_other(kind, width):
     expected = np.einsum("kyx,kc->yxc", w, value).reshape(-1, 3)
     np.testing.assert_allclose(film.splat_sum, expected, rtol=1e-12, atol=1e-15)
     assert film.splat_sum.any()
+
+
+@pytest.mark.parametrize("kind, width", [("BLACKMAN_HARRIS", 1.5), ("BOX", 1.0),
+                                         ("BLACKMAN_HARRIS", 3.0), ("GAUSSIAN", 1.5)])
+def test_filter_reach_holds_every_tap_the_filter_covers(kind, width):
+    """Splats visit only the offsets of PixelFilter.reach: every offset at which the filter
+    has weight, from positions all over a pixel (its edges included), must be in it; an
+    offset it leaves out would lose light at that distance."""
+    f = PixelFilter(kind, width)
+    frac = np.concatenate([np.linspace(0.0, 1.0, 4001)[:-1], [np.nextafter(1.0, 0.0)]])
+    taps = f.taps()
+    weight = f.pdf_1d(frac[None, :] - (taps[:, None] + 0.5))
+    covered = taps[(weight > 0).any(axis=1)]
+    assert set(covered) <= set(f.reach()) and set(f.reach()) <= set(taps)
+    assert 0 in covered
 
 
 def test_a_film_larger_than_half_the_memory_is_refused_before_allocation():

@@ -74,3 +74,22 @@ def test_bdpt_never_reads_the_entries_a_recycle_leaves(make_scene, monkeypatch):
     for a, b in zip(plain, poisoned):
         np.testing.assert_array_equal(a, b)
     assert np.isfinite(plain[0]).all() and plain[0].max() > 0
+
+
+def test_to_area_converts_finite_edges_and_leaves_infinite_ones_unchanged():
+    """``to_area`` (solid angle -> area density): ``pdf |cos| / d^2`` where the edge is
+    finite, the solid-angle density itself toward infinite endpoints; a batch of finite
+    edges only (its fast path) gives the same values, bit for bit, as the same rows mixed
+    with infinite ones."""
+    from sampling_lab.core.integrators.subpaths import to_area
+
+    rng = np.random.default_rng(5)
+    pdf, cos = rng.uniform(0.1, 2.0, 64), rng.uniform(-1.0, 1.0, 64)
+    dist = rng.uniform(0.01, 5.0, 64)
+    finite = to_area(pdf, cos, dist)
+    np.testing.assert_allclose(finite, pdf * np.abs(cos) / dist ** 2, rtol=1e-15)
+    mixed_dist = dist.copy()
+    mixed_dist[::3] = np.inf
+    mixed = to_area(pdf, cos, mixed_dist)
+    np.testing.assert_array_equal(mixed[1::3], finite[1::3])
+    np.testing.assert_array_equal(mixed[::3], pdf[::3])
