@@ -23,7 +23,7 @@ import numpy as np
 
 from .embree_commit import build_scene
 from .scene import VIS_ALL, VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
-from .vec_rows import scaled
+from .rows import scaled
 
 RAY_CLASSES = (VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION, VIS_SHADOW)
 
@@ -187,7 +187,7 @@ class Accel:
         """
         origins = self.offset_origin(p, ng, prim, wi)
         finite = np.isfinite(dist)
-        # Row scalings one component at a time (.vec_rows: the same values, faster).
+        # Row scalings one component at a time (.rows: the same values, faster).
         q = scaled(wi, np.where(finite, dist, 0.0))
         q += p
         scale = np.maximum(max_abs_component(q), max_abs_component(p))

@@ -18,7 +18,7 @@ from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..rows import combine_rows, divide_rows
 from ..scene import VIS_CAMERA, VIS_SHADOW
-from ..vec_rows import norms, scaled
+from ..rows import norms, scaled
 from .common import bends_normals, finite_rows, max_component, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
 from .mis_densities import Near, connection_weight, direct_weight, splat_weight

@@ -29,7 +29,7 @@ import numpy as np
 from ..materials.bsdf import KIND_DIFFUSE, OPTIONAL_GROUPS
 from ..materials.frame import dot
 from ..sampling.warps import INV_PI, cosine_hemisphere_pdf
-from ..vec_rows import scaled
+from ..rows import scaled
 from .common import take_rows
 from .subpaths import Gathered
 

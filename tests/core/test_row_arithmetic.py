@@ -1,9 +1,9 @@
-"""core.vec_rows: the component-wise row arithmetic gives NumPy's broadcast results bit for bit
+"""core.rows (norms, scaled): the component-wise row arithmetic gives NumPy's broadcast results bit for bit
 (so the connections and shadow rays that use it render the same images)."""
 
 import numpy as np
 
-from sampling_lab.core.vec_rows import norms, scaled
+from sampling_lab.core.rows import norms, scaled
 
 
 def _rows(rng, n=20000):
