@@ -271,7 +271,9 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
                    + (f", region {region[2] - region[0]} x {region[3] - region[1]} of "
                       f"{width} x {height}" if region else "")
                    + f") in {stats.get('time_s', 0.0):.2f} s "
-                   f"on {stats.get('threads', 1)} threads "
+                   f"on {stats.get('workers_text', '1 thread')}"
+                   + (f" ({stats['workers_note']})" if stats.get("workers_note") else "")
+                   + " "
                    f"(export {export_s:.2f} s, "
                    + ("scene kept from the last render" if stats.get("prepared_reused") else
                       f"prepare {stats.get('prepare_s', 0.0):.2f} s")
