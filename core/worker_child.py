@@ -71,6 +71,9 @@ class _Worker:
 
         self.render_id = render_id
         try:
+            if key not in self.prepared and scene is None:
+                raise RuntimeError(f"this worker process does not hold the scene it was asked "
+                                   f"to render (preparation key {key[:12]})")
             if key not in self.prepared:
                 used = used_settings(settings)
                 sampling = "solid_angle" if used["light_sampling"] == "solid_angle" else "area"
