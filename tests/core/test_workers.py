@@ -187,3 +187,13 @@ def test_what_keeps_threads_says_why():
                                         workers="processes"))
     assert sppm.stats["workers_text"] == "2 threads"
     assert "sppm keeps threads" in sppm.stats["workers_note"]
+
+
+def test_shutdown_ends_the_workers_and_the_next_render_starts_new_ones(scene):
+    settings = RenderSettings(spp=1, threads=2, workers="processes")
+    render(scene, settings)
+    procs = [child.proc for child in workers.pool().children]
+    workers.shutdown()
+    assert all(proc.poll() is not None for proc in procs)  # shutdown waits for them
+    again = render(scene, settings)
+    assert again.error is None and again.stats["workers_shipped"] == 2
