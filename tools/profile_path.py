@@ -133,6 +133,9 @@ def main(argv=None):
     parser.add_argument("--gil-check", action="store_true",
                         help="one thread, --threads threads, and --threads one-thread "
                              "processes at once: samples/s of each (see the module's doc)")
+    parser.add_argument("--startup", action="store_true",
+                        help="the worker pool's start-up and per-render shipping cost "
+                             "(see startup())")
     parser.add_argument("--busy", action="store_true",
                         help="how busy the worker threads stay (see busy())")
     parser.add_argument("--counts", action="store_true",
@@ -152,6 +155,9 @@ def main(argv=None):
         return
     if args.busy:
         busy(args)
+        return
+    if args.startup:
+        startup(args)
         return
     if args.counts:
         counts(args)
@@ -307,6 +313,31 @@ def _processes_render(ctx, scene, settings, n, unit_paths=None):
     if failed:
         raise RuntimeError(f"a render process failed: {failed[0]!r}")
     return (sum(s for s, _, _ in out), max(w for _, w, _ in out), sum(c for _, _, c in out))
+
+
+def startup(args, repeats=3):
+    """Print what worker processes cost besides rendering: a fresh pool's first render against
+    the next ones (the children's start-up: interpreter, imports, preparing the scene), the
+    seconds spent spawning them and hashing and sending the scene (``workers_start_s``,
+    ``workers_ship_s``), and a render of a changed scene (shipped and prepared again)."""
+    from sampling_lab.core import workers
+    from sampling_lab.core.render import render
+
+    scene, settings = _scene_and_settings(args)
+    settings = dataclasses.replace(settings, workers="processes")
+    other = dataclasses.replace(scene, film_transparent=not scene.film_transparent)
+    for _ in range(repeats):
+        workers.shutdown()
+        rows = []
+        for label, sc in (("fresh pool", scene), ("kept pool", scene), ("kept pool", scene),
+                          ("changed scene", other)):
+            t0 = time.perf_counter()
+            s = render(sc, settings).stats
+            rows.append(f"{label}: {time.perf_counter() - t0:.3f} s (spawn "
+                        f"{1e3 * s['workers_start_s']:.1f} ms, key + send "
+                        f"{1e3 * s['workers_ship_s']:.1f} ms, shipped to "
+                        f"{s['workers_shipped']})")
+        print(" | ".join(rows))
 
 
 def busy(args):
