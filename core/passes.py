@@ -192,8 +192,12 @@ class Passes:
                 self._abort(futures)
                 break
             if self.out_of_time():
+                if self.processes is not None:
+                    self.processes.close()  # queued units are dropped (None), as _started's
                 for f in _started(futures):  # finish what runs; its samples are kept
-                    self.accumulate(*f.result())
+                    out = f.result()
+                    if out is not None:
+                        self.accumulate(*out)
                 self._show(on_pass)
                 return False
         self._show(on_pass)

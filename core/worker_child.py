@@ -12,6 +12,9 @@ from the parent (stdin)
     ``("unit", unit_id, unit)``: render one work unit of the current render.
     ``("stop", render_id)``: units of that render stop at their next bounce (read by a reader
     thread while a unit runs, so a cancel is answered within a bounce).
+    ``("close", render_id)``: the render is out of time: the unit running finishes, the
+    queued ones of that render are answered None without running (as a thread pool cancels
+    the units no thread has started).
 from the worker (the original stdout; ``print`` goes to stderr)
     ``("done", unit_id, result)``: :func:`core.passes.render_unit`'s result (None: stopped);
     ``("error", unit_id, "TypeName: message", traceback)``.
@@ -56,6 +59,7 @@ class _Worker:
         self.prepared = {}  # preparation key -> PreparedScene (the last one only)
         self.render_id = -1
         self.stopped = -1  # the latest render id the parent stopped
+        self.closed = -1  # the latest render id whose queued units are dropped
         self.job = None  # (integrator, sampler, window, frame_width, pixel_filter) or the error
 
     def send(self, message):
@@ -95,6 +99,9 @@ class _Worker:
             return
         integrator, sampler, window, frame_width, pixel_filter = self.job
         render_id = self.render_id
+        if self.closed >= render_id:
+            self.send(("done", unit_id, None))
+            return
         try:
             result = render_unit(integrator, sampler, window, frame_width, pixel_filter, unit,
                                  lambda: self.aborted(render_id))
@@ -113,6 +120,8 @@ def _read(stdin, worker, inbox):
             message = pickle.load(stdin)
             if message[0] == "stop":
                 worker.stopped = max(worker.stopped, message[1])
+            elif message[0] == "close":
+                worker.closed = max(worker.closed, message[1])
             else:
                 inbox.put(message)
     except (EOFError, OSError, pickle.UnpicklingError):

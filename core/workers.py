@@ -280,7 +280,15 @@ class ProcessUnits:
 
     def stop(self):
         """Stop this render's units at their next bounce (those queued return at once)."""
-        data = pickle.dumps(("stop", self.render_id), pickle.HIGHEST_PROTOCOL)
+        self._tell("stop")
+
+    def close(self):
+        """The render is out of time: the units running finish, the queued ones return None
+        without running."""
+        self._tell("close")
+
+    def _tell(self, what):
+        data = pickle.dumps((what, self.render_id), pickle.HIGHEST_PROTOCOL)
         for child in self.children:
             try:
                 child.send(data)
