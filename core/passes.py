@@ -18,6 +18,7 @@ import os
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from concurrent.futures import TimeoutError as FutureTimeout
 
 import numpy as np
 
@@ -286,7 +287,11 @@ class Passes:
         # A worker process answers a stop within a bounce; one that does not is stuck.
         timeout = STOP_WAIT_S if self.processes is not None else None
         for f in _started(pending):
-            out = f.result(timeout)
+            try:
+                out = f.result(timeout)
+            except FutureTimeout:
+                raise RuntimeError(f"a worker process did not stop within {STOP_WAIT_S:.0f} s "
+                                   f"of the cancel") from None
             if out is not None:
                 self.accumulate(*out)
         return True
