@@ -326,6 +326,9 @@ def _worker_processes(scene, settings, film):
     if mode == "processes":
         from . import workers
 
+        why = workers.memory_note(scene.n_triangles, count)
+        mode = "threads" if why else mode
+    if mode == "processes":
         t0 = time.perf_counter()
         try:
             key = preparation_key(scene, settings)

@@ -65,6 +65,26 @@ importlib.import_module(name + ".core.worker_child").main()
 
 _ids = itertools.count()
 
+# Memory a worker process holds per triangle of the scene (the scene, its prepared tables and
+# Embree's BVH): a render of 10 M triangles peaked at 3.9 GB in one process (docs/HARD_CASES.md),
+# an upper bound of what each worker copies.
+WORKER_BYTES_PER_TRIANGLE = 400
+
+
+def memory_note(n_triangles, count, memory=None):
+    """Why ``count`` workers would not fit: ``''`` if their copies of a scene of
+    ``n_triangles`` need at most half of the machine's ``memory`` (default: all of it), else
+    the reason threads (one copy) are used instead."""
+    from .film import physical_memory
+
+    memory = physical_memory() if memory is None else memory
+    need = count * n_triangles * WORKER_BYTES_PER_TRIANGLE
+    if not memory or need <= memory / 2:
+        return ""
+    return (f"{count} worker processes would each copy the {n_triangles:,} triangles (about "
+            f"{need / 2 ** 30:.1f} GB in all, more than half of the "
+            f"{memory / 2 ** 30:.0f} GB here): threads share one copy")
+
 
 class WorkerUnitError(RuntimeError):
     """A work unit raised in a worker process.

@@ -197,3 +197,12 @@ def test_shutdown_ends_the_workers_and_the_next_render_starts_new_ones(scene):
     assert all(proc.poll() is not None for proc in procs)  # shutdown waits for them
     again = render(scene, settings)
     assert again.error is None and again.stats["workers_shipped"] == 2
+
+
+def test_a_scene_whose_copies_would_not_fit_keeps_threads():
+    gb = 2 ** 30
+    # 2 workers x 10 M triangles x 400 bytes = 7.5 GB: more than half of 8 GB, not of 32 GB.
+    assert workers.memory_note(10_000_000, 2, memory=32 * gb) == ""
+    note = workers.memory_note(10_000_000, 2, memory=8 * gb)
+    assert note.startswith("2 worker processes would each copy the 10,000,000 triangles")
+    assert "threads share one copy" in note
