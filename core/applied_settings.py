@@ -24,8 +24,8 @@ def worker_mode(settings):
     if settings.workers != "processes":
         return "threads", ""
     if settings.integrator not in PROCESS_INTEGRATORS:
-        return "threads", (f"{settings.integrator} keeps threads (it renders whole passes or "
-                           f"solves in one process)")
+        return "threads", (f"{settings.integrator} keeps threads: it renders whole passes or "
+                           f"solves in one process")
     if thread_count(settings) == 1:
         return "threads", "one thread needs no worker process"
     return "processes", ""
