@@ -285,6 +285,9 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         if not isinstance(exc, RenderRefused):
             result.traceback = (getattr(exc, "remote_traceback", None)
                                 or traceback.format_exc())
+    finally:
+        if processes is not None:
+            processes.release()
     t = passes.elapsed()
     counters = passes.counters
     result.stats = {
@@ -335,6 +338,8 @@ def _worker_processes(scene, settings, film):
             processes = workers.ProcessUnits(count, scene, settings, key,
                                              (film.x0, film.y0, film.width, film.height),
                                              scene.camera.width)
+        except workers.WorkersBusy as exc:
+            why = f"{exc}: threads were used"
         except (OSError, workers.WorkerDied) as exc:
             why = f"worker processes could not start ({exc}); threads were used"
     if processes is None:

@@ -106,6 +106,10 @@ class WorkerDied(RuntimeError):
     """A worker process exited while it had work units."""
 
 
+class WorkersBusy(RuntimeError):
+    """Another render of this process is using the worker processes."""
+
+
 def package_name():
     """The name this package is imported under (``sampling_lab``, or
     ``bl_ext.<repo>.sampling_lab`` in Blender)."""
@@ -198,19 +202,33 @@ class WorkerPool:
         self.children = []
         self.lock = threading.Lock()
         self.started = 0  # processes started, over the pool's life
+        self.in_use = False  # a render holds the workers (one at a time: see take())
 
     def take(self, count):
-        """``count`` live workers (dead ones replaced); returns them and the seconds spent
-        starting new ones."""
+        """``count`` live workers (dead ones replaced) for one render, until :meth:`release`;
+        returns them and the seconds spent starting new ones. :class:`WorkersBusy` while
+        another render holds them (a worker runs one render's units at a time)."""
         t0 = time.perf_counter()
         with self.lock:
+            if self.in_use:
+                raise WorkersBusy("the worker processes are busy with another render")
+            self.in_use = True
             for child in [c for c in self.children if not c.alive()]:
                 child.close()
             self.children = [c for c in self.children if c.alive()]
-            while len(self.children) < count:
-                self.children.append(_Child())
-                self.started += 1
+            try:
+                while len(self.children) < count:
+                    self.children.append(_Child())
+                    self.started += 1
+            except BaseException:
+                self.in_use = False
+                raise
             return self.children[:count], time.perf_counter() - t0
+
+    def release(self):
+        """The render that took the workers has ended."""
+        with self.lock:
+            self.in_use = False
 
     def shutdown(self, timeout=EXIT_WAIT_S):
         """Close every worker's stdin and wait for it to exit (kill it after ``timeout``)."""
@@ -270,6 +288,18 @@ class ProcessUnits:
 
     def __init__(self, count, scene, settings, key, window, frame_width):
         self.children, self.start_s = pool().take(count)
+        try:
+            self._start(scene, settings, key, window, frame_width)
+        except BaseException:
+            self.release()
+            raise
+
+    def release(self):
+        """Give the workers back to the pool (the render has ended; units of it still in
+        flight are stopped or finish before the next render's, in each worker's order)."""
+        pool().release()
+
+    def _start(self, scene, settings, key, window, frame_width):
         t0 = time.perf_counter()
         self.render_id = next(_ids)
         head = ("render", self.render_id, key)

@@ -119,8 +119,11 @@ def test_a_units_error_in_a_worker_comes_back_with_its_traceback(scene):
     settings = RenderSettings(spp=2, threads=2, workers="processes")
     units = workers.ProcessUnits(2, scene, settings, preparation_key(scene, settings),
                                  (0, 0, SIZE, SIZE), SIZE)
-    with pytest.raises(workers.WorkerUnitError) as failure:
-        units.submit(("not", "a", "unit")).result(timeout=120)
+    try:
+        with pytest.raises(workers.WorkerUnitError) as failure:
+            units.submit(("not", "a", "unit")).result(timeout=120)
+    finally:
+        units.release()
     assert failure.value.error.startswith("ValueError: ")
     assert "render_unit" in failure.value.remote_traceback
 
@@ -206,3 +209,19 @@ def test_a_scene_whose_copies_would_not_fit_keeps_threads():
     note = workers.memory_note(10_000_000, 2, memory=8 * gb)
     assert note.startswith("2 worker processes would each copy the 10,000,000 triangles")
     assert "threads share one copy" in note
+
+
+def test_a_second_render_while_the_workers_are_busy_uses_threads(scene):
+    settings = RenderSettings(spp=2, threads=2, workers="processes")
+    inner = []
+
+    def progress(*_):  # a render started while this one holds the workers
+        if not inner:
+            inner.append(render(scene, settings))
+
+    outer = render(scene, settings, progress=progress)
+    assert outer.stats["workers"] == "processes"
+    assert inner[0].stats["workers"] == "threads"
+    assert inner[0].stats["workers_note"].startswith("the worker processes are busy")
+    _assert_same_images(outer, inner[0])
+    assert render(scene, settings).stats["workers"] == "processes"  # released
