@@ -49,3 +49,22 @@ def test_worker_processes_send_back_the_classes_of_blenders_package(addon):
     # Pickles name classes by module: the child imported the extension as Blender names it.
     assert type(out).__module__ == f"{ADDON_MODULE}.core.integrators.base"
     assert out.radiance.shape == (64, 3) and counters.camera_samples == 64
+
+
+@pytest.mark.parametrize("integrator, threads, active", [
+    ('PATH', 2, True), ('BDPT', 2, True), ('LIGHT', 2, True), ('SPPM', 2, False),
+    ('RADIOSITY', 2, False), ('PATH', 1, False)])
+def test_workers_is_greyed_out_where_a_render_would_use_threads(empty_scene, integrator,
+                                                               threads, active):
+    from panels import drawn_rows
+
+    empty_scene.sampling_lab.integrator = integrator
+    empty_scene.render.threads_mode, empty_scene.render.threads = 'FIXED', threads
+    rows = drawn_rows("SAMPLINGLAB_RENDER_PT_performance", empty_scene)
+    assert rows["workers"] is active
+    # The core says the same: what the render uses, and what the add-on greys out.
+    render = importlib.import_module(f"{ADDON_MODULE}.core.render")
+    applied = importlib.import_module(f"{ADDON_MODULE}.core.applied_settings")
+    settings = render.RenderSettings(integrator=integrator.lower(), threads=threads,
+                                     workers="processes")
+    assert (applied.used_settings(settings)["workers"] == "processes") is active
