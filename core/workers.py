@@ -169,6 +169,8 @@ class _Child:
                     future.set_exception(WorkerUnitError(*rest))
                 else:
                     future.set_result(rest[0])
+                # Not kept alive while the next message is awaited (it may be minutes).
+                del future, rest
         except Exception:  # noqa: BLE001 - end of output, or a broken message: the child is gone
             pass
         error = self._exit_error()
