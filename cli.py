@@ -207,7 +207,8 @@ def _is_blend(name):
 
 def load_scene(args):
     """Scene and the settings it carries, from a built-in name or a .blend file."""
-    settings = RenderSettings()
+    # The registry's default workers (processes), not the core's (threads: see RenderSettings).
+    settings = RenderSettings(workers=OPTIONS["workers"].default)
     name = args.scene
     if _is_blend(name):
         if not os.path.isfile(name) or not os.access(name, os.R_OK):

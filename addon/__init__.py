@@ -23,3 +23,7 @@ def register():
 def unregister():
     for module in reversed(_modules()):
         module.unregister()
+    # The final renders' worker processes (core.workers) end with the add-on.
+    from ..core import workers
+
+    workers.shutdown()

@@ -266,12 +266,16 @@ class SAMPLINGLAB_RenderEngine(bpy.types.RenderEngine):
             self.report({'ERROR'}, f"Sampling Lab: render failed: {out.error}")
         stats = out.stats
         region = settings.region
+        # Which ran: "2 worker processes" or "2 threads" (core.render._worker_processes).
+        workers = stats.get("workers_text") or f"{stats.get('threads', 1)} threads"
         summary = (f"frame {scene.frame_current}: {stats.get('spp', 0)} spp "
                    f"({stats.get('samples', 0)} samples"
                    + (f", region {region[2] - region[0]} x {region[3] - region[1]} of "
                       f"{width} x {height}" if region else "")
                    + f") in {stats.get('time_s', 0.0):.2f} s "
-                   f"on {stats.get('threads', 1)} threads "
+                   f"on {workers}"
+                   + (f" ({stats['workers_note']})" if stats.get("workers_note") else "")
+                   + " "
                    f"(export {export_s:.2f} s, "
                    + ("scene kept from the last render" if stats.get("prepared_reused") else
                       f"prepare {stats.get('prepare_s', 0.0):.2f} s")

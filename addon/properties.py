@@ -118,6 +118,8 @@ class SamplingLabSettings(PropertyGroup):
     mlt_chains: _property("mlt_chains", soft_min=64, soft_max=65536)
     filter_type: _property("filter_type")
     filter_width: _property("filter_width", soft_max=5.0, precision=2, subtype='PIXEL')
+    # Final renders only: the viewport always renders on threads (addon/viewport.py).
+    workers: _property("workers")
 
 
 classes = (SamplingLabSettings,)

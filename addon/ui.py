@@ -257,7 +257,7 @@ class SAMPLINGLAB_RENDER_PT_performance(SamplingLabButtonsPanel, Panel):
     bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
-        layout, _ = settings_layout(self, context)
+        layout, settings = settings_layout(self, context)
 
         rd = context.scene.render
         col = layout.column()
@@ -266,6 +266,12 @@ class SAMPLINGLAB_RENDER_PT_performance(SamplingLabButtonsPanel, Panel):
         sub = col.column(align=True)
         sub.enabled = rd.threads_mode == 'FIXED'
         sub.prop(rd, "threads")
+        # Worker processes run the units of path, light and BDPT final renders on more than
+        # one thread (core.applied_settings.worker_mode); the viewport always uses threads.
+        sub = col.column()
+        # (rd.threads is the resolved count under Auto too.)
+        sub.active = settings.integrator in {'PATH', 'LIGHT', 'BDPT'} and rd.threads > 1
+        sub.prop(settings, "workers")
 
 
 class SAMPLINGLAB_OBJECT_PT_ray_visibility(Panel):

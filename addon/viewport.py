@@ -23,7 +23,7 @@ keeps the exported scene and a :class:`ProgressiveRender`, whose worker thread r
    does not exist in background mode).
 
 The render settings are the final render's (integrator, sampler, bounces, MIS, seed, filter,
-threads); the sample count is Viewport Samples and the final render's time limit does not apply.
+threads), but the units always run on threads (no worker processes: see ``core.workers``); the sample count is Viewport Samples and the final render's time limit does not apply.
 """
 
 from __future__ import annotations
@@ -88,8 +88,10 @@ def viewport_settings(scene):
 
     props = scene.sampling_lab
     samples = int(props.viewport_samples)
+    # Threads: the viewport re-renders on every change and needs no worker start-up or
+    # shipping of the scene (Render > Performance > Workers is for final renders).
     return dataclasses.replace(render_settings(props), spp=samples,
-                               time_limit=0.0 if samples > 0 else math.inf)
+                               time_limit=0.0 if samples > 0 else math.inf, workers="threads")
 
 
 def settings_key(scene):

@@ -7,10 +7,28 @@ from __future__ import annotations
 import dataclasses
 
 from .integrators import integrator_class
+from .passes import thread_count
 from .sampling.mis import HEURISTICS
 
 # Integrators that estimate by photon density (biased, consistent): their own settings apply.
 PHOTON_INTEGRATORS = ("photon", "sppm")
+
+# Integrators whose work units can run in worker processes (their state is rebuilt from the
+# scene and the settings): the others render whole passes or solve a system in this process.
+PROCESS_INTEGRATORS = ("path", "light", "bdpt")
+
+
+def worker_mode(settings):
+    """Where a render's work units run: ``('processes', '')``, or ``('threads', why)`` with why
+    processes were not used (``''`` when threads were asked for)."""
+    if settings.workers != "processes":
+        return "threads", ""
+    if settings.integrator not in PROCESS_INTEGRATORS:
+        return "threads", (f"{settings.integrator} keeps threads: it renders whole passes or "
+                           f"solves in one process")
+    if thread_count(settings) == 1:
+        return "threads", "one thread needs no worker process"
+    return "processes", ""
 
 
 def used_settings(settings):
@@ -42,8 +60,14 @@ def used_settings(settings):
         ``transparent_max_bounces`` (path tracing only, and the transparent limit for light
         tracing, BDPT, photon mapping and SPPM: the other integrators stop paths at
         ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
-        estimators use no MIS: one strategy per light contribution).
+        estimators use no MIS: one strategy per light contribution), and ``workers``
+        (``'processes'`` or ``'threads'``: :func:`worker_mode`).
     """
+    return {**_used_settings(settings), "workers": worker_mode(settings)[0]}
+
+
+def _used_settings(settings):
+    """:func:`used_settings` but ``workers``."""
     if settings.integrator == "radiosity":
         return _radiosity_used(settings)
     if settings.integrator == "mlt":

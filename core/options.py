@@ -473,6 +473,15 @@ OPTIONS = {o.name: o for o in (
     Option("threads", int, "Threads",
            "Worker threads; 0 is one per CPU core (in Blender: Render > Performance > Threads)",
            0, minimum=0, maximum=1024),
+    _menu("workers", "Workers",
+          "Path Tracing, Light Tracing and Bidirectional: where the work units run. Worker "
+          "processes share no Python lock, so they scale with the cores better than threads "
+          "(each holds its own copy of the scene). The other integrators, a render on one "
+          "thread and the viewport use threads", "processes",
+          (Choice("processes", "Processes", "One worker process per thread, kept between "
+                  "renders; each prepares the scene once"),
+           Choice("threads", "Threads", "Worker threads in this process (no start-up, one "
+                  "copy of the scene; they share Python's lock)"))),
     Option("strategy_views", bool, "Strategy Views",
            "Bidirectional only: write two render passes per BDPT strategy (s, t) with s light "
            "and t camera vertices, for paths up to Max Path Length: the strategy's own estimate "

@@ -1,11 +1,15 @@
-"""The passes of a render: work units on worker threads, accumulated into the film in unit order.
+"""The passes of a render: work units on worker threads or processes, accumulated into the film
+in unit order.
 
 A pass adds ``spp_per_pass`` samples to every pixel. Each pass is cut into work units (a range of
 pixels times a range of sample indices) that worker threads (``threads``, one per core by default)
-run concurrently; Embree and large NumPy operations release the GIL. Units cover disjoint pixels
-and their results are accumulated in unit order, and every random number is a function of
-(pixel, sample index, dimension, seed), so the same seed gives a bit-identical image whatever the
-thread count or timing. :func:`core.render.render` says when a render halts.
+run concurrently; Embree and large NumPy operations release the GIL. With ``workers='processes'``
+(path, light and BDPT: :func:`core.applied_settings.worker_mode`) the units run in worker
+processes instead (:mod:`core.workers`), which share no GIL; this loop still accumulates them.
+Units cover disjoint pixels and their results are accumulated in unit order, and every random
+number is a function of (pixel, sample index, dimension, seed), so the same seed gives a
+bit-identical image whatever the thread or process count or timing. :func:`core.render.render`
+says when a render halts.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ import os
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from concurrent.futures import TimeoutError as FutureTimeout
 
 import numpy as np
 
@@ -28,8 +33,11 @@ POLL_S = 0.05
 # must not depend on the thread count, or the film's sums would be added in another order.
 PASS_UNITS = 8
 
-# Work units submitted per worker thread at a time (see _Passes._run_pass).
+# Work units submitted per worker thread (or process) at a time (see Passes._run_units).
 IN_FLIGHT = 2
+
+# Seconds a cancelled render waits for each worker process's unit to stop before it fails.
+STOP_WAIT_S = 30.0
 
 
 def _units(n_pixels, first_sample, spp_in_pass, unit_paths=UNIT_PATHS):
@@ -50,7 +58,7 @@ class Passes:
     in unit order, with progress, cancel and the time limit checked between units."""
 
     def __init__(self, settings, integrator, sampler, film, cam, progress, cancel,
-                 unit_paths=None):
+                 unit_paths=None, processes=None):
         self.settings, self.integrator = settings, integrator
         self.sampler, self.film = sampler, film
         self.frame_width = cam.width
@@ -66,6 +74,8 @@ class Passes:
         self.spp_per_pass = max(1, min(self.unit_paths * PASS_UNITS // (cam.width * cam.height),
                                        64))
         self.threads = thread_count(settings)
+        # core.workers.ProcessUnits: the units run in worker processes instead of threads.
+        self.processes = processes
         self.counters = Counters()
         self.done_spp = 0
         self.unshown = 0  # units added to the film since on_pass() was last called
@@ -81,25 +91,8 @@ class Passes:
 
     def run_unit(self, unit):
         """Render one work unit ``(pixel_start, pixel_stop, first_sample, n_samples)``."""
-        film = self.film
-        p0, p1, s0, k = unit
-        pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
-        samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
-        # Streams and camera rays are indexed by frame pixel, the film by window pixel.
-        frame_pixels = ((film.y0 + pixels // film.width) * self.frame_width + film.x0
-                        + pixels % film.width)
-        local = Counters()
-        stream = self.sampler.stream(frame_pixels, samples)
-        stream.abort = self.stop.is_set
-        try:
-            out = self.integrator.render_samples(stream, self.pixel_filter, local)
-        except Aborted:
-            return None
-        # The filter taps of the light-path splats are made here, on the worker: the render
-        # loop, whose thread the next unit waits for, only adds them up.
-        taps = (film.splat_taps(out.splats.xy, out.splats.value, self.pixel_filter)
-                if out.splats is not None and len(out.splats.xy) else None)
-        return pixels, out, local, taps
+        return render_unit(self.integrator, self.sampler, self.film, self.frame_width,
+                           self.pixel_filter, unit, self.stop.is_set)
 
     def accumulate(self, pixels, out, local, taps=None):
         """Add one unit's output to the film (in unit order: the image is deterministic);
@@ -139,14 +132,26 @@ class Passes:
 
     def _run_unit_passes(self, on_pass):
         """:meth:`run` for integrators that render work units."""
+        if self.processes is not None:
+            try:
+                return self._run_units(self.processes.submit, on_pass)
+            except BaseException:
+                self._halt()  # a unit failed: the others stop at their next bounce
+                raise
         pool = ThreadPoolExecutor(max_workers=self.threads)
         try:
-            return self._run_units(pool, on_pass)
+            return self._run_units(lambda unit: pool.submit(self.run_unit, unit), on_pass)
         except BaseException:
             self.stop.set()  # a unit failed: the others stop at their next bounce
             raise
         finally:
             pool.shutdown(wait=True)
+
+    def _halt(self):
+        """Stop the units in flight at their next bounce (threads and worker processes)."""
+        self.stop.set()
+        if self.processes is not None:
+            self.processes.stop()
 
     def _planned_units(self):
         """Every work unit of the render, pass after pass: ``(k, unit, index, count)``, ``k``
@@ -161,8 +166,9 @@ class Passes:
                 yield k, unit, index, len(units)
             done += k
 
-    def _run_units(self, pool, on_pass):
-        """Run the planned units, up to :data:`IN_FLIGHT` per thread at a time, and add them
+    def _run_units(self, submit, on_pass):
+        """Run the planned units (``submit(unit)`` -> a ``Future`` of :meth:`run_unit`'s
+        result), up to :data:`IN_FLIGHT` per thread or process at a time, and add them
         to the film in plan order (the image does not depend on timing). The next pass's units
         start while the last ones of a pass run, so no worker idles at a pass's end (small
         images have few units per pass). A render stopped part-way calls ``on_pass()`` once
@@ -173,7 +179,7 @@ class Passes:
                 nxt = next(planned, None)
                 if nxt is None:
                     break
-                pending.append((pool.submit(self.run_unit, nxt[1]), nxt))
+                pending.append((submit(nxt[1]), nxt))
             if not pending:
                 return False
             future, (k, _, index, count) = pending.pop(0)
@@ -187,8 +193,12 @@ class Passes:
                 self._abort(futures)
                 break
             if self.out_of_time():
+                if self.processes is not None:
+                    self.processes.close()  # queued units are dropped (None), as _started's
                 for f in _started(futures):  # finish what runs; its samples are kept
-                    self.accumulate(*f.result())
+                    out = f.result()
+                    if out is not None:
+                        self.accumulate(*out)
                 self._show(on_pass)
                 return False
         self._show(on_pass)
@@ -273,12 +283,58 @@ class Passes:
 
     def _abort(self, pending):
         """Stop the units in flight at their next bounce; keep those that finished first."""
-        self.stop.set()
+        self._halt()
+        # A worker process answers a stop within a bounce; one that does not is stuck.
+        timeout = STOP_WAIT_S if self.processes is not None else None
         for f in _started(pending):
-            out = f.result()
+            try:
+                out = f.result(timeout)
+            except FutureTimeout:
+                raise RuntimeError(f"a worker process did not stop within {STOP_WAIT_S:.0f} s "
+                                   f"of the cancel") from None
             if out is not None:
                 self.accumulate(*out)
         return True
+
+
+def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abort):
+    """Render one work unit ``(pixel_start, pixel_stop, first_sample, n_samples)`` (on a worker
+    thread, or in a worker process: :mod:`core.worker_child`).
+
+    Parameters
+    ----------
+    film : core.film.Film or core.worker_child.FilmWindow
+        Where the film lies in the frame (``x0``, ``y0``, ``width``, ``height``) and its
+        ``splat_taps``; nothing it accumulates is read.
+    frame_width : int
+        Camera width in pixels (streams and camera rays are indexed by frame pixel).
+    abort : callable() -> bool
+        The stream stops at its next bounce once it says so.
+
+    Returns
+    -------
+    tuple or None
+        ``(pixels (n,) int64, BatchOutput, Counters, taps)`` for :meth:`Passes.accumulate`
+        (``taps``: the splats' filter taps, or None), or None if ``abort`` stopped it.
+    """
+    p0, p1, s0, k = unit
+    pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
+    samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
+    # Streams and camera rays are indexed by frame pixel, the film by window pixel.
+    frame_pixels = ((film.y0 + pixels // film.width) * frame_width + film.x0
+                    + pixels % film.width)
+    local = Counters()
+    stream = sampler.stream(frame_pixels, samples)
+    stream.abort = abort
+    try:
+        out = integrator.render_samples(stream, pixel_filter, local)
+    except Aborted:
+        return None
+    # The filter taps of the light-path splats are made here, on the worker: the render
+    # loop, whose thread the next unit waits for, only adds them up.
+    taps = (film.splat_taps(out.splats.xy, out.splats.value, pixel_filter)
+            if out.splats is not None and len(out.splats.xy) else None)
+    return pixels, out, local, taps
 
 
 def _started(pending):

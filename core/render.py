@@ -29,12 +29,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import RenderRefused
-from .applied_settings import PHOTON_INTEGRATORS, used_settings
+from .applied_settings import PHOTON_INTEGRATORS, used_settings, worker_mode
 from .film import Film, check_film_memory, to_float32
 from .integrators import integrator_class
 from .integrators.adjoint_normals import unsampled_bent_mirrors
 from .options import DEFAULTS, validate
-from .passes import Passes
+from .passes import Passes, thread_count
 from .prepare import PreparedScene, prepare
 from .sampling.mis import HEURISTICS
 from .sampling.samplers import make_sampler
@@ -64,6 +64,8 @@ class RenderSettings:
     :func:`core.integrators.common.strategy_pass_names`.
 
     ``threads`` is the number of worker threads, 0 for one per CPU core (Blender's Auto).
+    ``workers`` is where path, light and BDPT units run: ``'threads'`` (the default here) or
+    ``'processes'`` (:mod:`core.workers`, one per thread; same image bit for bit).
 
     Radiosity (``integrator='radiosity'``, :mod:`core.integrators.radiosity`):
     ``radiosity_solver``, ``radiosity_patch_size``, ``radiosity_samples`` (form-factor and
@@ -95,6 +97,10 @@ class RenderSettings:
     filter_type: str = DEFAULTS["filter_type"]
     filter_width: float = DEFAULTS["filter_width"]
     threads: int = DEFAULTS["threads"]
+    # The core's default is threads, not the registry's processes (the add-on's and the command
+    # line's): a library caller or a test that patches core functions sees its patch only in
+    # this process. Final renders in Blender and the CLI, bench and bench-scenes use processes.
+    workers: str = "threads"
     strategy_views: bool = DEFAULTS["strategy_views"]
     strategy_max_length: int = DEFAULTS["strategy_max_length"]
     photons: int = DEFAULTS["photons"]
@@ -265,15 +271,23 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
                           + _messages(scene, settings, integrator),
                           layer_names=list(integrator.layers), prepared=prep)
     keep_freed_memory()
-    passes = Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths)
+    processes, workers = _worker_processes(scene, settings, film) if not solve_cancelled else (
+        None, {})
+    passes = Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths,
+                    processes)
     try:
         result.cancelled = solve_cancelled or passes.run(
             lambda: on_update is not None and on_update(result))
     except Exception as exc:  # noqa: BLE001 - a failed unit must not lose the finished ones
         result.cancelled = True
-        result.error = f"{type(exc).__name__}: {exc}"
+        # A worker process's exception: its own message and traceback.
+        result.error = getattr(exc, "error", None) or f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, RenderRefused):
-            result.traceback = traceback.format_exc()
+            result.traceback = (getattr(exc, "remote_traceback", None)
+                                or traceback.format_exc())
+    finally:
+        if processes is not None:
+            processes.release()
     t = passes.elapsed()
     counters = passes.counters
     result.stats = {
@@ -289,6 +303,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
         "triangles": scene.n_triangles,
         "emitters": prep.lights.n_emitters,
         **used,
+        **workers,
         "distribution_build_s": prep.lights.build_s,
         **prep.accel.build_stats(),
         "distribution_sample_s": counters.distribution_s,
@@ -300,6 +315,42 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     if integrator.whole_passes:
         result.stats.update(integrator.render_stats(t))
     return result
+
+
+def _worker_processes(scene, settings, film):
+    """The :class:`core.workers.ProcessUnits` of a render whose units run in worker processes
+    (None: threads), and the stats saying which ran and why: ``workers`` ('processes' or
+    'threads'), ``workers_text`` ('2 worker processes'), ``workers_note`` (why processes were
+    not used), ``workers_start_s`` and ``workers_ship_s`` (starting workers, and hashing and
+    sending the scene), ``workers_shipped`` (workers sent the scene)."""
+    count = thread_count(settings)
+    mode, why = worker_mode(settings)
+    processes = None
+    if mode == "processes":
+        from . import workers
+
+        why = workers.memory_note(scene.n_triangles, count)
+        mode = "threads" if why else mode
+    if mode == "processes":
+        t0 = time.perf_counter()
+        try:
+            key = preparation_key(scene, settings)
+            processes = workers.ProcessUnits(count, scene, settings, key,
+                                             (film.x0, film.y0, film.width, film.height),
+                                             scene.camera.width)
+        except workers.WorkersBusy as exc:
+            why = f"{exc}: threads were used"
+        except (OSError, workers.WorkerDied) as exc:
+            why = f"worker processes could not start ({exc}); threads were used"
+    if processes is None:
+        return None, {"workers": "threads", "workers_note": why,
+                      "workers_text": f"{count} thread{'s' if count > 1 else ''}"}
+    return processes, {
+        "workers": "processes", "workers_note": "",
+        "workers_text": f"{count} worker processes",
+        "workers_start_s": processes.start_s,
+        "workers_ship_s": time.perf_counter() - t0 - processes.start_s,
+        "workers_shipped": processes.shipped}
 
 
 def _cancelled_while_preparing(scene, film, used, seconds):

@@ -21,7 +21,16 @@ def _bench(args):
     from .cornell import run
 
     return run(resolution=args.resolution, seconds=args.seconds,
-               reference_spp=args.reference_spp, cycles=not args.no_cycles, output=args.output)
+               reference_spp=args.reference_spp, cycles=not args.no_cycles, output=args.output,
+               workers=args.workers)
+
+
+def _workers(parser):
+    """``--workers``: where our renders' work units run (the registry's option)."""
+    parser.add_argument("--workers", type=_option_type(OPTIONS["workers"]),
+                        default=OPTIONS["workers"].default, metavar="KIND",
+                        help=f"where our renders' work units run: one of "
+                             f"{OPTIONS['workers'].allowed()}")
 
 
 def _bench_strategies(args):
@@ -41,7 +50,7 @@ def _bench_scenes(args):
                size=args.size, reference_spp=args.reference_spp, cycles=not args.no_cycles,
                output=args.output, update_docs=args.update_docs,
                reference_seconds=args.reference_seconds, sampler=args.sampler, seed=args.seed,
-               command=command)
+               command=command, workers=args.workers)
 
 
 def _bdpt_views(args):
@@ -273,6 +282,7 @@ def add_parsers(sub, **kw):
     b.add_argument("--reference-spp", type=_positive_int, default=1024,
                    help="samples per pixel of the references (capped by time)")
     b.add_argument("--no-cycles", action="store_true", help="skip the Cycles comparison")
+    _workers(b)
     add_output_arguments(b, "bench")
     s = _add(sub, "bench-strategies", "equal-time error of every sampler and MIS setting on "
              "the Cornell box (STRATEGIES.md)", _bench_strategies, **kw)
@@ -396,4 +406,5 @@ def _add_bench_scenes(sub, **kw):
                    help="seed of every render (the references take the next four): repeat a "
                         "run with other seeds where one render's error scatters (caustics)")
     h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
+    _workers(h)
     add_output_arguments(h, "bench-scenes", "HARD_SCENES.md and its figure")

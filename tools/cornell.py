@@ -71,7 +71,8 @@ BIDIR_TARGETS = {"light": 0.5, "bdpt": 0.3}
 
 
 def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
-        output="out/bench", *, reference_seconds=None, threads=2, max_bounces=8, seed=0):
+        output="out/bench", *, reference_seconds=None, threads=2, max_bounces=8, seed=0,
+        workers="processes"):
     """Run the Cornell box benchmark, print its figures and write them to ``output``.
 
     Parameters
@@ -91,6 +92,9 @@ def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
         cap (a 1024-spp reference at 256 x 256 then takes several minutes). The Cycles
         reference uses the sample count our reference reached.
     threads, max_bounces, seed : int
+    workers : str
+        Where our renders' work units run (``RenderSettings.workers``): the product's default,
+        processes, or threads.
 
     Returns
     -------
@@ -108,8 +112,9 @@ def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
     t_bench = time.perf_counter()
     bench = _Bench(cornell_box(width, height, light="mesh"), seconds, reference_spp,
                    reference_seconds, threads, max_bounces, seed)
+    bench.workers = workers
     bench.summary.update(resolution=f"{width}x{height}", max_bounces=max_bounces,
-                         threads=threads, equal_time_s=seconds,
+                         threads=threads, workers=workers, equal_time_s=seconds,
                          reference_spp_requested=reference_spp,
                          reference_seconds_cap=reference_seconds,
                          triangles=bench.scene.n_triangles)
@@ -147,13 +152,14 @@ class _Bench:
         self.scene, self.seconds, self.seed = scene, seconds, seed
         self.reference_spp, self.reference_seconds = reference_spp, reference_seconds
         self.threads, self.max_bounces = threads, max_bounces
+        self.workers = "processes"
         self.pixels = scene.camera.width * scene.camera.height
         self.summary = machine_summary()
         self.rows, self.status, self.cy = [], 0, None
 
     def settings(self, **kw):
         return RenderSettings(**{**dict(seed=self.seed, **uniform_limits(self.max_bounces),
-                                        threads=self.threads), **kw})
+                                        threads=self.threads, workers=self.workers), **kw})
 
     def ceiling(self):
         """1. Raw embreex on the same triangles: rates by thread count."""

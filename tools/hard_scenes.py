@@ -121,7 +121,7 @@ DOCS_FILES = ("HARD_SCENES.md", "images/hard_scenes.png")
 def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), reference_spp=1 << 16,
         cycles=True, output="out/bench-scenes", report=True, update_docs=False, *,
         reference_seconds=None, sampler=DEFAULTS["sampler"], threads=2, max_bounces=8, seed=0,
-        command=None):
+        command=None, workers="processes"):
     """Render every scene with each integrator and Cycles for ``seconds``; write the figures.
 
     Parameters
@@ -155,6 +155,9 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
     threads, max_bounces, seed : int
     command : str or None
         The command line, quoted in the report.
+    workers : str
+        Where our renders' work units run (``RenderSettings.workers``): processes (the
+        product's default) or threads.
 
     Returns
     -------
@@ -170,10 +173,11 @@ def run(scenes=tuple(SCENES), integrators=None, seconds=4.0, size=(64, 64), refe
         reference_seconds = max(REFERENCE_MIN_SECONDS, REFERENCE_TIME_FACTOR * seconds)
     os.makedirs(os.path.join(output, "images"), exist_ok=True)
     bench = _Bench(integrators, seconds, width, height, reference_spp, reference_seconds, cycles,
-                   sampler, threads, max_bounces, seed)
+                   sampler, threads, max_bounces, seed, workers=workers)
     t_bench = time.perf_counter()
     summary = machine_summary()
     summary.update(resolution=f"{width}x{height}", max_bounces=max_bounces, threads=threads,
+                   workers=workers,
                    equal_time_s=seconds, reference_spp_requested=reference_spp,
                    reference_seconds_cap=reference_seconds, integrators=" ".join(integrators),
                    reference_integrator=_reference_names(scenes), scenes=" ".join(scenes),
@@ -268,6 +272,7 @@ class _Bench:
     max_bounces: int
     seed: int
     status: int = 0
+    workers: str = "processes"
 
     @property
     def pixels(self):
@@ -275,7 +280,7 @@ class _Bench:
 
     def settings(self, **kw):
         return RenderSettings(**{**dict(seed=self.seed, **uniform_limits(self.max_bounces),
-                                        threads=self.threads), **kw})
+                                        threads=self.threads, workers=self.workers), **kw})
 
     def scene(self, name):
         """Build, render and measure scene ``name``: its rows, its info and its montage row."""

@@ -45,17 +45,21 @@ import threading
 import time
 
 from ..core import scenes
+from ..core import workers as workers_mod
+from ..core.applied_settings import PROCESS_INTEGRATORS
 from ..core.integrators import INTEGRATORS
 from ..core.render import RenderSettings, render
 
 CANCEL_DELAY = (0.3, 2.0)
 
 
-def cancel_latency(integrator, size, delay, threads=2):
+def cancel_latency(integrator, size, delay, threads=2, workers="processes"):
     """Seconds from setting the cancel flag ``delay`` s into a render to ``render()``
-    returning, and the samples per pixel it kept (finished passes)."""
+    returning, and the samples per pixel it kept (finished passes); ``workers`` as the
+    product's final renders (processes where they apply)."""
     scene = scenes.cornell_box(*size)
-    settings = RenderSettings(integrator=integrator, spp=1 << 20, threads=threads)
+    settings = RenderSettings(integrator=integrator, spp=1 << 20, threads=threads,
+                              workers=workers)
     flag = threading.Event()
     out = {}
 
@@ -119,7 +123,7 @@ def _drain(fd, said):
         os.close(fd)
 
 
-def peak_rss(integrator, size):
+def peak_rss(integrator, size, workers="threads"):
     """Peak RSS in MB of a child rendering one pass at ``size``, and its RSS before.
 
     The child reads its own high-water mark (Linux: ``VmHWM``, reset before the render
@@ -127,7 +131,7 @@ def peak_rss(integrator, size):
     forking process's high-water mark into the child, so every child reported at least this
     tool's own peak (541 MB after the SPPM cancels: radiosity's peak was hidden under it)."""
     code = ("import json, resource, sys; from sampling_lab.tools.limits import _child_rss; "
-            f"print(json.dumps(_child_rss({integrator!r}, {tuple(size)!r})))")
+            f"print(json.dumps(_child_rss({integrator!r}, {tuple(size)!r}, {workers!r})))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=3600)
     if done.returncode:
@@ -135,10 +139,10 @@ def peak_rss(integrator, size):
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def _status_mb(field):
-    """``field`` (``'VmRSS'``, ``'VmHWM'``) of ``/proc/self/status`` in MB, None elsewhere."""
+def _status_mb(field, pid="self"):
+    """``field`` (``'VmRSS'``, ``'VmHWM'``) of ``/proc/<pid>/status`` in MB, None elsewhere."""
     try:
-        with open("/proc/self/status") as f:
+        with open(f"/proc/{pid}/status") as f:
             for line in f:
                 if line.startswith(field + ":"):
                     return int(line.split()[1]) / 1024
@@ -163,9 +167,12 @@ def _peak_mb():
     return hwm if hwm is not None else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def _child_rss(integrator, size):
+def _child_rss(integrator, size, workers="threads"):
     """In the child: build the scene, reset the high-water mark, render one pass, return
-    the RSS before and the peak during the render (``peak_source`` says how it was read)."""
+    the RSS before and the peak during the render (``peak_source`` says how it was read);
+    with worker processes (started by this render) also their peaks (``workers_mb``, each
+    process's ``VmHWM``) and ``total_mb``, this process's peak plus theirs (an upper bound:
+    the peaks need not coincide)."""
     import embreex.mesh_construction  # noqa: F401 - loaded before: not the render's memory
     import embreex.rtcore_scene  # noqa: F401
     import scipy.spatial  # noqa: F401
@@ -174,9 +181,14 @@ def _child_rss(integrator, size):
     reset = _reset_peak()
     before = _status_mb("VmRSS") if reset else _peak_mb()
     t0 = time.perf_counter()
-    result = render(scene, RenderSettings(integrator=integrator, spp=1))
-    return {"before_mb": before, "peak_mb": _peak_mb(), "seconds": time.perf_counter() - t0,
+    result = render(scene, RenderSettings(integrator=integrator, spp=1, workers=workers))
+    peak = _peak_mb()
+    children = [_status_mb("VmHWM", child.proc.pid) for child in workers_mod.pool().children]
+    children = [mb for mb in children if mb is not None]
+    return {"before_mb": before, "peak_mb": peak, "seconds": time.perf_counter() - t0,
             "photon_mb": result.stats.get("photon_memory_peak_mb"),
+            "workers": result.stats.get("workers_text"),
+            "workers_mb": children, "total_mb": peak + sum(children),
             "peak_source": "VmHWM reset before the render" if reset else "ru_maxrss"}
 
 
@@ -217,6 +229,9 @@ def run(integrators=tuple(INTEGRATORS), repeats=5, cancel_size=(640, 360),
         if rss:
             row["rss"] = peak_rss(name, rss_size)
             progress(f"{name}: peak RSS {row['rss']}")
+            if name in PROCESS_INTEGRATORS:
+                row["rss_processes"] = peak_rss(name, rss_size, "processes")
+                progress(f"{name}: peak RSS with worker processes {row['rss_processes']}")
     bvh = bvh_rows(bvh_sizes, repeats, cli, seed, progress) if bvh_sizes else {}
     load1 = os.getloadavg()
     if output:
@@ -244,11 +259,15 @@ def _report(rows, repeats, cancel_size, rss_size, load0, load1):
         f"partial EXR written, the interpreter closed). RSS: one pass at "
         f"{rss_size[0]}x{rss_size[1]}, default settings, each in a fresh process "
         f"(the peak: `VmHWM`, reset just before the render; 'before': the RSS then, with "
-        f"NumPy, SciPy and Embree loaded and the scene built).",
+        f"NumPy, SciPy and Embree loaded and the scene built), on threads; 'with 2 worker "
+        f"processes': the same render's peak in the rendering process plus each worker "
+        f"process's peak (path, light, BDPT; the default of final renders). Cancels run with "
+        f"worker processes where they apply, as final renders do.",
         "",
         "| integrator | cancel (median / max) | CLI SIGINT: stopped | CLI: exited, EXR "
-        "written | peak RSS | RSS before render | render time |",
-        "|---|---|---|---|---|---|---|",
+        "written | peak RSS | RSS before render | render time | with 2 worker processes: "
+        "total (process + workers) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for name, row in rows.items():
         cancel = row.get("cancel") or [float("nan")]
@@ -259,8 +278,16 @@ def _report(rows, repeats, cancel_size, rss_size, load0, load1):
             f"| {name} | {_ms(cancel)} | {_ms(cli)} | {_ms(cli_exit)} | "
             f"{rss.get('peak_mb', float('nan')):.0f} MB | "
             f"{rss.get('before_mb', float('nan')):.0f} MB | "
-            f"{rss.get('seconds', float('nan')):.1f} s |")
+            f"{rss.get('seconds', float('nan')):.1f} s | {_processes_text(row)} |")
     return "\n".join(lines) + "\n"
+
+
+def _processes_text(row):
+    rss = row.get("rss_processes")
+    if not rss or "total_mb" not in rss:
+        return "threads" if not rss else rss.get("error", "")
+    workers = " + ".join(f"{mb:.0f}" for mb in rss["workers_mb"])
+    return f"{rss['total_mb']:.0f} MB ({rss['peak_mb']:.0f} + {workers})"
 
 
 # --- Embree's BVH build: cancel latency at 1, 3 and 10 M triangles (``--bvh``) ---

@@ -26,7 +26,9 @@ share the cores and memory but not the GIL, the allocator or the render loop: if
 scale much better than threads, what is shared inside the process is the limit. Each line
 also gives the process CPU seconds per wall second (1 and 2 on a quiet machine: lower, the
 load took the rest, and the ratios mean nothing). The scene is built once and sent to the
-processes (a spawned child cannot import ``bpy``).
+processes (a spawned child cannot import ``bpy``). A fourth line times the product's
+worker processes (``RenderSettings(workers='processes')``, :mod:`core.workers`) through
+``render()``, their CPU included; ``--integrator light`` or ``bdpt`` checks those.
 
 Figures that hold better under load (a shared machine): ``--busy`` (how much of the time the worker
 threads spend in work units), ``--counts`` (Python and C-function calls per camera sample,
@@ -87,8 +89,9 @@ def _scene_and_settings(args):
     extra = {k: v for k, v in (("sampler", args.sampler),
                                ("light_selection", args.light_selection),
                                ("light_sampling", args.light_sampling)) if v}
-    settings = RenderSettings(spp=args.spp, threads=args.threads,
-                              **_bounces(RenderSettings, 8), seed=0, **extra)
+    settings = RenderSettings(spp=args.spp, threads=args.threads, integrator=args.integrator,
+                              workers=args.workers, **_bounces(RenderSettings, 8), seed=0,
+                              **extra)
     return scene, settings
 
 
@@ -115,6 +118,12 @@ def main(argv=None):
                         help="bench (the bench's mesh-light box) or a bench-scenes scene "
                              "(cornell, glass_sphere, ...; needs bpy)")
     parser.add_argument("--no-profile", action="store_true", help="speed figures only")
+    parser.add_argument("--integrator", default="path",
+                        help="path (default; the stage profile knows its stages only), light "
+                             "or bdpt: for the speed figures and --gil-check")
+    parser.add_argument("--workers", default="threads", choices=("threads", "processes"),
+                        help="where the timed render's units run (the stage profile sees "
+                             "threads only); --gil-check times both")
     parser.add_argument("--sampler", help="instead of the default (e.g. independent)")
     parser.add_argument("--light-selection", help="instead of the default (e.g. power)")
     parser.add_argument("--light-sampling", help="instead of the default (e.g. solid_angle)")
@@ -124,6 +133,9 @@ def main(argv=None):
     parser.add_argument("--gil-check", action="store_true",
                         help="one thread, --threads threads, and --threads one-thread "
                              "processes at once: samples/s of each (see the module's doc)")
+    parser.add_argument("--startup", action="store_true",
+                        help="the worker pool's start-up and per-render shipping cost "
+                             "(see startup())")
     parser.add_argument("--busy", action="store_true",
                         help="how busy the worker threads stay (see busy())")
     parser.add_argument("--counts", action="store_true",
@@ -143,6 +155,9 @@ def main(argv=None):
         return
     if args.busy:
         busy(args)
+        return
+    if args.startup:
+        startup(args)
         return
     if args.counts:
         counts(args)
@@ -211,18 +226,35 @@ def _lasting_threads_cpu():
     return out
 
 
-def _timed_render(scene, settings, threads, barrier=None):
-    """Camera samples, wall seconds and process CPU seconds of one render (after a warm-up
-    render), started together with the other processes when ``barrier`` is given."""
+def _timed_render(scene, settings, threads, barrier=None, workers="threads"):
+    """Camera samples, wall seconds and CPU seconds (this process's and its worker
+    processes') of one render (after a warm-up render), started together with the other
+    processes when ``barrier`` is given."""
     from sampling_lab.core.render import render
 
-    settings = dataclasses.replace(settings, threads=threads)
+    settings = dataclasses.replace(settings, threads=threads, workers=workers)
     render(scene, settings)
     if barrier is not None:
         barrier.wait()
-    t0, c0 = time.perf_counter(), time.process_time()
+    w0, t0, c0 = _workers_cpu(), time.perf_counter(), time.process_time()
     res = render(scene, settings)
-    return res.stats["samples"], time.perf_counter() - t0, time.process_time() - c0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return res.stats["samples"], wall, cpu + _workers_cpu() - w0
+
+
+def _workers_cpu():
+    """CPU seconds (user + system) of this process's live worker processes (core.workers)."""
+    from sampling_lab.core import workers
+
+    hz, total = os.sysconf("SC_CLK_TCK"), 0.0
+    for child in workers.pool().children:
+        try:
+            with open(f"/proc/{child.proc.pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        total += (int(fields[11]) + int(fields[12])) / hz
+    return total
 
 
 def set_unit_paths(paths):
@@ -251,11 +283,13 @@ def gil_check(args, repeats=2):
     n = args.threads
     scene, settings = _scene_and_settings(args)
     ctx = multiprocessing.get_context("spawn")
-    labels = ("1 thread", f"{n} threads, one process", f"{n} processes of 1 thread")
+    labels = ("1 thread", f"{n} threads, one process", f"{n} processes of 1 thread",
+              f"{n} worker processes (render)")
     best = {label: (0.0, 0.0) for label in labels}
     for _ in range(repeats):
         runs = [_timed_render(scene, settings, 1), _timed_render(scene, settings, n),
-                _processes_render(ctx, scene, settings, n, args.unit_paths)]
+                _processes_render(ctx, scene, settings, n, args.unit_paths),
+                _timed_render(scene, settings, n, workers="processes")]
         for label, (samples, wall, cpu) in zip(labels, runs):
             best[label] = max(best[label], (samples / wall, cpu / wall))
     one = best["1 thread"][0]
@@ -279,6 +313,31 @@ def _processes_render(ctx, scene, settings, n, unit_paths=None):
     if failed:
         raise RuntimeError(f"a render process failed: {failed[0]!r}")
     return (sum(s for s, _, _ in out), max(w for _, w, _ in out), sum(c for _, _, c in out))
+
+
+def startup(args, repeats=3):
+    """Print what worker processes cost besides rendering: a fresh pool's first render against
+    the next ones (the children's start-up: interpreter, imports, preparing the scene), the
+    seconds spent spawning them and hashing and sending the scene (``workers_start_s``,
+    ``workers_ship_s``), and a render of a changed scene (shipped and prepared again)."""
+    from sampling_lab.core import workers
+    from sampling_lab.core.render import render
+
+    scene, settings = _scene_and_settings(args)
+    settings = dataclasses.replace(settings, workers="processes")
+    other = dataclasses.replace(scene, film_transparent=not scene.film_transparent)
+    for _ in range(repeats):
+        workers.shutdown()
+        rows = []
+        for label, sc in (("fresh pool", scene), ("kept pool", scene), ("kept pool", scene),
+                          ("changed scene", other)):
+            t0 = time.perf_counter()
+            s = render(sc, settings).stats
+            rows.append(f"{label}: {time.perf_counter() - t0:.3f} s (spawn "
+                        f"{1e3 * s['workers_start_s']:.1f} ms, key + send "
+                        f"{1e3 * s['workers_ship_s']:.1f} ms, shipped to "
+                        f"{s['workers_shipped']})")
+        print(" | ".join(rows))
 
 
 def busy(args):

@@ -250,6 +250,8 @@ def test_a_render_failing_half_way_keeps_its_samples_and_says_so(empty_scene, tm
                                                                  monkeypatch, capfd):
     scenes.cornell_box_point_light(empty_scene, resolution=(160, 120))
     scenes.set_sampling_lab(empty_scene, samples=4)
+    # Threads: the patch below exists in this process only, not in worker processes.
+    empty_scene.sampling_lab.workers = 'THREADS'
     path = importlib.import_module(f"{ADDON_MODULE}.core.integrators.path")
     original = path.PathTracer.render_samples
     # One 64 k-path unit per batch: the frame's 76,800 paths are then two units.

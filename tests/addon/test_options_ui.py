@@ -66,6 +66,9 @@ def test_properties_read_back_as_core_values(empty_scene, modules):
     props = empty_scene.sampling_lab
     defaults = modules["render"].RenderSettings()
     values = modules["properties"].core_values(props)
+    # Workers: the add-on's final renders use processes, the core's default is threads (a
+    # patched core function would not reach a worker process: see RenderSettings).
+    assert (values.pop("workers"), defaults.workers) == ("processes", "threads")
     for name, value in values.items():
         assert value == pytest.approx(getattr(defaults, name)), name
     props.filter_type, props.mis_heuristic, props.use_strategy_views = 'BOX', 'CUTOFF', True

@@ -3,10 +3,11 @@ run is ``python -m sampling_lab bench-soak``).
 
 Seven renders of a 512 x 384 Cornell box; the resident set is read after each (after
 collecting garbage and glibc's ``malloc_trim``, so that freed blocks kept for reuse do not
-hide a leak). Its growth per render, the median of the increments after the first render
-(imports, Embree, the allocator's pools), must stay under :data:`LEAK_MB`: the median ignores
-a single step of Blender's own buffers (one of about 28 MB seen in a run without a leak, whose
-median increment was 0.3 MB). A leak of each render's result (its film, about 10 MB at this
+hide a leak). Its growth per render, the smaller of the median and the mean of the increments
+after the first render (imports, Embree, the allocator's pools), must stay under
+:data:`LEAK_MB`: the median ignores a single step of Blender's own buffers (one of about 28 MB
+seen in a run without a leak, whose median increment was 0.3 MB), the mean an RSS that
+alternates between two sizes. A leak of each render's result (its film, about 10 MB at this
 size) grows every step by that much, which the second test shows by making one.
 """
 
@@ -25,7 +26,11 @@ def _growth_per_render():
     rows = soak.soak(rounds=7, size=(512, 384), spp=1, jobs=JOB, progress=lambda *_: None)
     rss = [r["rss_mb"] for r in rows]
     print("RSS after each render (MB):", [round(v, 1) for v in rss])
-    return float(np.median(np.diff(rss[1:])))
+    steps = np.diff(rss[1:])
+    # The median ignores one step of Blender's own buffers; the mean an alternation between
+    # two sizes (seen with worker processes: +6, -6, +6 MB, no growth, whose median is +6). A
+    # leak raises both.
+    return float(min(np.median(steps), np.mean(steps)))
 
 
 def test_repeated_renders_do_not_grow_memory(addon):

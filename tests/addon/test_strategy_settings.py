@@ -207,5 +207,8 @@ def test_render_stats_report_the_threads_used(empty_scene, tmp_path, capfd):
     S.set_sampling_lab(empty_scene, samples=1)
     empty_scene.render.threads_mode, empty_scene.render.threads = 'FIXED', 3
     capfd.readouterr()
+    S.render_to_exr(empty_scene, tmp_path / "processes.exr")  # the default: processes
+    assert "on 3 worker processes" in capfd.readouterr().out
+    empty_scene.sampling_lab.workers = 'THREADS'
     S.render_to_exr(empty_scene, tmp_path / "threads.exr")
     assert "on 3 threads" in capfd.readouterr().out

@@ -32,6 +32,9 @@ def _render_actions():
 def test_every_render_setting_is_a_registry_option_with_its_default():
     fields = {f.name: f.default for f in dataclasses.fields(RenderSettings) if f.name != "region"}
     assert list(fields) == list(OPTIONS)
+    # Workers: the core's default is threads, the product's (add-on, CLI) processes, so that a
+    # test patching a core function renders in the process it patched (RenderSettings).
+    assert (fields.pop("workers"), OPTIONS["workers"].default) == ("threads", "processes")
     for name, default in fields.items():
         assert default == OPTIONS[name].default, name
         OPTIONS[name].check(default)
