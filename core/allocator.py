@@ -1,5 +1,5 @@
-"""The C allocator's settings for a process that runs work units on its main thread: freed
-batch arrays are kept for the next batch.
+"""The C allocator's settings for a rendering process: freed batch arrays are kept for the next
+batch (:func:`core.render.render` and a worker process make them once).
 
 A work unit makes and frees thousands of NumPy arrays of a few hundred kilobytes (a column of
 16,384 rows of three float64 is 393 KB). glibc's ``malloc`` serves blocks above its mmap
@@ -13,8 +13,9 @@ memory from glibc's main arena, where this matters: on the bench box, 0.23 (path
 (BDPT) page faults per camera sample without it, none with it, and the path tracer's CPU per
 sample 2.0 -> 1.7 us. Units on worker threads (the thread pool of :mod:`core.passes`) take
 theirs from per-thread arenas, which fault far less (0.05 and 0.12 per sample) and not less
-with this setting: :func:`core.render.render` does not make it (``docs/BENCHMARKS.md``,
-seventh round). The values computed are unchanged either way.
+with this setting (``docs/BENCHMARKS.md``, seventh round); an earlier round counted 600 k
+page faults on the bench box before the setting, when units ran in larger fresh arrays. The
+values computed are unchanged either way.
 
 The cost is memory: up to the trim threshold of freed memory per ``malloc`` arena stays with
 the process until it exits, instead of going back to the system between batches. Only glibc

@@ -34,6 +34,7 @@ from .film import Film, check_film_memory, to_float32
 from .integrators import integrator_class
 from .integrators.adjoint_normals import unsampled_bent_mirrors
 from .options import DEFAULTS, validate
+from .allocator import keep_freed_batches
 from .passes import Passes, thread_count
 from .prepare import PreparedScene, prepare
 from .sampling.mis import HEURISTICS
@@ -270,7 +271,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     result = RenderResult(film, messages=list(scene.messages) + _scene_notes(scene, prep)
                           + _messages(scene, settings, integrator),
                           layer_names=list(integrator.layers), prepared=prep)
-    keep_freed_memory()
+    keep_freed_batches()
     processes, workers = _worker_processes(scene, settings, film) if not solve_cancelled else (
         None, {})
     passes = Passes(settings, integrator, sampler, film, cam, progress, cancel, unit_paths,
@@ -456,26 +457,4 @@ def region_bounds(cam, region):
     if region is None:
         return 0, 0, int(cam.width), int(cam.height)
     return tuple(int(v) for v in region)
-
-
-_allocator_tuned = []
-
-
-def keep_freed_memory():
-    """Let glibc's malloc keep freed work buffers for reuse (once per process): by default it
-    maps each array of more than 128 KB afresh and unmaps it when freed, and re-faulting those
-    pages took a fifth of the path tracer's time (600 k page faults on the bench Cornell box).
-    Now blocks under 32 MB come from the heap, which keeps up to 256 MB free. No effect
-    where malloc is not glibc's (macOS, Windows, an allocator such as jemalloc)."""
-    if _allocator_tuned:
-        return
-    _allocator_tuned.append(True)
-    try:
-        import ctypes
-        mallopt = getattr(ctypes.CDLL(None), "mallopt", None)
-    except (OSError, TypeError):
-        return
-    if mallopt is not None:
-        mallopt(-3, 32 << 20)  # M_MMAP_THRESHOLD (glibc's largest)
-        mallopt(-1, 256 << 20)  # M_TRIM_THRESHOLD
 

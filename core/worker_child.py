@@ -48,6 +48,7 @@ class FilmWindow(NamedTuple):
     width: int
     height: int
 
+    n_pixels = Film.n_pixels
     splat_taps = Film.splat_taps
 
 
@@ -138,9 +139,9 @@ def main():
     sys.stdout = sys.stderr
     worker, inbox = _Worker(out), queue.Queue()
     threading.Thread(target=_read, args=(sys.stdin.buffer, worker, inbox), daemon=True).start()
-    from .render import keep_freed_memory
+    from .allocator import keep_freed_batches
 
-    keep_freed_memory()
+    keep_freed_batches()
     while True:
         message = inbox.get()
         if message[0] == "render":

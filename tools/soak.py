@@ -63,7 +63,7 @@ def rss_mb():
     after collecting garbage cycles and handing the allocator's free blocks back to the system
     (glibc's ``malloc_trim``):
     otherwise the up to 256 MB of freed blocks glibc keeps for reuse
-    (:func:`core.render.keep_freed_memory`) would hide a leak until they are used up."""
+    (:func:`core.allocator.keep_freed_batches`) would hide a leak until they are used up."""
     _trim()
     try:
         with open("/proc/self/status") as f:
@@ -178,7 +178,7 @@ def growth(rows, key="rss_mb"):
     last: ``({"round 1": mb, "round 10": mb, "middle round": mb}, last_mb)`` (rounds the run
     did not reach are left out). Round 0 is the warm-up; from round 1 to about round 10 the
     allocator settles (glibc keeps up to 256 MB of freed blocks for reuse,
-    :func:`core.render.keep_freed_memory`); growth from then on is what a leak shows."""
+    :func:`core.allocator.keep_freed_batches`); growth from then on is what a leak shows."""
     last = max(x["round"] for x in rows)
     starts = {"round 1": min(1, last), "round 10": 10, "middle round": (min(1, last) + last) // 2}
     return ({name: _round_median(rows, r, key) for name, r in starts.items() if r <= last},

@@ -8,7 +8,7 @@ one 2-D draw of the base tree's form (slot key, the three sub-keys, the index sh
 two coordinates' scrambles, bit reversal, conversion to doubles). With ``--base`` the base
 tree's streams are timed in the same process, one right after the other (as
 :mod:`tools.ab_units`), so a load spike hits both alike. Memory is kept as in a render
-(``core.render.keep_freed_memory``)::
+(``core.allocator.keep_freed_batches``)::
 
     PYTHONPATH=/path/to/parent python tools/stream_cost.py --base /tmp/base/sampling_lab
 """
@@ -75,7 +75,7 @@ def main(argv=None):
     parser.add_argument("--paths", type=int, default=65536)
     parser.add_argument("--repeats", type=int, default=30)
     args = parser.parse_args(argv)
-    importlib.import_module(f"{HEAD}.core.render").keep_freed_memory()  # as a render does
+    importlib.import_module(f"{HEAD}.core.allocator").keep_freed_batches()  # as a render does
     pkgs = [HEAD]
     if args.base:
         _import_base(args.base)
