@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .textures import LUMINANCE, material_texture_values
+from .textures import luminance, material_texture_values
 
 
 @dataclass
@@ -62,7 +62,7 @@ class AlphaTextures:
         mats = scene.materials
         hit, color = material_texture_values(scene, mats.alpha_texture, rows, prim, u, v)
         # A NaN texel reads as transparent (the exporter zeroes non-finite pixels already).
-        a = np.clip(np.nan_to_num(color @ LUMINANCE, nan=0.0), 0.0, 1.0)
+        a = np.clip(np.nan_to_num(luminance(color), nan=0.0), 0.0, 1.0)
         return hit, np.where(mats.alpha_invert[rows[hit]], 1.0 - a, a)
 
     def factors(self, scene, rows, prim, u, v):

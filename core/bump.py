@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .textures import LUMINANCE, hit_uv, texture_lookup
+from .textures import luminance, hit_uv, texture_lookup
 
 # Finite-difference step of the height lookup, in texels.
 STEP_TEXELS = 0.01
@@ -73,7 +73,7 @@ def _height_gradient(scene, index, uv):
     modes = scene.texture_interpolation[index], scene.texture_extension[index]
 
     def height(offset):
-        return texture_lookup(image, uv + offset, *modes) @ LUMINANCE
+        return luminance(texture_lookup(image, uv + offset, *modes))
 
     h0 = height(np.zeros(2))
     return (height(np.array([du, 0.0])) - h0) / du, (height(np.array([0.0, dv])) - h0) / dv

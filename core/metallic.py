@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .materials.bsdf import KIND_DIELECTRIC
-from .textures import LUMINANCE, material_texture_values
+from .textures import luminance, material_texture_values
 
 # How a component's weight follows the metallic value.
 FIXED, NON_METAL, METAL = -1, 0, 1
@@ -50,7 +50,7 @@ class MetallicTextures:
                                              prim, u, v)
         if hit.size == 0:
             return hit, np.ones((0, self.weights.shape[1]))
-        m = np.clip(color @ LUMINANCE, 0.0, 1.0)[:, None]
+        m = np.clip(luminance(color), 0.0, 1.0)[:, None]
         r = rows[hit]
         m0 = self.m0[r][:, None]
         cls = self.classes[r]

@@ -88,6 +88,13 @@ def textured_base_color(scene, tri_material, prim, u, v):
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
+def luminance(rgb):
+    """Luminance ``(k,)`` of colours ``rgb (k, 3)``. By ``einsum``, not ``rgb @ LUMINANCE``: a
+    ``(k, 3) x (3,)`` product goes to multi-threaded BLAS, whose threads then spin on the other
+    cores while the render's own workers need them (see :mod:`core.camera`)."""
+    return np.einsum("ij,j->i", rgb, LUMINANCE)
+
+
 def material_texture_values(scene, column, material, prim, u, v):
     """Lookups of the texture column ``column (m,)`` (an index into ``scene.textures`` per
     material row, -1 for none) for the hits of ``material (k,)`` rows on ``prim, u, v (k,)``:
@@ -115,7 +122,7 @@ def material_scalar(scene, column, material, prim, u, v):
     (see :func:`material_base_color` for the parameters)."""
     rows, color = material_texture_values(scene, column, material, prim, u, v)
     # A NaN texel reads as 0 (the exporter zeroes non-finite pixels already).
-    return rows, np.clip(np.nan_to_num(color @ LUMINANCE, nan=0.0), 0.0, 1.0)
+    return rows, np.clip(np.nan_to_num(luminance(color), nan=0.0), 0.0, 1.0)
 
 
 def material_roughness(scene, material, prim, u, v):

@@ -132,7 +132,8 @@ def _camera_subpath(ctx, pixel_filter, stream, n, depth, out):
     C.beta[0] = 1.0
     m = np.asarray(cam.to_world, np.float64)
     axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
-    pdf_cam = camera_pdf(cam, d @ axis, ctx.film_pixels)
+    # einsum, not `@`: a (n, 3) x (3,) product wakes multi-threaded BLAS (see core.camera).
+    pdf_cam = camera_pdf(cam, np.einsum("ij,j->i", d, axis), ctx.film_pixels)
     walk(ctx, C, o, d, tmax, np.ones((n, 3)), pdf_cam, np.zeros(n, bool),
          np.full(n, VIS_CAMERA, np.int32), np.arange(n), stream, RADIANCE,
          lambda j: DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX, depth,
