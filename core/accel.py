@@ -38,6 +38,21 @@ def max_abs_component(v):
     return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
 
 
+def as_float32(v):
+    """``v (n, 3)`` as the C-contiguous float32 array that Embree reads (no copy if it is one)."""
+    return np.ascontiguousarray(v, np.float32)
+
+
+def ray_lengths(tmax, n):
+    """Embree's ``tfar (n,)`` for ``tmax`` (``(n,)`` or a scalar): float32, capped at 3e38 (inf
+    is not a valid tfar).
+
+    One pass into a fresh float32 array: the same values as capping in float64 and then
+    converting, without the float64 temporary.
+    """
+    return np.minimum(tmax, 3e38, out=np.empty(n, np.float32), casting="same_kind")
+
+
 @dataclass
 class Hits:
     """Closest hits of a ray batch.
@@ -140,16 +155,15 @@ class Accel:
         scene, rows, any_tris = self._scene_for(mask)
         if n == 0 or not any_tris:
             return Hits(np.full(n, -1, np.int32), np.full(n, np.inf), np.zeros(n), np.zeros(n))
-        dists = None
-        if tmax is not None:
-            dists = np.ascontiguousarray(np.minimum(tmax, 3e38), np.float32)
-        out = scene.run(np.ascontiguousarray(origins, np.float32),
-                        np.ascontiguousarray(directions, np.float32), dists=dists, output=1)
-        prim = out["primID"].astype(np.int32)
-        hit = prim >= 0
+        out = scene.run(as_float32(origins), as_float32(directions),
+                        dists=None if tmax is None else ray_lengths(tmax, n), output=1)
+        prim = out["primID"].astype(np.int32, copy=False)
+        miss = prim < 0
         if rows is not None:
-            prim = np.where(hit, rows[np.maximum(prim, 0)], -1).astype(np.int32)
-        t = np.where(hit, out["tfar"].astype(np.float64), np.inf)
+            prim = rows[np.maximum(prim, 0)]
+            prim[miss] = -1
+        t = out["tfar"].astype(np.float64)
+        t[miss] = np.inf
         return Hits(prim, t, out["u"].astype(np.float64), out["v"].astype(np.float64))
 
     def occluded(self, origins, directions, tmax, mask=VIS_ALL):
@@ -159,9 +173,7 @@ class Accel:
         scene, _, any_tris = self._scene_for(mask)
         if n == 0 or not any_tris:
             return np.zeros(n, bool)
-        dists = np.ascontiguousarray(np.minimum(tmax, 3e38), np.float32)
-        res = scene.run(np.ascontiguousarray(origins, np.float32),
-                        np.ascontiguousarray(directions, np.float32), dists=dists,
+        res = scene.run(as_float32(origins), as_float32(directions), dists=ray_lengths(tmax, n),
                         query="OCCLUDED")
         return res != -1
 
