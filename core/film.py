@@ -19,6 +19,7 @@ sample with :meth:`Film.add_layer`, splatted with :meth:`Film.splat_layer`.
 from __future__ import annotations
 
 import os
+from typing import NamedTuple
 
 import numpy as np
 
@@ -121,6 +122,30 @@ class PixelFilter:
         return taps[np.abs(taps) - 0.5 < 0.5 * self.support]
 
 
+class SplatSums(NamedTuple):
+    """One batch's splat taps summed per film pixel (:func:`tap_sums`).
+
+    Attributes
+    ----------
+    sum, sum_sq : (n, 3) float64
+        Per-pixel sums of the weighted taps and of their squares.
+    """
+
+    sum: np.ndarray
+    sum_sq: np.ndarray
+
+
+def tap_sums(pixel, weighted, n):
+    """Per-pixel sums of taps ``pixel (m,)``, ``weighted (m, 3)`` over a film of ``n`` pixels
+    (pixel ``n``, the taps outside the film, dropped): the very bincounts
+    :meth:`Film.add_splat_taps` adds, so adding them gives the same film bit for bit."""
+    total, total_sq = np.empty((n, 3)), np.empty((n, 3))
+    for c in range(3):
+        total[:, c] = np.bincount(pixel, weighted[:, c], minlength=n + 1)[:n]
+        total_sq[:, c] = np.bincount(pixel, weighted[:, c] ** 2, minlength=n + 1)[:n]
+    return SplatSums(total, total_sq)
+
+
 class Film:
     """Accumulation buffers for a ``width`` x ``height`` image (row 0 at the bottom).
 
@@ -198,6 +223,22 @@ class Film:
         that batch traced.
         """
         self.add_splat_taps(*self.splat_taps(film_xy, value, pixel_filter))
+
+    def compact_splat_taps(self, pixel, weighted):
+        """What a work unit hands the render loop for its taps ``pixel (m,)``,
+        ``weighted (m, 3)``: the taps, or their :func:`tap_sums` when the film has fewer than
+        two thirds as many pixels as there are taps (two ``(n, 3)`` tables are then smaller
+        than the taps, and the render loop, which :meth:`add_splat_sums` them, has two array
+        additions to do instead of six bincounts). Reads nothing the film accumulates."""
+        if 3 * self.n_pixels < 2 * len(pixel):
+            return tap_sums(pixel, weighted, self.n_pixels)
+        return pixel, weighted
+
+    def add_splat_sums(self, sums):
+        """Add a :class:`SplatSums` (:meth:`compact_splat_taps`): the same sums, in the same
+        order, as :meth:`add_splat_taps` of its taps."""
+        self.splat_sum += sums.sum
+        self.splat_sum_sq += sums.sum_sq
 
     def add_splat_taps(self, pixel, weighted):
         """Add the taps :meth:`splat_taps` made: ``pixel (m,)``, ``weighted (m, 3)``."""

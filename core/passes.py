@@ -22,7 +22,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 
 import numpy as np
 
-from .film import PixelFilter
+from .film import PixelFilter, SplatSums
 from .integrators.base import UNIT_PATHS, Counters
 from .sampling.stream import Aborted
 
@@ -96,12 +96,15 @@ class Passes:
 
     def accumulate(self, pixels, out, local, taps=None):
         """Add one unit's output to the film (in unit order: the image is deterministic);
-        ``taps``: the splats' filter taps if :meth:`run_unit` made them."""
+        ``taps``: the splats' filter taps if :meth:`run_unit` made them, or their per-pixel
+        sums (:class:`core.film.SplatSums`)."""
         film, pixel_filter = self.film, self.pixel_filter
         self.unshown += 1
         self.counters.add(local)
         film.add_samples(pixels, out.radiance, out.transparency)
-        if taps is not None:
+        if isinstance(taps, SplatSums):
+            film.add_splat_sums(taps)
+        elif taps is not None:
             film.add_splat_taps(*taps)
         elif out.splats is not None and len(out.splats.xy):
             film.splat(out.splats.xy, out.splats.value, pixel_filter)
@@ -315,7 +318,8 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
     -------
     tuple or None
         ``(pixels (n,) int64, BatchOutput, Counters, taps)`` for :meth:`Passes.accumulate`
-        (``taps``: the splats' filter taps, or None), or None if ``abort`` stopped it.
+        (``taps``: the splats' filter taps or their ``SplatSums``, see
+        ``Film.compact_splat_taps``; None without splats), or None if ``abort`` stopped it.
     """
     p0, p1, s0, k = unit
     pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
@@ -332,8 +336,13 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
         return None
     # The filter taps of the light-path splats are made here, on the worker: the render
     # loop, whose thread the next unit waits for, only adds them up.
-    taps = (film.splat_taps(out.splats.xy, out.splats.value, pixel_filter)
+    # A small film gets their per-pixel sums instead (Film.compact_splat_taps): a smaller
+    # payload from a worker process, and less work for the render loop.
+    taps = (film.compact_splat_taps(*film.splat_taps(out.splats.xy, out.splats.value,
+                                                     pixel_filter))
             if out.splats is not None and len(out.splats.xy) else None)
+    if taps is not None:
+        out.splats = None  # in the taps now: not sent back twice
     return pixels, out, local, taps
 
 

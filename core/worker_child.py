@@ -50,6 +50,7 @@ class FilmWindow(NamedTuple):
 
     n_pixels = Film.n_pixels
     splat_taps = Film.splat_taps
+    compact_splat_taps = Film.compact_splat_taps
 
 
 class _Worker:
