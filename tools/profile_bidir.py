@@ -118,6 +118,8 @@ STAGES = [
     ("film", "Film.splat", "film accumulation + splats"),
     ("film", "Film.add_splat_taps", "film accumulation + splats"),
     ("film", "Film.splat_taps", "film splat taps (worker thread since issue 12)"),
+    ("film", "tap_sums", "film splat taps (worker thread since issue 12)"),
+    ("film", "Film.add_splat_sums", "film accumulation + splats"),
     ("film", "Film.add_samples", "film accumulation + splats"),
 ]
 
