@@ -395,13 +395,12 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             break
         # Smooth shading: frames around the shading normal as the path tracer's (nm).
         si = surface_interaction(prep, hits, d, live, keep_below=True)
-        every = live.size == rows.size  # every ray hit: the compactions below keep all
-        r = rows if every else rows[live]
+        r = rows[live]
         # Draw for the live paths only (a copy of the stream compacted along with them).
         if path_stream is None:
             path_stream = copy.copy(stream)
             path_stream.compact(r)
-        elif not every:
+        else:
             path_stream.compact(live)
         path_stream.skip_to(dims_of(j))
         # Lobe (or skipped), BSDF and roulette (or skipped) numbers in one call.
@@ -425,7 +424,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         wo_l = to_local(si.wo, fs, ft, fn)
         params = with_bump_normals(params, si, (fs, ft, fn))
         params = with_coat_normals(params, coat_normals_in_front(si), (fs, ft, fn))
-        beta = beta if every else take_rows(beta, live)
+        beta = take_rows(beta, live)
         if passes is not None:
             passes.take(live)
             ctx.vertex_passes = passes.passed
@@ -450,7 +449,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             sub.delta[j][r] = smp.delta
         beta = beta * weight
         alive = (smp.pdf > 0) & finite_rows(beta)
-        rr_scale = rr_scale if every else rr_scale[live]
+        rr_scale = rr_scale[live]
         alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1, rr_scale)
         keep = np.nonzero(alive)[0]
         if keep.size == 0:
