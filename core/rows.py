@@ -22,11 +22,7 @@ def put_rows(dst, rows, src):
     """``dst[rows] = src`` for a C-contiguous ``dst (n,)`` or ``(n, c)``; ``src (k,)`` or
     ``(k, c)`` (or a scalar). Rows of ``(n, c)`` arrays are scattered as single ``c``-element
     items (``np.put`` on a byte-row view): about 3 x faster than ``dst[rows] = src``, which
-    scatters element by element; the stored values are the same. ``rows`` may be a slice
-    (:func:`every_row`): a plain block copy."""
-    if isinstance(rows, slice):
-        dst[rows] = src
-        return
+    scatters element by element; the stored values are the same."""
     if dst.ndim == 1:
         dst[rows] = src
         return
@@ -35,15 +31,6 @@ def put_rows(dst, rows, src):
     src = np.ascontiguousarray(src if np.shape(src) == shape else np.broadcast_to(src, shape),
                                dst.dtype)
     np.put(dst.view(item).reshape(-1), rows, src.view(item).reshape(-1))
-
-
-def every_row(rows, n):
-    """``slice(0, n)`` where the sorted, distinct indices ``rows (k,)`` of a table of ``n``
-    rows are all of them (then ``dst[rows] = src`` is a block copy, :func:`put_rows`), else
-    ``rows``."""
-    if rows.size == n and n > 0 and rows[0] == 0 and rows[-1] == n - 1:
-        return slice(0, n)
-    return rows
 
 
 # Rows at which :func:`combine_rows` goes column by column: a (k, 1) x (k, 3) broadcast costs

@@ -18,7 +18,7 @@ from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSampl
                               pdf_bsdf, sample_bsdf)
 from ..materials.bsdf_values import eval_with_pdfs
 from ..materials.frame import shading_frame, to_local, to_world
-from ..rows import every_row, put_rows
+from ..rows import put_rows
 from .adjoint_normals import VertexNormals
 from .common import (bends_normals, coat_normals_in_front, finite_rows, intersect_by_class,
                      max_component, ray_class, roulette_at, russian_roulette,
@@ -182,10 +182,9 @@ class Subpath:
         return self
 
     def store_params(self, j, rows, params):
-        """Store BSDF ``params`` as vertex ``j`` of the subpaths ``rows (k,)`` (or a slice,
-        :func:`core.rows.every_row`). An optional column group of ``params`` that the table
-        lacks is added first (neutral elsewhere); rows without a group the table has get its
-        neutral values (as
+        """Store BSDF ``params`` as vertex ``j`` of the subpaths ``rows (k,)``. An optional
+        column group of ``params`` that the table lacks is added first (neutral elsewhere);
+        rows without a group the table has get its neutral values (as
         :meth:`BSDFParams.scatter`)."""
         table = self.all_params
         missing = [g for g in OPTIONAL_GROUPS if params.has(g) and not table.has(g)]
@@ -504,33 +503,31 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     ``beta`` is the hits' throughput, ``pdf_prev`` and ``prev_delta`` those of the rays that
     found them (all the rays, ``live`` picks the hits). Returns
     the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint)."""
-    # Where r is every subpath (often at the first vertices), stores are block copies.
-    at = every_row(r, sub.valid.shape[1])
     # The edge from vertex j - 1, then the forward density in area measure (times the cosine
     # alone after an infinite endpoint, whose rays are parallel).
     if j == 1:
         dist = np.linalg.norm(si.p - take_rows(sub.p[0], r), axis=1)
         dist = np.where(np.isfinite(sub.d_prev[0][r]), dist, np.inf)
-        sub.cos_prev[j][at] = sub.cos_prev[0][r]
+        sub.cos_prev[j][r] = sub.cos_prev[0][r]
     else:
         dist = hits.t[live]
-        sub.cos_prev[j][at] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
+        sub.cos_prev[j][r] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
     cos_here = np.abs(dot(si.ng, si.wo))
     fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
                    to_area(pdf_prev[live], cos_here, dist))
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
-    sub.valid[j][at] = True
+    sub.valid[j][r] = True
     for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("wo_local", wo_l),
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
-        put_rows(getattr(sub, name)[j], at, value)
+        put_rows(getattr(sub, name)[j], r, value)
     if sub.tri_frames is None:  # else gathered by prim (gather_frames)
-        put_rows(sub.fs[j], at, frame[0])
-        put_rows(sub.ft[j], at, frame[1])
+        put_rows(sub.fs[j], r, frame[0])
+        put_rows(sub.ft[j], r, frame[1])
     if not sub.flat_frames:  # else fn is ng, stored above (the frame's normal is si.ng)
-        put_rows(sub.fn[j], at, frame[2])
+        put_rows(sub.fn[j], r, frame[2])
     if si.nm is not None:  # smooth shading (corner normals): what Gathered reads then
-        put_rows(sub.wo[j], at, si.wo)
-        put_rows(sub.nm[j], at, si.nm)
-    sub.store_params(j, at, params)
+        put_rows(sub.wo[j], r, si.wo)
+        put_rows(sub.nm[j], r, si.nm)
+    sub.store_params(j, r, params)
     return dist

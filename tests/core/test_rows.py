@@ -1,7 +1,6 @@
 """Row helpers (core/rows.py) give the values of the NumPy expressions they replace, bit for
 bit: ``combine_rows`` (weighted sums of (k, c) rows) and ``divide_rows`` (rows over per-row
-divisors), column by column on large float64 batches, and ``put_rows`` (row scatters, and
-block copies where ``every_row`` finds all rows of the table).
+divisors), column by column on large float64 batches, and ``put_rows`` (row scatters).
 
 Smallest error detected: any difference at all (arrays are compared for equality), on batches
 below and above the column-wise threshold, with a base and without, and in float32.
@@ -10,8 +9,7 @@ below and above the column-wise threshold, with a base and without, and in float
 import numpy as np
 import pytest
 
-from sampling_lab.core.rows import (COLUMNWISE_ROWS, combine_rows, divide_rows, every_row,
-                                    put_rows)
+from sampling_lab.core.rows import COLUMNWISE_ROWS, combine_rows, divide_rows, put_rows
 
 
 @pytest.mark.parametrize("k", [0, 7, COLUMNWISE_ROWS - 1, COLUMNWISE_ROWS, 3 * COLUMNWISE_ROWS])
@@ -59,19 +57,3 @@ def test_put_rows_scatters_as_fancy_assignment():
     put_rows(dst, rows, src)
     ref[rows] = src
     np.testing.assert_array_equal(dst, ref)
-
-
-def test_every_row_is_a_slice_only_for_all_rows_of_the_table():
-    n = 6
-    assert every_row(np.arange(n), n) == slice(0, n)
-    for rows in (np.arange(n - 1), np.arange(1, n), np.array([0, 2, 5]), np.arange(0)):
-        assert every_row(rows, n) is rows
-
-
-@pytest.mark.parametrize("shape", [(7,), (7, 3)])
-def test_put_rows_of_every_row_stores_what_the_scatter_stores(shape):
-    src = np.random.default_rng(3).random(shape)
-    by_scatter, by_slice = np.zeros(shape, np.float32), np.zeros(shape, np.float32)
-    put_rows(by_scatter, np.arange(7), src)
-    put_rows(by_slice, every_row(np.arange(7), 7), src)
-    assert by_slice.tobytes() == by_scatter.tobytes()
