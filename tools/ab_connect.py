@@ -138,8 +138,8 @@ def time_connect(name, size, rounds, stage="all"):
             times[pkg].append(1e6 * run() / n)
     b, h = times[BASE], times[HEAD]
     mb, mh = statistics.median(b), statistics.median(h)
-    print(f"{STAGES[stage][1]} ({name}, {runs[HEAD][1]} paths): base min {min(b):.3f} median {mb:.3f}"
-          f" | head min {min(h):.3f} median {mh:.3f} us per camera sample | head / base: min "
+    print(f"{STAGES[stage][1]} ({name}, {runs[HEAD][1]} paths): base min {min(b):.3f} "
+          f"median {mb:.3f} | head min {min(h):.3f} median {mh:.3f} us per camera sample | head / base: min "
           f"{min(h) / min(b):.3f}, median {mh / mb:.3f}")
     print(f"load average at end: {os.getloadavg()}")
 
