@@ -202,12 +202,12 @@ def direct_weight(ctx, rows, cos_theta, cos_l, dist):
 
 def splat_weights(ctx, L, s, rows, yv, w, w_y, dist, cos_theta):
     """:func:`splat_weight` of splats of several strategies at once: ``s (m,) >= 2`` sorted
-    (each strategy's splats in one run), the other arguments as there for all ``m`` splats. Only for
-    the heuristics summed over strategies (:func:`.mis_sums.summable`): the same weights to
-    the last bit, as each splat's ratios, terms and sums are formed by the same operations in
-    the same order, each over the splats whose strategy has that term (a suffix of the
-    sorted rows)."""
-    m, top = s.size, int(s[-1])
+    (each strategy's splats in one run), the other arguments as there for all ``m`` splats.
+    Only for the heuristics summed over strategies (:func:`.mis_sums.summable`): the same
+    weights to the last bit, as each splat's ratios, terms and sums are formed by the same
+    operations in the same order, each over the splats whose strategy has that term (a
+    suffix of the sorted rows)."""
+    top = int(s[-1])
     # first[q]: the first splat of a strategy >= q (first[q]: first[q + 1] is strategy q's run).
     first = np.searchsorted(s, np.arange(top + 3)).tolist()
     pdf_cam = camera_pdf(ctx.cam, cos_theta, ctx.film_pixels)
