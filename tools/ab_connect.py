@@ -14,6 +14,7 @@ the median of thread CPU microseconds per camera sample, and head / base::
     PYTHONPATH=/path/to/parent:/path/to/parent/sampling_lab/tools \\
         python tools/ab_connect.py --base /tmp/base/sampling_lab --check --time
     ... --scene mirror_ball --size 96 --time   # a bench-scenes scene (needs bpy)
+    ... --time --stage cameras                 # connect_cameras (the t = 1 splats) instead
 """
 
 from __future__ import annotations
@@ -92,37 +93,44 @@ def check(cases):
     print("every array identical" if differ == 0 else f"{differ} arrays differ")
 
 
-def _captured(pkg, name, size):
-    """``(run(), camera samples)``: ``run`` times ``pkg``'s ``connect_all`` (thread CPU
-    seconds) on the inputs it had in one work unit of ``name``."""
+# --stage: the module that calls the stage and the stage's name there.
+STAGES = {"all": ("bdpt", "connect_all"), "cameras": ("bidir", "connect_cameras")}
+
+
+def _captured(pkg, name, size, stage="all"):
+    """``(run(), camera samples)``: ``run`` times ``pkg``'s ``connect_all`` (``stage``
+    "cameras": ``connect_cameras``, the ``t = 1`` splats) in thread CPU seconds, on the
+    inputs it had in one work unit of ``name``."""
     integ, stream, pixel_filter, counters = _integrator(pkg, name, size, {}, cap=None)
-    bdpt = importlib.import_module(f"{pkg}.core.integrators.bdpt")
+    module, attr = STAGES[stage]
+    caller = importlib.import_module(f"{pkg}.core.integrators.{module}")
     tally = importlib.import_module(f"{pkg}.core.integrators.strategy_views").Tally
-    connect_all, seen = bdpt.connect_all, []
+    call, seen = getattr(caller, attr), []
 
-    def record(ctx, L, C, fresh, out):
-        seen.append((ctx, L, C, fresh, out.image.shape[0], out.view_length))
-        return connect_all(ctx, L, C, fresh, out)
+    def record(*args):
+        out = args[-1]
+        seen.append((args[:-1], out.image.shape[0], out.view_length))
+        return call(*args)
 
-    bdpt.connect_all = record
+    setattr(caller, attr, record)
     try:
         integ.render_samples(stream, pixel_filter, counters())
     finally:
-        bdpt.connect_all = connect_all
-    ctx, L, C, fresh, n, views = seen[0]
+        setattr(caller, attr, call)
+    args, n, views = seen[0]
 
     def run():
         out = tally(n, views)
         t0 = time.thread_time()
-        connect_all(ctx, L, C, fresh, out)
+        call(*args, out)
         return time.thread_time() - t0
 
     run()  # warm-up
     return run, n
 
 
-def time_connect(name, size, rounds):
-    runs = {pkg: _captured(pkg, name, size) for pkg in (BASE, HEAD)}
+def time_connect(name, size, rounds, stage="all"):
+    runs = {pkg: _captured(pkg, name, size, stage) for pkg in (BASE, HEAD)}
     print(f"load average at start: {os.getloadavg()}")
     times = {pkg: [] for pkg in runs}
     for _ in range(rounds):
@@ -130,8 +138,8 @@ def time_connect(name, size, rounds):
             times[pkg].append(1e6 * run() / n)
     b, h = times[BASE], times[HEAD]
     mb, mh = statistics.median(b), statistics.median(h)
-    print(f"connect_all ({name}, {runs[HEAD][1]} paths): base min {min(b):.3f} median {mb:.3f}"
-          f" | head min {min(h):.3f} median {mh:.3f} us per camera sample | head / base: min "
+    print(f"{STAGES[stage][1]} ({name}, {runs[HEAD][1]} paths): base min {min(b):.3f} "
+          f"median {mb:.3f} | head min {min(h):.3f} median {mh:.3f} us per camera sample | head / base: min "
           f"{min(h) / min(b):.3f}, median {mh / mb:.3f}")
     print(f"load average at end: {os.getloadavg()}")
 
@@ -146,12 +154,14 @@ def main(argv=None):
     parser.add_argument("--scene", default="bench")
     parser.add_argument("--size", type=int, default=256, help="square image side (--time)")
     parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument("--stage", choices=sorted(STAGES), default="all",
+                        help="--time: connect_all or connect_cameras (t = 1)")
     args = parser.parse_args(argv)
     _import_base(args.base)
     if args.check:
         check(CASES + (BPY_CASES if args.bpy else []))
     if args.time:
-        time_connect(args.scene, args.size, args.rounds)
+        time_connect(args.scene, args.size, args.rounds, args.stage)
 
 
 if __name__ == "__main__":

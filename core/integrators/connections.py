@@ -21,7 +21,8 @@ from ..scene import VIS_CAMERA, VIS_SHADOW
 from ..rows import norms, scaled
 from .common import bends_normals, finite_rows, max_component, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
-from .mis_densities import Near, connection_weight, direct_weight, splat_weight
+from .mis_densities import (Near, connection_weight, direct_weight, splat_weight,
+                            splat_weights)
 from .mis_sums import RunningSums, summable
 from .subpaths import Gathered, dot, take_params, to_area
 from .transparent_passes import connection_budget, has_passes, transmitted
@@ -399,9 +400,14 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     film_xy = take_rows(film_xy, keep)
     if np.ndim(s):  # several strategies (connect_cameras): weights and splats per strategy
         s = s[keep]
+        weights = (splat_weights(ctx, L, s, rows[keep], yv.for_densities(keep),
+                                 take_rows(w, keep), take_rows(w_y, keep), dist[keep],
+                                 cos_theta[keep])
+                   if ctx.weighs and summable(ctx.mis) else None)
         for g in _runs(s):
             k, s_g = keep[g], int(s[g.start])
-            weight = (splat_weight(ctx, L, s_g, rows[k], yv.for_densities(k), take_rows(w, k),
+            weight = (weights[g] if weights is not None else
+                      splat_weight(ctx, L, s_g, rows[k], yv.for_densities(k), take_rows(w, k),
                                    take_rows(w_y, k), dist[k], cos_theta[k])
                       if ctx.weighs else np.ones(k.size))
             out.splat(s_g, film_xy[g], value[g], weight)

@@ -198,3 +198,77 @@ def direct_weight(ctx, rows, cos_theta, cos_l, dist):
     p_light = [ctx.light_points.pdf_origin[rows], np.ones(m)]
     return strategy_weight(ctx.mis, p_light, p_camera, [np.zeros(m, bool)] * 2, 1,
                            np.zeros(m, bool), direct=np.ones(m, bool))
+
+
+def splat_weights(ctx, L, s, rows, yv, w, w_y, dist, cos_theta):
+    """:func:`splat_weight` of splats of several strategies at once: ``s (m,) >= 2`` sorted
+    (each strategy's splats in one run), the other arguments as there for all ``m`` splats.
+    Only for the heuristics summed over strategies (:func:`.mis_sums.summable`): the same
+    weights to the last bit, as each splat's ratios, terms and sums are formed by the same
+    operations in the same order, each over the splats whose strategy has that term (a
+    suffix of the sorted rows)."""
+    top = int(s[-1])
+    # first[q]: the first splat of a strategy >= q (first[q]: first[q + 1] is strategy q's run).
+    first = np.searchsorted(s, np.arange(top + 3)).tolist()
+    pdf_cam = camera_pdf(ctx.cam, cos_theta, ctx.film_pixels)
+    at_y = (s - 1) * L.valid.shape[1] + rows
+    near = (to_area(pdf_cam, np.abs(dot(yv.ng, w)), dist),  # p_camera[s - 1]
+            to_area(yv.pdf_back(w_y), np.take(L.cos_prev, at_y), np.take(L.d_prev, at_y)))
+    ratios = _suffix_ratios(L, rows, first, top, near)
+    return _summed_weight(ctx, L, rows, first, top, ratios)
+
+
+def _suffix_ratios(L, rows, first, top, near):
+    """``ratios[sp] (m - first[sp + 1],)``: the density ratio of strategy ``sp`` to the
+    splats' own for the splats of strategies above ``sp`` (the recurrence of
+    :func:`strategy_weight`, from each splat's own strategy down)."""
+    cur = np.empty(rows.size)
+    ratios = [None] * top
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for sp in range(top - 1, -1, -1):
+            a, b, c = first[sp + 1], first[sp + 2], first[sp + 3]
+            cur[a:b] = 1.0  # strategy sp + 1's own ratio
+            num = np.concatenate([near[0][a:b], near[1][b:c], L.pdf_rev[sp, rows[c:]]])
+            cur[a:] = _step(cur[a:], num, L.pdf_fwd[sp, rows[a:]])
+            ratios[sp] = cur[a:].copy()
+    return ratios
+
+
+def _summed_weight(ctx, L, rows, first, top, ratios):
+    """``1 / (sum of h(term))`` per splat over its strategies ``0 .. s``, in that order
+    (:meth:`core.sampling.mis.MIS.weight`; the splat's own term is one)."""
+    mis, m = ctx.mis, rows.size
+    delta_light = ctx.light_points.delta_light[rows]
+    none = mis.setting == "none"
+    total = np.zeros(m, np.int64 if none else np.float64)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for sp in range(top + 1):
+            a = first[sp + 1]
+            if sp > 0:  # splats of strategy sp: their own term
+                total[first[sp]:a] += 1 if none else _h(mis, np.ones(a - first[sp]))
+            if sp == top:
+                break
+            r = rows[a:]
+            if sp == 0:
+                ok = ~delta_light[a:]
+            else:
+                ok = _not_delta(L, sp - 1, r, first, a) & _not_delta(L, sp, r, first, a)
+            valid = ok & (ratios[sp] > 0)
+            total[a:] += valid if none else _h(mis, np.where(valid, ratios[sp], 0.0))
+        w = 1.0 / total
+    return np.where(np.isfinite(w), w, 0.0)
+
+
+def _not_delta(L, i, r, first, a):
+    """Not ``delta[i]`` of :func:`splat_weight`'s lists for the splats ``r`` (from ``a``):
+    vertex ``i``'s flag, false at vertex 0 and at each splat's own vertex ``s - 1``."""
+    if i == 0:
+        return np.ones(r.size, bool)
+    flag = L.delta[i, r]
+    flag[:first[i + 2] - a] = False  # strategy i + 1: vertex i is the splat's own
+    return ~flag
+
+
+def _h(mis, r):
+    """The summed heuristic's function of the terms ``r`` (as :meth:`MIS.weight`)."""
+    return r if mis.setting == "balance" else r ** mis.beta
