@@ -119,7 +119,8 @@ def run(resolution=(256, 256), seconds=10.0, reference_spp=1024, cycles=True,
                          reference_seconds_cap=reference_seconds,
                          triangles=bench.scene.n_triangles)
     print(f"Sampling Lab bench: Cornell box (mesh light), {width}x{height}, {max_bounces} bounces, "
-          f"{threads} threads\nmachine: {bench.summary['cpu']}, {bench.summary['cpus']} CPUs, "
+          f"{threads} cores (ours on {'worker processes' if workers == 'processes' else 'threads'}, "
+          f"Cycles on threads)\nmachine: {bench.summary['cpu']}, {bench.summary['cpus']} CPUs, "
           f"load average at start {bench.summary['load_start']}; {bench.summary['date']}")
     ceiling = bench.ceiling()
     bench.fixed_spp(cycles)
