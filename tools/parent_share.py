@@ -20,18 +20,9 @@ import importlib
 import os
 import pickle
 import statistics
-import sys
-import tempfile
 import time
 
-BASE = "sampling_lab_base"
-HEAD = "sampling_lab"
-
-
-def _import_base(path):
-    folder = tempfile.mkdtemp(prefix="parent_share_")
-    os.symlink(os.path.abspath(path), os.path.join(folder, BASE))
-    sys.path.insert(0, folder)
+from ab_units import BASE, HEAD, _import_base  # tools/ is the script's folder
 
 
 def _child_cpu(pkg):
