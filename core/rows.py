@@ -6,9 +6,9 @@ NumPy broadcasts a ``(k, 3)`` array against a ``(k, 1)`` column through an inner
 elements per row: on 8,192 rows ``v * s[:, None]`` took 22 us against 9 us here and 4 us for
 ``v * v``, and ``np.linalg.norm(v, axis=1)`` (a reduction over a short axis) 103 us against
 18 us here (NumPy 1.26, 2026-11-26). A division gains little either way (``v / s[:, None]``
-25 us, 24 per component; :func:`divide_rows` goes by columns only on large batches). The functions do the same IEEE
-operations per element, component by component into one output, so their results are the
-same to the last bit: ``norms`` forms ``(x * x + y * y) + z * z`` as ``np.linalg.norm``'s
+25 us, 24 per component; :func:`divide_rows` goes by columns only on large batches). The
+functions do the same IEEE operations per element, component by component into one output, so
+their results are the same to the last bit: ``norms`` forms ``(x * x + y * y) + z * z`` as ``np.linalg.norm``'s
 reduction over three elements does (``tests/core/test_row_arithmetic.py``). On arrays of a few
 hundred rows the broadcast's one call costs no more than three.
 """
@@ -19,11 +19,11 @@ import numpy as np
 
 
 def put_rows(dst, rows, src):
-    """``dst[rows] = src`` for a C-contiguous ``dst (n,)`` or ``(n, c)``; ``src (k,)`` or
-    ``(k, c)`` (or a scalar). Rows of ``(n, c)`` arrays are scattered as single ``c``-element
+    """``dst[rows] = src`` for ``dst (n,)`` or ``(n, c)``; ``src (k,)`` or ``(k, c)`` (or a
+    scalar). Rows of C-contiguous ``(n, c)`` arrays are scattered as single ``c``-element
     items (``np.put`` on a byte-row view): about 3 x faster than ``dst[rows] = src``, which
     scatters element by element; the stored values are the same."""
-    if dst.ndim == 1:
+    if dst.ndim == 1 or not dst.flags.c_contiguous:
         dst[rows] = src
         return
     item = np.dtype((np.void, dst.strides[0]))

@@ -12,7 +12,7 @@ from ..materials.bsdf import KIND_LAYERED, KIND_LAYERED_MS, LOBE_DIFFUSE, LOBE_T
 from ..materials.frame import to_local
 from ..bump import bump_mapped
 from ..normal_maps import normal_mapped
-from ..rows import combine_rows, divide_rows
+from ..rows import combine_rows, divide_rows, put_rows
 from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 
@@ -23,11 +23,12 @@ def take_rows(a, rows):
 
 
 def add_rows(L, rows, value):
-    """``L[rows] += value`` for ``L (N, 3)``, ``rows (k,)``, ``value (k, 3)`` (same sums, faster
-    gather)."""
+    """``L[rows] += value`` for ``L (N, 3)``, distinct ``rows (k,)``, ``value (k, 3)`` (the same
+    sums; a take and a scatter of whole rows, :func:`core.rows.put_rows`, are faster than the
+    fancy-index update)."""
     acc = np.take(L, rows, axis=0)
     acc += value
-    L[rows] = acc
+    put_rows(L, rows, acc)
 
 
 def max_component(v):

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rows import put_rows
 from .base import BatchOutput, Splats
-from .common import finite_rows
+from .common import add_rows, finite_rows
 
 
 class Tally:
@@ -70,10 +69,3 @@ class Tally:
                            {name: Splats.join(parts) for name, parts in self.splat_layers.items()},
                            self.transparency)
 
-
-def add_rows(image, rows, value):
-    """``image[rows] += value`` for distinct ``rows (k,)`` of ``image (n, 3)`` (the same sums;
-    a take and a scatter of whole rows are faster than the fancy-index update)."""
-    acc = np.take(image, rows, axis=0)
-    acc += value
-    put_rows(image, rows, acc)
