@@ -217,7 +217,9 @@ class AreaLights(LightFamily):
 
     def sample_le_direction(self, m, li, pts, u, out):
         """A cosine about the emitting side."""
-        cosine_from_faces(m, pts.normal[m], u[m], np.zeros(m.size, bool), out)
+        nrm, uu = pts.normal[m], u[m].copy()
+        uu[:, 0] = np.minimum(uu[:, 0], 1 - 1e-16)
+        cosine_directions(m, (*warps.frame_from_normal(nrm), nrm), uu, 1.0, out)
 
     def le(self, m, li, cos, w, receiver, out):
         out[m] = self.lights.radiance[li] * (cos[m] > 0)[:, None]
@@ -230,17 +232,18 @@ class AreaLights(LightFamily):
         out[m] = np.maximum(cos[m], 0.0) / np.pi
 
 
-def cosine_from_faces(m, nrm, uu, two, out):
+def pick_face(u0):
+    """The face a number ``u0 (k,)`` picks, each with probability 1/2: ``back (k,)`` (True for
+    the back face) and the number rescaled to ``[0, 1)`` for the direction's sample."""
+    back = u0 >= 0.5
+    return back, np.minimum(np.where(back, 2 * u0 - 1, 2 * u0), 1 - 1e-16)
+
+
+def cosine_directions(m, frame, uu, face_prob, out):
     """Fill rows ``m`` of ``out`` (:class:`~.base.LeDirections`) with cosine-distributed
-    directions about ``nrm (k, 3)``; rows where ``two`` emit from both faces and pick one with
-    the first number (then rescaled), each face with probability 1/2."""
-    uu = uu.copy()
-    back = two & (uu[:, 0] >= 0.5)
-    uu[:, 0] = np.where(two, np.where(back, 2 * uu[:, 0] - 1, 2 * uu[:, 0]), uu[:, 0])
-    uu[:, 0] = np.minimum(uu[:, 0], 1 - 1e-16)
-    nrm = np.where(back[:, None], -nrm, nrm)
-    s_, t_ = warps.frame_from_normal(nrm)
+    directions by ``uu (k, 2)`` about the normals of ``frame`` (``s, t, n``, each ``(k, 3)``),
+    whose face was chosen with probability ``face_prob``."""
     local = warps.sample_cosine_hemisphere(uu)
-    out.w[m] = warps.to_world(local, s_, t_, nrm)
-    out.pdf[m] = warps.cosine_hemisphere_pdf(local[:, 2]) * np.where(two, 0.5, 1.0)
+    out.w[m] = warps.to_world(local, *frame)
+    out.pdf[m] = warps.cosine_hemisphere_pdf(local[:, 2]) * face_prob
     out.cos_l[m] = local[:, 2]

@@ -18,7 +18,7 @@ from ..materials.coat import coat_attenuation
 from ..materials.microfacet import alpha_from_roughness
 from ..rows import combine_rows, put_rows
 from ..sampling import warps
-from .area import area_point_pdf, solid_angle_pdf
+from .area import area_point_pdf, cosine_directions, pick_face, solid_angle_pdf
 from .base import LUMINANCE, LightFamily, batch_rows, dot
 
 
@@ -200,18 +200,13 @@ class EmissiveTriangles(LightFamily):
 
     def sample_le_direction(self, m, e, pts, u, out):
         """A cosine about either face, each with probability 1/2 (the first number picks the
-        face and is rescaled): :func:`.area.cosine_from_faces` with both faces emitting, the
-        frame of each face gathered from :attr:`face_s`, :attr:`face_t` (the same values)."""
+        face, :func:`.area.pick_face`), the frame of each face gathered from :attr:`face_s`,
+        :attr:`face_t` and :attr:`face_normal`."""
         uu = np.take(u, m, axis=0)
-        back = uu[:, 0] >= 0.5
-        uu[:, 0] = np.minimum(np.where(back, 2 * uu[:, 0] - 1, 2 * uu[:, 0]), 1 - 1e-16)
+        back, uu[:, 0] = pick_face(uu[:, 0])
         face = 2 * e + back
-        local = warps.sample_cosine_hemisphere(uu)
-        put_rows(out.w, m, warps.to_world(local, np.take(self.face_s, face, axis=0),
-                                          np.take(self.face_t, face, axis=0),
-                                          np.take(self.face_normal, face, axis=0)))
-        out.pdf[m] = warps.cosine_hemisphere_pdf(local[:, 2]) * 0.5
-        out.cos_l[m] = local[:, 2]
+        cosine_directions(m, [np.take(a, face, axis=0)
+                              for a in (self.face_s, self.face_t, self.face_normal)], uu, 0.5, out)
 
     def le(self, m, e, cos, w, receiver, out):
         cos_m = cos[m]
