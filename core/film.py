@@ -141,9 +141,15 @@ def tap_sums(pixel, weighted, n):
     :meth:`Film.add_splat_taps` adds, so adding them gives the same film bit for bit."""
     total, total_sq = np.empty((n, 3)), np.empty((n, 3))
     for c in range(3):
-        total[:, c] = np.bincount(pixel, weighted[:, c], minlength=n + 1)[:n]
-        total_sq[:, c] = np.bincount(pixel, weighted[:, c] ** 2, minlength=n + 1)[:n]
+        total[:, c] = _film_bins(pixel, weighted[:, c], n)
+        total_sq[:, c] = _film_bins(pixel, weighted[:, c] ** 2, n)
     return SplatSums(total, total_sq)
+
+
+def _film_bins(pixel, weights, n):
+    """Sums ``(n,)`` of ``weights (m,)`` per film pixel ``pixel (m,)``; pixel ``n`` (the taps
+    outside the film, :meth:`Film.splat_taps`) is dropped."""
+    return np.bincount(pixel, weights, minlength=n + 1)[:n]
 
 
 class Film:
@@ -243,11 +249,9 @@ class Film:
     def add_splat_taps(self, pixel, weighted):
         """Add the taps :meth:`splat_taps` made: ``pixel (m,)``, ``weighted (m, 3)``."""
         n = self.n_pixels
-        # Bin n gathers the taps outside the film (splat_taps): dropped.
         for c in range(3):
-            self.splat_sum[:, c] += np.bincount(pixel, weighted[:, c], minlength=n + 1)[:n]
-            self.splat_sum_sq[:, c] += np.bincount(pixel, weighted[:, c] ** 2,
-                                                   minlength=n + 1)[:n]
+            self.splat_sum[:, c] += _film_bins(pixel, weighted[:, c], n)
+            self.splat_sum_sq[:, c] += _film_bins(pixel, weighted[:, c] ** 2, n)
 
     def splat_taps(self, film_xy, value, pixel_filter):
         """Pixels ``(m,)`` and filter-weighted values ``(m, 3)`` of a batch of splats (see
@@ -302,8 +306,8 @@ class Film:
         """Splat ``value (k, 3)`` at ``film_xy (k, 2)`` into layer ``name`` (as :meth:`splat`)."""
         pixel, weighted = self.splat_taps(film_xy, value, pixel_filter)
         acc, n = self._layer(name)[1], self.n_pixels
-        for c in range(3):  # bin n: the taps outside the film (splat_taps), dropped
-            acc[:, c] += np.bincount(pixel, weighted[:, c], minlength=n + 1)[:n]
+        for c in range(3):
+            acc[:, c] += _film_bins(pixel, weighted[:, c], n)
 
     def layer_mean(self, name):
         """Estimate ``(h, w, 3)`` float64 of layer ``name`` (zeros if nothing was added)."""

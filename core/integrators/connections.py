@@ -16,9 +16,8 @@ import numpy as np
 from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
-from ..rows import combine_rows, divide_rows
+from ..rows import combine_rows, divide_rows, norms, scaled
 from ..scene import VIS_CAMERA, VIS_SHADOW
-from ..rows import norms, scaled
 from .common import bends_normals, finite_rows, max_component, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
 from .mis_densities import (Near, connection_weight, direct_weight, splat_weight,
@@ -81,10 +80,8 @@ def _strategy_runs(parts):
     the sums are those of one run per strategy."""
     runs = []
     for i, p in enumerate(parts):
-        key = p.t * (int(p.s.max()) + 1) + p.s
-        starts = np.flatnonzero(np.diff(key, prepend=-1)).tolist()
-        runs += [(int(p.s[a]), int(p.t[a]), i, slice(a, b))
-                 for a, b in zip(starts, [*starts[1:], key.size])]
+        runs += [(int(p.s[e.start]), int(p.t[e.start]), i, e)
+                 for e in _runs(p.t * (int(p.s.max()) + 1) + p.s)]
     runs.sort(key=lambda r: (r[1], r[0], r[2]))
     return runs
 

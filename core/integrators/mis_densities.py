@@ -16,6 +16,7 @@ import numpy as np
 
 from ..camera import camera_pdf
 from .common import take_rows
+from .mis_sums import heuristic
 from .subpaths import dot, to_area
 
 
@@ -245,7 +246,7 @@ def _summed_weight(ctx, L, rows, first, top, ratios):
         for sp in range(top + 1):
             a = first[sp + 1]
             if sp > 0:  # splats of strategy sp: their own term
-                total[first[sp]:a] += 1 if none else _h(mis, np.ones(a - first[sp]))
+                total[first[sp]:a] += 1 if none else heuristic(mis, np.ones(a - first[sp]))
             if sp == top:
                 break
             r = rows[a:]
@@ -254,7 +255,7 @@ def _summed_weight(ctx, L, rows, first, top, ratios):
             else:
                 ok = _not_delta(L, sp - 1, r, first, a) & _not_delta(L, sp, r, first, a)
             valid = ok & (ratios[sp] > 0)
-            total[a:] += valid if none else _h(mis, np.where(valid, ratios[sp], 0.0))
+            total[a:] += valid if none else heuristic(mis, np.where(valid, ratios[sp], 0.0))
         w = 1.0 / total
     return np.where(np.isfinite(w), w, 0.0)
 
@@ -268,7 +269,3 @@ def _not_delta(L, i, r, first, a):
     flag[:first[i + 2] - a] = False  # strategy i + 1: vertex i is the splat's own
     return ~flag
 
-
-def _h(mis, r):
-    """The summed heuristic's function of the terms ``r`` (as :meth:`MIS.weight`)."""
-    return r if mis.setting == "balance" else r ** mis.beta

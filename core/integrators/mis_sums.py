@@ -77,14 +77,8 @@ class RunningSums:
         self.camera = self._table(C, None)
 
     def h(self, r):
-        """The heuristic's function of a density ratio ``r >= 0``."""
-        setting = self.mis.setting
-        if setting == "balance":
-            return r
-        if setting == "power":
-            with np.errstate(over="ignore"):
-                return r ** self.mis.beta
-        return (r > 0).astype(np.float64)  # 'none': count the strategies that can
+        """The heuristic's function of a density ratio ``r >= 0`` (:func:`heuristic`)."""
+        return heuristic(self.mis, r)
 
     def _table(self, sub, first_possible):
         """``out[j + 2] = G[j]`` of the recurrence along ``sub`` (``out[0] = out[1] = 0``).
@@ -153,3 +147,14 @@ class RunningSums:
         p2 = ~np.take(C.delta, np.maximum(z - 2, 0) * n + row) & p1
         rest = h(b2) * (p2 + np.take(self.camera, at_z))
         return h(b1) * (p1 + np.where(t == 2, 0.0, rest))
+
+
+def heuristic(mis, r):
+    """The summed heuristic's function of density ratios ``r >= 0``: ``r`` (balance),
+    ``r ** beta`` (power), ``[r > 0]`` as float64 ('none': count the strategies that can)."""
+    if mis.setting == "balance":
+        return r
+    if mis.setting == "power":
+        with np.errstate(over="ignore"):
+            return r ** mis.beta
+    return (r > 0).astype(np.float64)
