@@ -180,12 +180,16 @@ class _Child:
         for future in futures:
             future.set_exception(error)
 
-    def _exit_error(self):
+    def wait_or_kill(self, timeout=EXIT_WAIT_S):
+        """The child's exit code once it has exited, killing it after ``timeout`` seconds."""
         try:
-            code = self.proc.wait(timeout=EXIT_WAIT_S)
+            return self.proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             self.proc.kill()
-            code = self.proc.wait()
+            return self.proc.wait()
+
+    def _exit_error(self):
+        code = self.wait_or_kill()
         why = f" (killed by signal {-code})" if code < 0 else ""
         return WorkerDied(f"a worker process (pid {self.proc.pid}) exited with code "
                           f"{code}{why}; the samples finished before are kept")
@@ -239,11 +243,7 @@ class WorkerPool:
         for child in children:
             child.close()
         for child in children:
-            try:
-                child.proc.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                child.proc.kill()
-                child.proc.wait()
+            child.wait_or_kill(timeout)
 
 
 _pool = []
