@@ -244,6 +244,8 @@ def cosine_directions(m, frame, uu, face_prob, out):
     directions by ``uu (k, 2)`` about the normals of ``frame`` (``s, t, n``, each ``(k, 3)``),
     whose face was chosen with probability ``face_prob``."""
     local = warps.sample_cosine_hemisphere(uu)
-    out.w[m] = warps.to_world(local, *frame)
-    out.pdf[m] = warps.cosine_hemisphere_pdf(local[:, 2]) * face_prob
-    out.cos_l[m] = local[:, 2]
+    w, pdf = warps.to_world(local, *frame), warps.cosine_hemisphere_pdf(local[:, 2]) * face_prob
+    if m.size == out.pdf.size:  # every row (m is then 0..n-1): whole arrays, no scatters
+        out.w, out.pdf, out.cos_l = w, pdf, local[:, 2].copy()
+        return
+    out.w[m], out.pdf[m], out.cos_l[m] = w, pdf, local[:, 2]

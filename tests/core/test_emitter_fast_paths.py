@@ -11,7 +11,11 @@
 - Emissive triangles' light-path origins are formed axis by axis from 1-D gathers
   (``EmissiveTriangles._points_of``) and, where every row chose a triangle, as whole arrays:
   property, the points equal ``_point`` of the gathered corners and the normals and densities
-  the row-scatter formulas, bit for bit, for all rows and for a subset of rows.
+  the row-scatter formulas, bit for bit, for all rows and for a subset of rows. Their
+  cosine directions, written as whole arrays where every row chose a triangle, equal the
+  scattered rows of the same draw, and light paths' directions, radiance and densities from
+  ``Emission.sample_directions`` (which skips its selections where every density is positive)
+  equal the selections' values.
 
 Smallest error detected: any difference at all (byte equality of the compared arrays).
 """
@@ -23,7 +27,7 @@ import pytest
 
 from sampling_lab.core import lights as L
 from sampling_lab.core import scenes
-from sampling_lab.core.lights.base import LeOrigins
+from sampling_lab.core.lights.base import LeDirections, LeOrigins
 from sampling_lab.core.prepare import prepare
 from sampling_lab.core.scene import Lights
 from sampling_lab.core.sampling.distributions import Segmented1D
@@ -106,3 +110,28 @@ def test_triangle_origins_equal_the_row_gather_formulas(lamp, n):
     ref_pdf[m] = pmf[m] / tris.emit_area[e]
     assert (m.size < n) == lamp
     assert _same(out.p, ref_p) and _same(out.normal, ref_normal) and _same(out.pdf, ref_pdf)
+
+
+def _directions(n):
+    w = np.zeros((n, 3))
+    w[:, 2] = 1.0
+    return LeDirections(np.zeros((n, 3)), w, np.zeros(n), np.ones(n))
+
+
+@pytest.mark.parametrize("n", [100, 5000])
+def test_triangle_directions_as_whole_arrays_equal_the_scattered_rows(n):
+    em = prepare(scenes.cornell_box(16, 16, light="mesh"), "power").emission
+    rng = np.random.default_rng(n)
+    pts = em.sample_points(rng.random(n), rng.random((n, 2)))
+    u = rng.random((n, 2))
+    tris, m, e = em.ls.triangles, np.arange(n), pts.index - em.ls.path_selector.n_lamps
+    whole, scattered = _directions(n), _directions(n + 1)  # one spare row: the scatter path
+    tris.sample_le_direction(m, e, pts, u, whole)
+    tris.sample_le_direction(m, e, pts, u, scattered)
+    for name in ("w", "pdf", "cos_l"):
+        assert _same(getattr(whole, name), getattr(scattered, name)[:n])
+    origin, w, pdf, cos_l, le = em.sample_directions(pts, u)
+    assert (pdf > 0).all() and _same(w, whole.w) and _same(cos_l, whole.cos_l)
+    assert _same(pdf, np.where(pdf > 0, whole.pdf, 0.0))
+    ref_le = em.radiance(pts.index, origin, pts.normal, w, None)
+    assert _same(le, np.where((pdf > 0)[:, None], ref_le, 0.0))
