@@ -16,6 +16,10 @@
   scattered rows of the same draw, and light paths' directions, radiance and densities from
   ``Emission.sample_directions`` (which skips its selections where every density is positive)
   equal the selections' values.
+- Area lamps' light-path origins and directions: whole arrays where every row chose an area
+  lamp, and each lamp's tangent frame made once (``AreaLights.le_s``, ``le_t``) instead of per
+  sample; property, the points, normals, densities and directions equal the per-row formulas
+  bit for bit, with one lamp (whole arrays) and with an area lamp beside a point lamp (rows).
 
 Smallest error detected: any difference at all (byte equality of the compared arrays).
 """
@@ -29,6 +33,7 @@ from sampling_lab.core import lights as L
 from sampling_lab.core import scenes
 from sampling_lab.core.lights.base import LeDirections, LeOrigins
 from sampling_lab.core.prepare import prepare
+from sampling_lab.core.sampling import warps
 from sampling_lab.core.scene import Lights
 from sampling_lab.core.sampling.distributions import Segmented1D
 
@@ -135,3 +140,29 @@ def test_triangle_directions_as_whole_arrays_equal_the_scattered_rows(n):
     assert _same(pdf, np.where(pdf > 0, whole.pdf, 0.0))
     ref_le = em.radiance(pts.index, origin, pts.normal, w, None)
     assert _same(le, np.where((pdf > 0)[:, None], ref_le, 0.0))
+
+
+@pytest.mark.parametrize("lamp", [False, True])
+def test_area_lamp_origins_and_directions_equal_the_per_row_formulas(lamp):
+    scene = scenes.cornell_box(16, 16, light="area")
+    em = prepare(_with_lamp(scene) if lamp else scene, "power").emission
+    area = next(f for f in em.ls.families if hasattr(f, "le_s"))
+    n = 3000
+    rng = np.random.default_rng(7)
+    u_sel, u_pos, u_dir = rng.random(n), rng.random((n, 2)), rng.random((n, 2))
+    pts = em.sample_points(u_sel, u_pos)
+    origin, w, pdf, cos_l, le = em.sample_directions(pts, u_dir)
+    m = np.nonzero(~pts.delta_light)[0]  # the area lamp's rows (the point lamp is a delta)
+    assert (m.size < n) == lamp and m.size > 0
+    li = pts.index[m]
+    q, size, _ = area._points(li, u_pos[m])
+    normal = area.lights.direction[li]
+    assert _same(pts.p[m], q) and _same(pts.normal[m], normal)
+    pmf = em.ls.choose(u_sel)[1][m]
+    assert _same(pts.pdf_origin[m], np.where(size > 0, pmf / np.maximum(size, 1e-300), 0.0))
+    uu = u_dir[m].copy()
+    uu[:, 0] = np.minimum(uu[:, 0], 1 - 1e-16)
+    local = warps.sample_cosine_hemisphere(uu)
+    ref_w = warps.to_world(local, *warps.frame_from_normal(normal), normal)
+    assert _same(w[m], ref_w) and _same(cos_l[m], local[:, 2])
+    assert _same(pdf[m], warps.cosine_hemisphere_pdf(local[:, 2]))
