@@ -91,7 +91,8 @@ def test_light_path_emitter_choice_equals_the_general_formula(lamp, n):
     index, pmf = sampler.choose(u)
     ref_index, ref_pmf = _reference_choose(sampler.path_selector, u)
     assert _same(index, ref_index) and _same(pmf, ref_pmf)
-    assert (sampler.path_selector.n_lamps > 0) == lamp and (index < sampler.path_selector.n_lamps).any() == lamp
+    lamps = sampler.path_selector.n_lamps
+    assert (lamps > 0) == lamp and (index < lamps).any() == lamp
 
 
 @pytest.mark.parametrize("lamp", [False, True])
