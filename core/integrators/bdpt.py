@@ -63,8 +63,6 @@ MIS densities of every strategy are in :mod:`.mis_densities`, the per-strategy i
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
 from ..lights.emission import EmitterPoints
@@ -117,27 +115,16 @@ def _fresh_points(ctx, stream, C):
     """Strategy ``s = 1``: a fresh point on an emitter for every connectible camera vertex
     (drawn from that vertex's dimensions of the stream, so each is the same whichever other
     vertices exist), sampled for all vertices in one call."""
-    depth = C.valid.shape[0]
-    reach = C.valid & C.connectible
-    zj, rows, u_sel, u_pos = [], [], [], []
-    for j in range(1, depth):
-        r = np.nonzero(reach[j])[0]
-        if r.size == 0:
-            continue
-        # Drawn for the rows r only (a compacted copy of the stream: the same numbers as
-        # drawing for every sample and keeping r, without hashing the dead paths' numbers).
-        part = copy.copy(stream)
-        part.compact(r)
-        part.skip_to(DIMS_CAMERA + (j - 1) * DIMS_PER_CAMERA_VERTEX + 4)
-        sel, pos = part.next_slots((1, 2))
-        u_sel.append(sel)
-        u_pos.append(pos)
-        zj.append(np.full(r.size, j, np.int64))
-        rows.append(r)
-    if not rows:
+    # Depth-major, as a loop over the vertices would list them; each row's numbers from its
+    # vertex's dimensions, drawn for these rows only (Stream.slots_of_rows: the numbers of
+    # compacted copies of the stream, without hashing the dead paths' numbers).
+    level, rows = np.nonzero(C.valid[1:] & C.connectible[1:])
+    if rows.size == 0:
         return None
-    pts = ctx.emission.sample_points(np.concatenate(u_sel), np.concatenate(u_pos), ctx.counters)
-    zj, rows = np.concatenate(zj), np.concatenate(rows)
+    zj = level + 1
+    u_sel, u_pos = stream.slots_of_rows(
+        rows, DIMS_CAMERA + level * DIMS_PER_CAMERA_VERTEX + 4, (1, 2))
+    pts = ctx.emission.sample_points(u_sel, u_pos, ctx.counters)
     got = np.nonzero(pts.index >= 0)[0]
     if got.size == rows.size:  # every draw found an emitter (any scene with one)
         return Fresh(zj, rows, pts)

@@ -109,7 +109,10 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     o, w = take_rows(origin, rows), take_rows(w, rows)
     k = prep.lights.n_lights
     tri = np.nonzero((pts.index[rows] >= k) & ~pts.infinite[rows])[0]
-    if tri.size:
+    if tri.size == rows.size:  # every path leaves an emissive triangle: no row selections
+        o = prep.accel.offset_origin(o, take_rows(pts.normal, rows),
+                                     prep.lights.emissive_tris[pts.index[rows] - k], w)
+    elif tri.size:
         prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
         o[tri] = prep.accel.offset_origin(take_rows(o, tri), take_rows(pts.normal, rows[tri]),
                                           prim, take_rows(w, tri))

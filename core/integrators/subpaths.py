@@ -18,7 +18,7 @@ from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSampl
                               pdf_bsdf, sample_bsdf)
 from ..materials.bsdf_values import eval_with_pdfs
 from ..materials.frame import shading_frame, to_local, to_world
-from ..rows import put_rows
+from ..rows import norms, put_rows
 from .adjoint_normals import VertexNormals
 from .common import (bends_normals, coat_normals_in_front, finite_rows, intersect_by_class,
                      max_component, ray_class, roulette_at, russian_roulette,
@@ -430,8 +430,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         if on_vertex is not None:
             on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta)
         if sub is not None:
-            dist = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l, params,
-                                 delta_only, beta, pdf_prev, prev_delta)
+            dist, cos_prev = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l,
+                                           params, delta_only, beta, pdf_prev, prev_delta)
             if passes is not None:
                 sub.passed[j][r] = passes.passed
         if j == depth - 1 and on_segment is None:
@@ -443,7 +443,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
                                          bends_normals(prep.scene, si.prim) if ctx.smooth
                                          else None)
         if sub is not None:
-            back = to_area(back, sub.cos_prev[j][r], dist)
+            back = to_area(back, cos_prev, dist)
             sub.pdf_rev[j - 1][r] = np.where(smp.delta, 1.0, back)
             sub.delta[j][r] = smp.delta
         beta = beta * weight
@@ -502,19 +502,23 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     shading ``frame`` (three (k, 3) axes), ``wo_l`` in it and the chosen BSDF ``params``;
     ``beta`` is the hits' throughput, ``pdf_prev`` and ``prev_delta`` those of the rays that
     found them (all the rays, ``live`` picks the hits). Returns
-    the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint)."""
+    the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint) and
+    the cosines ``(k,)`` stored there as ``cos_prev``."""
     # The edge from vertex j - 1, then the forward density in area measure (times the cosine
     # alone after an infinite endpoint, whose rays are parallel).
     if j == 1:
-        dist = np.linalg.norm(si.p - take_rows(sub.p[0], r), axis=1)
+        dist = norms(si.p - take_rows(sub.p[0], r))
         dist = np.where(np.isfinite(sub.d_prev[0][r]), dist, np.inf)
-        sub.cos_prev[j][r] = sub.cos_prev[0][r]
+        cos_prev = sub.cos_prev[0][r]
     else:
         dist = hits.t[live]
-        sub.cos_prev[j][r] = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
+        cos_prev = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
+    sub.cos_prev[j][r] = cos_prev
     cos_here = np.abs(dot(si.ng, si.wo))
-    fwd = np.where(np.isinf(dist), pdf_prev[live] * cos_here,
-                   to_area(pdf_prev[live], cos_here, dist))
+    pdf_sa, inf = pdf_prev[live], np.isinf(dist)
+    fwd = to_area(pdf_sa, cos_here, dist)
+    if inf.any():
+        fwd = np.where(inf, pdf_sa * cos_here, fwd)
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
     for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("wo_local", wo_l),
@@ -530,4 +534,4 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         put_rows(sub.wo[j], r, si.wo)
         put_rows(sub.nm[j], r, si.nm)
     sub.store_params(j, r, params)
-    return dist
+    return dist, cos_prev

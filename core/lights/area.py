@@ -110,6 +110,11 @@ class AreaLights(LightFamily):
         is_area = (lights.kind == LIGHT_RECT) | (lights.kind == LIGHT_DISK)
         # The one area lamp of the scene (then every row of a batch chose it), or None.
         self.only = int(np.nonzero(is_area)[0][0]) if is_area.sum() == 1 else None
+        # Per lamp, the tangents warps.frame_from_normal makes around its emitting normal:
+        # light paths gather them instead of building a frame per sample (the same values:
+        # the frame is a function of the row; lamps that are not area lights get unused rows).
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.le_s, self.le_t = warps.frame_from_normal(lights.direction)
 
     def _points(self, li, u):
         """Uniform points ``(m, 3)`` on lights ``li`` by ``u (m, 2)``, their areas ``(m,)`` and
@@ -211,15 +216,21 @@ class AreaLights(LightFamily):
 
     # ------------------------------------------------------------------ light paths
     def sample_le_origin(self, m, li, u, pmf, out):
+        if m.size == out.pdf.size:  # every row chose an area lamp (m is 0..n-1): whole arrays
+            out.p, area, _ = self._points(li, u)
+            out.normal = np.take(self.lights.direction, li, axis=0)
+            out.pdf = np.where(area > 0, pmf / np.maximum(area, 1e-300), 0.0)
+            return
         out.p[m], area, _ = self._points(li, u[m])
         out.normal[m] = self.lights.direction[li]
         out.pdf[m] = np.where(area > 0, pmf[m] / np.maximum(area, 1e-300), 0.0)
 
     def sample_le_direction(self, m, li, pts, u, out):
-        """A cosine about the emitting side."""
-        nrm, uu = pts.normal[m], u[m].copy()
+        """A cosine about the emitting side (the lamp's frame, :attr:`le_s`, :attr:`le_t`)."""
+        uu = u.copy() if m.size == out.pdf.size else u[m]
         uu[:, 0] = np.minimum(uu[:, 0], 1 - 1e-16)
-        cosine_directions(m, (*warps.frame_from_normal(nrm), nrm), uu, 1.0, out)
+        frame = [np.take(a, li, axis=0) for a in (self.le_s, self.le_t, self.lights.direction)]
+        cosine_directions(m, frame, uu, 1.0, out)
 
     def le(self, m, li, cos, w, receiver, out):
         out[m] = self.lights.radiance[li] * (cos[m] > 0)[:, None]
@@ -244,6 +255,8 @@ def cosine_directions(m, frame, uu, face_prob, out):
     directions by ``uu (k, 2)`` about the normals of ``frame`` (``s, t, n``, each ``(k, 3)``),
     whose face was chosen with probability ``face_prob``."""
     local = warps.sample_cosine_hemisphere(uu)
-    out.w[m] = warps.to_world(local, *frame)
-    out.pdf[m] = warps.cosine_hemisphere_pdf(local[:, 2]) * face_prob
-    out.cos_l[m] = local[:, 2]
+    w, pdf = warps.to_world(local, *frame), warps.cosine_hemisphere_pdf(local[:, 2]) * face_prob
+    if m.size == out.pdf.size:  # every row (m is then 0..n-1): whole arrays, no scatters
+        out.w, out.pdf, out.cos_l = w, pdf, local[:, 2].copy()
+        return
+    out.w[m], out.pdf[m], out.cos_l[m] = w, pdf, local[:, 2]

@@ -154,6 +154,8 @@ class Emission:
             out.pdf[m] = self.disk_pdf
         le = self.radiance(pts.index, out.origin, pts.normal, out.w, None)
         ok = out.pdf > 0
+        if ok.all():  # the usual batch: the selections below would keep every value
+            return out.origin, out.w, out.pdf, out.cos_l, le
         return (out.origin, out.w, np.where(ok, out.pdf, 0.0), out.cos_l,
                 np.where(ok[:, None], le, 0.0))
 

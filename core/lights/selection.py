@@ -111,11 +111,20 @@ class LightSelection:
         t0 = time.perf_counter()
         k = self.n_lamps
         light, pmf, u_next = self.light_dist.sample(u_select)
-        index = light.copy()
         draws = light.size
+        if k == 0 and self.n_groups == 1 and not self.has_world:
+            # Emissive triangles of one material only (a mesh light): every draw picks one of
+            # them, without the masks and scatters (the same values).
+            e, pmf_tri = self.triangle_dist.pick(light, u_next)
+            pmf *= pmf_tri
+            if counters is not None:
+                counters.distribution_s += time.perf_counter() - t0
+                counters.distribution_samples += 2 * draws
+            return e, pmf
+        index = light.copy()
         m = np.nonzero((light >= k) & (light < k + self.n_groups))[0]
         if m.size:
-            e, pmf_tri, _ = self.triangle_dist.sample(light[m] - k, u_next[m])
+            e, pmf_tri = self.triangle_dist.pick(light[m] - k, u_next[m])
             index[m] = k + e
             pmf[m] = pmf[m] * pmf_tri
             draws += m.size

@@ -81,6 +81,10 @@ class EmissiveTriangles(LightFamily):
         # of building a frame per sample (the same values: the frame is a function of the row).
         self.face_normal = np.stack([self.emit_normal, -self.emit_normal], axis=1).reshape(-1, 3)
         self.face_s, self.face_t = warps.frame_from_normal(self.face_normal)
+        # The corners' components as rows (3 corners x 3 axes, e): a light path's point is
+        # formed axis by axis from 1-D gathers (_points_of), not from (m, 3) row gathers.
+        self.corner_axes = np.ascontiguousarray(
+            np.stack([self.emit_v0, self.emit_e1, self.emit_e2]).transpose(0, 2, 1))
 
     def coat_factor(self, e, cos):
         """What the Principled Coat over emitters ``e (j,)`` leaves of their emission seen at
@@ -194,9 +198,30 @@ class EmissiveTriangles(LightFamily):
     # ------------------------------------------------------------------ light paths
     def sample_le_origin(self, m, e, u, pmf, out):
         # Row gathers and scatters (np.take, put_rows): the values of fancy indexing, faster.
-        put_rows(out.p, m, self._point(*self._corners(e), np.take(u, m, axis=0)))
+        # Where every row of the batch chose an emissive triangle (a scene whose only lights
+        # are emissive meshes), the arrays are made whole, without gathers or scatters.
+        if m.size == out.pdf.size:  # m is then 0..n-1 (families_of's rows are sorted)
+            out.p = self._points_of(e, u)
+            out.normal = np.take(self.emit_normal, e, axis=0)
+            out.pdf = pmf / np.take(self.emit_area, e)
+            return
+        put_rows(out.p, m, self._points_of(e, np.take(u, m, axis=0)))
         put_rows(out.normal, m, np.take(self.emit_normal, e, axis=0))
         out.pdf[m] = pmf[m] / self.emit_area[e]
+
+    def _points_of(self, e, u):
+        """:meth:`_point` of emitters ``e (m,)`` by ``u (m, 2)``: the same values (each axis
+        ``v0 + b1 e1 + b2 e2``, added in that order), gathered axis by axis from
+        :attr:`corner_axes` instead of as three ``(m, 3)`` row gathers."""
+        _, b1, b2 = warps.uniform_triangle_barycentrics(u)
+        out = np.empty((e.size, 3))
+        v0, e1, e2 = self.corner_axes
+        for c in range(3):
+            column = out[:, c]
+            np.multiply(b1, np.take(e1[c], e), out=column)
+            np.add(np.take(v0[c], e), column, out=column)
+            column += b2 * np.take(e2[c], e)
+        return out
 
     def sample_le_direction(self, m, e, pts, u, out):
         """A cosine about either face, each with probability 1/2 (the first number picks the

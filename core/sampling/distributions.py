@@ -437,6 +437,22 @@ class Segmented1D:
         index = base + local
         return index, self.pmf_table[index], np.clip(u_remapped, 0.0, _ONE_MINUS)
 
+    def pick(self, segment, u):
+        """``index, pmf`` of :meth:`sample` without the remapped number (the same values),
+        for callers that discard it (light selection's triangle draw). With one ``'cdf'``
+        segment (one emissive mesh) its start, length and base are numbers, not gathers."""
+        if self.method == "alias" or self.lengths.size > 1:
+            index, pmf, _ = self.sample(segment, u)
+            return index, pmf
+        u = np.asarray(u, np.float64)
+        length = int(self.lengths[0])
+        local = np.searchsorted(self.cdf, u, side="right") - 1
+        if length > 1:
+            np.clip(local, 0, length - 1, out=local)
+        else:
+            local = np.zeros(u.shape, np.int64)
+        return local, np.take(self.pmf_table, local)
+
     def pmf(self, index):
         """Probability of global element ``index (k,)`` within its segment."""
         return self.pmf_table[index]

@@ -12,6 +12,8 @@ the whole batch; terminated paths leave with :meth:`SampleStream.compact`.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 _M1 = np.uint32(0x7FEB352D)
@@ -124,6 +126,24 @@ class SampleStream:
         values = iter(self._draw_slots(slots))
         self.dimension = d
         return [next(values) if size else None for size in sizes]
+
+    def slots_of_rows(self, rows, dimensions, sizes):
+        """For the paths ``rows (m,)`` of this stream, each from its own ``dimensions (m,)``,
+        the draws of ``next_slots(sizes)`` (sizes 1 or 2): one ``(m,)`` or ``(m, 2)`` array
+        per size, row ``i`` as a copy of the stream compacted to path ``rows[i]`` and skipped
+        to ``dimensions[i]`` would draw it. The stream itself is not advanced. Here one such
+        copy per distinct dimension; streams that draw rows of mixed dimensions together
+        override it (:class:`.samplers.sobol.SobolStream`)."""
+        self.check_abort()
+        out = [np.empty((rows.size,) + ((size,) if size == 2 else ())) for size in sizes]
+        for d in np.unique(dimensions).tolist():
+            at = np.nonzero(dimensions == d)[0]
+            part = copy.copy(self)
+            part.compact(rows[at])
+            part.dimension = int(d)
+            for o, value in zip(out, part.next_slots(sizes)):
+                o[at] = value
+        return out
 
     def _draw_slots(self, slots):
         """Values of the slots ``(dimension, size)``, in order: one ``next_1d`` / ``next_2d``

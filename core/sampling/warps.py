@@ -170,12 +170,18 @@ def sample_uniform_triangle(u):
     -------
     (n, 3) float64 barycentrics (b0, b1, b2) summing to one.
     """
-    u0 = u[:, 0].astype(np.float64)
-    u1 = u[:, 1].astype(np.float64)
+    return np.stack(uniform_triangle_barycentrics(u), axis=-1)
+
+
+def uniform_triangle_barycentrics(u):
+    """:func:`sample_uniform_triangle`'s barycentrics as three ``(n,)`` arrays ``b0, b1, b2``
+    (no stacking, no copies of float64 ``u``)."""
+    u0 = np.asarray(u[:, 0], np.float64)
+    u1 = np.asarray(u[:, 1], np.float64)
     lower = u0 < u1
     b0 = np.where(lower, u0 / 2, u0 - u1 / 2)
     b1 = np.where(lower, u1 - u0 / 2, u1 / 2)
-    return np.stack([b0, b1, 1.0 - b0 - b1], axis=-1)
+    return b0, b1, 1.0 - b0 - b1
 
 
 def uniform_triangle_pdf(area):

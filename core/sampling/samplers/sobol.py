@@ -161,6 +161,31 @@ class SobolStream(PaddedStream):
         unit_from_u32_into(rows, out)
         return [out[a] if size == 1 else out[a:a + 2].T for a, size in layout.starts]
 
+    def slots_of_rows(self, rows, dimensions, sizes):
+        # As _draw_slots, with each row's own slot keys: the word of each row's dimension
+        # is hashed into its path key, the rest is row-wise (bit for bit the values of the
+        # base class's copies per dimension), in batches of at most BATCH_PATHS rows.
+        self.check_abort()
+        layout = _slot_layout(tuple(sizes))
+        starts = np.cumsum([0] + list(sizes[:-1]))
+        uniq, which = np.unique(dimensions, return_inverse=True)
+        table = np.array([[slot_word(d + a) for d in uniq.tolist()] for a in starts.tolist()],
+                         np.uint32).reshape(len(sizes), uniq.size)
+        out = np.empty((sum(sizes), rows.size))
+        for lo in range(0, rows.size, BATCH_PATHS):
+            part = slice(lo, min(lo + BATCH_PATHS, rows.size))
+            r = rows[part]
+            keys = hash_u32(np.take(self._key, r)[None, :] ^ table[:, which[part]])
+            sub = hash_u32(keys[layout.row_slot] ^ layout.row_word[:, None])
+            index = np.broadcast_to(np.take(self._reversed_index, r), keys.shape)
+            shuffled = reverse_bits(laine_karras_permutation(index, sub[layout.first]))
+            coords = shuffled[layout.coord_slot]
+            coords[layout.second] = sobol_reversed(1, coords[layout.second])
+            unit_from_u32_into(reverse_bits(laine_karras_permutation(coords,
+                                                                     sub[layout.coord_row])),
+                               out[:, part])
+        return [out[a] if size == 1 else out[a:a + 2].T for a, size in layout.starts]
+
     def _sample_1d(self, key, dimension):
         return unit_from_u32(sobol_2d_u32(key, None, 1, self._reversed_index)[:, 0])
 
