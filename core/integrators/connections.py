@@ -26,8 +26,12 @@ from .mis_sums import RunningSums, summable
 from .subpaths import Gathered, dot, take_params, to_area
 from .transparent_passes import connection_budget, has_passes, transmitted
 
-# Connections joined per batch of array operations (see _in_pieces).
-PIECE = 8192
+# Connections joined per batch of array operations (see _in_pieces). Each of a piece's
+# NumPy calls has a fixed cost of about a microsecond: 65,536-row pieces made the stage 7-15 %
+# cheaper per camera sample than 8,192-row ones where freed batch memory is kept for reuse (as
+# renders do, core.allocator), at about 1.5 MB per (m, 3) column (docs/BENCHMARKS.md, eighth
+# round).
+PIECE = 1 << 16
 
 
 class Fresh(NamedTuple):
@@ -126,8 +130,8 @@ def _connect_vertices(ctx, L, C, gather):
 
 def _in_pieces(join, m):
     """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time: the list of the
-    :class:`_Joined` pieces, in order (arrays of a few thousand rows stay in the processor's
-    cache through a stage's many operations, and need no fresh pages of memory)."""
+    :class:`_Joined` pieces, in order (pieces bound the stage's memory; fewer, larger pieces
+    make fewer NumPy calls)."""
     parts = [join(slice(a, min(a + PIECE, m))) for a in range(0, m, PIECE)]
     return [p for p in parts if p is not None]
 
