@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..allocator import keeps_freed
 from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
@@ -29,9 +30,10 @@ from .transparent_passes import connection_budget, has_passes, transmitted
 # Connections joined per batch of array operations (see _in_pieces). Each of a piece's
 # NumPy calls has a fixed cost of about a microsecond: 65,536-row pieces made the stage 7-15 %
 # cheaper per camera sample than 8,192-row ones where freed batch memory is kept for reuse (as
-# renders do, core.allocator), at about 1.5 MB per (m, 3) column (docs/BENCHMARKS.md, eighth
-# round).
+# renders do, core.allocator), at about 1.5 MB per (m, 3) column; where it is not, the large
+# arrays fault fresh pages in and SMALL_PIECE is faster (docs/BENCHMARKS.md, eighth round).
 PIECE = 1 << 16
+SMALL_PIECE = 1 << 13
 
 
 class Fresh(NamedTuple):
@@ -129,10 +131,11 @@ def _connect_vertices(ctx, L, C, gather):
 
 
 def _in_pieces(join, m):
-    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time: the list of the
-    :class:`_Joined` pieces, in order (pieces bound the stage's memory; fewer, larger pieces
-    make fewer NumPy calls)."""
-    parts = [join(slice(a, min(a + PIECE, m))) for a in range(0, m, PIECE)]
+    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time (``SMALL_PIECE``
+    unless :func:`core.allocator.keeps_freed`): the list of the :class:`_Joined` pieces, in
+    order (pieces bound the stage's memory; fewer, larger pieces make fewer NumPy calls)."""
+    piece = PIECE if keeps_freed() else min(PIECE, SMALL_PIECE)
+    parts = [join(slice(a, min(a + piece, m))) for a in range(0, m, piece)]
     return [p for p in parts if p is not None]
 
 
