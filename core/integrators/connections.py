@@ -28,11 +28,12 @@ from .subpaths import Gathered, dot, take_params, to_area
 from .transparent_passes import connection_budget, has_passes, transmitted
 
 # Connections joined per batch of array operations (see _in_pieces). Each of a piece's
-# NumPy calls has a fixed cost of about a microsecond: 65,536-row pieces made the stage 7-15 %
+# NumPy calls has a fixed cost of about a microsecond: 32,768-row pieces made the stage 4-11 %
 # cheaper per camera sample than 8,192-row ones where freed batch memory is kept for reuse (as
-# renders do, core.allocator), at about 1.5 MB per (m, 3) column; where it is not, the large
-# arrays fault fresh pages in and SMALL_PIECE is faster (docs/BENCHMARKS.md, eighth round).
-PIECE = 1 << 16
+# renders do, core.allocator), at 0.8 MB per (m, 3) column (65,536 rows: slower again on a
+# worker thread); where it is not kept, large arrays fault fresh pages in and SMALL_PIECE is
+# faster (docs/BENCHMARKS.md, eighth round).
+PIECE = 1 << 15
 SMALL_PIECE = 1 << 13
 
 
