@@ -20,12 +20,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..rows import put_rows
 from ..sampling.stream import hash_u32, u32_to_unit_float
-from .common import max_component
+from .common import max_component, take_rows
 
-# Odd constants that spread the hash's inputs (golden ratio and a random odd word).
-_MIX = np.uint32(0x9E3779B9)
-_SALT = np.uint32(0x68E31DA4)
+# Odd constants that spread the hash's inputs over the word before its one hash.
+_PIXEL, _SAMPLE, _KEY = np.uint32(0x9E3779B9), np.uint32(0x85EBCA6B), np.uint32(0xC2B2AE35)
 
 
 def survival(contribution, factor):
@@ -36,12 +36,15 @@ def survival(contribution, factor):
 
 
 def uniforms(seed, pixel, sample_index, key):
-    """Numbers in [0, 1) ``(k,)``, a hash of ``(seed, pixel (k,), sample_index (k,),
-    key (k,))``: one per connection and camera sample, the same in every run."""
-    x = hash_u32((np.asarray(pixel) * 2 + 1).astype(np.uint32) ^ np.uint32(seed & 0xFFFFFFFF))
-    x = hash_u32(x ^ np.asarray(sample_index).astype(np.uint32) * _MIX)
-    x = hash_u32(x ^ (np.asarray(key).astype(np.uint32) * _MIX + _SALT))
-    return u32_to_unit_float(x)
+    """Numbers in [0, 1) ``(k,)``, one hash of ``(seed, pixel (k,), sample_index (k,),
+    key (k,))`` mixed into one word: one per connection and camera sample, the same in every
+    run. (Two inputs that mix to the same word share a number: their decisions are then
+    correlated, which moves the variance a little but not the expected value.)"""
+    x = np.asarray(pixel).astype(np.uint32) * _PIXEL
+    x ^= np.asarray(sample_index).astype(np.uint32) * _SAMPLE
+    x ^= np.asarray(key).astype(np.uint32) * _KEY
+    x ^= np.uint32(seed & 0xFFFFFFFF)
+    return u32_to_unit_float(hash_u32(x))
 
 
 class ConnectionRoulette:
@@ -68,11 +71,11 @@ class ConnectionRoulette:
         samples; ``keys (k,)``: their strategies' codes."""
         if cand.size == 0:
             return cand
-        q = survival(max_component(value[cand]), self.factor)
+        q = survival(max_component(take_rows(value, cand)), self.factor)
         u = uniforms(self.seed, self.pixel[rows], self.sample_index[rows], keys)
         live = np.nonzero(u < q)[0]
         kept = cand[live]
-        value[kept] /= q[live][:, None]
+        put_rows(value, kept, take_rows(value, kept) / q[live][:, None])
         return kept
 
 
