@@ -6,10 +6,11 @@ value) survives with probability ``q = min(1, c / (factor * mean c))``, the mean
 connections that would trace a shadow ray in the same batch, and a survivor's value is divided
 by ``q``: for any ``q > 0`` chosen independently of the decision's random number,
 ``E[value / q * [u < q]] = value``, so the estimator stays unbiased; it trades a little
-variance for fewer shadow rays (LuxCore culls light paths by a similar test; here it is
-unbiased roulette, not a cut-off). ``factor`` is the setting: 0 turns it off, 0.3 skips about
-a fifth of the connections' shadow rays on the bench's Cornell box (``docs/BENCHMARKS.md``,
-eighth round, and ``tools/roulette_probe.py``).
+variance for fewer shadow rays (appleseed's Low Light Threshold skips shadow rays of
+insignificant contribution outright, a biased cut-off; this is an unbiased roulette).
+``factor`` is the setting: 0 turns it off; 0.3 skips about a quarter of the connections'
+shadow rays on the bench's Cornell box (``docs/BENCHMARKS.md``, eighth round, and
+``tools/roulette_probe.py``).
 
 The decision's random number of connection ``key`` (a strategy's ``(s, t)`` code) of camera
 sample ``(pixel, sample_index)`` is a hash of those and the render's seed, so renders stay
