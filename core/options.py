@@ -444,7 +444,7 @@ OPTIONS = {o.name: o for o in (
            "A connection whose contribution is below this many times the mean of its batch's "
            "survives with probability contribution / (this x mean), and survivors are "
            "divided by that probability. Unbiased: a little more noise for fewer shadow rays "
-           "(0.3 skips about a fifth of them in a Cornell box). 0 turns it off", 0.0,
+           "(0.3 skips about a quarter of them in a Cornell box). 0 turns it off", 0.0,
            minimum=0.0, maximum=10.0),
     _menu("mis_heuristic", "MIS",
           "How light sampling (next-event estimation) and BSDF sampling are combined for direct "
