@@ -51,6 +51,12 @@ def keep_freed_batches():
         return _state["text"]
 
 
+def keeps_freed():
+    """Whether :func:`keep_freed_batches` has tuned this process's ``malloc`` (so that freed
+    batch arrays are reused without faulting their pages in again)."""
+    return _state.get("text", "").startswith("glibc")
+
+
 def _tune():
     if not sys.platform.startswith("linux"):
         return f"default ({sys.platform})"

@@ -61,7 +61,8 @@ def used_settings(settings):
         tracing, BDPT, photon mapping and SPPM: the other integrators stop paths at
         ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
         estimators use no MIS: one strategy per light contribution), and ``workers``
-        (``'processes'`` or ``'threads'``: :func:`worker_mode`).
+        (``'processes'`` or ``'threads'``: :func:`worker_mode`); ``connection_roulette``
+        (Russian roulette of connections) for BDPT alone.
     """
     return {**_used_settings(settings), "workers": worker_mode(settings)[0]}
 
@@ -109,6 +110,9 @@ def _used_settings(settings):
         "sppm_radius": (settings.sppm_radius if settings.integrator == "sppm"
                         and not settings.photon_radius else na),
         "gather_rays": settings.gather_rays if jensen else na,
+        # Russian roulette of connections before their shadow rays: BDPT's alone; 0 is off.
+        "connection_roulette": (settings.connection_roulette
+                                if settings.integrator == "bdpt" else na),
         **{name: na for name in RADIOSITY_OPTIONS},
         **{name: na for name in MLT_OPTIONS},
         # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
@@ -144,6 +148,7 @@ def _radiosity_used(settings):
         **{name: na for name in PHOTON_OPTIONS},
         **{name: na for name in BOUNCE_KIND_OPTIONS},
         **{name: na for name in MLT_OPTIONS},
+        "connection_roulette": na,
         **{name: getattr(settings, name) for name in RADIOSITY_OPTIONS},
         # Hierarchical radiosity's links adapt instead; its leaves stay uniform.
         "radiosity_adaptive": (settings.radiosity_adaptive

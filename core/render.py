@@ -89,6 +89,7 @@ class RenderSettings:
     transparent_max_bounces: int = DEFAULTS["transparent_max_bounces"]
     use_russian_roulette: bool = DEFAULTS["use_russian_roulette"]
     rr_min_bounces: int = DEFAULTS["rr_min_bounces"]
+    connection_roulette: float = DEFAULTS["connection_roulette"]
     mis_heuristic: str = DEFAULTS["mis_heuristic"]
     mis_beta: float = DEFAULTS["mis_beta"]
     mis_alpha: float = DEFAULTS["mis_alpha"]

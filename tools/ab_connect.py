@@ -15,6 +15,7 @@ the median of thread CPU microseconds per camera sample, and head / base::
         python tools/ab_connect.py --base /tmp/base/sampling_lab --check --time
     ... --scene mirror_ball --size 96 --time   # a bench-scenes scene (needs bpy)
     ... --time --stage cameras                 # connect_cameras (the t = 1 splats) instead
+    ... --time --keep-freed                    # malloc as a render sets it (core.allocator)
 """
 
 from __future__ import annotations
@@ -156,7 +157,14 @@ def main(argv=None):
     parser.add_argument("--rounds", type=int, default=15)
     parser.add_argument("--stage", choices=sorted(STAGES), default="all",
                         help="--time: connect_all or connect_cameras (t = 1)")
+    parser.add_argument("--keep-freed", action="store_true",
+                        help="glibc keeps freed batch memory (core.allocator), as a render "
+                             "does: the head then joins connections in its large pieces")
     args = parser.parse_args(argv)
+    if args.keep_freed:
+        from sampling_lab.core.allocator import keep_freed_batches
+
+        print(f"allocator: {keep_freed_batches()}")
     _import_base(args.base)
     if args.check:
         check(CASES + (BPY_CASES if args.bpy else []))

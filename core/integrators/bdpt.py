@@ -68,6 +68,7 @@ import numpy as np
 from ..lights.emission import EmitterPoints
 from .bidir import DIMS_CAMERA, DIMS_PER_CAMERA_VERTEX, Bidirectional
 from .common import take_rows
+from .connection_roulette import for_batch as roulette_for_batch
 from .connections import Fresh, connect_all, connect_emitter_to_camera
 
 
@@ -88,8 +89,9 @@ class BDPT(Bidirectional):
         self.unit_paths = self.chunk_paths = _unit_paths(settings.max_bounces + 2)
 
     def connect(self, ctx, stream, C, L, out):
-        """Strategies ``s >= 1, t >= 2`` (a fresh emitter point for ``s = 1``), then
-        ``s = 1, t = 1``."""
+        """Strategies ``s >= 1, t >= 2`` (a fresh emitter point for ``s = 1``; under the
+        Connection Roulette, :mod:`.connection_roulette`), then ``s = 1, t = 1``."""
+        ctx.roulette = roulette_for_batch(self.settings, stream)
         connect_all(ctx, L, C, _fresh_points(ctx, stream, C), out)
         connect_emitter_to_camera(ctx, L, out)
 

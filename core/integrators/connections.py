@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..allocator import keeps_freed
 from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
@@ -26,8 +27,14 @@ from .mis_sums import RunningSums, summable
 from .subpaths import Gathered, dot, take_params, to_area
 from .transparent_passes import connection_budget, has_passes, transmitted
 
-# Connections joined per batch of array operations (see _in_pieces).
-PIECE = 8192
+# Connections joined per batch of array operations (see _in_pieces). Each of a piece's
+# NumPy calls has a fixed cost of about a microsecond: 32,768-row pieces made the stage 4-11 %
+# cheaper per camera sample than 8,192-row ones where freed batch memory is kept for reuse (as
+# renders do, core.allocator), at 0.8 MB per (m, 3) column (65,536 rows: slower again on a
+# worker thread); where it is not kept, large arrays fault fresh pages in and SMALL_PIECE is
+# faster (docs/BENCHMARKS.md, eighth round).
+PIECE = 1 << 15
+SMALL_PIECE = 1 << 13
 
 
 class Fresh(NamedTuple):
@@ -125,10 +132,11 @@ def _connect_vertices(ctx, L, C, gather):
 
 
 def _in_pieces(join, m):
-    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time: the list of the
-    :class:`_Joined` pieces, in order (arrays of a few thousand rows stay in the processor's
-    cache through a stage's many operations, and need no fresh pages of memory)."""
-    parts = [join(slice(a, min(a + PIECE, m))) for a in range(0, m, PIECE)]
+    """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time (``SMALL_PIECE``
+    unless :func:`core.allocator.keeps_freed`): the list of the :class:`_Joined` pieces, in
+    order (pieces bound the stage's memory; fewer, larger pieces make fewer NumPy calls)."""
+    piece = PIECE if keeps_freed() else min(PIECE, SMALL_PIECE)
+    parts = [join(slice(a, min(a + piece, m))) for a in range(0, m, piece)]
     return [p for p in parts if p is not None]
 
 
@@ -156,7 +164,8 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     budget = (connection_budget(ctx.settings.transparent_max_bounces,
                                 C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
               if has_passes(ctx.prep) else None)  # not read where all is opaque
-    kept = _unblocked(ctx, C, at_z, z, zv.ng, w, dist, yv.ng, value, dist_e > 0, budget, e)
+    kept = _unblocked(ctx, C, at_z, z, zv.ng, w, dist, yv.ng, value, dist_e > 0, budget, e,
+                      _thinner(ctx, value, row, zj, yj, e))
     if kept.size == 0:
         return None
     keep = e[kept]
@@ -169,6 +178,20 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
                    _finite_area(toward_z[keep], cos_y, d2),
                    to_area(back_y[kept], np.take(L.cos_prev, at_y), np.take(L.d_prev, at_y)),
                    ctx.light_points.delta_light[row])
+
+
+def _thinner(ctx, value, row, zj, yj=None, e=None):
+    """``thin(cand)`` for :func:`_unblocked`: the Connection Roulette
+    (:mod:`.connection_roulette`) of the connections whose values are ``value (m, 3)``,
+    camera vertex ``zj`` joined to light vertex ``yj`` (None: a fresh emitter point, ``s =
+    1``) of samples ``row``, those arrays' rows ``e`` (None: all); None where it is off."""
+    roulette = getattr(ctx, "roulette", None)
+    if roulette is None:
+        return None
+    if e is not None:
+        row, zj, yj = row[e], zj[e], yj[e]
+    keys = (zj + 1) * 1024 + (1 if yj is None else yj + 1)  # one code per strategy (s, t)
+    return lambda cand: roulette.thin(value, cand, row[cand], keys[cand])
 
 
 def _finite_area(pdf_sa, cos_at, d2):
@@ -207,7 +230,8 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
     scaled(value, g, out=value)
     budget = (connection_budget(ctx.settings.transparent_max_bounces, C.flat("passed")[at_z])
               if has_passes(ctx.prep) else None)  # not read where all is opaque
-    keep = _unblocked(ctx, C, at_z, z, zv.ng, w, dist, y_normal, value, dist > 0, budget)
+    keep = _unblocked(ctx, C, at_z, z, zv.ng, w, dist, y_normal, value, dist > 0, budget,
+                      thin=_thinner(ctx, value, row, zj))
     if keep.size == 0:
         return None
     w, dist = take_rows(w, keep), dist[keep]
@@ -251,15 +275,19 @@ def _reverse_at_z(C, back_z, zj, row):
                     1.0)
 
 
-def _unblocked(ctx, C, at_z, z, z_ng, w, dist, y_normal, value, ok, budget, ends=None):
+def _unblocked(ctx, C, at_z, z, z_ng, w, dist, y_normal, value, ok, budget, ends=None,
+               thin=None):
     """Connections ``(k,)`` (indices) with a contribution whose shadow ray gets through
     (through at most ``budget (k,)`` transparent surfaces, whose transparency then scales
     their rows of ``value (k, 3)`` in place, :mod:`.transparent_passes`; None where every
     surface is opaque). Connection ``i`` leaves camera end ``ends[i]`` (None: ``i``): the
     rows of ``at_z``, ``z``, its geometric normals ``z_ng``, the directions ``w`` and the
-    distances ``dist``, which are gathered here for the rays only."""
+    distances ``dist``, which are gathered here for the rays only. ``thin(cand)``: the
+    survivors of the Connection Roulette among the candidates (:func:`_thinner`; None: all)."""
     ok = ok & (max_component(value) > 0) & finite_rows(value)
     cand = np.nonzero(ok)[0]
+    if thin is not None:
+        cand = thin(cand)
     if cand.size == 0:
         return cand
     end = cand if ends is None else ends[cand]

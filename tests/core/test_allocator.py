@@ -53,3 +53,13 @@ def test_the_setting_is_made_once_and_says_what_it_set():
     first = keep_freed_batches()
     assert first == keep_freed_batches()
     assert first.startswith(("glibc", "default"))
+
+
+def test_keeps_freed_says_whether_the_setting_was_made():
+    from sampling_lab.core.allocator import keeps_freed
+
+    assert keeps_freed() == keep_freed_batches().startswith("glibc")
+    fresh = subprocess.run([sys.executable, "-c", "from sampling_lab.core.allocator import "
+                            "keeps_freed; print(keeps_freed())"], capture_output=True,
+                           text=True, check=True)
+    assert fresh.stdout.strip() == "False"  # a process that never asked for it
