@@ -50,7 +50,7 @@ def _bench_scenes(args):
                size=args.size, reference_spp=args.reference_spp, cycles=not args.no_cycles,
                output=args.output, update_docs=args.update_docs,
                reference_seconds=args.reference_seconds, sampler=args.sampler, seed=args.seed,
-               command=command, workers=args.workers)
+               command=command, workers=args.workers, repeats=args.repeats)
 
 
 def _bdpt_views(args):
@@ -380,7 +380,7 @@ def _add_bench_gap(sub, **kw):
 
 
 def _add_bench_scenes(sub, **kw):
-    from .hard_scenes import INTEGRATOR_SCENES, MATERIAL_SCENES, SCENES
+    from .hard_scenes import INTEGRATOR_SCENES, MATERIAL_SCENES, SCENE_REPEATS, SCENES
 
     h = _add(sub, "bench-scenes", "equal-time error of our integrators and Cycles on hard "
              "scenes (HARD_SCENES.md)", _bench_scenes, **kw)
@@ -403,8 +403,13 @@ def _add_bench_scenes(sub, **kw):
                    metavar="NAME", help=f"sampler of our equal-time renders and reference: one of "
                                         f"{OPTIONS['sampler'].allowed()}")
     h.add_argument("--seed", type=_positive_int, default=0,
-                   help="seed of every render (the references take the next four): repeat a "
-                        "run with other seeds where one render's error scatters (caustics)")
+                   help="seed of the first equal-time render of each renderer (the references "
+                        "take the next four, further repeats the seeds after them)")
+    h.add_argument("--repeats", type=_positive_int, default=None, metavar="K",
+                   help="equal-time renders per renderer and scene, ours and Cycles' alike, "
+                        "with seeds no reference uses; the report gives their mean, spread and "
+                        "each (default: " + ", ".join(f"{k} on {s}" for s, k in
+                                                      SCENE_REPEATS.items()) + ", 1 elsewhere)")
     h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
     _workers(h)
     add_output_arguments(h, "bench-scenes", "HARD_SCENES.md and its figure")
