@@ -89,7 +89,7 @@ def _add_bdpt_error(sub, **kw):
     which.add_argument("--bench-scene", default="mirror_ball", choices=list(SCENES),
                        help="a bench-scenes scene, built in bpy (default: %(default)s)")
     which.add_argument("--scene", default=None, choices=sorted(builtin_scenes.BUILTIN),
-                       help="instead, a built-in scene (no bpy)")
+                       help="instead, a built-in scene (no bpy; default: the bench-scene)")
     _size(p, (96, 96))
     p.add_argument("--spp", type=_positive_int, default=16, help="samples per pixel per render")
     p.add_argument("--renders", type=_positive_int, default=32,
