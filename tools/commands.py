@@ -50,7 +50,7 @@ def _bench_scenes(args):
                size=args.size, reference_spp=args.reference_spp, cycles=not args.no_cycles,
                output=args.output, update_docs=args.update_docs,
                reference_seconds=args.reference_seconds, sampler=args.sampler, seed=args.seed,
-               command=command, workers=args.workers)
+               command=command, workers=args.workers, repeats=args.repeats)
 
 
 def _bdpt_views(args):
@@ -66,6 +66,44 @@ def _bdpt_views(args):
     if args.update_docs:
         publish(args.output, [f"{DOCS_FOLDER}/{os.path.basename(path)}"])
     return 0
+
+
+def _bdpt_error(args):
+    from .bdpt_error import run
+
+    bench = args.scene is None
+    run(scene=args.bench_scene if bench else args.scene, bench=bench, size=args.size, spp=args.spp, renders=args.renders,
+        max_length=args.max_length, max_bounces=args.max_bounces, sampler=args.sampler,
+        seed=args.seed, top=args.top, output=args.output)
+    return 0
+
+
+def _add_bdpt_error(sub, **kw):
+    from .hard_scenes import SCENES
+
+    p = _add(sub, "bdpt-error", "where BDPT's error lies: each strategy's share of the image's "
+             "variance (relMSE-weighted) over independent renders, the per-render error "
+             "distribution and the worst pixel (figures; docs/BENCHMARKS.md quotes a run)",
+             _bdpt_error, **kw)
+    which = p.add_mutually_exclusive_group()
+    which.add_argument("--bench-scene", default="mirror_ball", choices=list(SCENES),
+                       help="a bench-scenes scene, built in bpy (default: %(default)s)")
+    which.add_argument("--scene", default=None, choices=sorted(builtin_scenes.BUILTIN),
+                       help="instead, a built-in scene (no bpy; default: the bench-scene)")
+    _size(p, (96, 96))
+    p.add_argument("--spp", type=_positive_int, default=16, help="samples per pixel per render")
+    p.add_argument("--renders", type=_positive_int, default=32,
+                   help="independent renders (at least 2)")
+    p.add_argument("--max-length", type=_positive_int, default=8,
+                   help="longest path with strategy views, in segments (at most 8; "
+                        "max bounces + 2 covers every path)")
+    p.add_argument("--max-bounces", type=int, default=8, help="bounce limit of every kind")
+    p.add_argument("--sampler", type=_option_type(OPTIONS["sampler"]),
+                   default=OPTIONS["sampler"].default, metavar="NAME",
+                   help=f"one of {OPTIONS['sampler'].allowed()}")
+    p.add_argument("--seed", type=int, default=1000, help="seed of the first render")
+    p.add_argument("--top", type=_positive_int, default=12, help="strategies listed")
+    add_output_arguments(p, "bdpt-error")
 
 
 def _bench_caustic(args):
@@ -303,6 +341,7 @@ def add_parsers(sub, **kw):
     v.add_argument("--max-length", type=_positive_int, default=4,
                    help="longest path shown, in segments")
     add_output_arguments(v, "bdpt-views", "the figure (images/bdpt_views_<scene>.png)")
+    _add_bdpt_error(sub, **kw)
     c = _add(sub, "bench-caustic", "equal-time error of path, light and BDPT on the "
              "small-light glass caustic (CAUSTIC.md)", _bench_caustic, **kw)
     _size(c, (64, 64))
@@ -380,7 +419,7 @@ def _add_bench_gap(sub, **kw):
 
 
 def _add_bench_scenes(sub, **kw):
-    from .hard_scenes import INTEGRATOR_SCENES, MATERIAL_SCENES, SCENES
+    from .hard_scenes import INTEGRATOR_SCENES, MATERIAL_SCENES, SCENE_REPEATS, SCENES
 
     h = _add(sub, "bench-scenes", "equal-time error of our integrators and Cycles on hard "
              "scenes (HARD_SCENES.md)", _bench_scenes, **kw)
@@ -403,8 +442,13 @@ def _add_bench_scenes(sub, **kw):
                    metavar="NAME", help=f"sampler of our equal-time renders and reference: one of "
                                         f"{OPTIONS['sampler'].allowed()}")
     h.add_argument("--seed", type=_positive_int, default=0,
-                   help="seed of every render (the references take the next four): repeat a "
-                        "run with other seeds where one render's error scatters (caustics)")
+                   help="seed of the first equal-time render of each renderer (the references "
+                        "take the next four, further repeats the seeds after them)")
+    h.add_argument("--repeats", type=_positive_int, default=None, metavar="K",
+                   help="equal-time renders per renderer and scene, ours and Cycles' alike, "
+                        "with seeds no reference uses; the report gives their mean, spread and "
+                        "each (default: " + ", ".join(f"{k} on {s}" for s, k in
+                                                      SCENE_REPEATS.items()) + ", 1 elsewhere)")
     h.add_argument("--no-cycles", action="store_true", help="skip the Cycles renders")
     _workers(h)
     add_output_arguments(h, "bench-scenes", "HARD_SCENES.md and its figure")

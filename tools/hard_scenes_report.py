@@ -9,10 +9,34 @@ import numpy as np
 
 from ..core.exr import write_png_preview
 from .common import EPS
-from .hard_scenes_reference import CHUNKS, NOISE_FLAG
+from .hard_scenes_reference import CHUNKS, NOISE_FLAG, flagged
 
 # Marks a figure whose reference is too noisy to judge it.
 FLAG = "(!)"
+
+
+def summarise(rows):
+    """One summary per scene and renderer, in the rows' order, over its repeated renders.
+
+    Each summary has the scene, the renderer, ``renders`` (their count), the mean of every
+    numeric figure of the rows (the mean error at the budget estimates the expected error at
+    equal time), ``at_budget_min`` / ``at_budget_max`` (the spread) and ``at_budget_each`` (each
+    render's error at the budget, in render order); ``noise_flag`` is the flag of the mean.
+    """
+    groups = {}
+    for r in rows:
+        groups.setdefault((r["scene"], r["renderer"]), []).append(r)
+    out = []
+    for (scene, renderer), group in groups.items():
+        mean = {k: float(np.mean([g[k] for g in group])) for k, v in group[0].items()
+                if isinstance(v, (int, float)) and k not in ("repeat", "seed", "noise_flag")}
+        each = [g["relmse_at_budget"] for g in group]
+        mean.update(scene=scene, renderer=renderer, renders=len(group), at_budget_each=each,
+                    at_budget_min=min(each), at_budget_max=max(each),
+                    noise_flag=int(flagged(group[0]["reference_noise"],
+                                           mean["relmse_corrected"])))
+        out.append(mean)
+    return out
 
 
 def print_scene(info, rows, seconds):
@@ -35,7 +59,12 @@ def print_scene(info, rows, seconds):
               f"{r['samples_per_s'] / 1e6:7.3f} M samples/s  relMSE {r['relmse_vs_ref']:.3e} "
               f"corrected {r['relmse_corrected']:.3e}  @{seconds:g} s "
               f"{r['relmse_at_budget']:.3e}{_flag(r)}  vs Cycles ref "
-              f"{r['relmse_vs_cycles_ref']:.3e}")
+              f"{r['relmse_vs_cycles_ref']:.3e}  (seed {r.get('seed', '-')})")
+    for m in summarise(rows):
+        if m["renders"] > 1:
+            print(f"   {m['renderer']:<8} mean of {m['renders']} renders @{seconds:g} s "
+                  f"{m['relmse_at_budget']:.3e}{_flag(m)} (min {m['at_budget_min']:.3e}, max "
+                  f"{m['at_budget_max']:.3e})")
 
 
 def _verdict(info):
@@ -81,8 +110,9 @@ def write_report(path, image_rel, rows, scene_rows, summary, integrators, cycles
                  command, descriptions):
     """The markdown report at ``path``; ``image_rel`` is the montage relative to it,
     ``descriptions`` each scene's one-line description."""
-    lines = (_header(summary, seconds, command) + _equal_time_table(rows, seconds)
-             + _relative_to_cycles(rows, scene_rows, integrators) + _references(scene_rows)
+    means = summarise(rows)
+    lines = (_header(summary, seconds, command) + _equal_time_table(means, seconds)
+             + _relative_to_cycles(means, scene_rows, integrators) + _references(scene_rows)
              + _scenes(scene_rows, descriptions, integrators, cycles, seconds, image_rel))
     with open(path + ".tmp", "w") as f:
         f.write("\n".join(lines))
@@ -127,23 +157,37 @@ def _header(summary, seconds, command):
         "it); *vs Cycles ref*: corrected relMSE against the Cycles reference alone (a "
         "cross-check that does not depend on ours); *mean / ref*: image mean over the "
         "reference's. On the caustic scenes (glass sphere, mirror ball) one render's error "
-        "scattered by up to ten times between seeds (heavy tails; docs/BENCHMARKS.md, "
-        "\"Third round\"): a single run's ratio there can be off several times over.",
+        "scatters by up to ten times between seeds (heavy tails: rare paths through the mirror "
+        "or the glass to the lamp; docs/BENCHMARKS.md, \"Eighth round\"), so every equal-time "
+        f"render is repeated *renders* times ({summary.get('repeats', '1')}; scene:renders) "
+        "with seeds no reference uses, ours and Cycles alike: each line gives the *mean* of "
+        "the renders' figures (the mean @ budget estimates the expected error at equal time, "
+        "and the ratios to Cycles below are ratios of these means), their spread *min–max* and "
+        "each render's figure (all of them are in `hard_scenes.csv`, one row per render). "
+        "Even a mean of three renders of a heavy-tailed error is itself noisy: compare ratios "
+        "between runs before trusting one.",
     ]
 
 
-def _equal_time_table(rows, seconds):
+def _equal_time_table(means, seconds):
+    """One line per scene and renderer (:func:`summarise`): means over its renders, the
+    spread and each render's error at the budget."""
     lines = [
         "",
-        "| scene | renderer | spp | time s | M samples/s | relMSE | corrected | "
-        f"@{seconds:g} s | ref noise | vs Cycles ref | mean / ref |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| scene | renderer | renders | spp | time s | M samples/s | relMSE | corrected | "
+        f"@{seconds:g} s (mean) | min–max | each render @{seconds:g} s | ref noise | "
+        "vs Cycles ref | mean / ref |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|---:|---:|---:|",
     ]
-    for r in rows:
+    for r in means:
+        spread = (f"{_fmt(r['at_budget_min'])}–{_fmt(r['at_budget_max'])}"
+                  if r["renders"] > 1 else "–")
         lines.append(
-            f"| {r['scene']} | {r['renderer']} | {r['spp']:.1f} | {r['time_s']:.2f} | "
-            f"{r['samples_per_s'] / 1e6:.3f} | {_fmt(r['relmse_vs_ref'])} | "
-            f"{_fmt(r['relmse_corrected'])} | **{_fmt(r['relmse_at_budget'])}**{_flag(r)} | "
+            f"| {r['scene']} | {r['renderer']} | {r['renders']} | {r['spp']:.1f} | "
+            f"{r['time_s']:.2f} | {r['samples_per_s'] / 1e6:.3f} | "
+            f"{_fmt(r['relmse_vs_ref'])} | {_fmt(r['relmse_corrected'])} | "
+            f"**{_fmt(r['relmse_at_budget'])}**{_flag(r)} | {spread} | "
+            f"{' '.join(_fmt(x) for x in r['at_budget_each'])} | "
             f"{_fmt(r.get('reference_noise'))} | {_fmt(r['relmse_vs_cycles_ref'])} | "
             f"{r['mean_over_ref']:.4f} |")
     return lines
@@ -151,8 +195,8 @@ def _equal_time_table(rows, seconds):
 
 def _relative_to_cycles(rows, scene_rows, integrators):
     lines = []
-    lines += ["", "Error at equal time relative to Cycles (@ budget, ours / Cycles; above 1: "
-              "Cycles is better):", ""]
+    lines += ["", "Error at equal time relative to Cycles (means over the renders @ budget, "
+              "ours / Cycles; above 1: Cycles is better):", ""]
     for s in scene_rows:
         cy = next((r for r in rows if r["scene"] == s["scene"] and r["renderer"] == "Cycles"),
                   None)
@@ -168,7 +212,9 @@ def _relative_to_cycles(rows, scene_rows, integrators):
                              + _flag(r) + ("" if r is cy else _flag(cy)))
             else:
                 parts.append(f"`{integ}` –")
-        lines.append(f"- {s['scene']}: " + ", ".join(parts))
+        k = max((r["renders"] for r in rows if r["scene"] == s["scene"]), default=1)
+        lines.append(f"- {s['scene']}" + (f" (means of {k} renders each)" if k > 1 else "")
+                     + ": " + ", ".join(parts))
     return lines
 
 
