@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from ab_units import BASE, HEAD, _import_base, keep_freed_both, _scene
+from ab_units import BASE, HEAD, _import_base, _scene, keep_freed_both
 from stage_timer import uniform_bounces as _bounces
 
 # (scene, image side, settings): --check's cases; "+world" / "+sun" add an infinite emitter.
