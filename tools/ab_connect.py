@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from ab_units import BASE, HEAD, _import_base, _scene
+from ab_units import BASE, HEAD, _import_base, _scene, keep_freed_both
 from stage_timer import uniform_bounces as _bounces
 
 # (scene, image side, settings): --check's cases; "+world" / "+sun" add an infinite emitter.
@@ -159,13 +159,11 @@ def main(argv=None):
                         help="--time: connect_all or connect_cameras (t = 1)")
     parser.add_argument("--keep-freed", action="store_true",
                         help="glibc keeps freed batch memory (core.allocator), as a render "
-                             "does: the head then joins connections in its large pieces")
+                             "does (both trees: each then joins connections in its large pieces)")
     args = parser.parse_args(argv)
-    if args.keep_freed:
-        from sampling_lab.core.allocator import keep_freed_batches
-
-        print(f"allocator: {keep_freed_batches()}")
     _import_base(args.base)
+    if args.keep_freed:
+        print(f"allocator: {keep_freed_both()}")
     if args.check:
         check(CASES + (BPY_CASES if args.bpy else []))
     if args.time:

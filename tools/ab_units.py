@@ -52,6 +52,22 @@ def _import_base(path):
     sys.path.insert(0, folder)
 
 
+def keep_freed_both():
+    """:func:`core.allocator.keep_freed_batches` in the head AND the base (call it after
+    :func:`_import_base`): glibc's setting is per process, but each tree reads its own
+    module's flag (``keeps_freed()``, e.g. the connections' piece size): tuning the head's
+    alone ran the base's connections in small pieces, a head / base of about 0.94 for two
+    identical trees. A base without the module is left alone. Returns the head's text."""
+    texts = {}
+    for pkg in (HEAD, BASE):
+        try:
+            allocator = importlib.import_module(f"{pkg}.core.allocator")
+        except ImportError:  # a base from before core.allocator
+            continue
+        texts[pkg] = allocator.keep_freed_batches()
+    return texts[HEAD]
+
+
 def _scene(pkg, args):
     scenes = importlib.import_module(f"{pkg}.core.scenes")
     if args.scene == "bench":
@@ -115,11 +131,9 @@ def main(argv=None):
                              "units on this main thread then page-fault no more than a "
                              "render's worker threads")
     args = parser.parse_args(argv)
-    if args.keep_freed:
-        from sampling_lab.core.allocator import keep_freed_batches
-
-        print(f"allocator: {keep_freed_batches()}")
     _import_base(args.base)
+    if args.keep_freed:
+        print(f"allocator: {keep_freed_both()}")
     measures = args.measures.split(",")
     runs = {}
     for pkg in (BASE, HEAD):
