@@ -6,8 +6,8 @@ the ``t = 1`` bookkeeping included), this times what a unit does with its splats
 on the worker (``Film.splat_taps`` then ``Film.compact_splat_taps``: the filter taps and
 their per-pixel sums) and the camera projection of the light vertices (``camera.project``).
 Both trees get the same inputs: the splats of one light-tracing unit of the head tree, and
-its splats' light vertices, recovered on the camera ray (the points at ``dist`` along the
-ray through the splat's film position). Thread CPU microseconds per camera sample (one
+points standing in for its light vertices, on the camera ray through each splat's film
+position at a random distance of 1 to 5 units (the distance changes no step's work). Thread CPU microseconds per camera sample (one
 light path is one camera sample), minimum and median over the rounds, and head / base::
 
     PYTHONPATH=/path/to/parent:<head>/tools python tools/splat_cost.py \\
@@ -28,8 +28,8 @@ from ab_units import BASE, HEAD, _import_base, _scene
 
 
 def _splats(scene, size):
-    """The splats ``(film_xy (k, 2), value (k, 3))`` of one light-tracing unit of the head tree
-    and the light vertices ``(k, 3)`` they came from, and the paths of the unit."""
+    """The splats ``(film_xy (k, 2), value (k, 3))`` of one light-tracing unit of the head tree,
+    points ``(k, 3)`` that project onto them (see the module docstring), and the unit's paths."""
     from sampling_lab.core.camera import generate_rays
     from sampling_lab.core.film import PixelFilter
     from sampling_lab.core.integrators import integrator_class
