@@ -121,16 +121,21 @@ def project(cam: Camera, p, margin=0.0, window=None):
         tx = local[:, 0] / depth
         ty = local[:, 1] / depth
         cos_theta = depth / dist
-    fx = ((tx - sx) / (2.0 * half_x) + 0.5) * cam.width
-    fy = ((ty - sy) / (2.0 * half_y) + 0.5) * cam.height
-    film_xy = np.stack([fx, fy], axis=-1)
+    # Straight into the columns of one (n, 2) table (no stack copy).
+    film_xy = np.empty((local.shape[0], 2))
+    fx, fy = film_xy[:, 0], film_xy[:, 1]
+    np.multiply((tx - sx) / (2.0 * half_x) + 0.5, cam.width, out=fx)
+    np.multiply((ty - sy) / (2.0 * half_y) + 0.5, cam.height, out=fy)
     x0, y0, x1, y1 = window if window is not None else (0, 0, cam.width, cam.height)
+    # The bounds hold for finite coordinates only (NaN and +-Inf fail one of each axis'
+    # two comparisons), so no isfinite test is needed for ``visible``.
     visible = ((depth > 0) & (depth >= cam.clip_start) & (depth <= cam.clip_end)
                & (fx >= x0 - margin) & (fx < x1 + margin) & (fy >= y0 - margin)
-               & (fy < y1 + margin)
-               & np.isfinite(fx) & np.isfinite(fy))
-    return np.where(np.isfinite(film_xy), film_xy, -1.0), visible, np.where(
-        visible, cos_theta, 0.0), dist
+               & (fy < y1 + margin))
+    if not visible.all():  # the positions of hidden points may be NaN or Inf
+        np.copyto(film_xy, -1.0, where=~np.isfinite(film_xy))
+        cos_theta[~visible] = 0.0
+    return film_xy, visible, cos_theta, dist
 
 
 def importance(cam: Camera, cos_theta):

@@ -103,8 +103,11 @@ class PixelFilter:
             return np.where(np.abs(x) < half, 1.0 / max(self.support, 1e-300), 0.0)
         # The derivative of the piecewise-linear CDF: constant between grid points.
         step = self.grid[1] - self.grid[0]
-        i = np.clip(np.floor((x + half) / step).astype(np.int64), 0, self.grid.size - 2)
-        return np.where(np.abs(x) < half, np.take(self.cell_density, i), 0.0)
+        # The cell index clipped to the table by np.take itself (mode="clip", the table has
+        # grid.size - 1 cells); truncation instead of np.floor differs only below zero, where
+        # both clip to cell 0.
+        i = ((x + half) / step).astype(np.int64)
+        return np.where(np.abs(x) < half, np.take(self.cell_density, i, mode="clip"), 0.0)
 
     def taps(self):
         """Pixel offsets ``(m,)`` int a splat must visit: every pixel whose filter can cover a
@@ -266,7 +269,8 @@ class Film:
         if not ok.all():
             keep = np.nonzero(ok)[0]
             film_xy, value = np.take(film_xy, keep, axis=0), np.take(value, keep, axis=0)
-        film_xy = film_xy - (self.x0, self.y0)
+        if self.x0 or self.y0:  # a render region's window (x - 0 is x, bit for bit)
+            film_xy = film_xy - (self.x0, self.y0)
         if pixel_filter is None:
             x = np.floor(film_xy[:, 0]).astype(np.int64)
             y = np.floor(film_xy[:, 1]).astype(np.int64)
@@ -278,13 +282,15 @@ class Film:
         # Every pair of taps at once, (Tx, Ty, k): the order in which the pixels' sums add
         # them (pair by pair, then splat by splat). Taps outside the film go to pixel n,
         # which the sums drop; taps of weight zero add zeros, which change no sum.
-        pixel = np.minimum(py[None, :, :] + px[:, None, :], n).reshape(-1)
+        pixel = np.add(py[None, :, :], px[:, None, :])
+        pixel = np.minimum(pixel, n, out=pixel).reshape(-1)
         w = (wx[:, None, :] * wy[None, :, :]).reshape(wx.shape[0] * wy.shape[0], k)
         # Channel by channel into a (3, m) table, returned as its (m, 3) transpose: each
         # channel's column is contiguous for add_splat_taps' bincounts.
         weighted = np.empty((3, w.size))
+        channels = value.T.copy()  # contiguous channels for the broadcasts
         for c in range(3):
-            np.multiply(w, value[:, c], out=weighted[c].reshape(w.shape))
+            np.multiply(w, channels[c], out=weighted[c].reshape(w.shape))
         return pixel, weighted.T
 
     def add_splat_paths(self, k):
@@ -367,7 +373,9 @@ def _axis_taps(x, pixel_filter, size, stride, outside):
     p = np.floor(x).astype(np.int64)[None, :] + pixel_filter.reach()[:, None]
     inside = (p >= 0) & (p < size)
     w = pixel_filter.pdf_1d(x[None, :] - (p + 0.5))
-    return np.where(inside, p * stride, outside), np.where(inside, w, 0.0)
+    if stride != 1:
+        p *= stride
+    return np.where(inside, p, outside), np.where(inside, w, 0.0)
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
