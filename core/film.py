@@ -107,7 +107,7 @@ class PixelFilter:
         # grid.size - 1 cells); truncation instead of np.floor differs only below zero, where
         # both clip to cell 0.
         i = ((x + half) / step).astype(np.int64)
-        return np.where(np.abs(x) < half, np.take(self.cell_density, i, mode="clip"), 0.0)
+        return np.where(np.abs(x) < half, self.cell_density.take(i, mode="clip"), 0.0)
 
     def taps(self):
         """Pixel offsets ``(m,)`` int a splat must visit: every pixel whose filter can cover a
@@ -268,7 +268,7 @@ class Film:
         ok = fv[:, 0] & fv[:, 1] & fv[:, 2] & fx[:, 0] & fx[:, 1]
         if not ok.all():
             keep = np.nonzero(ok)[0]
-            film_xy, value = np.take(film_xy, keep, axis=0), np.take(value, keep, axis=0)
+            film_xy, value = film_xy.take(keep, axis=0), value.take(keep, axis=0)
         if self.x0 or self.y0:  # a render region's window (x - 0 is x, bit for bit)
             film_xy = film_xy - (self.x0, self.y0)
         if pixel_filter is None:

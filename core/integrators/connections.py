@@ -172,11 +172,11 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     w, d2 = take_rows(w, keep), np.square(dist[keep])
     cos_z, cos_y = dot(take_rows(zv.ng, keep), w), dot(take_rows(yv.ng, kept), w)
     yj, zj, row, at_y = yj[keep], zj[keep], row[keep], at_y[kept]
-    return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), np.take(L.pdf_fwd[0], row),
+    return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), L.pdf_fwd[0].take(row),
                    _finite_area(toward_y[kept], cos_z, d2),
                    _reverse_at_z(C, back_z[keep], zj, row),
                    _finite_area(toward_z[keep], cos_y, d2),
-                   to_area(back_y[kept], np.take(L.cos_prev, at_y), np.take(L.d_prev, at_y)),
+                   to_area(back_y[kept], L.cos_prev.take(at_y), L.d_prev.take(at_y)),
                    ctx.light_points.delta_light[row])
 
 
@@ -271,7 +271,7 @@ def _reverse_at_z(C, back_z, zj, row):
     """The light side's area density of ``z_{t-2}``, sampled at ``z = z_{t-1}`` from the
     solid-angle density ``back_z (m,)`` (``t >= 3``; unused, and one, for ``t = 2``)."""
     at = zj * C.valid.shape[1] + row  # flat takes: the values of C.cos_prev[zj, row]
-    return np.where(zj >= 2, to_area(back_z, np.take(C.cos_prev, at), np.take(C.d_prev, at)),
+    return np.where(zj >= 2, to_area(back_z, C.cos_prev.take(at), C.d_prev.take(at)),
                     1.0)
 
 

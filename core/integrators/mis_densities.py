@@ -214,7 +214,7 @@ def splat_weights(ctx, L, s, rows, yv, w, w_y, dist, cos_theta):
     pdf_cam = camera_pdf(ctx.cam, cos_theta, ctx.film_pixels)
     at_y = (s - 1) * L.valid.shape[1] + rows
     near = (to_area(pdf_cam, np.abs(dot(yv.ng, w)), dist),  # p_camera[s - 1]
-            to_area(yv.pdf_back(w_y), np.take(L.cos_prev, at_y), np.take(L.d_prev, at_y)))
+            to_area(yv.pdf_back(w_y), L.cos_prev.take(at_y), L.d_prev.take(at_y)))
     ratios = _suffix_ratios(L, rows, first, top, near)
     return _summed_weight(ctx, L, rows, first, top, ratios)
 

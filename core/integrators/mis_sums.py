@@ -122,15 +122,15 @@ class RunningSums:
         # two-index fancy indexing, same values).
         at_y = y * n + row
         at_back = np.maximum(y - 1, 0) * n + row
-        a1 = _ratio(near.camera_s1, np.where(one, near.light_0, np.take(L.pdf_fwd, at_y)))
+        a1 = _ratio(near.camera_s1, np.where(one, near.light_0, L.pdf_fwd.take(at_y)))
         # Strategy s - 1 connects x_{s-2} (impossible where it is delta) to y (never counted
         # delta: the connection evaluates its BSDF). Vertex 0's flag is never set (false).
-        delta_back = np.take(L.delta, at_back)
+        delta_back = L.delta.take(at_back)
         p1 = np.where(one, ~near.delta_light, ~delta_back)
-        a2 = _ratio(near.camera_s2, np.where(two, near.light_0, np.take(L.pdf_fwd, at_back)))
+        a2 = _ratio(near.camera_s2, np.where(two, near.light_0, L.pdf_fwd.take(at_back)))
         p2 = np.where(two, ~near.delta_light,
-                      ~np.take(L.delta, np.maximum(y - 2, 0) * n + row) & ~delta_back)
-        rest = h(a2) * (p2 + np.take(self.light, at_y))
+                      ~L.delta.take(np.maximum(y - 2, 0) * n + row) & ~delta_back)
+        rest = h(a2) * (p2 + self.light.take(at_y))
         return h(a1) * (p1 + np.where(one, 0.0, rest))
 
     def _camera_side(self, C, t, row, near, n):
@@ -139,13 +139,13 @@ class RunningSums:
         h = self.h
         z = t - 1
         at_z, at_prev = z * n + row, (z - 1) * n + row
-        b1 = _ratio(near.light_s, np.take(C.pdf_fwd, at_z))
+        b1 = _ratio(near.light_s, C.pdf_fwd.take(at_z))
         # Strategy s + 1 connects z = x_s (never counted delta) to z_{t-2} (impossible where
         # it is delta; the pinhole z_0's flag is never set).
-        p1 = ~np.take(C.delta, at_prev)
-        b2 = _ratio(near.light_s1, np.take(C.pdf_fwd, at_prev))
-        p2 = ~np.take(C.delta, np.maximum(z - 2, 0) * n + row) & p1
-        rest = h(b2) * (p2 + np.take(self.camera, at_z))
+        p1 = ~C.delta.take(at_prev)
+        b2 = _ratio(near.light_s1, C.pdf_fwd.take(at_prev))
+        p2 = ~C.delta.take(np.maximum(z - 2, 0) * n + row) & p1
+        rest = h(b2) * (p2 + self.camera.take(at_z))
         return h(b1) * (p1 + np.where(t == 2, 0.0, rest))
 
 

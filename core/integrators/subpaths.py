@@ -60,7 +60,7 @@ def take_params(params, rows, lambert=False):
         elif lambert and name in _NOT_LAMBERT:
             out[name] = np.broadcast_to(_NOT_LAMBERT[name], (rows.size,) + c.shape[1:])
         else:
-            out[name] = np.take(c, rows, axis=0)
+            out[name] = c.take(rows, axis=0)
     return BSDFParams(**out)
 
 

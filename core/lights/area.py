@@ -132,14 +132,14 @@ class AreaLights(LightFamily):
 
     def _area(self, li):
         """Areas ``(m,)`` of lights ``li`` (a disk's or ellipse's is pi / 4 of its square's)."""
-        return np.take(self.area, li)
+        return self.area.take(li)
 
     def _rows(self, table, li):
         """``table[li]`` for a per-lamp table ``(k, ...)``: one row broadcast (read-only, no
         copy) when the scene has a single area lamp, so every ``li`` is that lamp."""
         if self.only is not None:
             return np.broadcast_to(table[self.only], (li.shape[0],) + table.shape[1:])
-        return np.take(table, li, axis=0)
+        return table.take(li, axis=0)
 
     def use_spherical(self, li, p):
         """Solid angles ``(n,)`` of lights ``li`` from ``p (n, 3)``, their corners ``(n, 3)``,
@@ -218,7 +218,7 @@ class AreaLights(LightFamily):
     def sample_le_origin(self, m, li, u, pmf, out):
         if m.size == out.pdf.size:  # every row chose an area lamp (m is 0..n-1): whole arrays
             out.p, area, _ = self._points(li, u)
-            out.normal = np.take(self.lights.direction, li, axis=0)
+            out.normal = self.lights.direction.take(li, axis=0)
             out.pdf = np.where(area > 0, pmf / np.maximum(area, 1e-300), 0.0)
             return
         out.p[m], area, _ = self._points(li, u[m])
@@ -229,7 +229,7 @@ class AreaLights(LightFamily):
         """A cosine about the emitting side (the lamp's frame, :attr:`le_s`, :attr:`le_t`)."""
         uu = u.copy() if m.size == out.pdf.size else u[m]
         uu[:, 0] = np.minimum(uu[:, 0], 1 - 1e-16)
-        frame = [np.take(a, li, axis=0) for a in (self.le_s, self.le_t, self.lights.direction)]
+        frame = [a.take(li, axis=0) for a in (self.le_s, self.le_t, self.lights.direction)]
         cosine_directions(m, frame, uu, 1.0, out)
 
     def le(self, m, li, cos, w, receiver, out):

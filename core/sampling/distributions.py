@@ -451,7 +451,7 @@ class Segmented1D:
             np.clip(local, 0, length - 1, out=local)
         else:
             local = np.zeros(u.shape, np.int64)
-        return local, np.take(self.pmf_table, local)
+        return local, self.pmf_table.take(local)
 
     def pmf(self, index):
         """Probability of global element ``index (k,)`` within its segment."""
