@@ -24,6 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import RenderRefused
+from .quiet import quiet
 
 FILTER_TABLE_SIZE = 1024
 # Steps of u in the guide table of the filter's inverse CDF (PixelFilter.sample).
@@ -325,7 +326,7 @@ class Film:
 
     def mean(self):
         """Pixel estimates ``(h, w, 3)`` float64: camera mean plus splats per light path."""
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with quiet("invalid", "divide"):
             img = np.where(self.count[:, None] > 0, self.sum / np.maximum(self.count, 1)[:, None], 0.0)
         if self.splat_paths:
             img = img + self.splat_sum / self.splat_paths
@@ -334,7 +335,7 @@ class Film:
     def variance(self):
         """Variance of each pixel estimate ``(h, w, 3)``: sample variance / sample count."""
         n = self.count[:, None].astype(np.float64)
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with quiet("invalid", "divide"):
             mean = self.sum / np.maximum(n, 1)
             s2 = (self.sum_sq - n * mean * mean) / np.maximum(n - 1, 1)
             var = np.where(n > 1, np.maximum(s2, 0.0) / np.maximum(n, 1), 0.0)

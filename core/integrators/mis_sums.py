@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..quiet import quiet
+
 # Heuristics whose weight is 1 / (1 + sum of h(ratio)) over the possible strategies.
 SUMMED = ("balance", "power", "none")
 
@@ -90,9 +92,9 @@ class RunningSums:
         depth, n = sub.valid.shape
         out = np.zeros((depth, n))
         g = np.zeros(n)
-        for j in range(0 if first_possible is not None else 1, depth - 2):
-            possible = first_possible if j == 0 else ~(sub.delta[j - 1] | sub.delta[j])
-            with np.errstate(invalid="ignore", over="ignore"):
+        with quiet("invalid", "over"):  # one context for the loop (each costs about 0.4 us)
+            for j in range(0 if first_possible is not None else 1, depth - 2):
+                possible = first_possible if j == 0 else ~(sub.delta[j - 1] | sub.delta[j])
                 factor = self.h(_ratio(sub.pdf_rev[j], sub.pdf_fwd[j]))
                 # G[j] = factor * (possible + G[j - 1]), formed in its row of the table (row
                 # by row: the rows of the table stay in the processor's cache).
@@ -106,7 +108,7 @@ class RunningSums:
         :class:`.mis_densities.Near` of ``(m,)`` columns) that the connections made; equal to
         :func:`.mis_densities.connection_weight` strategy by strategy, to rounding."""
         n = C.valid.shape[1]
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        with quiet("invalid", "over", "divide"):
             total = (1.0 + self._light_side(L, s, row, near, n)
                      + self._camera_side(C, t, row, near, n))
             w = 1.0 / total
@@ -155,6 +157,6 @@ def heuristic(mis, r):
     if mis.setting == "balance":
         return r
     if mis.setting == "power":
-        with np.errstate(over="ignore"):
+        with quiet("over"):
             return r ** mis.beta
     return (r > 0).astype(np.float64)

@@ -16,6 +16,7 @@ from ..sampling import warps
 from ..scene import LIGHT_DISK, LIGHT_RECT, Lights
 from .base import LUMINANCE, LightFamily, batch_rows, dot, light_row, set_batch_rows, unit
 from .shapes import ray_parallelogram
+from ..quiet import quiet
 
 
 def area_light(matrix_world, shape, size_x, size_y, color, energy, name="Area",
@@ -63,7 +64,7 @@ def area_point_pdf(m, p, q, normal, area, emitted, pmf, one_sided, out):
     if not one_sided:
         cos_l = np.abs(cos_l)
     ok = (cos_l > 1e-12) & (area > 0) & (r > 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with quiet("divide", "invalid"):
         sa = np.where(ok, d2 / (cos_l * area), 0.0)
     set_batch_rows(out.wi, m, w)
     set_batch_rows(out.dist, m, r)
@@ -113,7 +114,7 @@ class AreaLights(LightFamily):
         # Per lamp, the tangents warps.frame_from_normal makes around its emitting normal:
         # light paths gather them instead of building a frame per sample (the same values:
         # the frame is a function of the row; lamps that are not area lights get unused rows).
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             self.le_s, self.le_t = warps.frame_from_normal(lights.direction)
 
     def _points(self, li, u):

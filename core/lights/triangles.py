@@ -20,6 +20,7 @@ from ..rows import combine_rows, put_rows
 from ..sampling import warps
 from .area import area_point_pdf, cosine_directions, pick_face, solid_angle_pdf
 from .base import LUMINANCE, LightFamily, batch_rows, dot
+from ..quiet import quiet
 
 
 class EmissiveTriangles(LightFamily):
@@ -151,7 +152,7 @@ class EmissiveTriangles(LightFamily):
             us, ps, nrm, a, bs, cs = arrays
             w = warps.sample_spherical_triangle(us, a, bs, cs, ps)
             # The sampled point is where the direction meets the triangle's plane.
-            with np.errstate(divide="ignore", invalid="ignore"):
+            with quiet("divide", "invalid"):
                 t = dot(a - ps, nrm) / dot(w, nrm)
             qs = ps + w * np.where(np.isfinite(t) & (t > 0), t, 0.0)[:, None]
             if every:
@@ -184,14 +185,14 @@ class EmissiveTriangles(LightFamily):
         ls = self.sampler
         e = self.tri_emitter[prim]
         sel = ls.nee_pmf(e, p_prev, n_prev)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             pdf = sel * dist * dist / (np.abs(cos_light) * self.tri_area[prim])
         if ls.solid_angle and prim.size:
             # The same decision as sample_li: by solid angle where the warp is well conditioned.
             v0 = self.tri_v0[prim]
             omega, sph = self.use_spherical(v0, v0 + self.tri_e1[prim], v0 + self.tri_e2[prim],
                                             p_prev)
-            with np.errstate(divide="ignore", invalid="ignore"):
+            with quiet("divide", "invalid"):
                 pdf = np.where(sph, sel / omega, pdf)
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
