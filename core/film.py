@@ -268,7 +268,7 @@ class Film:
         fv, fx = np.isfinite(value), np.isfinite(film_xy)
         ok = fv[:, 0] & fv[:, 1] & fv[:, 2] & fx[:, 0] & fx[:, 1]
         if not ok.all():
-            keep = np.nonzero(ok)[0]
+            keep = ok.nonzero()[0]
             film_xy, value = film_xy.take(keep, axis=0), value.take(keep, axis=0)
         if self.x0 or self.y0:  # a render region's window (x - 0 is x, bit for bit)
             film_xy = film_xy - (self.x0, self.y0)

@@ -102,7 +102,7 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     with quiet("divide", "invalid", "over"):
         beta = combine_rows(((cos_l / (pts.pdf_origin * pdf_dir), le),))
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & finite_rows(beta)
-    rows = np.nonzero(good)[0]
+    rows = good.nonzero()[0]
     rows = rows[max_component(take_rows(beta, rows)) > 0]
     if depth < 2 or rows.size == 0:
         return L

@@ -397,7 +397,7 @@ def with_base_normals(params, unbent, frame):
     bends the specular closure's normal only, the diffuse base keeps ``unbent``. Unchanged
     when no such row exists."""
     layered = (params.kind == KIND_LAYERED) | (params.kind == KIND_LAYERED_MS)
-    rows = np.nonzero(layered)[0]
+    rows = layered.nonzero()[0]
     rows = rows[np.any(unbent[rows] != frame[2][rows], axis=1)]
     if rows.size == 0:
         return params

@@ -110,7 +110,7 @@ class AreaLights(LightFamily):
         self.any_spherical = bool(self.rect_spherical.any()) and sampler.solid_angle
         is_area = (lights.kind == LIGHT_RECT) | (lights.kind == LIGHT_DISK)
         # The one area lamp of the scene (then every row of a batch chose it), or None.
-        self.only = int(np.nonzero(is_area)[0][0]) if is_area.sum() == 1 else None
+        self.only = int(is_area.nonzero()[0][0]) if is_area.sum() == 1 else None
         # Per lamp, the tangents warps.frame_from_normal makes around its emitting normal:
         # light paths gather them instead of building a frame per sample (the same values:
         # the frame is a function of the row; lamps that are not area lights get unused rows).
@@ -154,7 +154,7 @@ class AreaLights(LightFamily):
         # Only rectangles sampled by solid angle need it; the rest skip the arithmetic.
         use = self.rect_spherical[li] & self.sampler.solid_angle
         omega = np.zeros(p.shape[0])
-        rows = np.nonzero(use)[0]
+        rows = use.nonzero()[0]
         if rows.size:
             lr = li[rows]
             omega[rows] = warps.spherical_rectangle_solid_angle(

@@ -245,7 +245,7 @@ class LightTree:
         self.fallback_left = pw_l / (pw_l + pw_r)
 
         # Root paths, leaves in emitter order: walk up from every leaf one level per step.
-        leaves = np.nonzero(leaf)[0]
+        leaves = leaf.nonzero()[0]
         order = np.argsort(self.leaf_emitter[leaves])
         self.leaf_rows = self.leaf_emitter[leaves][order]
         node = leaves[order]

@@ -147,7 +147,7 @@ class EmissiveTriangles(LightFamily):
         if sph.any():
             arrays = (um, pm, normal, v0, b, c)
             if not every:
-                idx = np.nonzero(sph)[0]
+                idx = sph.nonzero()[0]
                 arrays = [x.take(idx, axis=0) for x in arrays]
             us, ps, nrm, a, bs, cs = arrays
             w = warps.sample_spherical_triangle(us, a, bs, cs, ps)
