@@ -124,7 +124,7 @@ class Accel:
         if key not in self._scenes:
             with self._building:
                 if key not in self._scenes:
-                    rows = np.nonzero(visible)[0]
+                    rows = visible.nonzero()[0]
                     mine = self.triangles if key == VIS_ALL else self.triangles[rows]
                     scene, report = build_scene(self.vertices, mine, cancel)
                     self.builds[key] = report

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .scene import Camera
+from .quiet import quiet
 
 
 def view_extent(cam: Camera):
@@ -117,7 +118,7 @@ def project(cam: Camera, p, margin=0.0, window=None):
     local = np.einsum("ij,jk->ik", p - m[:3, 3], rot)
     depth = -local[:, 2]
     dist = np.sqrt(np.einsum("ij,ij->i", local, local))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with quiet("divide", "invalid"):
         tx = local[:, 0] / depth
         ty = local[:, 1] / depth
         cos_theta = depth / dist
@@ -150,7 +151,7 @@ def importance(cam: Camera, cos_theta):
     """
     a_pixel = film_plane_area(cam) / (cam.width * cam.height)
     c = np.asarray(cos_theta, np.float64)
-    with np.errstate(divide="ignore"):
+    with quiet("divide"):
         return np.where(c > 0, 1.0 / (a_pixel * c**3), 0.0)
 
 
@@ -165,5 +166,5 @@ def camera_pdf(cam: Camera, cos_theta, pixels=None):
     area = film_plane_area(cam)
     if pixels is not None:
         area *= pixels / (cam.width * cam.height)
-    with np.errstate(divide="ignore"):
+    with quiet("divide"):
         return np.where(c > 0, 1.0 / (area * c**3), 0.0)

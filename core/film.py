@@ -24,6 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import RenderRefused
+from .quiet import quiet
 
 FILTER_TABLE_SIZE = 1024
 # Steps of u in the guide table of the filter's inverse CDF (PixelFilter.sample).
@@ -107,7 +108,7 @@ class PixelFilter:
         # grid.size - 1 cells); truncation instead of np.floor differs only below zero, where
         # both clip to cell 0.
         i = ((x + half) / step).astype(np.int64)
-        return np.where(np.abs(x) < half, np.take(self.cell_density, i, mode="clip"), 0.0)
+        return np.where(np.abs(x) < half, self.cell_density.take(i, mode="clip"), 0.0)
 
     def taps(self):
         """Pixel offsets ``(m,)`` int a splat must visit: every pixel whose filter can cover a
@@ -267,8 +268,8 @@ class Film:
         fv, fx = np.isfinite(value), np.isfinite(film_xy)
         ok = fv[:, 0] & fv[:, 1] & fv[:, 2] & fx[:, 0] & fx[:, 1]
         if not ok.all():
-            keep = np.nonzero(ok)[0]
-            film_xy, value = np.take(film_xy, keep, axis=0), np.take(value, keep, axis=0)
+            keep = ok.nonzero()[0]
+            film_xy, value = film_xy.take(keep, axis=0), value.take(keep, axis=0)
         if self.x0 or self.y0:  # a render region's window (x - 0 is x, bit for bit)
             film_xy = film_xy - (self.x0, self.y0)
         if pixel_filter is None:
@@ -325,7 +326,7 @@ class Film:
 
     def mean(self):
         """Pixel estimates ``(h, w, 3)`` float64: camera mean plus splats per light path."""
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with quiet("invalid", "divide"):
             img = np.where(self.count[:, None] > 0, self.sum / np.maximum(self.count, 1)[:, None], 0.0)
         if self.splat_paths:
             img = img + self.splat_sum / self.splat_paths
@@ -334,7 +335,7 @@ class Film:
     def variance(self):
         """Variance of each pixel estimate ``(h, w, 3)``: sample variance / sample count."""
         n = self.count[:, None].astype(np.float64)
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with quiet("invalid", "divide"):
             mean = self.sum / np.maximum(n, 1)
             s2 = (self.sum_sq - n * mean * mean) / np.maximum(n - 1, 1)
             var = np.where(n > 1, np.maximum(s2, 0.0) / np.maximum(n, 1), 0.0)

@@ -30,7 +30,7 @@ def put_rows(dst, rows, src):
     shape = (rows.size,) + dst.shape[1:]
     src = np.ascontiguousarray(src if np.shape(src) == shape else np.broadcast_to(src, shape),
                                dst.dtype)
-    np.put(dst.view(item).reshape(-1), rows, src.view(item).reshape(-1))
+    dst.view(item).reshape(-1).put(rows, src.view(item).reshape(-1))
 
 
 # Rows at which :func:`combine_rows` goes column by column: a (k, 1) x (k, 3) broadcast costs

@@ -238,7 +238,7 @@ class VertexNormals:
             for column in (params.base_normal, params.coat_normal):
                 if column is not None:
                     own |= np.any(column != 0.0, axis=1)
-            rows = np.nonzero(own)[0]
+            rows = own.nonzero()[0]
             if rows.size:
                 f[rows] = self._adjoint_of_radiance(params.take(rows), wl[rows], wc[rows],
                                                     wl_l[rows], wc_l[rows], rows)
@@ -368,6 +368,6 @@ class VertexNormals:
         moved = np.nonzero(smooth & (~same | self._own_normals()))[0]
         if moved.size:
             f[moved] = self.take(moved).f_importance(wl[moved], wc[moved])
-        rows = np.nonzero(smooth)[0]
+        rows = smooth.nonzero()[0]
         weight[rows] = f[rows] / np.where(mix[rows] > 0, mix[rows], np.inf)[:, None]
         pdf[rows] = mix[rows]

@@ -29,6 +29,7 @@ from .connections import camera_splatter, connect_cameras
 from .strategy_views import Tally
 from .subpaths import Subpath, walk
 from .vertex_frames import triangle_frames
+from ..quiet import quiet
 
 # Paths per chunk: keeps the subpath arrays (depth x paths) small.
 CHUNK = 8192
@@ -98,10 +99,10 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
         L.pdf_fwd[0] = pts.pdf_origin
         L.cos_prev[0] = np.where(pts.infinite | pts.delta_light, 1.0, cos_l)
         L.d_prev[0] = np.where(pts.infinite, np.inf, 0.0)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+    with quiet("divide", "invalid", "over"):
         beta = combine_rows(((cos_l / (pts.pdf_origin * pdf_dir), le),))
     good = (pts.index >= 0) & (pdf_dir > 0) & (pts.pdf_origin > 0) & finite_rows(beta)
-    rows = np.nonzero(good)[0]
+    rows = good.nonzero()[0]
     rows = rows[max_component(take_rows(beta, rows)) > 0]
     if depth < 2 or rows.size == 0:
         return L

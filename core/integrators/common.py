@@ -17,16 +17,17 @@ from ..scene import VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION
 
 
 def take_rows(a, rows):
-    """``a[rows]`` for an index array ``rows (k,)``: ``np.take`` gathers the rows of an
-    ``(n, 3)`` array about three times faster than fancy indexing (same values)."""
-    return np.take(a, rows, axis=0)
+    """``a[rows]`` for an ndarray ``a`` and an index array ``rows (k,)``: ``ndarray.take``
+    gathers the rows of an ``(n, 3)`` array about three times faster than fancy indexing (same
+    values; the method, not ``np.take``, whose Python wrapper costs about 0.6 us a call)."""
+    return a.take(rows, axis=0)
 
 
 def add_rows(L, rows, value):
     """``L[rows] += value`` for ``L (N, 3)``, distinct ``rows (k,)``, ``value (k, 3)`` (the same
     sums; a take and a scatter of whole rows, :func:`core.rows.put_rows`, are faster than the
     fancy-index update)."""
-    acc = np.take(L, rows, axis=0)
+    acc = L.take(rows, axis=0)
     acc += value
     put_rows(L, rows, acc)
 
@@ -396,7 +397,7 @@ def with_base_normals(params, unbent, frame):
     bends the specular closure's normal only, the diffuse base keeps ``unbent``. Unchanged
     when no such row exists."""
     layered = (params.kind == KIND_LAYERED) | (params.kind == KIND_LAYERED_MS)
-    rows = np.nonzero(layered)[0]
+    rows = layered.nonzero()[0]
     rows = rows[np.any(unbent[rows] != frame[2][rows], axis=1)]
     if rows.size == 0:
         return params

@@ -172,11 +172,11 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     w, d2 = take_rows(w, keep), np.square(dist[keep])
     cos_z, cos_y = dot(take_rows(zv.ng, keep), w), dot(take_rows(yv.ng, kept), w)
     yj, zj, row, at_y = yj[keep], zj[keep], row[keep], at_y[kept]
-    return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), np.take(L.pdf_fwd[0], row),
+    return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), L.pdf_fwd[0].take(row),
                    _finite_area(toward_y[kept], cos_z, d2),
                    _reverse_at_z(C, back_z[keep], zj, row),
                    _finite_area(toward_z[keep], cos_y, d2),
-                   to_area(back_y[kept], np.take(L.cos_prev, at_y), np.take(L.d_prev, at_y)),
+                   to_area(back_y[kept], L.cos_prev.take(at_y), L.d_prev.take(at_y)),
                    ctx.light_points.delta_light[row])
 
 
@@ -271,7 +271,7 @@ def _reverse_at_z(C, back_z, zj, row):
     """The light side's area density of ``z_{t-2}``, sampled at ``z = z_{t-1}`` from the
     solid-angle density ``back_z (m,)`` (``t >= 3``; unused, and one, for ``t = 2``)."""
     at = zj * C.valid.shape[1] + row  # flat takes: the values of C.cos_prev[zj, row]
-    return np.where(zj >= 2, to_area(back_z, np.take(C.cos_prev, at), np.take(C.d_prev, at)),
+    return np.where(zj >= 2, to_area(back_z, C.cos_prev.take(at), C.d_prev.take(at)),
                     1.0)
 
 
@@ -285,7 +285,7 @@ def _unblocked(ctx, C, at_z, z, z_ng, w, dist, y_normal, value, ok, budget, ends
     distances ``dist``, which are gathered here for the rays only. ``thin(cand)``: the
     survivors of the Connection Roulette among the candidates (:func:`_thinner`; None: all)."""
     ok = ok & (max_component(value) > 0) & finite_rows(value)
-    cand = np.nonzero(ok)[0]
+    cand = ok.nonzero()[0]
     if thin is not None:
         cand = thin(cand)
     if cand.size == 0:
@@ -326,7 +326,7 @@ def connect_cameras(ctx, L, out):
         for s in range(2, depth + 1):
             connect_camera(ctx, L, s, out)
         return
-    level, rows = np.nonzero(reach)  # depth-major: the loop's order
+    level, rows = reach.nonzero()  # depth-major: the loop's order
     if rows.size == 0:
         return
     at = (level + 1) * n + rows
@@ -393,7 +393,7 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     cam = ctx.cam
     budget = np.broadcast_to(budget, rows.shape)
     film_xy, visible, cos_theta, dist = project(cam, y, ctx.film_margin, ctx.window)
-    seen = np.nonzero(visible)[0]
+    seen = visible.nonzero()[0]
     if seen.size == 0:
         return
     rows, film_xy, cos_theta, dist, y, prim = (rows[seen], take_rows(film_xy, seen),
@@ -407,7 +407,7 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     we = importance(cam, cos_theta)
     value = combine_rows(((we / np.maximum(dist * dist, 1e-300), beta_of(seen) * yv.f(w, w_y)),))
     ok = (max_component(value) > 0) & finite_rows(value)
-    cand = np.nonzero(ok)[0]
+    cand = ok.nonzero()[0]
     if cand.size == 0:
         return
     o, dirs, tmax = ctx.prep.accel.shadow_rays(
@@ -467,7 +467,7 @@ def connect_emitter_to_camera(ctx, L, out):
         return
     p = take_rows(pts.p, rows)
     film_xy, visible, cos_theta, dist = project(cam, p, ctx.film_margin, ctx.window)
-    seen = np.nonzero(visible)[0]
+    seen = visible.nonzero()[0]
     if seen.size == 0:
         return
     rows, p, film_xy, cos_theta, dist = (rows[seen], take_rows(p, seen),

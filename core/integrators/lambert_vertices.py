@@ -61,7 +61,7 @@ class LambertVertices:
         ng = take_rows(sub.flat("ng"), index)
         # The z column read as elements 3 i + 2 of the contiguous table (np.take of the
         # strided column would copy it whole; fancy indexing of two axes is slower).
-        wo_z = np.take(sub.wo_local.reshape(-1), index * 3 + 2)
+        wo_z = sub.wo_local.reshape(-1).take(index * 3 + 2)
         return LambertVertices(take_rows(sub.all_params.color, index),
                                ng if sub.flat_frames else take_rows(sub.flat("fn"), index),
                                wo_z, ng)

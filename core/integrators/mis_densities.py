@@ -18,6 +18,7 @@ from ..camera import camera_pdf
 from .common import take_rows
 from .mis_sums import heuristic
 from .subpaths import dot, to_area
+from ..quiet import quiet
 
 
 def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
@@ -51,7 +52,7 @@ def strategy_weight(mis, p_light, p_camera, delta, s, delta_light, direct=None):
     m = delta_light.shape[0]
     ratio = [None] * (k + 1)
     ratio[s] = np.ones(m)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+    with quiet("divide", "invalid", "over"):
         for sp in range(s - 1, -1, -1):
             ratio[sp] = _step(ratio[sp + 1], p_camera[sp], p_light[sp])
         for sp in range(s + 1, k + 1):
@@ -214,7 +215,7 @@ def splat_weights(ctx, L, s, rows, yv, w, w_y, dist, cos_theta):
     pdf_cam = camera_pdf(ctx.cam, cos_theta, ctx.film_pixels)
     at_y = (s - 1) * L.valid.shape[1] + rows
     near = (to_area(pdf_cam, np.abs(dot(yv.ng, w)), dist),  # p_camera[s - 1]
-            to_area(yv.pdf_back(w_y), np.take(L.cos_prev, at_y), np.take(L.d_prev, at_y)))
+            to_area(yv.pdf_back(w_y), L.cos_prev.take(at_y), L.d_prev.take(at_y)))
     ratios = _suffix_ratios(L, rows, first, top, near)
     return _summed_weight(ctx, L, rows, first, top, ratios)
 
@@ -225,7 +226,7 @@ def _suffix_ratios(L, rows, first, top, near):
     :func:`strategy_weight`, from each splat's own strategy down)."""
     cur = np.empty(rows.size)
     ratios = [None] * top
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+    with quiet("divide", "invalid", "over"):
         for sp in range(top - 1, -1, -1):
             a, b, c = first[sp + 1], first[sp + 2], first[sp + 3]
             cur[a:b] = 1.0  # strategy sp + 1's own ratio
@@ -242,7 +243,7 @@ def _summed_weight(ctx, L, rows, first, top, ratios):
     delta_light = ctx.light_points.delta_light[rows]
     none = mis.setting == "none"
     total = np.zeros(m, np.int64 if none else np.float64)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+    with quiet("divide", "invalid", "over"):
         for sp in range(top + 1):
             a = first[sp + 1]
             if sp > 0:  # splats of strategy sp: their own term

@@ -49,7 +49,7 @@ def shadow_transmittance(prep, origins, directions, tmax, budget, counters=None,
     n = origins.shape[0]
     blocked = prep.accel.occluded(origins, directions, tmax, mask)
     out = np.where(blocked, 0.0, 1.0)[:, None] * np.ones((1, 3))
-    rows = np.nonzero(blocked)[0]
+    rows = blocked.nonzero()[0]
     if prep.material_transparency is None or rows.size == 0:
         return out
     budget = np.broadcast_to(np.asarray(budget, np.int64), (n,))
@@ -76,7 +76,7 @@ def shadow_transmittance(prep, origins, directions, tmax, budget, counters=None,
         # finds nothing now reaches the light.
         go = hit & (passes.max(axis=1) > 0)
         out[rows[~go]] = value[~go]
-        keep = np.nonzero(go)[0]
+        keep = go.nonzero()[0]
         if keep.size == 0:
             break
         rows, d, end, value, left = rows[keep], d[keep], end[keep], value[keep], left[keep] - 1

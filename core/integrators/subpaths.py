@@ -60,7 +60,7 @@ def take_params(params, rows, lambert=False):
         elif lambert and name in _NOT_LAMBERT:
             out[name] = np.broadcast_to(_NOT_LAMBERT[name], (rows.size,) + c.shape[1:])
         else:
-            out[name] = np.take(c, rows, axis=0)
+            out[name] = c.take(rows, axis=0)
     return BSDFParams(**out)
 
 
@@ -450,7 +450,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         alive = (smp.pdf > 0) & finite_rows(beta)
         rr_scale = rr_scale[live]
         alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1, rr_scale)
-        keep = np.nonzero(alive)[0]
+        keep = alive.nonzero()[0]
         if keep.size == 0:
             break
         if keep.size == alive.size:  # every path goes on: no compaction (same arrays)

@@ -16,6 +16,7 @@ from ..sampling import warps
 from ..scene import LIGHT_DISK, LIGHT_RECT, Lights
 from .base import LUMINANCE, LightFamily, batch_rows, dot, light_row, set_batch_rows, unit
 from .shapes import ray_parallelogram
+from ..quiet import quiet
 
 
 def area_light(matrix_world, shape, size_x, size_y, color, energy, name="Area",
@@ -63,7 +64,7 @@ def area_point_pdf(m, p, q, normal, area, emitted, pmf, one_sided, out):
     if not one_sided:
         cos_l = np.abs(cos_l)
     ok = (cos_l > 1e-12) & (area > 0) & (r > 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with quiet("divide", "invalid"):
         sa = np.where(ok, d2 / (cos_l * area), 0.0)
     set_batch_rows(out.wi, m, w)
     set_batch_rows(out.dist, m, r)
@@ -109,11 +110,11 @@ class AreaLights(LightFamily):
         self.any_spherical = bool(self.rect_spherical.any()) and sampler.solid_angle
         is_area = (lights.kind == LIGHT_RECT) | (lights.kind == LIGHT_DISK)
         # The one area lamp of the scene (then every row of a batch chose it), or None.
-        self.only = int(np.nonzero(is_area)[0][0]) if is_area.sum() == 1 else None
+        self.only = int(is_area.nonzero()[0][0]) if is_area.sum() == 1 else None
         # Per lamp, the tangents warps.frame_from_normal makes around its emitting normal:
         # light paths gather them instead of building a frame per sample (the same values:
         # the frame is a function of the row; lamps that are not area lights get unused rows).
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             self.le_s, self.le_t = warps.frame_from_normal(lights.direction)
 
     def _points(self, li, u):
@@ -132,14 +133,14 @@ class AreaLights(LightFamily):
 
     def _area(self, li):
         """Areas ``(m,)`` of lights ``li`` (a disk's or ellipse's is pi / 4 of its square's)."""
-        return np.take(self.area, li)
+        return self.area.take(li)
 
     def _rows(self, table, li):
         """``table[li]`` for a per-lamp table ``(k, ...)``: one row broadcast (read-only, no
         copy) when the scene has a single area lamp, so every ``li`` is that lamp."""
         if self.only is not None:
             return np.broadcast_to(table[self.only], (li.shape[0],) + table.shape[1:])
-        return np.take(table, li, axis=0)
+        return table.take(li, axis=0)
 
     def use_spherical(self, li, p):
         """Solid angles ``(n,)`` of lights ``li`` from ``p (n, 3)``, their corners ``(n, 3)``,
@@ -153,7 +154,7 @@ class AreaLights(LightFamily):
         # Only rectangles sampled by solid angle need it; the rest skip the arithmetic.
         use = self.rect_spherical[li] & self.sampler.solid_angle
         omega = np.zeros(p.shape[0])
-        rows = np.nonzero(use)[0]
+        rows = use.nonzero()[0]
         if rows.size:
             lr = li[rows]
             omega[rows] = warps.spherical_rectangle_solid_angle(
@@ -218,7 +219,7 @@ class AreaLights(LightFamily):
     def sample_le_origin(self, m, li, u, pmf, out):
         if m.size == out.pdf.size:  # every row chose an area lamp (m is 0..n-1): whole arrays
             out.p, area, _ = self._points(li, u)
-            out.normal = np.take(self.lights.direction, li, axis=0)
+            out.normal = self.lights.direction.take(li, axis=0)
             out.pdf = np.where(area > 0, pmf / np.maximum(area, 1e-300), 0.0)
             return
         out.p[m], area, _ = self._points(li, u[m])
@@ -229,7 +230,7 @@ class AreaLights(LightFamily):
         """A cosine about the emitting side (the lamp's frame, :attr:`le_s`, :attr:`le_t`)."""
         uu = u.copy() if m.size == out.pdf.size else u[m]
         uu[:, 0] = np.minimum(uu[:, 0], 1 - 1e-16)
-        frame = [np.take(a, li, axis=0) for a in (self.le_s, self.le_t, self.lights.direction)]
+        frame = [a.take(li, axis=0) for a in (self.le_s, self.le_t, self.lights.direction)]
         cosine_directions(m, frame, uu, 1.0, out)
 
     def le(self, m, li, cos, w, receiver, out):

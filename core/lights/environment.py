@@ -17,6 +17,7 @@ import numpy as np
 from ..sampling import warps
 from ..sampling.distributions import PiecewiseConstant2D
 from .base import LUMINANCE, LightFamily
+from ..quiet import quiet
 
 
 def equirect_uv(d):
@@ -156,7 +157,7 @@ class World(LightFamily):
         uv, pdf_uv = self.dist.sample_continuous(u)
         w, sin_t = equirect_direction(uv)
         ok = sin_t > 0
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             sa_pdf = np.where(ok, pdf_uv / (2 * np.pi**2 * sin_t), 0.0)
         ok &= np.isfinite(sa_pdf) & (sa_pdf > 0)
         le = np.where(ok[:, None], environment_lookup(self.world_map, uv), 0.0)
@@ -191,7 +192,7 @@ class World(LightFamily):
         d = np.asarray(d, np.float64)
         sin_t = np.hypot(d[:, 0], d[:, 1]) / np.maximum(np.linalg.norm(d, axis=1), 1e-300)
         pdf_uv = self.dist.pdf(equirect_uv(d))
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             pdf = np.where(sin_t > 0, sel * pdf_uv / (2 * np.pi**2 * sin_t), 0.0)
         return np.where(np.isfinite(pdf), pdf, 0.0)
 

@@ -20,6 +20,7 @@ from ..sampling import warps
 from ..scene import LIGHT_POINT, Lights
 from .base import LUMINANCE, LightFamily, dot, length_and_direction, light_row, unit
 from .shapes import ray_facing_disk, ray_sphere, sphere_roots
+from ..quiet import quiet
 
 
 def point_light(position, color, energy, radius=0.0, name="Point", visible_camera=True,
@@ -70,7 +71,7 @@ def spot_attenuation(lights: Lights, index, w_out):
     cos_half = lights.spot_cos_half[index]
     smooth = lights.spot_smooth[index]
     cos = np.einsum("ij,ij->i", w_out, lights.direction[index])
-    with np.errstate(invalid="ignore", over="ignore"):
+    with quiet("invalid", "over"):
         x = np.where(np.isinf(smooth), np.where(cos > cos_half, 1.0, 0.0),
                      (cos - cos_half) * np.where(np.isinf(smooth), 0.0, smooth))
     x = np.clip(x, 0.0, 1.0)
@@ -115,7 +116,7 @@ class PointLights(LightFamily):
         q = c + disk[:, 0:1] * s_ + disk[:, 1:2] * t_
         t_disk, w_disk = length_and_direction(q - p[m])
         cos_disk = dot(w_disk, axis)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             pdf_disk = t_disk**2 / (np.pi * r * r * cos_disk)
 
         w = np.where(point[:, None], axis, np.where(soft[:, None], w_disk,
@@ -177,7 +178,7 @@ class PointLights(LightFamily):
         nrm = warps.sample_uniform_sphere(u[m])
         out.p[m] = lights.position[li] + nrm * r[:, None]
         out.normal[m] = np.where((r > 0)[:, None], nrm, 0.0)
-        with np.errstate(divide="ignore"):
+        with quiet("divide"):
             out.pdf[m] = np.where(r > 0, pmf[m] / (4 * np.pi * r * r), pmf[m])
 
     def _lobe(self, li):
@@ -218,7 +219,7 @@ class PointLights(LightFamily):
 
     def pdf_le_origin(self, m, li, sel, w, out):
         r = self.lights.radius[li]
-        with np.errstate(divide="ignore"):
+        with quiet("divide"):
             out[m] = np.where(r > 0, sel[m] / (4 * np.pi * r * r), sel[m])
 
     def pdf_le_direction(self, m, li, cos, w, out):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import dot, length_and_direction
+from ..quiet import quiet
 
 
 def sphere_roots(b, cc):
@@ -80,7 +81,7 @@ def ray_facing_disk(o, d, center, radius, tmax):
     oc = o - center
     d_o, light_n = length_and_direction(oc)
     denom = dot(d, light_n)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with quiet("divide", "invalid"):
         t = -d_o / denom
     hit = (denom < 0) & (t > 0) & (t < tmax) & (d_o > 0)
     h = oc + d * np.where(hit, t, 0.0)[:, None]
@@ -132,7 +133,7 @@ def ray_parallelogram(o, d, position, normal, axis_x, axis_y, tmax, disk):
         Where the rays ``rows`` meet the light.
     """
     denom = np.einsum("ij,j->i", d, normal)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with quiet("divide", "invalid"):
         t = np.einsum("ij,j->i", position - o, normal) / denom
     dual = dual_basis(axis_x, axis_y)
     if dual is None:

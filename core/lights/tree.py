@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT
+from ..quiet import quiet
 
 PI = np.pi
 HALF_PI = 0.5 * np.pi
@@ -244,7 +245,7 @@ class LightTree:
         self.fallback_left = pw_l / (pw_l + pw_r)
 
         # Root paths, leaves in emitter order: walk up from every leaf one level per step.
-        leaves = np.nonzero(leaf)[0]
+        leaves = leaf.nonzero()[0]
         order = np.argsort(self.leaf_emitter[leaves])
         self.leaf_rows = self.leaf_emitter[leaves][order]
         node = leaves[order]
@@ -349,7 +350,7 @@ class LightTree:
         kids = self.children[:, [node]] if np.ndim(node) == 0 else self.children[:, node]
         il, ir = self.importance(kids, p, n)
         tot = il.astype(np.float64) + ir
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             return np.where(tot > 0, il / tot, self.fallback_left[node])
 
     # ------------------------------------------------------------------ sampling
@@ -388,7 +389,7 @@ class LightTree:
             go_right = ua >= pl
             prob = np.where(go_right, 1.0 - pl, pl)
             # Remap u to [0, 1) within the chosen side for the next level.
-            with np.errstate(divide="ignore", invalid="ignore"):
+            with quiet("divide", "invalid"):
                 ua = np.minimum((ua - go_right * pl) / prob, 1.0 - 2.0**-53)
             nd = self.child_pairs[2 * nd + go_right]
             if full:

@@ -20,6 +20,7 @@ from ..rows import combine_rows, put_rows
 from ..sampling import warps
 from .area import area_point_pdf, cosine_directions, pick_face, solid_angle_pdf
 from .base import LUMINANCE, LightFamily, batch_rows, dot
+from ..quiet import quiet
 
 
 class EmissiveTriangles(LightFamily):
@@ -93,12 +94,12 @@ class EmissiveTriangles(LightFamily):
         emitter has a coat."""
         if self.emit_coat is None:
             return None
-        weight, eta, tint, alpha = (np.take(c, e, axis=0) for c in self.emit_coat)
+        weight, eta, tint, alpha = (c.take(e, axis=0) for c in self.emit_coat)
         return coat_attenuation(weight, eta, tint, np.abs(cos), alpha)
 
     def hit_emission(self, prim, cos):
         """Radiance ``(j, 3)`` of emissive triangles ``prim (j,)`` seen at ``cos (j,)``."""
-        le = np.take(self.tri_emission, prim, axis=0)
+        le = self.tri_emission.take(prim, axis=0)
         factor = self.coat_factor(self.tri_emitter[prim] - self.first_emitter, cos)
         return le if factor is None else le * factor
 
@@ -123,8 +124,8 @@ class EmissiveTriangles(LightFamily):
 
     def _corners(self, e):
         """First vertex and edges ``(m, 3)`` of emitters ``e (m,)``."""
-        return (np.take(self.emit_v0, e, axis=0), np.take(self.emit_e1, e, axis=0),
-                np.take(self.emit_e2, e, axis=0))
+        return (self.emit_v0.take(e, axis=0), self.emit_e1.take(e, axis=0),
+                self.emit_e2.take(e, axis=0))
 
     @staticmethod
     def _point(v0, e1, e2, u):
@@ -142,23 +143,23 @@ class EmissiveTriangles(LightFamily):
         every = sph.size > 0 and sph.all()
         # Area points only where the spherical warp is not used (none when it always is).
         q = None if every else self._point(v0, e1, e2, um)
-        normal = np.take(self.emit_normal, e, axis=0)
+        normal = self.emit_normal.take(e, axis=0)
         if sph.any():
             arrays = (um, pm, normal, v0, b, c)
             if not every:
-                idx = np.nonzero(sph)[0]
-                arrays = [np.take(x, idx, axis=0) for x in arrays]
+                idx = sph.nonzero()[0]
+                arrays = [x.take(idx, axis=0) for x in arrays]
             us, ps, nrm, a, bs, cs = arrays
             w = warps.sample_spherical_triangle(us, a, bs, cs, ps)
             # The sampled point is where the direction meets the triangle's plane.
-            with np.errstate(divide="ignore", invalid="ignore"):
+            with quiet("divide", "invalid"):
                 t = dot(a - ps, nrm) / dot(w, nrm)
             qs = ps + w * np.where(np.isfinite(t) & (t > 0), t, 0.0)[:, None]
             if every:
                 q = qs
             else:
                 q[idx] = qs
-        emitted = np.take(self.emit_radiance, e, axis=0)
+        emitted = self.emit_radiance.take(e, axis=0)
         if self.emit_coat is not None:
             to_p = pm - q
             cos = dot(to_p, normal) / np.maximum(np.linalg.norm(to_p, axis=1), 1e-300)
@@ -184,14 +185,14 @@ class EmissiveTriangles(LightFamily):
         ls = self.sampler
         e = self.tri_emitter[prim]
         sel = ls.nee_pmf(e, p_prev, n_prev)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             pdf = sel * dist * dist / (np.abs(cos_light) * self.tri_area[prim])
         if ls.solid_angle and prim.size:
             # The same decision as sample_li: by solid angle where the warp is well conditioned.
             v0 = self.tri_v0[prim]
             omega, sph = self.use_spherical(v0, v0 + self.tri_e1[prim], v0 + self.tri_e2[prim],
                                             p_prev)
-            with np.errstate(divide="ignore", invalid="ignore"):
+            with quiet("divide", "invalid"):
                 pdf = np.where(sph, sel / omega, pdf)
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
@@ -202,11 +203,11 @@ class EmissiveTriangles(LightFamily):
         # are emissive meshes), the arrays are made whole, without gathers or scatters.
         if m.size == out.pdf.size:  # m is then 0..n-1 (families_of's rows are sorted)
             out.p = self._points_of(e, u)
-            out.normal = np.take(self.emit_normal, e, axis=0)
-            out.pdf = pmf / np.take(self.emit_area, e)
+            out.normal = self.emit_normal.take(e, axis=0)
+            out.pdf = pmf / self.emit_area.take(e)
             return
-        put_rows(out.p, m, self._points_of(e, np.take(u, m, axis=0)))
-        put_rows(out.normal, m, np.take(self.emit_normal, e, axis=0))
+        put_rows(out.p, m, self._points_of(e, u.take(m, axis=0)))
+        put_rows(out.normal, m, self.emit_normal.take(e, axis=0))
         out.pdf[m] = pmf[m] / self.emit_area[e]
 
     def _points_of(self, e, u):
@@ -218,24 +219,24 @@ class EmissiveTriangles(LightFamily):
         v0, e1, e2 = self.corner_axes
         for c in range(3):
             column = out[:, c]
-            np.multiply(b1, np.take(e1[c], e), out=column)
-            np.add(np.take(v0[c], e), column, out=column)
-            column += b2 * np.take(e2[c], e)
+            np.multiply(b1, e1[c].take(e), out=column)
+            np.add(v0[c].take(e), column, out=column)
+            column += b2 * e2[c].take(e)
         return out
 
     def sample_le_direction(self, m, e, pts, u, out):
         """A cosine about either face, each with probability 1/2 (the first number picks the
         face, :func:`.area.pick_face`), the frame of each face gathered from :attr:`face_s`,
         :attr:`face_t` and :attr:`face_normal`."""
-        uu = np.take(u, m, axis=0)
+        uu = u.take(m, axis=0)
         back, uu[:, 0] = pick_face(uu[:, 0])
         face = 2 * e + back
-        cosine_directions(m, [np.take(a, face, axis=0)
+        cosine_directions(m, [a.take(face, axis=0)
                               for a in (self.face_s, self.face_t, self.face_normal)], uu, 0.5, out)
 
     def le(self, m, e, cos, w, receiver, out):
         cos_m = cos[m]
-        le = np.take(self.emit_radiance, e, axis=0) * (cos_m != 0)[:, None]
+        le = self.emit_radiance.take(e, axis=0) * (cos_m != 0)[:, None]
         if self.emit_coat is not None:
             le *= self.coat_factor(e, cos_m)
         put_rows(out, m, le)

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..quiet import quiet
+
 DISTRIBUTION_METHODS = ("cdf", "alias")
 
 _ONE_MINUS = np.nextafter(1.0, 0.0)
@@ -267,7 +269,7 @@ class PiecewiseConstant1D:
         lo = self.cdf[index]
         # Remap by the bin's width in the CDF actually searched, so u_remapped spans [0, 1).
         width = self.cdf[index + 1] - lo
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             u_remapped = np.where(width > 0, (u - lo) / width, 0.0)
         return index, pmf, np.clip(u_remapped, 0.0, _ONE_MINUS)
 
@@ -320,7 +322,7 @@ def _alias_pick(prob, alias, column, up):
     p = prob[column]
     keep = up < p
     index = np.where(keep, column, alias[column])
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with quiet("divide", "invalid"):
         u_remapped = np.where(keep, up / p, (up - p) / (1.0 - p))
     return index, np.clip(np.nan_to_num(u_remapped), 0.0, _ONE_MINUS)
 
@@ -432,7 +434,7 @@ class Segmented1D:
         local = np.clip(local, 0, length - 1)
         lo = self.cdf[start + local]
         width = self.cdf[start + local + 1] - lo
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with quiet("divide", "invalid"):
             u_remapped = np.where(width > 0, (u - lo) / width, 0.0)
         index = base + local
         return index, self.pmf_table[index], np.clip(u_remapped, 0.0, _ONE_MINUS)
@@ -451,7 +453,7 @@ class Segmented1D:
             np.clip(local, 0, length - 1, out=local)
         else:
             local = np.zeros(u.shape, np.int64)
-        return local, np.take(self.pmf_table, local)
+        return local, self.pmf_table.take(local)
 
     def pmf(self, index):
         """Probability of global element ``index (k,)`` within its segment."""

@@ -36,6 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..quiet import quiet
+
 HEURISTICS = ("balance", "power", "maximum", "cutoff", "none")
 SINGLE_STRATEGIES = ("bsdf", "light")
 MIS_SETTINGS = HEURISTICS + SINGLE_STRATEGIES
@@ -98,7 +100,7 @@ class MIS:
         """
         r = densities
         h = self.setting
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        with quiet("invalid", "divide", "over"):
             if h == "balance":
                 return r[s] / _total(r)
             if h == "power":
@@ -137,7 +139,7 @@ class MIS:
         b = np.asarray(pdf_b, np.float64)
         # Work with ratios to the larger density, so that no sum or power can overflow.
         m = np.maximum(a, b)
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        with quiet("invalid", "divide", "over"):
             ra = np.where(np.isinf(m), np.where(np.isinf(a), 1.0, 0.0), a / m)
             rb = np.where(np.isinf(m), np.where(np.isinf(b), 1.0, 0.0), b / m)
         w = self.weight((ra, rb), 0)

@@ -16,6 +16,8 @@ import copy
 
 import numpy as np
 
+from ..quiet import quiet
+
 _M1 = np.uint32(0x7FEB352D)
 _M2 = np.uint32(0x846CA68B)
 
@@ -25,7 +27,7 @@ def hash_u32(x):
     x = np.asarray(x, np.uint32)
     if x.ndim == 0:
         # NumPy warns about wrapping only for scalars; arrays wrap silently.
-        with np.errstate(over="ignore"):
+        with quiet("over"):
             x = x ^ (x >> np.uint32(16))
             x = x * _M1
             x = x ^ (x >> np.uint32(15))

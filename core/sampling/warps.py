@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..rows import combine_rows
+from ..quiet import quiet
 
 INV_PI = 1.0 / np.pi
 _ONE_MINUS = np.nextafter(1.0, 0.0)
@@ -47,7 +48,7 @@ def _concentric(u, out):
     use_a = np.abs(a) > np.abs(b)
     r = np.where(use_a, a, b)
     # One division: b / a where |a| > |b|, else a / b (r is the larger; zero only at a = b = 0).
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with quiet("divide", "invalid"):
         q = (np.pi / 4) * (np.where(use_a, b, a) / r)
     theta = np.where(use_a, q, np.pi / 2 - q)
     theta[r == 0] = 0.0
@@ -255,7 +256,7 @@ def _cross(a, b):
 def _normalize(v):
     """Unit vectors ``(n, 3)``; zero vectors stay zero."""
     n = _norm(v)
-    with np.errstate(divide="ignore"):
+    with quiet("divide"):
         inv = np.where(n > 0, 1.0 / n, 0.0)
     return v * inv[:, None]
 
@@ -360,7 +361,7 @@ def spherical_triangle_pdf(a, b, c, p):
     Zero where the triangle subtends no solid angle (degenerate, or ``p`` in its plane).
     """
     omega = spherical_triangle_solid_angle(a, b, c, p)
-    with np.errstate(divide="ignore"):
+    with quiet("divide"):
         return np.where(omega > 0, 1.0 / np.where(omega > 0, omega, 1.0), 0.0)
 
 
@@ -376,7 +377,7 @@ def invert_spherical_triangle_sample(w, a, b, c, p):
     # Van Oosterom-Strackee formula, which stays accurate for slivers (c' near a).
     sub = _unit_triangle_area(wa, wb, cp)
     whole = _unit_triangle_area(wa, wb, wc)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with quiet("invalid", "divide"):
         u0 = sub / whole
         u1 = (1.0 - _dot(w, wb)) / (1.0 - _dot(cp, wb))
     u = np.stack([np.nan_to_num(u0), np.nan_to_num(u1)], axis=-1)
@@ -476,7 +477,7 @@ def sample_spherical_rectangle(u, s, ex, ey, p):
     b0, b1, g0, g1, g2, g3, area = _rectangle_angles(x0, y0, z0, x1, y1)
     # The x coordinate: the sub-rectangle left of it has area u0 * area.
     au = u[:, 0] * (g0 + g1 - 2.0 * np.pi) + (u[:, 0] - 1.0) * (g2 + g3)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with quiet("invalid", "divide"):
         fu = (np.cos(au) * b0 - b1) / np.sin(au)
         cu = np.copysign(1.0, fu) / np.sqrt(fu * fu + b0 * b0)
         cu = np.clip(np.nan_to_num(cu), -_ONE_MINUS, _ONE_MINUS)
@@ -488,7 +489,7 @@ def sample_spherical_rectangle(u, s, ex, ey, p):
     h1 = y1 / np.sqrt(dd * dd + y1 * y1)
     hv = h0 + u[:, 1] * (h1 - h0)
     hv2 = hv * hv
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with quiet("invalid", "divide"):
         yv = np.where(hv2 < 1.0 - 1e-12, hv * dd / np.sqrt(np.maximum(1.0 - hv2, 1e-300)), y1)
     yv = np.clip(np.nan_to_num(yv), y0, y1)
     return p + xu[:, None] * fx + yv[:, None] * fy + z0[:, None] * fz
@@ -497,7 +498,7 @@ def sample_spherical_rectangle(u, s, ex, ey, p):
 def spherical_rectangle_pdf(s, ex, ey, p):
     """Solid-angle density of :func:`sample_spherical_rectangle`: 1 / solid angle, ``(n,)``."""
     omega = spherical_rectangle_solid_angle(s, ex, ey, p)
-    with np.errstate(divide="ignore"):
+    with quiet("divide"):
         return np.where(omega > 0, 1.0 / np.where(omega > 0, omega, 1.0), 0.0)
 
 
@@ -511,12 +512,12 @@ def invert_spherical_rectangle_sample(q, s, ex, ey, p):
     b0, b1, g0, g1, g2, g3, area = _rectangle_angles(x0, y0, z0, x1, y1)
     v = np.asarray(q, np.float64) - p
     # Project along the ray onto the rectangle's plane z = z0.
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with quiet("invalid", "divide"):
         scale = z0 / _dot(v, fz)
     xu = np.clip(_dot(v, fx) * scale, x0, x1)
     yv = np.clip(_dot(v, fy) * scale, y0, y1)
     # u0: invert cu = xu / sqrt(xu^2 + z0^2) -> fu -> the sub-rectangle's angle sum au.
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with quiet("invalid", "divide"):
         cu = xu / np.sqrt(xu * xu + z0 * z0)
         fu = np.copysign(np.sqrt(np.maximum(0.0, 1.0 / (cu * cu) - b0 * b0)), cu)
         # Solve b0 cos(au) - fu sin(au) = b1, i.e. R cos(au + phi) = b1: two roots per turn;
@@ -531,14 +532,14 @@ def invert_spherical_rectangle_sample(q, s, ex, ey, p):
     roots = roots - 2.0 * np.pi * np.round((roots - mid[:, None]) / (2.0 * np.pi))
     miss = np.maximum(lo[:, None] - roots, 0.0) + np.maximum(roots - hi[:, None], 0.0)
     au = np.take_along_axis(roots, np.argmin(miss, axis=1)[:, None], axis=1)[:, 0]
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with quiet("invalid", "divide"):
         u0 = (au + g2 + g3) / area
     # u1: h of the column is uniform between h0 and h1.
     dd = np.sqrt(xu * xu + z0 * z0)
     h0 = y0 / np.sqrt(dd * dd + y0 * y0)
     h1 = y1 / np.sqrt(dd * dd + y1 * y1)
     hv = yv / np.sqrt(dd * dd + yv * yv)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with quiet("invalid", "divide"):
         u1 = (hv - h0) / (h1 - h0)
     u = np.stack([np.nan_to_num(u0), np.nan_to_num(u1)], axis=-1)
     return np.clip(u, 0.0, 1.0)

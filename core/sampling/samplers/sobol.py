@@ -175,9 +175,9 @@ class SobolStream(PaddedStream):
         for lo in range(0, rows.size, BATCH_PATHS):
             part = slice(lo, min(lo + BATCH_PATHS, rows.size))
             r = rows[part]
-            keys = hash_u32(np.take(self._key, r)[None, :] ^ table[:, which[part]])
+            keys = hash_u32(self._key.take(r)[None, :] ^ table[:, which[part]])
             sub = hash_u32(keys[layout.row_slot] ^ layout.row_word[:, None])
-            index = np.broadcast_to(np.take(self._reversed_index, r), keys.shape)
+            index = np.broadcast_to(self._reversed_index.take(r), keys.shape)
             shuffled = reverse_bits(laine_karras_permutation(index, sub[layout.first]))
             coords = shuffled[layout.coord_slot]
             coords[layout.second] = sobol_reversed(1, coords[layout.second])
