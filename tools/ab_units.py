@@ -45,6 +45,22 @@ BASE = "sampling_lab_base"
 HEAD = "sampling_lab"
 
 
+
+def tree_order(round_):
+    """The two trees in the order round ``round_`` times them: each goes first in every other
+    round (the second finds warm caches: it read about 2.5 % cheaper on identical trees,
+    docs/BENCHMARKS.md, eighth round)."""
+    return (BASE, HEAD) if round_ % 2 == 0 else (HEAD, BASE)
+
+
+def print_ratio(name, b, h, digits=3):
+    """One line: minimum and median of the base's and head's microseconds per camera sample
+    ``b``, ``h`` (lists over rounds), and head / base."""
+    mb, mh = statistics.median(b), statistics.median(h)
+    print(f"{name:>10}: base min {min(b):.{digits}f} median {mb:.{digits}f} | head min "
+          f"{min(h):.{digits}f} median {mh:.{digits}f} us per camera sample | head / base: "
+          f"min {min(h) / min(b):.3f}, median {mh / mb:.3f}")
+
 def _import_base(path):
     """Make the base tree's package importable as :data:`BASE` (a symbolic link)."""
     folder = tempfile.mkdtemp(prefix="ab_units_")
@@ -147,19 +163,13 @@ def main(argv=None):
     for round_ in range(args.rounds):
         for measure in measures:
             units = 2 if measure.startswith("bdpt") else 1
-            # Each tree goes first in every other round: the second finds warm caches and
-            # read about 2.5 % cheaper on identical trees (docs/BENCHMARKS.md, eighth round).
-            for pkg in ((BASE, HEAD) if round_ % 2 == 0 else (HEAD, BASE)):
+            for pkg in tree_order(round_):
                 run, n = runs[pkg, measure]
                 t0 = time.thread_time()
                 run(units)
                 times[pkg, measure].append(1e6 * (time.thread_time() - t0) / (units * n))
     for measure in measures:
-        b, h = times[BASE, measure], times[HEAD, measure]
-        mb, mh = statistics.median(b), statistics.median(h)
-        print(f"{measure:>10}: base min {min(b):.3f} median {mb:.3f} | head min {min(h):.3f} "
-              f"median {mh:.3f} us per camera sample | head / base: min {min(h) / min(b):.3f}, "
-              f"median {mh / mb:.3f}")
+        print_ratio(measure, times[BASE, measure], times[HEAD, measure])
     print(f"load average at end: {os.getloadavg()}")
 
 

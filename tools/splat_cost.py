@@ -19,12 +19,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
-import statistics
 import time
 
 import numpy as np
 
-from ab_units import BASE, HEAD, _import_base, _scene
+from ab_units import BASE, HEAD, _import_base, _scene, print_ratio, tree_order
 
 
 def _splats(scene, size):
@@ -86,18 +85,14 @@ def main(argv=None):
             run()  # warm-up
     print(f"load average at start: {os.getloadavg()}")
     times = {(pkg, name): [] for pkg in steps for name in steps[pkg]}
-    for _ in range(args.rounds):
+    for round_ in range(args.rounds):
         for name in steps[HEAD]:
-            for pkg in (BASE, HEAD):
+            for pkg in tree_order(round_):
                 t0 = time.thread_time()
                 steps[pkg][name]()
                 times[pkg, name].append(1e6 * (time.thread_time() - t0) / n)
     for name in steps[HEAD]:
-        b, h = times[BASE, name], times[HEAD, name]
-        mb, mh = statistics.median(b), statistics.median(h)
-        print(f"{name:>8}: base min {min(b):.4f} median {mb:.4f} | head min {min(h):.4f} "
-              f"median {mh:.4f} us per camera sample | head / base: min "
-              f"{min(h) / min(b):.3f}, median {mh / mb:.3f}")
+        print_ratio(name, times[BASE, name], times[HEAD, name], digits=4)
     print(f"load average at end: {os.getloadavg()}")
 
 
