@@ -119,6 +119,19 @@ def _slot_layout(sizes):
                    tuple(zip(starts.tolist(), sizes)))
 
 
+def _slot_coordinates(keys, reversed_index, layout):
+    """The scrambled Sobol coordinates ``(rows, paths)`` uint32 of the slots whose keys are
+    ``keys (slots, paths)`` (:func:`_slot_layout`'s ``layout``), every path from its
+    bit-reversed sample index ``reversed_index (paths,)``: one hash for the sub-keys, one
+    scramble for the index shuffles and one for the coordinates, one bit reversal each."""
+    sub = hash_u32(keys[layout.row_slot] ^ layout.row_word[:, None])
+    index = np.broadcast_to(reversed_index, keys.shape)
+    shuffled = reverse_bits(laine_karras_permutation(index, sub[layout.first]))
+    rows = shuffled[layout.coord_slot]
+    rows[layout.second] = sobol_reversed(1, rows[layout.second])
+    return reverse_bits(laine_karras_permutation(rows, sub[layout.coord_row]))
+
+
 class SobolStream(PaddedStream):
     salt = 0x510E527F
 
@@ -151,12 +164,7 @@ class SobolStream(PaddedStream):
         layout = _slot_layout(tuple(size for _, size in slots))
         words = np.array([slot_word(d) for d, _ in slots], np.uint32)
         keys = hash_u32(self._key[None, :] ^ words[:, None])
-        sub = hash_u32(keys[layout.row_slot] ^ layout.row_word[:, None])
-        index = np.broadcast_to(self._reversed_index, keys.shape)
-        shuffled = reverse_bits(laine_karras_permutation(index, sub[layout.first]))
-        rows = shuffled[layout.coord_slot]
-        rows[layout.second] = sobol_reversed(1, rows[layout.second])
-        rows = reverse_bits(laine_karras_permutation(rows, sub[layout.coord_row]))
+        rows = _slot_coordinates(keys, self._reversed_index, layout)
         out = np.empty(rows.shape)
         unit_from_u32_into(rows, out)
         return [out[a] if size == 1 else out[a:a + 2].T for a, size in layout.starts]
@@ -176,13 +184,7 @@ class SobolStream(PaddedStream):
             part = slice(lo, min(lo + BATCH_PATHS, rows.size))
             r = rows[part]
             keys = hash_u32(self._key.take(r)[None, :] ^ table[:, which[part]])
-            sub = hash_u32(keys[layout.row_slot] ^ layout.row_word[:, None])
-            index = np.broadcast_to(self._reversed_index.take(r), keys.shape)
-            shuffled = reverse_bits(laine_karras_permutation(index, sub[layout.first]))
-            coords = shuffled[layout.coord_slot]
-            coords[layout.second] = sobol_reversed(1, coords[layout.second])
-            unit_from_u32_into(reverse_bits(laine_karras_permutation(coords,
-                                                                     sub[layout.coord_row])),
+            unit_from_u32_into(_slot_coordinates(keys, self._reversed_index.take(r), layout),
                                out[:, part])
         return [out[a] if size == 1 else out[a:a + 2].T for a, size in layout.starts]
 
