@@ -62,6 +62,8 @@ class _Context:
         self.window = integrator.window
         self.film_pixels = integrator.film_pixels
         self.light_points = None  # the light subpaths' endpoints, once sampled
+        # BDPT's Connection Roulette of this batch (set by BDPT.connect; None: off).
+        self.roulette = None
         # Transparent passes of the walk's live paths before their current vertex
         # (:class:`.transparent_passes.Passes`; None while every surface is opaque).
         self.vertex_passes = None

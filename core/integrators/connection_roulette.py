@@ -83,7 +83,7 @@ class ConnectionRoulette:
 def for_batch(settings, stream):
     """The :class:`ConnectionRoulette` of a batch drawn from ``stream`` (a
     :class:`core.sampling.stream.SampleStream`), or None where the setting is off."""
-    factor = getattr(settings, "connection_roulette", 0.0)
+    factor = settings.connection_roulette
     if not factor > 0:
         return None
     return ConnectionRoulette(factor, stream.seed, stream.pixel, stream.sample_index)

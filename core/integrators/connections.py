@@ -135,7 +135,7 @@ def _in_pieces(join, m):
     """``join(e)`` of the connections ``e`` (a slice), ``PIECE`` at a time (``SMALL_PIECE``
     unless :func:`core.allocator.keeps_freed`): the list of the :class:`_Joined` pieces, in
     order (pieces bound the stage's memory; fewer, larger pieces make fewer NumPy calls)."""
-    piece = PIECE if keeps_freed() else min(PIECE, SMALL_PIECE)
+    piece = PIECE if keeps_freed() else SMALL_PIECE
     parts = [join(slice(a, min(a + piece, m))) for a in range(0, m, piece)]
     return [p for p in parts if p is not None]
 
@@ -185,7 +185,7 @@ def _thinner(ctx, value, row, zj, yj=None, e=None):
     (:mod:`.connection_roulette`) of the connections whose values are ``value (m, 3)``,
     camera vertex ``zj`` joined to light vertex ``yj`` (None: a fresh emitter point, ``s =
     1``) of samples ``row``, those arrays' rows ``e`` (None: all); None where it is off."""
-    roulette = getattr(ctx, "roulette", None)
+    roulette = ctx.roulette
     if roulette is None:
         return None
     if e is not None:
