@@ -19,6 +19,12 @@ What the render loop reads from an integrator:
     the per-call cost over more paths where the memory allows. The pass size stays that of
     ``unit_paths``, and every pixel's samples of a pass stay in one batch, so without splats
     the image is the same bit for bit.
+``chunk_paths`` (class or instance attribute)
+    At most this many paths per call of :meth:`Integrator.render_samples` on the arrays
+    (None: the whole batch at once): a batch is cut into consecutive chunks
+    (:func:`render_in_chunks`) so that its arrays stay within the caches or memory. The
+    outputs are joined in order before the film sees them, so the image is the same bit for
+    bit.
 ``splats`` (class attribute)
     Whether :meth:`~Integrator.render_samples` returns light-path splats (light tracing, BDPT)
     besides one radiance per camera sample.
@@ -43,6 +49,7 @@ What the render loop reads from an integrator:
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import ClassVar, NamedTuple
 
@@ -159,6 +166,18 @@ class BatchOutput:
              for name in splat_names}, transparency)
 
 
+def render_in_chunks(render_samples, stream, chunk, pixel_filter, counters):
+    """``render_samples(part, pixel_filter, counters)`` on consecutive parts of ``stream`` of
+    at most ``chunk`` paths each, joined in order (:meth:`BatchOutput.join`): the same output
+    as one call on the whole stream, in arrays ``chunk`` rows long."""
+    n, parts = len(stream), []
+    for start in range(0, n, chunk):
+        part = copy.copy(stream)
+        part.compact(np.arange(start, min(start + chunk, n)))
+        parts.append(render_samples(part, pixel_filter, counters))
+    return BatchOutput.join(parts)
+
+
 class Integrator:
     """Base class of the estimators (see the module docstring for the contract).
 
@@ -170,6 +189,7 @@ class Integrator:
 
     unit_paths: ClassVar[int] = UNIT_PATHS
     batch_units: ClassVar[int] = 1
+    chunk_paths: ClassVar[int | None] = None
     splats: ClassVar[bool] = False
     strategy_views: ClassVar[bool] = False
     whole_passes: ClassVar[bool] = False

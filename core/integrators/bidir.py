@@ -11,7 +11,6 @@ a subclass adds its own (:meth:`Bidirectional.connect`). Batches are cut into ch
 
 from __future__ import annotations
 
-import copy
 import threading
 from typing import ClassVar
 
@@ -22,7 +21,7 @@ from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..rows import combine_rows
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_SHADOW
-from .base import BatchOutput, Integrator
+from .base import Integrator, render_in_chunks
 from .camera_hits import camera_emission
 from .common import camera_rays, finite_rows, max_component, strategy_pass_names, take_rows
 from .connections import camera_splatter, connect_cameras
@@ -203,12 +202,7 @@ class Bidirectional(Integrator):
         ``stream``, in chunks of at most ``chunk_paths`` paths."""
         n, chunk = len(stream), self.chunk_paths
         if chunk is not None and n > chunk:
-            parts = []
-            for start in range(0, n, chunk):
-                part = copy.copy(stream)
-                part.compact(np.arange(start, min(start + chunk, n)))
-                parts.append(self.render_samples(part, pixel_filter, counters))
-            return BatchOutput.join(parts)
+            return render_in_chunks(self.render_samples, stream, chunk, pixel_filter, counters)
         settings = self.settings
         ctx = _Context(self, counters, pixel_filter)
         counters.camera_samples += n

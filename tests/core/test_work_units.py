@@ -100,3 +100,26 @@ def test_batched_units_give_the_same_image_bit_for_bit(monkeypatch):
         assert np.array_equal(one.film.sum, three.film.sum)
         assert np.array_equal(one.film.sum_sq, three.film.sum_sq)
         assert np.array_equal(one.film.count, three.film.count)
+
+
+def test_chunked_batches_give_the_same_image_bit_for_bit(monkeypatch):
+    """``chunk_paths``: the path tracer walks a batch in chunks and joins their outputs before
+    the film sees them, so the film's sums do not depend on the chunk size (a glass ball and
+    a point light, a 2-pixel filter, chunks that split pixels' samples)."""
+    from sampling_lab.core.integrators.path import PathTracer
+
+    scene = scenes.cornell_sphere(20, 20, ball="glass")
+    settings = plain_settings(spp=9, threads=2, seed=3, filter_width=2.0)
+    films, calls = [], []
+    chunk = PathTracer._render_chunk
+    monkeypatch.setattr(PathTracer, "_render_chunk",
+                        lambda self, stream, *a: calls.append(len(stream)) or chunk(self, stream,
+                                                                                    *a))
+    for size in (None, 700):
+        monkeypatch.setattr(PathTracer, "chunk_paths", size)
+        calls.clear()
+        films.append(render(scene, settings).film)
+        assert max(calls) <= (size or 20 * 20 * 9)
+    assert len(calls) > 20 * 20 * 9 // 700  # the chunks really ran
+    for name in ("sum", "sum_sq", "count"):
+        assert np.array_equal(getattr(films[0], name), getattr(films[1], name))
