@@ -269,7 +269,7 @@ def render(scene, settings: RenderSettings, progress=None, cancel=None, on_updat
     integrator = integrator_class(settings.integrator)(prep, settings)
     # Work done once before the first unit (radiosity's solve), with progress and cancel.
     solve_cancelled = integrator.prepare_render(progress, cancel)
-    result = RenderResult(film, messages=list(scene.messages) + _scene_notes(scene, prep)
+    result = RenderResult(film, messages=list(scene.messages) + _scene_notes(scene, prep, used)
                           + _messages(scene, settings, integrator),
                           layer_names=list(integrator.layers), prepared=prep)
     keep_freed_batches()
@@ -363,10 +363,13 @@ def _cancelled_while_preparing(scene, film, used, seconds):
     return RenderResult(film, stats=stats, cancelled=True, messages=list(scene.messages))
 
 
-def _scene_notes(scene, prep):
-    """What preparing left out of a scene (:func:`core.prepare.drop_nonfinite`) and what it
-    lacks that leaves the image empty: geometry, or any light at all."""
+def _scene_notes(scene, prep, used):
+    """What preparing left out of a scene (:func:`core.prepare.drop_nonfinite`), what it
+    lacks that leaves the image empty (geometry, or any light at all), and how the light
+    selection in ``used`` (:func:`used_settings`) applies to its lights."""
     notes = list(prep.notes)
+    if used["light_selection"] == "tree":
+        notes += prep.lights.notes
     if prep.scene.n_triangles == 0:
         notes.append("the scene has no geometry: the camera sees only lights and the world")
     if prep.lights.n_emitters == 0:

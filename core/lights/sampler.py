@@ -26,6 +26,16 @@ POINT, SUN, AREA, TRIANGLES, WORLD = range(5)
 _LAMP_FAMILY = {LIGHT_POINT: POINT, LIGHT_SUN: SUN, LIGHT_RECT: AREA, LIGHT_DISK: AREA}
 
 
+def _tree_as_power_note(n_emitters):
+    """What a render whose light tree steers nothing tells the user."""
+    which = ("the scene has one finite emitter, so the tree has nothing to choose"
+             if n_emitters == 1 else
+             f"the scene's {n_emitters} finite emitters share one bounding box and cone, so no "
+             f"shading point changes the tree's choice")
+    return (f"Light Tree: {which}: lights are chosen by power (the tree's own probabilities, "
+            f"without its per-sample work)")
+
+
 class LightSampler:
     """Every emitter of a scene in one selection table, and each family's light.
 
@@ -107,10 +117,15 @@ class LightSampler:
         self.present_families = np.unique(self.emitter_family)
 
         power = self._power(scene)
+        self.notes = []
         if selection == TreeSelection.name:
             self.selector = TreeSelection(power, lights, self.emitter_family[:k] == SUN, tris,
                                           world.emits, method)
             self.path_selector = PowerSelection(power, k, tris, world.emits, method)
+            if self.selector.tree is not None and not self.selector.steers:
+                # The same probabilities without the tree's per-sample work.
+                self.notes.append(_tree_as_power_note(self.selector.tree.leaf_rows.size))
+                self.selector = self.path_selector
         else:
             self.selector = self.path_selector = SELECTIONS[selection](power, k, tris,
                                                                        world.emits, method)

@@ -183,6 +183,10 @@ class TreeSelection:
         Emitter row of each first-step entry (-1: the tree).
     top_prob : (entries,) float64
     tree : core.lights.tree.LightTree or None
+    steers : bool
+        Whether the receiving point changes the tree's choice: False for one finite emitter or
+        several whose bounds are alike (:meth:`.tree.EmitterBounds.alike`), where it chooses
+        in proportion to power as :class:`PowerSelection` does.
     build_s : float
     """
 
@@ -206,6 +210,9 @@ class TreeSelection:
         bounds = EmitterBounds.concatenate(parts)
         bounds = bounds.select(np.nonzero(bounds.power > 0)[0])
         self.tree = LightTree(bounds) if bounds.index.size else None
+        # Nothing for a receiving point to steer (one emitter, or emitters whose bounds are
+        # alike): the tree's choice is power selection's (core.lights.sampler uses that).
+        self.steers = bounds.index.size > 1 and not bounds.alike()
         inf_rows = np.nonzero(infinite & (lamp_power > 0))[0]
         inf_power = lamp_power[inf_rows]
         if has_world and power[-1] > 0:

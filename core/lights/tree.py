@@ -86,6 +86,18 @@ class EmitterBounds:
         return EmitterBounds(self.index[rows], self.lo[rows], self.hi[rows], self.axis[rows],
                              self.theta_o[rows], self.theta_e[rows], self.power[rows])
 
+    def alike(self):
+        """Whether every row has the same box and cone (the axis counts only where the cone is
+        narrower than the whole sphere): then every node of a tree over them has the same
+        bounds, its importance is its power times one factor for all nodes, and the tree
+        chooses in proportion to power from every receiving point. The two triangles of an
+        emissive quad share their box, and two-sided triangles the whole sphere of normals."""
+        if self.index.size < 2:
+            return True
+        same = [np.all(x == x[0]) for x in (self.lo, self.hi, self.theta_o, self.theta_e)]
+        narrow = self.theta_o < PI
+        return bool(all(same) and (not narrow.any() or np.all(self.axis == self.axis[0])))
+
 
 def lamp_bounds(lights, rows, power):
     """Bounds of the finite lamps ``rows (m,)`` of ``lights`` (point, spot, sphere, area).

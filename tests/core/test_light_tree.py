@@ -17,6 +17,7 @@ import pytest
 
 from sampling_lab.core import lights as L
 from sampling_lab.core import scenes
+from sampling_lab.core.lights.selection import TreeSelection
 from sampling_lab.core.lights.tree import LightTree, lamp_bounds
 from sampling_lab.core.prepare import prepare
 from sampling_lab.core.render import render, used_settings
@@ -246,8 +247,9 @@ def test_light_paths_choose_by_power_under_tree(integrator):
 
 @pytest.mark.parametrize("lights", ["none", "world", "one_point", "sun_and_world", "one_quad"])
 def test_tree_renders_scenes_with_few_lights(lights):
-    """No emitter, only infinite ones, or a one-leaf tree: finite images, and the same image as
-    power selection where the choice cannot differ (no emitter, or one)."""
+    """No emitter, only infinite ones, a one-leaf tree or a quad's two triangles: finite
+    images, and the same image as power selection where the choice cannot differ (no emitter,
+    one, or two that the tree cannot tell apart: it is power selection there)."""
     scene = scenes.cornell_box(8, 8, light="mesh" if lights == "one_quad" else "point")
     if lights != "one_point" and lights != "one_quad":
         scene.lights = Lights.empty()
@@ -258,7 +260,7 @@ def test_tree_renders_scenes_with_few_lights(lights):
     images = [render(scene, plain_settings(spp=4, seed=3, max_bounces=2, light_selection=sel))
               .combined() for sel in ("power", "tree")]
     assert np.isfinite(images[1]).all() and images[1][..., :3].min() >= 0
-    if lights in ("none", "one_point", "world"):
+    if lights in ("none", "one_point", "world", "one_quad"):
         np.testing.assert_array_equal(images[0], images[1])
     np.testing.assert_allclose(images[1][..., :3].mean(), images[0][..., :3].mean(), rtol=0.5)
 
@@ -318,3 +320,41 @@ def test_tree_root_level_broadcast_equals_the_per_point_gather(which, request):
     for normals in (nc, None):
         np.testing.assert_array_equal(tree._p_left(0, pc, normals),
                                       tree._p_left(np.zeros(2000, np.int64), pc, normals))
+
+
+def test_alike_bounds_are_those_of_one_box_and_cone():
+    """``EmitterBounds.alike``: a quad's two triangles (one box, two-sided) are alike; lamps
+    in two places, or one-sided lamps in one box facing two ways, are not."""
+    quad = prepare(scenes.cornell_box(8, 8, light="mesh"), light_selection="tree")
+    tris = quad.lights.triangles
+    from sampling_lab.core.lights.tree import triangle_bounds
+
+    assert triangle_bounds(tris, 0, tris.emit_power).alike()
+    two_quads = prepare(scenes.many_lights(8, 8, n=2), light_selection="tree").lights
+    assert two_quads.selector.steers
+    down, up = np.eye(4), np.diag([1.0, -1.0, -1.0, 1.0])
+    facing = Lights.concat([L.area_light(m, "SQUARE", 0.3, 0.3, (1, 1, 1), 20.0)
+                            for m in (down, up)])
+    bounds = lamp_bounds(facing, np.arange(2), np.ones(2))
+    assert np.array_equal(bounds.lo, bounds.lo[[1, 0]]) and not bounds.alike()
+
+
+def test_a_tree_that_steers_nothing_is_power_selection():
+    """The bench's box (one emissive quad) under ``tree``: the tree's own pmf is power
+    selection's from every point and normal (to float32 rounding), so the sampler uses power
+    selection itself (no normals needed), says so, and renders the power image bit for bit."""
+    scene = scenes.cornell_box(8, 8, light="mesh")
+    lights = prepare(scene, light_selection="tree").lights
+    assert lights.selector is lights.path_selector and not lights.selector.point_dependent
+    assert any("Light Tree" in note and "by power" in note for note in lights.notes)
+    tree_sel = TreeSelection(lights._power(scene), scene.lights, np.zeros(0, bool),
+                             lights.triangles, lights.has_world, "cdf")
+    assert not tree_sel.steers
+    rng = np.random.default_rng(17)
+    p, n = _points(rng, 500)
+    idx = np.repeat(len(scene.lights) + np.arange(2), 250)  # the two triangles' rows
+    np.testing.assert_allclose(tree_sel.pmf(idx, p, n), lights.selector.pmf(idx), rtol=1e-6)
+    result = render(scene, plain_settings(spp=2, seed=5, light_selection="tree"))
+    assert any("Light Tree" in m for m in result.messages)
+    power = render(scene, plain_settings(spp=2, seed=5, light_selection="power"))
+    np.testing.assert_array_equal(result.combined(), power.combined())
