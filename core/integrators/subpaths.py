@@ -65,8 +65,12 @@ def take_params(params, rows, lambert=False):
 
 
 # Float columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth
-# shading only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone.
-_STORED = ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm")
+# shading only: Gathered reads them only then), so that a reset may leave vertices 1..D-1
+# alone; each with its value before any vertex is made (Subpath.empty's). The densities and
+# edges (pdf_fwd, d_prev, cos_prev: three of the four (depth, n) float64 tables a recycle
+# filled whole) are among them: readers look at made vertices only.
+_STORED = {"p": 0.0, "ng": 0.0, "fs": 0.0, "ft": 0.0, "fn": 0.0, "wo": 0.0, "wo_local": 0.0,
+           "beta": 0.0, "nm": 0.0, "pdf_fwd": 0.0, "d_prev": np.inf, "cos_prev": 1.0}
 
 
 def _vertex_views(table, depth, n):
@@ -149,8 +153,8 @@ class Subpath:
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
         allocation would page its memory in again for every batch."""
         self.recycle()
-        for name in _STORED:
-            getattr(self, name)[1:].fill(0.0)
+        for name, value in _STORED.items():
+            getattr(self, name)[1:].fill(value)
         table, n = self.all_params, self.valid.shape[1]
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
                               (table.eta, 1.0), (table.tint, 0.0)):
@@ -160,17 +164,16 @@ class Subpath:
     def recycle(self):
         """:meth:`reset` for the next batch's walk, at a fraction of its memory traffic: the
         columns that say which vertices exist (``valid``, ``connectible``, ``delta``, the
-        densities, ...) and vertex 0 are reset; the columns that :func:`walk` writes whole
-        at every vertex it makes (:data:`_STORED`, the BSDF table) keep the last batch's
+        reverse densities, ...) and vertex 0 are reset; the columns that :func:`walk` writes
+        whole at every vertex it makes (:data:`_STORED`, the BSDF table) keep the last batch's
         values at vertices ``1..D-1`` where no vertex is now. No reader looks there (they
         gather valid vertices only; ``tests/core/test_subpath_tables.py`` fills them with NaN
         to check it)."""
         for name, value in (("valid", False), ("prim", 0), ("connectible", False),
-                            ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
-                            ("d_prev", np.inf), ("cos_prev", 1.0), ("passed", 0)):
+                            ("delta", False), ("pdf_rev", 0.0), ("passed", 0)):
             getattr(self, name).fill(value)
-        for name in _STORED:
-            getattr(self, name)[0].fill(0.0)
+        for name, value in _STORED.items():
+            getattr(self, name)[0].fill(value)
         table, n = self.all_params, self.valid.shape[1]
         for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
                               (table.eta, 1.0), (table.tint, 0.0)):
