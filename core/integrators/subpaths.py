@@ -64,13 +64,14 @@ def take_params(params, rows, lambert=False):
     return BSDFParams(**out)
 
 
-# Float columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth
-# shading only: Gathered reads them only then), so that a reset may leave vertices 1..D-1
-# alone; each with its value before any vertex is made (Subpath.empty's). The densities and
-# edges (pdf_fwd, d_prev, cos_prev: three of the four (depth, n) float64 tables a recycle
-# filled whole) are among them: readers look at made vertices only.
+# Columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth shading
+# only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone; each
+# with its value before any vertex is made (Subpath.empty's). The densities, edges and
+# triangles (pdf_fwd, d_prev, cos_prev, prim: (depth, n) tables a recycle filled whole) are
+# among them: readers look at made vertices only.
 _STORED = {"p": 0.0, "ng": 0.0, "fs": 0.0, "ft": 0.0, "fn": 0.0, "wo": 0.0, "wo_local": 0.0,
-           "beta": 0.0, "nm": 0.0, "pdf_fwd": 0.0, "d_prev": np.inf, "cos_prev": 1.0}
+           "beta": 0.0, "nm": 0.0, "pdf_fwd": 0.0, "d_prev": np.inf, "cos_prev": 1.0,
+           "prim": 0}
 
 
 def _vertex_views(table, depth, n):
@@ -125,6 +126,9 @@ class Subpath:
     flat_frames: bool = False
     lambert: bool = False
     tri_frames: tuple = None
+    # Whether a walk stored transparent passes in ``passed`` since the last recycle (which
+    # then clears it; a scene without transparent surfaces never does: no fill per batch).
+    passes_stored: bool = False
 
     @staticmethod
     def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None):
@@ -153,6 +157,7 @@ class Subpath:
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
         allocation would page its memory in again for every batch."""
         self.recycle()
+        self.passed.fill(0)  # recycle clears it only after a walk's stores
         for name, value in _STORED.items():
             getattr(self, name)[1:].fill(value)
         table, n = self.all_params, self.valid.shape[1]
@@ -169,9 +174,12 @@ class Subpath:
         values at vertices ``1..D-1`` where no vertex is now. No reader looks there (they
         gather valid vertices only; ``tests/core/test_subpath_tables.py`` fills them with NaN
         to check it)."""
-        for name, value in (("valid", False), ("prim", 0), ("connectible", False),
-                            ("delta", False), ("pdf_rev", 0.0), ("passed", 0)):
+        for name, value in (("valid", False), ("connectible", False), ("delta", False),
+                            ("pdf_rev", 0.0)):
             getattr(self, name).fill(value)
+        if self.passes_stored:  # else still all zero (no walk stored a pass count)
+            self.passed.fill(0)
+            self.passes_stored = False
         for name, value in _STORED.items():
             getattr(self, name)[0].fill(value)
         table, n = self.all_params, self.valid.shape[1]
@@ -437,6 +445,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
                                            params, delta_only, beta, pdf_prev, prev_delta)
             if passes is not None:
                 sub.passed[j][r] = passes.passed
+                sub.passes_stored = True
         if j == depth - 1 and on_segment is None:
             break
 

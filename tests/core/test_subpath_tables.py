@@ -2,14 +2,16 @@
 
 A worker thread reuses its subpath tables from one chunk to the next; ``Subpath.recycle``
 clears the columns that decide which vertices exist (``valid``, ``connectible``, ``delta``,
-the densities) but leaves the columns that the walk writes whole at every vertex it makes
-(position, normals, frame, directions, throughput, BSDF table) at vertices ``1..D-1`` as the
-last chunk left them. In a flat-shaded scene ``fn`` is ``ng`` (and without anisotropic
+the reverse densities; the transparent pass counts where a walk stored some) but leaves the
+columns that the walk writes whole at every vertex it makes (position, normals, frame,
+directions, throughput, forward density, edge, triangle, BSDF table) at vertices ``1..D-1`` as
+the last chunk left them. In a flat-shaded scene ``fn`` is ``ng`` (and without anisotropic
 tangents ``fs`` and ``ft`` are never stored, but gathered from each triangle's frame); in a
 Lambert-only one the glossy BSDF columns are never stored.
 
 Property: no reader looks at those stale or unstored entries. Each recycle here fills them
-with NaN (and the BSDF kinds with an unknown code, which every BSDF call refuses); the BDPT
+with NaN (triangles with -1, and the BSDF kinds with an unknown code, which every BSDF call
+refuses); the BDPT
 passes (combined, variance and the strategy layers) must equal, bit for bit, those of the
 plain recycle, over several chunks per thread, on a diffuse scene, a smooth-shaded rough
 coated ball (the smooth-only columns) and a scene with coat, sheen and anisotropy groups.
@@ -39,6 +41,13 @@ def _layered():
     return layered_cornell(24)
 
 
+def _transparent():
+    # Light subpaths pass the sheet straight through: their pass counts are stored.
+    from sampling_lab.tools.transparent import transparent_scene
+
+    return transparent_scene("sheet_between_light_and_floor", size=24)
+
+
 def _passes(scene):
     # 24 x 24 x 64 = 36,864 paths: three chunks on the one thread (two recycles per side).
     return bdpt_images(scene, spp=64, seed=5, max_bounces=5)
@@ -50,8 +59,11 @@ def _poisoning(monkeypatch, calls):
     def recycle_then_poison(self):
         out = recycle(self)
         calls.append(1)
+        # Pass counts are cleared where a walk stored some, and never stored elsewhere.
+        assert not out.passed.any() and not out.passes_stored
         for name in subpaths._STORED:
-            getattr(out, name)[1:].fill(np.nan)
+            column = getattr(out, name)[1:]
+            column.fill(np.nan if column.dtype.kind == "f" else -1)  # prim: no triangle
         n, table = out.valid.shape[1], out.all_params
         table.kind[n:] = -1
         for column in (table.color, table.alpha, table.eta, table.tint):
@@ -61,8 +73,8 @@ def _poisoning(monkeypatch, calls):
     monkeypatch.setattr(subpaths.Subpath, "recycle", recycle_then_poison)
 
 
-@pytest.mark.parametrize("make_scene", [_diffuse, _smooth_coat, _layered],
-                         ids=["diffuse", "smooth coat", "coat sheen aniso"])
+@pytest.mark.parametrize("make_scene", [_diffuse, _smooth_coat, _layered, _transparent],
+                         ids=["diffuse", "smooth coat", "coat sheen aniso", "transparent sheet"])
 def test_bdpt_never_reads_the_entries_a_recycle_leaves(make_scene, monkeypatch):
     plain = _passes(make_scene())
     calls = []
