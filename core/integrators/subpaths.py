@@ -68,10 +68,12 @@ def take_params(params, rows, lambert=False):
 # only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone; each
 # with its value before any vertex is made (Subpath.empty's). The densities, edges and
 # triangles (pdf_fwd, d_prev, cos_prev, prim: (depth, n) tables a recycle filled whole) are
-# among them: readers look at made vertices only.
+# among them: readers look at made vertices only. So is pdf_rev, written at a vertex when the
+# next one is sampled from it: readers look at it only there (the MIS sums and weights end a
+# path's stored factors before its last vertex, the connection supplies that one's).
 _STORED = {"p": 0.0, "ng": 0.0, "fs": 0.0, "ft": 0.0, "fn": 0.0, "wo": 0.0, "wo_local": 0.0,
            "beta": 0.0, "nm": 0.0, "pdf_fwd": 0.0, "d_prev": np.inf, "cos_prev": 1.0,
-           "prim": 0}
+           "prim": 0, "pdf_rev": 0.0}
 
 
 def _vertex_views(table, depth, n):
@@ -174,8 +176,7 @@ class Subpath:
         values at vertices ``1..D-1`` where no vertex is now. No reader looks there (they
         gather valid vertices only; ``tests/core/test_subpath_tables.py`` fills them with NaN
         to check it)."""
-        for name, value in (("valid", False), ("connectible", False), ("delta", False),
-                            ("pdf_rev", 0.0)):
+        for name, value in (("valid", False), ("connectible", False), ("delta", False)):
             getattr(self, name).fill(value)
         if self.passes_stored:  # else still all zero (no walk stored a pass count)
             self.passed.fill(0)

@@ -48,9 +48,9 @@ def _transparent():
     return transparent_scene("sheet_between_light_and_floor", size=24)
 
 
-def _passes(scene):
+def _passes(scene, **kw):
     # 24 x 24 x 64 = 36,864 paths: three chunks on the one thread (two recycles per side).
-    return bdpt_images(scene, spp=64, seed=5, max_bounces=5)
+    return bdpt_images(scene, spp=64, seed=5, max_bounces=5, **kw)
 
 
 def _poisoning(monkeypatch, calls):
@@ -105,3 +105,17 @@ def test_to_area_converts_finite_edges_and_leaves_infinite_ones_unchanged():
     mixed = to_area(pdf, cos, mixed_dist)
     np.testing.assert_array_equal(mixed[1::3], finite[1::3])
     np.testing.assert_array_equal(mixed[::3], pdf[::3])
+
+
+def test_bdpt_per_strategy_weights_never_read_the_entries_a_recycle_leaves(monkeypatch):
+    """As above for the heuristics weighed strategy by strategy (``maximum``: every stored
+    density of the path read by :mod:`.mis_densities`, not by the running sums)."""
+    plain = _passes(_diffuse(), mis_heuristic="maximum")
+    calls = []
+    with monkeypatch.context() as m:
+        _poisoning(m, calls)
+        poisoned = _passes(_diffuse(), mis_heuristic="maximum")
+    assert len(calls) >= 4
+    for a, b in zip(plain, poisoned):
+        np.testing.assert_array_equal(a, b)
+    assert np.isfinite(plain[0]).all() and plain[0].max() > 0
