@@ -76,6 +76,12 @@ _STORED = {"p": 0.0, "ng": 0.0, "fs": 0.0, "ft": 0.0, "fn": 0.0, "wo": 0.0, "wo_
            "prim": 0, "pdf_rev": 0.0}
 
 
+def _TABLE_BASE(table):
+    """The BSDF table's base columns with their values before any vertex is stored."""
+    return ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0), (table.eta, 1.0),
+            (table.tint, 0.0))
+
+
 def _vertex_views(table, depth, n):
     """Per vertex ``j``, rows ``j * n .. (j + 1) * n`` of ``table`` as views."""
     return [table.take(slice(j * n, (j + 1) * n)) for j in range(depth)]
@@ -161,32 +167,32 @@ class Subpath:
         self.recycle()
         self.passed.fill(0)  # recycle clears it only after a walk's stores
         for name, value in _STORED.items():
-            getattr(self, name)[1:].fill(value)
-        table, n = self.all_params, self.valid.shape[1]
-        for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
-                              (table.eta, 1.0), (table.tint, 0.0)):
-            column[n:].fill(value)
+            getattr(self, name).fill(value)
+        table = self.all_params
+        for column, value in _TABLE_BASE(table):
+            column.fill(value)
         return self
 
     def recycle(self):
         """:meth:`reset` for the next batch's walk, at a fraction of its memory traffic: the
-        columns that say which vertices exist (``valid``, ``connectible``, ``delta``, the
-        reverse densities, ...) and vertex 0 are reset; the columns that :func:`walk` writes
-        whole at every vertex it makes (:data:`_STORED`, the BSDF table) keep the last batch's
-        values at vertices ``1..D-1`` where no vertex is now. No reader looks there (they
-        gather valid vertices only; ``tests/core/test_subpath_tables.py`` fills them with NaN
-        to check it)."""
+        columns that say which vertices exist (``valid``, ``connectible``, ``delta``, ...) are
+        reset; the columns that :func:`walk` writes whole at every vertex it makes
+        (:data:`_STORED`, the BSDF table) keep the last batch's values at vertices
+        ``1..D-1`` where no vertex is now. No reader looks there (they gather valid vertices
+        only; ``tests/core/test_subpath_tables.py`` fills them with NaN to check it).
+
+        Vertex 0 (the pinhole or the emitter point) is written whole by the subpath's setup
+        (``bidir._camera_subpath``, ``_light_subpath``: the same columns every batch) or
+        never (its frame, directions and BSDF rows keep :meth:`empty`'s values), except
+        ``pdf_rev``, which the walk writes for the subpaths it extends: only that row is
+        reset (the others were 5 MB of fills per side and batch)."""
         for name, value in (("valid", False), ("connectible", False), ("delta", False)):
             getattr(self, name).fill(value)
         if self.passes_stored:  # else still all zero (no walk stored a pass count)
             self.passed.fill(0)
             self.passes_stored = False
-        for name, value in _STORED.items():
-            getattr(self, name)[0].fill(value)
-        table, n = self.all_params, self.valid.shape[1]
-        for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
-                              (table.eta, 1.0), (table.tint, 0.0)):
-            column[:n].fill(value)
+        self.pdf_rev[0].fill(0.0)
+        table = self.all_params
         if any(table.has(group) for group in OPTIONAL_GROUPS):
             # Back to the base columns, as empty() makes them: the next batch adds what it uses.
             self._set_table(BSDFParams(table.kind, table.color, table.alpha, table.eta,

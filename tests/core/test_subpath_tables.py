@@ -119,3 +119,40 @@ def test_bdpt_per_strategy_weights_never_read_the_entries_a_recycle_leaves(monke
     for a, b in zip(plain, poisoned):
         np.testing.assert_array_equal(a, b)
     assert np.isfinite(plain[0]).all() and plain[0].max() > 0
+
+
+def _resetting_whole(monkeypatch, calls):
+    recycle = subpaths.Subpath.recycle
+
+    def recycle_then_reset_whole(self):
+        # What Subpath.reset adds to a recycle: every stored column and the BSDF table back
+        # to Subpath.empty's values, vertex 0 included.
+        out = recycle(self)
+        calls.append(1)
+        out.passed.fill(0)
+        for name, value in subpaths._STORED.items():
+            getattr(out, name).fill(value)
+        for column, value in subpaths._TABLE_BASE(out.all_params):
+            column.fill(value)
+        return out
+
+    monkeypatch.setattr(subpaths.Subpath, "recycle", recycle_then_reset_whole)
+
+
+@pytest.mark.parametrize("make_scene", [_diffuse, _smooth_coat, _layered, _transparent],
+                         ids=["diffuse", "smooth coat", "coat sheen aniso", "transparent sheet"])
+def test_bdpt_with_recycled_tables_equals_bdpt_with_tables_reset_whole(make_scene,
+                                                                       monkeypatch):
+    """``recycle`` resets of vertex 0 only what the walk writes there (``pdf_rev``): the
+    setups write their columns of vertex 0 whole every batch and nothing else writes there.
+    The passes equal, bit for bit, those of tables reset whole (as :meth:`Subpath.empty`
+    makes them) before every batch."""
+    plain = _passes(make_scene())
+    calls = []
+    with monkeypatch.context() as m:
+        _resetting_whole(m, calls)
+        whole = _passes(make_scene())
+    assert len(calls) >= 4
+    assert len(plain) == len(whole) > 2
+    for a, b in zip(plain, whole):
+        np.testing.assert_array_equal(a, b)
