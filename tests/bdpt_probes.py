@@ -27,12 +27,12 @@ def layered_cornell(size):
     return scene
 
 
-def bdpt_images(scene, spp, seed, max_bounces):
+def bdpt_images(scene, spp, seed, max_bounces, **kw):
     """Combined, variance and every strategy layer (paths of up to 3 segments) of a
-    one-thread BDPT render."""
+    one-thread BDPT render (``kw``: further settings)."""
     settings = plain_settings(integrator="bdpt", spp=spp, seed=seed, threads=1,
                               max_bounces=max_bounces, strategy_views=True,
-                              strategy_max_length=3)
+                              strategy_max_length=3, **kw)
     result = render(scene, settings)
     layers = result.layers()
     return [result.combined(), result.variance(), *[layers[n] for n in result.layer_names]]

@@ -64,9 +64,22 @@ def take_params(params, rows, lambert=False):
     return BSDFParams(**out)
 
 
-# Float columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth
-# shading only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone.
-_STORED = ("p", "ng", "fs", "ft", "fn", "wo", "wo_local", "beta", "nm")
+# Columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth shading
+# only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone; each
+# with its value before any vertex is made (Subpath.empty's). The densities, edges and
+# triangles (pdf_fwd, d_prev, cos_prev, prim: (depth, n) tables a recycle filled whole) are
+# among them: readers look at made vertices only. So is pdf_rev, written at a vertex when the
+# next one is sampled from it: readers look at it only there (the MIS sums and weights end a
+# path's stored factors before its last vertex, the connection supplies that one's).
+_STORED = {"p": 0.0, "ng": 0.0, "fs": 0.0, "ft": 0.0, "fn": 0.0, "wo": 0.0, "wo_local": 0.0,
+           "beta": 0.0, "nm": 0.0, "pdf_fwd": 0.0, "d_prev": np.inf, "cos_prev": 1.0,
+           "prim": 0, "pdf_rev": 0.0}
+
+
+def _TABLE_BASE(table):
+    """The BSDF table's base columns with their values before any vertex is stored."""
+    return ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0), (table.eta, 1.0),
+            (table.tint, 0.0))
 
 
 def _vertex_views(table, depth, n):
@@ -121,6 +134,9 @@ class Subpath:
     flat_frames: bool = False
     lambert: bool = False
     tri_frames: tuple = None
+    # Whether a walk stored transparent passes in ``passed`` since the last recycle (which
+    # then clears it; a scene without transparent surfaces never does: no fill per batch).
+    passes_stored: bool = False
 
     @staticmethod
     def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None):
@@ -149,32 +165,34 @@ class Subpath:
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
         allocation would page its memory in again for every batch."""
         self.recycle()
-        for name in _STORED:
-            getattr(self, name)[1:].fill(0.0)
-        table, n = self.all_params, self.valid.shape[1]
-        for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
-                              (table.eta, 1.0), (table.tint, 0.0)):
-            column[n:].fill(value)
+        self.passed.fill(0)  # recycle clears it only after a walk's stores
+        for name, value in _STORED.items():
+            getattr(self, name).fill(value)
+        table = self.all_params
+        for column, value in _TABLE_BASE(table):
+            column.fill(value)
         return self
 
     def recycle(self):
         """:meth:`reset` for the next batch's walk, at a fraction of its memory traffic: the
-        columns that say which vertices exist (``valid``, ``connectible``, ``delta``, the
-        densities, ...) and vertex 0 are reset; the columns that :func:`walk` writes whole
-        at every vertex it makes (:data:`_STORED`, the BSDF table) keep the last batch's
-        values at vertices ``1..D-1`` where no vertex is now. No reader looks there (they
-        gather valid vertices only; ``tests/core/test_subpath_tables.py`` fills them with NaN
-        to check it)."""
-        for name, value in (("valid", False), ("prim", 0), ("connectible", False),
-                            ("delta", False), ("pdf_fwd", 0.0), ("pdf_rev", 0.0),
-                            ("d_prev", np.inf), ("cos_prev", 1.0), ("passed", 0)):
+        columns that say which vertices exist (``valid``, ``connectible``, ``delta``, ...) are
+        reset; the columns that :func:`walk` writes whole at every vertex it makes
+        (:data:`_STORED`, the BSDF table) keep the last batch's values at vertices
+        ``1..D-1`` where no vertex is now. No reader looks there (they gather valid vertices
+        only; ``tests/core/test_subpath_tables.py`` fills them with NaN to check it).
+
+        Vertex 0 (the pinhole or the emitter point) is written whole by the subpath's setup
+        (``bidir._camera_subpath``, ``_light_subpath``: the same columns every batch) or
+        never (its frame, directions and BSDF rows keep :meth:`empty`'s values), except
+        ``pdf_rev``, which the walk writes for the subpaths it extends: only that row is
+        reset (the others were 5 MB of fills per side and batch)."""
+        for name, value in (("valid", False), ("connectible", False), ("delta", False)):
             getattr(self, name).fill(value)
-        for name in _STORED:
-            getattr(self, name)[0].fill(0.0)
-        table, n = self.all_params, self.valid.shape[1]
-        for column, value in ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0),
-                              (table.eta, 1.0), (table.tint, 0.0)):
-            column[:n].fill(value)
+        if self.passes_stored:  # else still all zero (no walk stored a pass count)
+            self.passed.fill(0)
+            self.passes_stored = False
+        self.pdf_rev[0].fill(0.0)
+        table = self.all_params
         if any(table.has(group) for group in OPTIONAL_GROUPS):
             # Back to the base columns, as empty() makes them: the next batch adds what it uses.
             self._set_table(BSDFParams(table.kind, table.color, table.alpha, table.eta,
@@ -434,6 +452,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
                                            params, delta_only, beta, pdf_prev, prev_delta)
             if passes is not None:
                 sub.passed[j][r] = passes.passed
+                sub.passes_stored = True
         if j == depth - 1 and on_segment is None:
             break
 
