@@ -76,7 +76,7 @@ _STORED = {"p": 0.0, "ng": 0.0, "fs": 0.0, "ft": 0.0, "fn": 0.0, "wo": 0.0, "wo_
            "prim": 0, "pdf_rev": 0.0}
 
 
-def _TABLE_BASE(table):
+def _table_base(table):
     """The BSDF table's base columns with their values before any vertex is stored."""
     return ((table.kind, 0), (table.color, 0.0), (table.alpha, 1.0), (table.eta, 1.0),
             (table.tint, 0.0))
@@ -169,7 +169,7 @@ class Subpath:
         for name, value in _STORED.items():
             getattr(self, name).fill(value)
         table = self.all_params
-        for column, value in _TABLE_BASE(table):
+        for column, value in _table_base(table):
             column.fill(value)
         return self
 

@@ -132,7 +132,7 @@ def _resetting_whole(monkeypatch, calls):
         out.passed.fill(0)
         for name, value in subpaths._STORED.items():
             getattr(out, name).fill(value)
-        for column, value in subpaths._TABLE_BASE(out.all_params):
+        for column, value in subpaths._table_base(out.all_params):
             column.fill(value)
         return out
 
