@@ -217,7 +217,7 @@ class PathTracer(Integrator):
     # less time under the GIL, which is what the second worker thread waits for.
     batch_units = 2
     # ... walked in chunks of 32 k paths: arrays of 32 k rows stay nearer the core (on an Intel
-    # Xeon VM, 2026-11-26, 131 k-row batches cost 8 % more per sample; docs/BENCHMARKS.md).
+    # Xeon VM, 2026-11-26, 131 k-row batches cost about 7 % more CPU per sample; BENCHMARKS.md).
     chunk_paths = 1 << 15
 
     def __init__(self, prep, settings):

@@ -212,7 +212,7 @@ class TreeSelection:
         self.tree = LightTree(bounds) if bounds.index.size else None
         # Nothing for a receiving point to steer (one emitter, or emitters whose bounds are
         # alike): the tree's choice is power selection's (core.lights.sampler uses that).
-        self.steers = bounds.index.size > 1 and not bounds.alike()
+        self.steers = not bounds.alike()
         inf_rows = np.nonzero(infinite & (lamp_power > 0))[0]
         inf_power = lamp_power[inf_rows]
         if has_world and power[-1] > 0:
