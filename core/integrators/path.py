@@ -107,7 +107,7 @@ class _LambertShading:
     def sample(self, u):
         wi, weight, pdf = sample_lambert(self.albedo, self.ns, u)
         if self.ng is not None:
-            weight *= geometric_side_valid(self.ng, self.wo, wi, False)[:, None]
+            weight = weight * geometric_side_valid(self.ng, self.wo, wi, False)[:, None]
         k = pdf.shape[0]
         lobe = np.where(pdf > 0, LOBE_REFLECT | LOBE_DIFFUSE, 0).astype(np.uint8)
         return (wi, weight, pdf, np.zeros(k, bool), np.full(k, VIS_DIFFUSE, np.int32),

@@ -46,7 +46,7 @@ import numpy as np
 
 from ..radiosity.system import BIAS_NOTE, RadiosityParams, solve_scene
 from ..sampling.mis import MIS
-from ..sampling.warps import frame_from_normal, sample_cosine_hemisphere, to_world
+from ..sampling.warps import sample_cosine_hemisphere, to_world_around
 from ..scene import MAT_DIFFUSE, VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
 from .base import BatchOutput, Integrator
 from .common import (add_emitters_along_rays, camera_rays, intersect_by_class, surface_hits,
@@ -203,8 +203,7 @@ class Radiosity(Integrator):
         u_dir = stream.next_2d()
         albedo = take_rows(prep.tri_albedo, si.prim)
         out = self._direct(si, u_sel, u_light, counters)
-        s, t = frame_from_normal(si.ns)
-        wi = to_world(sample_cosine_hemisphere(u_dir), s, t, si.ns)
+        wi = to_world_around(sample_cosine_hemisphere(u_dir), si.ns)
         o = prep.accel.offset_origin(si.p, si.ng, si.prim, wi)
         hits = prep.accel.intersect(o, wi, None, VIS_DIFFUSE)
         counters.rays += o.shape[0]

@@ -68,7 +68,7 @@ def area_point_pdf(m, p, q, normal, area, emitted, pmf, one_sided, out):
         sa = np.where(ok, d2 / (cos_l * area), 0.0)
     set_batch_rows(out.wi, m, w)
     set_batch_rows(out.dist, m, r)
-    set_batch_rows(out.radiance, m, np.where(ok[:, None], emitted, 0.0))
+    set_batch_rows(out.radiance, m, emitted if ok.all() else np.where(ok[:, None], emitted, 0.0))
     set_batch_rows(out.pdf, m, sa * batch_rows(pmf, m))
     set_batch_rows(out.light_normal, m, normal)
 

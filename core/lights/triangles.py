@@ -130,8 +130,8 @@ class EmissiveTriangles(LightFamily):
     @staticmethod
     def _point(v0, e1, e2, u):
         """Uniform points ``(m, 3)`` on triangles ``v0, e1, e2 (m, 3)`` by ``u (m, 2)``."""
-        b = warps.sample_uniform_triangle(u)
-        return combine_rows(((b[:, 1], e1), (b[:, 2], e2)), base=v0)
+        _, b1, b2 = warps.uniform_triangle_barycentrics(u)
+        return combine_rows(((b1, e1), (b2, e2)), base=v0)
 
     # ------------------------------------------------------------------ next-event estimation
     def sample_li(self, m, e, p, u, pmf, out, counters=None):

@@ -30,12 +30,14 @@ def sample_lambert(albedo, n, u):
     -------
     wi : (k, 3) float64
     weight : (k, 3) float64
-        ``f cos / pdf`` (the albedo; zero where the pdf vanishes).
+        ``f cos / pdf`` (the albedo; zero where the pdf vanishes). It may be ``albedo`` itself:
+        callers must not change it in place.
     pdf : (k,) float64
     """
     local = warps.sample_cosine_hemisphere(u)
-    s, t = warps.frame_from_normal(n)
-    wi = warps.to_world(local, s, t, n)
+    wi = warps.to_world_around(local, n)
     pdf = warps.cosine_hemisphere_pdf(local[:, 2])
-    weight = np.where((pdf > 0)[:, None], albedo, 0.0)
+    ok = pdf > 0
+    # Directions on the horizon (pdf 0) carry nothing; elsewhere the weight is the albedo itself.
+    weight = albedo if ok.all() else np.where(ok[:, None], albedo, 0.0)
     return wi, weight, pdf

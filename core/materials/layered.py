@@ -478,8 +478,7 @@ def base_normal_sample(wi, albedo, alpha, eta, tint, wo, u_lobe, u, n, multiscat
     co = flip_to_upper(wo, side)[:, 2]
     p = _coat_probability(albedo, specular_albedo(co, alpha, eta, tint, multiscatter))
     nd = flip_to_upper(n, side)
-    s, t = warps.frame_from_normal(nd)
-    base = flip_to_upper(warps.to_world(warps.sample_cosine_hemisphere(u), s, t, nd), side)
+    base = flip_to_upper(warps.to_world_around(warps.sample_cosine_hemisphere(u), nd), side)
     return np.where((u_lobe >= p)[:, None], base, wi)
 
 

@@ -18,8 +18,8 @@ import numpy as np
 
 from ..lights.base import LiSamples
 from ..lights.sampler import AREA, POINT, SUN, WORLD
-from ..sampling.warps import (frame_from_normal, sample_cosine_hemisphere,
-                              sample_uniform_triangle, to_world)
+from ..sampling.warps import (sample_cosine_hemisphere, sample_uniform_triangle,
+                              to_world_around)
 from ..scene import VIS_SHADOW
 from .form_factors import RAYS_PER_BATCH, pair_uniforms, stratified_points
 
@@ -88,8 +88,7 @@ def _constant_world(prep, color, x, n, prim, u):
     """Irradiance estimates ``(k, 3)`` from a constant world: cosine-distributed directions,
     each worth ``pi L`` if it escapes (no noise where the sky is unobstructed; the light
     sampler's uniform sphere would waste half its samples below the horizon)."""
-    s, t = frame_from_normal(n)
-    wi = to_world(sample_cosine_hemisphere(u), s, t, n)
+    wi = to_world_around(sample_cosine_hemisphere(u), n)
     o = prep.accel.offset_origin(x, n, prim, wi)
     escaped = ~prep.accel.occluded(o, wi, np.full(x.shape[0], np.inf), VIS_SHADOW)
     return np.where(escaped[:, None], np.pi * np.asarray(color, np.float64)[None, :], 0.0)

@@ -1,6 +1,6 @@
 """Row helpers (core/rows.py) give the values of the NumPy expressions they replace, bit for
 bit: ``combine_rows`` (weighted sums of (k, c) rows) and ``divide_rows`` (rows over per-row
-divisors), column by column on large float64 batches, and ``put_rows`` (row scatters).
+divisors), column by column on large float64 batches (combinations of very large ones in place), and ``put_rows`` (row scatters).
 
 Smallest error detected: any difference at all (arrays are compared for equality), on batches
 below and above the column-wise threshold, with a base and without, and in float32.
@@ -9,10 +9,12 @@ below and above the column-wise threshold, with a base and without, and in float
 import numpy as np
 import pytest
 
-from sampling_lab.core.rows import COLUMNWISE_ROWS, combine_rows, divide_rows, put_rows
+from sampling_lab.core.rows import (COLUMNWISE_MAX_ROWS, COLUMNWISE_ROWS, combine_rows, divide_rows,
+                                    put_rows)
 
 
-@pytest.mark.parametrize("k", [0, 7, COLUMNWISE_ROWS - 1, COLUMNWISE_ROWS, 3 * COLUMNWISE_ROWS])
+@pytest.mark.parametrize("k", [0, 7, COLUMNWISE_ROWS - 1, COLUMNWISE_ROWS, 3 * COLUMNWISE_ROWS,
+                               COLUMNWISE_MAX_ROWS + 1])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_combine_rows_is_the_broadcast_expression_bit_for_bit(k, dtype):
     rng = np.random.default_rng(k)
@@ -37,8 +39,8 @@ def test_divide_rows_is_the_broadcast_division_bit_for_bit(k, dtype):
     assert got.dtype == (v / d[:, None]).dtype
 
 
-def test_combine_rows_keeps_nonfinite_values_where_the_expression_has_them():
-    k = 2 * COLUMNWISE_ROWS
+@pytest.mark.parametrize("k", [2 * COLUMNWISE_ROWS, COLUMNWISE_MAX_ROWS + 1])
+def test_combine_rows_keeps_nonfinite_values_where_the_expression_has_them(k):
     a = np.ones(k)
     a[:3] = (np.inf, np.nan, 0.0)
     u = np.ones((k, 3))

@@ -310,3 +310,14 @@ def test_to_world_maps_local_z_to_the_normal_and_keeps_lengths_and_cosines():
     np.testing.assert_allclose(np.sum(world * n, axis=1), local[:, 2], atol=1e-12)
     np.testing.assert_allclose(W.to_world(np.tile([0.0, 0.0, 1.0], (len(n), 1)), s, t, n), n,
                                atol=1e-15)
+
+
+def test_to_world_around_is_to_world_in_the_frame_of_the_normal():
+    n = _hard_normals()
+    local = W.sample_cosine_hemisphere(np.random.default_rng(13).random((len(n), 2)))
+    local = np.concatenate([local, -local[:100]])  # also below the surface (transmission)
+    n = np.concatenate([n, n[:100]])
+    s, t = W.frame_from_normal(n)
+    world = W.to_world_around(local, n)
+    np.testing.assert_allclose(world, W.to_world(local, s, t, n), rtol=0, atol=4e-16)
+    assert np.all(np.isfinite(world))
