@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..rows import scaled
 from ..sampling import warps
 
 
 def eval_lambert(albedo, n, wi):
     """``f * cos(theta_i)`` for ``albedo (k, 3)``, normals ``n (k, 3)``, ``wi (k, 3)`` -> ``(k, 3)``."""
     cos = np.einsum("ij,ij->i", n, wi)
-    return albedo * (np.maximum(cos, 0.0) * warps.INV_PI)[:, None]
+    return scaled(albedo, np.maximum(cos, 0.0) * warps.INV_PI)
 
 
 def pdf_lambert(n, wi):

@@ -139,6 +139,11 @@ class MIS:
         b = np.asarray(pdf_b, np.float64)
         # Work with ratios to the larger density, so that no sum or power can overflow.
         m = np.maximum(a, b)
+        if np.isfinite(m).all() and (a > 0).all() and (b > 0).all():
+            # The common case: both strategies can make every sample. The ratios are then in
+            # (0, 1] and one of each pair is 1: what the general case below computes.
+            with quiet("invalid", "divide", "over"):
+                return self.weight((a / m, b / m), 0)
         with quiet("invalid", "divide", "over"):
             ra = np.where(np.isinf(m), np.where(np.isinf(a), 1.0, 0.0), a / m)
             rb = np.where(np.isinf(m), np.where(np.isinf(b), 1.0, 0.0), b / m)

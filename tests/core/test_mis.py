@@ -52,6 +52,16 @@ def test_weights_of_the_two_strategies_sum_to_one(heuristic, kw):
 
 
 @pytest.mark.parametrize("heuristic, kw", VARIANTS, ids=IDS)
+def test_batches_where_both_strategies_can_make_every_sample_get_the_general_weights(heuristic, kw):
+    # Such a batch takes a shortcut; one impossible sample sends the same rows through the
+    # general case. Smallest error detected: any difference in any bit.
+    a, b = pdf_pairs(seed=3)
+    fast = mis_weight(a, b, heuristic, **kw)
+    general = mis_weight(np.append(a, 0.0), np.append(b, 1.0), heuristic, **kw)
+    np.testing.assert_array_equal(fast, general[:-1])
+
+
+@pytest.mark.parametrize("heuristic, kw", VARIANTS, ids=IDS)
 def test_weight_is_one_where_the_other_pdf_is_zero_and_zero_where_its_own_is(heuristic, kw):
     p = np.array([5e-324, 1e-300, 1e-5, 1.0, 3.7, 1e300, np.finfo(np.float64).max])
     zero = np.zeros_like(p)
