@@ -65,14 +65,26 @@ def generate_rays(cam: Camera, film_xy):
         origins = origins + d * cam.clip_start
         tmax = np.full(n, cam.clip_end - cam.clip_start)
         return origins, d, tmax
-    local_d = np.stack([px, py, -np.ones(n)], axis=-1)
-    # einsum, not `@`: a (n, 3) x (3, 3) product would wake multi-threaded BLAS, whose spinning
-    # threads steal the core the second render thread needs.
-    length = np.sqrt(np.einsum("ij,ij->i", local_d, local_d))
-    d = np.einsum("ij,kj->ik", local_d / length[:, None], rot)
+    # The camera-space direction (px, py, -1), normalised and rotated one world axis at a
+    # time: no (n, 3) x (3, 3) product, which would wake multi-threaded BLAS (its spinning
+    # threads steal the core the second render thread needs) or go through einsum's slower
+    # general loop.
+    length = px * px
+    length += py * py
+    length += 1.0
+    np.sqrt(length, out=length)
+    ux, uy = px / length, py / length
+    uz = -1.0 / length
     # Clipping planes are perpendicular to the view axis, as in Cycles.
     t_near = cam.clip_start * length
-    origins = pos + d * t_near[:, None]
+    d, origins = np.empty((n, 3)), np.empty((n, 3))
+    for k in range(3):
+        column = d[:, k]
+        np.multiply(ux, rot[k, 0], out=column)
+        column += uy * rot[k, 1]
+        column += uz * rot[k, 2]
+        np.multiply(column, t_near, out=origins[:, k])
+        origins[:, k] += pos[k]
     tmax = (cam.clip_end - cam.clip_start) * length
     return origins, d, tmax
 
