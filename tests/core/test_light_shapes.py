@@ -52,3 +52,15 @@ def test_ray_parallelogram_hits_exactly_the_points_inside_a_sheared_lamp(disk):
     np.testing.assert_array_equal(rows, np.nonzero(inside)[0])
     np.testing.assert_allclose(q, target[rows], atol=1e-9)
     np.testing.assert_allclose(t[rows], dist[rows], rtol=1e-12)
+
+
+def test_dot_vector_is_the_row_dot_product_with_one_vector_from_either_end():
+    from sampling_lab.core.lights.shapes import dot_vector
+
+    rng = np.random.default_rng(4)
+    a, v, origin = rng.normal(size=(1000, 3)) * 1e3, rng.normal(size=3), rng.normal(size=3)
+    np.testing.assert_allclose(dot_vector(a, v), np.einsum("ij,j->i", a, v), rtol=1e-12)
+    np.testing.assert_allclose(dot_vector(a, v, origin), np.einsum("ij,j->i", origin - a, v),
+                               rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(dot_vector(a, v, origin, negate=False),
+                               np.einsum("ij,j->i", a - origin, v), rtol=1e-12, atol=1e-9)
