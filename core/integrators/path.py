@@ -229,6 +229,9 @@ class PathTracer(Integrator):
         # emitters found by rays must then see the same normal.
         self.normals = prep.lights.selector.point_dependent
         self.limits = BounceLimits.from_settings(settings)
+        # Whether any surface lets a path pass straight through (a transparent component):
+        # only then does a path keep its MIS state past the bounce that read it.
+        self.passes_through = prep.material_transparency is not None
 
     def render_samples(self, stream, pixel_filter, counters):
         """Radiance of one camera path per entry of ``stream`` (finite, non-negative), in
@@ -259,6 +262,10 @@ class PathTracer(Integrator):
                           path.t_mis)
             if transparency is not None:
                 _add_transparency(transparency, path, hits)
+            if not self.passes_through:
+                # Read only by the emitters just added: the next segment sets it afresh, so
+                # the compactions below need not carry it.
+                path.forget_mis_state()
 
             # Compact to surface hits; degenerate triangles end the path, and so does the
             # transparent limit (that segment only gathered emission, Cycles' "terminate on
@@ -392,12 +399,19 @@ class _Paths:
         """Keep the paths ``rows (k,)``."""
         self.rows_of, self.beta = self.rows_of[rows], take_rows(self.beta, rows)
         self.vis, self.camera_ray = self.vis[rows], self.camera_ray[rows]
-        self.pdf_prev, self.use_mis = self.pdf_prev[rows], self.use_mis[rows]
+        if self.pdf_prev is not None:
+            self.pdf_prev, self.use_mis = self.pdf_prev[rows], self.use_mis[rows]
+            self.o_mis, self.t_mis = take_rows(self.o_mis, rows), self.t_mis[rows]
         self.n_prev = None if self.n_prev is None else take_rows(self.n_prev, rows)
-        self.o_mis, self.t_mis = take_rows(self.o_mis, rows), self.t_mis[rows]
         self.eta_scale = None if self.eta_scale is None else self.eta_scale[rows]
         self.counts.take(rows)
         self.stop_next = self.stop_next[rows]
+
+    def forget_mis_state(self):
+        """Drop the MIS state (``pdf_prev``, ``use_mis``, ``n_prev``, ``o_mis``, ``t_mis``)
+        until :meth:`next_segment` sets it again; only for scenes where no path passes
+        through a surface (which would keep it)."""
+        self.pdf_prev = self.use_mis = self.n_prev = self.o_mis = self.t_mis = None
 
     def next_segment(self, o, d, pdf_b, delta, through, vis_next, ns):
         """Start the next rays ``o, d (n, 3)`` from the vertices just sampled: ``through``
@@ -409,12 +423,14 @@ class _Paths:
             self.use_mis = np.where(through, self.use_mis, ~delta)
             if ns is not None and self.n_prev is not None:
                 ns = np.where(through[:, None], self.n_prev, ns)
+            self.camera_ray = self.camera_ray & through
+            self.vis = np.where(through, self.vis, vis_next)
         else:
             self.o_mis, self.t_mis = o, np.zeros(o.shape[0])
             self.pdf_prev, self.use_mis = pdf_b, ~delta
+            self.camera_ray = np.zeros(o.shape[0], bool)
+            self.vis = vis_next
         self.n_prev = ns
-        self.camera_ray = self.camera_ray & through
-        self.vis = np.where(through, self.vis, vis_next)
         self.o, self.d = o, d
 
 
