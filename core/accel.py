@@ -199,8 +199,9 @@ class Accel:
         """
         origins = self.offset_origin(p, ng, prim, wi)
         finite = np.isfinite(dist)
+        every_finite = finite.all()  # points on lamps and emitters (no sun, no world)
         # Row scalings one component at a time (.rows: the same values, faster).
-        q = scaled(wi, np.where(finite, dist, 0.0))
+        q = scaled(wi, dist if every_finite else np.where(finite, dist, 0.0))
         q += p
         scale = np.maximum(max_abs_component(q), max_abs_component(p))
         eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(scale, 1e-30)
@@ -210,8 +211,11 @@ class Accel:
         length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
         ok = finite & (length > 0)
         directions = np.divide(seg, np.maximum(length, 1e-300)[:, None], out=seg)
-        if not ok.all():
-            directions[~ok] = wi[~ok]
+        if ok.all():
+            # Every segment has a length (so every distance is finite): no choice per row.
+            tmax = np.subtract(length, eps, out=length)
+            return origins, directions, np.maximum(tmax, 0.0, out=tmax)
+        directions[~ok] = wi[~ok]
         tmax = np.where(finite, np.where(ok, length - eps, 0.0), np.inf)
         return origins, directions, np.maximum(tmax, 0.0)
 
