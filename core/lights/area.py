@@ -66,11 +66,11 @@ def area_point_pdf(m, p, q, normal, area, emitted, pmf, one_sided, out):
     ok = (cos_l > 1e-12) & (area > 0) & (r > 0)
     with quiet("divide", "invalid"):
         sa = np.where(ok, d2 / (cos_l * area), 0.0)
-    set_batch_rows(out.wi, m, w)
-    set_batch_rows(out.dist, m, r)
-    set_batch_rows(out.radiance, m, emitted if ok.all() else np.where(ok[:, None], emitted, 0.0))
-    set_batch_rows(out.pdf, m, sa * batch_rows(pmf, m))
-    set_batch_rows(out.light_normal, m, normal)
+    out.put("wi", m, w)
+    out.put("dist", m, r)
+    out.put("radiance", m, emitted if ok.all() else np.where(ok[:, None], emitted, 0.0))
+    out.put("pdf", m, sa * batch_rows(pmf, m))
+    out.put("light_normal", m, normal)
 
 
 def solid_angle_pdf(m, sph, omega, pmf, pdf):

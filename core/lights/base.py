@@ -101,6 +101,18 @@ class LiSamples:
         wi[:, 2] = 1.0
         return cls(wi, np.full(n, np.inf), np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3)))
 
+    def put(self, name, m, values):
+        """``field[m] = values`` for the field ``name`` and rows ``m`` as in
+        :func:`set_batch_rows`. When ``m`` is every row and ``values`` a fresh array of the
+        field's shape and type (writable, owning its data), it becomes the field: no copy."""
+        field = getattr(self, name)
+        if (m.size == field.shape[0] and isinstance(values, np.ndarray)
+                and values.shape == field.shape and values.dtype == field.dtype
+                and values.flags.writeable and values.base is None):
+            setattr(self, name, values)
+        else:
+            set_batch_rows(field, m, values)
+
 
 @dataclass
 class LeOrigins:

@@ -167,3 +167,24 @@ def test_area_lamp_origins_and_directions_equal_the_per_row_formulas(lamp):
     ref_w = warps.to_world(local, *warps.frame_from_normal(normal), normal)
     assert _same(w[m], ref_w) and _same(cos_l[m], local[:, 2])
     assert _same(pdf[m], warps.cosine_hemisphere_pdf(local[:, 2]))
+
+
+def test_li_samples_keep_fresh_whole_arrays_and_copy_views_and_partial_rows():
+    # Property: put() stores what a row scatter would, and keeps a whole fresh array as the
+    # field itself only where no one else can see it (a read-only broadcast is copied).
+    from sampling_lab.core.lights.base import LiSamples
+
+    n = 5
+    every, some = np.arange(n), np.array([1, 3])
+    out = LiSamples.empty(n)
+    fresh = np.arange(3.0 * n).reshape(n, 3)
+    out.put("wi", every, fresh)
+    assert out.wi is fresh
+    view = np.broadcast_to(np.array([1.0, 2.0, 3.0]), (n, 3))
+    out.put("radiance", every, view)
+    assert out.radiance is not view and out.radiance.flags.writeable
+    np.testing.assert_array_equal(out.radiance, view)
+    out.put("pdf", some, np.array([7.0, 8.0]))
+    np.testing.assert_array_equal(out.pdf, [0.0, 7.0, 0.0, 8.0, 0.0])
+    out.put("dist", every, np.ones(n, np.float32))  # another type: converted into the field
+    assert out.dist.dtype == np.float64 and np.all(out.dist == 1.0)
