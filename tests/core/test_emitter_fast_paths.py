@@ -177,7 +177,7 @@ def test_li_samples_keep_fresh_whole_arrays_and_copy_views_and_partial_rows():
     n = 5
     every, some = np.arange(n), np.array([1, 3])
     out = LiSamples.empty(n)
-    fresh = np.arange(3.0 * n).reshape(n, 3)
+    fresh = np.random.default_rng(0).random((n, 3))
     out.put("wi", every, fresh)
     assert out.wi is fresh
     view = np.broadcast_to(np.array([1.0, 2.0, 3.0]), (n, 3))
