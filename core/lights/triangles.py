@@ -16,7 +16,7 @@ import numpy as np
 
 from ..materials.coat import coat_attenuation
 from ..materials.microfacet import alpha_from_roughness
-from ..rows import combine_rows, put_rows
+from ..rows import put_rows
 from ..sampling import warps
 from .area import area_point_pdf, cosine_directions, pick_face, solid_angle_pdf
 from .base import LUMINANCE, LightFamily, batch_rows, dot
@@ -127,22 +127,20 @@ class EmissiveTriangles(LightFamily):
         return (self.emit_v0.take(e, axis=0), self.emit_e1.take(e, axis=0),
                 self.emit_e2.take(e, axis=0))
 
-    @staticmethod
-    def _point(v0, e1, e2, u):
-        """Uniform points ``(m, 3)`` on triangles ``v0, e1, e2 (m, 3)`` by ``u (m, 2)``."""
-        _, b1, b2 = warps.uniform_triangle_barycentrics(u)
-        return combine_rows(((b1, e1), (b2, e2)), base=v0)
-
     # ------------------------------------------------------------------ next-event estimation
     def sample_li(self, m, e, p, u, pmf, out, counters=None):
         """Uniformly by area or by solid angle; both faces emit."""
-        v0, e1, e2 = self._corners(e)
         pm, um = batch_rows(p, m), batch_rows(u, m)
-        b, c = v0 + e1, v0 + e2
-        omega, sph = self.use_spherical(v0, b, c, pm)
+        if self.sampler.solid_angle:
+            v0, e1, e2 = self._corners(e)
+            b, c = v0 + e1, v0 + e2
+            omega, sph = self.use_spherical(v0, b, c, pm)
+        else:
+            # Area sampling needs no corner rows: the points are formed axis by axis.
+            omega, sph = self.use_spherical(None, None, None, pm)
         every = sph.size > 0 and sph.all()
         # Area points only where the spherical warp is not used (none when it always is).
-        q = None if every else self._point(v0, e1, e2, um)
+        q = None if every else self._points_of(e, um)
         normal = self.emit_normal.take(e, axis=0)
         if sph.any():
             arrays = (um, pm, normal, v0, b, c)
@@ -211,9 +209,9 @@ class EmissiveTriangles(LightFamily):
         out.pdf[m] = pmf[m] / self.emit_area[e]
 
     def _points_of(self, e, u):
-        """:meth:`_point` of emitters ``e (m,)`` by ``u (m, 2)``: the same values (each axis
-        ``v0 + b1 e1 + b2 e2``, added in that order), gathered axis by axis from
-        :attr:`corner_axes` instead of as three ``(m, 3)`` row gathers."""
+        """Uniform points ``(m, 3)`` on emitters ``e (m,)`` by ``u (m, 2)``: on each axis
+        ``v0 + b1 e1 + b2 e2``, added in that order, from 1-D gathers of :attr:`corner_axes`
+        (not three ``(m, 3)`` row gathers)."""
         _, b1, b2 = warps.uniform_triangle_barycentrics(u)
         out = np.empty((e.size, 3))
         v0, e1, e2 = self.corner_axes

@@ -10,7 +10,7 @@
   general branch, now through ``pick``).
 - Emissive triangles' light-path origins are formed axis by axis from 1-D gathers
   (``EmissiveTriangles._points_of``) and, where every row chose a triangle, as whole arrays:
-  property, the points equal ``_point`` of the gathered corners and the normals and densities
+  property, the points equal ``v0 + b1 e1 + b2 e2`` of the gathered corners and the normals and densities
   the row-scatter formulas, bit for bit, for all rows and for a subset of rows. Their
   cosine directions, written as whole arrays where every row chose a triangle, equal the
   scattered rows of the same draw, and light paths' directions, radiance and densities from
@@ -109,7 +109,8 @@ def test_triangle_origins_equal_the_row_gather_formulas(lamp, n):
     out = LeOrigins.empty(n)
     tris.sample_le_origin(m, e, u, pmf, out)
     ref_p = np.zeros((n, 3))
-    ref_p[m] = tris._point(tris.emit_v0[e], tris.emit_e1[e], tris.emit_e2[e], u[m])
+    _, b1, b2 = warps.uniform_triangle_barycentrics(u[m])
+    ref_p[m] = tris.emit_v0[e] + b1[:, None] * tris.emit_e1[e] + b2[:, None] * tris.emit_e2[e]
     ref_normal = np.zeros((n, 3))
     ref_normal[m] = tris.emit_normal[e]
     ref_pdf = np.zeros(n)
