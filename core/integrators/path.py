@@ -58,6 +58,7 @@ from ..materials.bsdf import (KIND_DIELECTRIC, KIND_DIFFUSE, LOBE_DIFFUSE, LOBE_
 from ..materials.frame import shading_frame, to_local, to_world
 from ..materials.lambert import eval_lambert, pdf_lambert, sample_lambert
 from ..materials.lower_view import lower_view_params, view_below
+from ..rows import scaled
 from ..sampling.mis import MIS
 from ..scene import VIS_CAMERA, VIS_DIFFUSE, VIS_SHADOW
 from .base import BatchOutput, Integrator, render_in_chunks
@@ -498,13 +499,15 @@ def _next_event(prep, shading, si, rows, u_sel, u_light, beta, L, rows_of, mis, 
                                         counters, VIS_SHADOW)
         unblocked = np.nonzero(max_component(transmit) > 0)[0]
     vis, vis_rows = cand[unblocked], cand_rows[unblocked]
-    # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
-    w = np.where(delta[vis], 1.0, mis.light_weight(pdf_l[vis], pdf_b[vis]))
+    pdf_vis = pdf_l[vis]
+    w = mis.light_weight(pdf_vis, pdf_b[vis])
+    if prep.lights.delta.any():
+        # Delta lights cannot be found by BSDF sampling: their samples keep weight one.
+        w = np.where(delta[vis], 1.0, w)
     contrib = take_rows(beta, vis_rows) * take_rows(f, vis) * take_rows(li, vis)
     if transmit is not None:
         contrib *= take_rows(transmit, unblocked)
-    contrib *= (w / pdf_l[vis])[:, None]
-    add_rows(L, rows_of[vis_rows], contrib)
+    add_rows(L, rows_of[vis_rows], scaled(contrib, w / pdf_vis, out=contrib))
 
 
 def _rows(a, rows):
