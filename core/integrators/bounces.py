@@ -60,30 +60,34 @@ class BounceLimits:
 
 
 class BounceCounts:
-    """Per-path bounce counts of a batch, struct-of-arrays (``(n,)`` int32 each).
+    """Per-path bounce counts of a batch, struct-of-arrays.
+
+    Each count is an ``(n,)`` int32 array, or one int while it is the same on every path of
+    the batch: a batch starts at zero, and a count stays one int while every path adds the same
+    to it (a diffuse-only scene without transparent surfaces never needs the arrays, which
+    compaction would otherwise gather twice a bounce).
 
     Attributes
     ----------
-    total, diffuse, glossy, transmission, transparent : (n,) int32
+    total, diffuse, glossy, transmission, transparent : (n,) int32 or int
     finishing : (n,) bool
         Paths past one of the limits (total, diffuse, glossy, transmission): their next surface
         only adds emission and lets them pass if it is transparent.
     """
 
     def __init__(self, n):
-        self.total = np.zeros(n, np.int32)
-        self.diffuse = np.zeros(n, np.int32)
-        self.glossy = np.zeros(n, np.int32)
-        self.transmission = np.zeros(n, np.int32)
-        self.transparent = np.zeros(n, np.int32)
+        self.total = self.diffuse = self.glossy = self.transmission = self.transparent = 0
         self.finishing = np.zeros(n, bool)
 
-    _FIELDS = ("total", "diffuse", "glossy", "transmission", "transparent", "finishing")
+    _COUNTS = ("total", "diffuse", "glossy", "transmission", "transparent")
 
     def take(self, rows):
         """Keep the paths ``rows (k,)`` (index compaction)."""
-        for name in self._FIELDS:
-            setattr(self, name, getattr(self, name)[rows])
+        for name in self._COUNTS:
+            count = getattr(self, name)
+            if isinstance(count, np.ndarray):
+                setattr(self, name, count[rows])
+        self.finishing = self.finishing[rows]
 
     def advance(self, lobe, through, limits):
         """Count the bounce each path just sampled.
@@ -107,20 +111,36 @@ class BounceCounts:
         transmit = scatter & ((lobe & LOBE_TRANSMIT) != 0)
         reflect = scatter & ((lobe & LOBE_REFLECT) != 0)
         diffuse = reflect & ((lobe & LOBE_DIFFUSE) != 0)
-        self.transparent += through
-        self.total += scatter
-        self.diffuse += diffuse
-        self.glossy += reflect & ~diffuse
-        self.transmission += transmit
+        self.transparent = _counted(self.transparent, through)
+        self.total = _counted(self.total, scatter)
+        self.diffuse = _counted(self.diffuse, diffuse)
+        self.glossy = _counted(self.glossy, reflect & ~diffuse)
+        self.transmission = _counted(self.transmission, transmit)
         self.finishing |= ((self.total > limits.total) | (self.diffuse > limits.diffuse)
                            | (self.glossy > limits.glossy)
                            | (self.transmission > limits.transmission))
         return through & (self.transparent >= limits.transparent)
 
     def shadow_budget(self, limits, rows=None):
-        """Transparent surfaces a shadow ray from each path's vertex may cross ``(k,)``."""
-        used = self.transparent if rows is None else self.transparent[rows]
+        """Transparent surfaces a shadow ray from each path's vertex may cross: ``(k,)``, or
+        one int for every path."""
+        used = self.transparent
+        if rows is not None and isinstance(used, np.ndarray):
+            used = used[rows]
         return np.maximum(limits.transparent - used, 0)
+
+
+def _counted(count, mask):
+    """``count + mask`` for a count (``(n,)`` int32 or one int) and ``mask (n,)`` bool; an
+    int stays one where the mask is the same on every path."""
+    if isinstance(count, np.ndarray):
+        count += mask
+        return count
+    if not mask.any():
+        return count
+    if mask.all():
+        return count + 1
+    return np.add(count, mask, dtype=np.int32)
 
 
 def uniform_limits(total):

@@ -14,8 +14,10 @@ import numpy as np
 import pytest
 
 from sampling_lab.core import scenes
+from sampling_lab.core.integrators.bounces import BounceCounts, BounceLimits
 from sampling_lab.core.lights import area_light, sun_light
-from sampling_lab.core.materials.bsdf import KIND_CONDUCTOR, KIND_DIELECTRIC
+from sampling_lab.core.materials.bsdf import (KIND_CONDUCTOR, KIND_DIELECTRIC, LOBE_DIFFUSE,
+                                             LOBE_REFLECT, LOBE_TRANSMIT)
 from sampling_lab.core.render import render, used_settings
 from sampling_lab.core.scene import Camera, Lights, Materials, Scene
 from tests.helpers import assert_mean_within_ci, assert_two_images_agree, plain_settings
@@ -179,3 +181,44 @@ def test_per_kind_limits_are_used_by_path_tracing_only():
     for integrator in ("path", "light", "bdpt", "photon", "sppm", "radiosity"):
         used = used_settings(plain_settings(integrator=integrator, diffuse_bounces=2))
         assert (used["diffuse_bounces"] == 2) == (integrator == "path"), integrator
+
+
+@pytest.mark.parametrize("kinds", ["diffuse", "mixed"])
+def test_bounce_counts_equal_per_path_counting_whether_kept_as_ints_or_arrays(kinds):
+    # Property: every count read per path equals plain per-path counting, through compactions,
+    # whether the batch bounces alike (counts stay ints) or not (they become arrays).
+    rng = np.random.default_rng(5)
+    limits = BounceLimits(6, 4, 3, 5, 2)
+    n = 200
+    counts, ids = BounceCounts(n), np.arange(n)
+    ref = {k: np.zeros(n, int) for k in ("total", "diffuse", "glossy", "transmission",
+                                         "transparent")}
+    lobes = np.array([LOBE_REFLECT | LOBE_DIFFUSE, LOBE_REFLECT, LOBE_TRANSMIT], np.uint8)
+    for step in range(8):
+        k = ids.size
+        if kinds == "diffuse":
+            lobe, through = np.full(k, lobes[0]), np.zeros(k, bool)
+        else:
+            lobe, through = rng.choice(lobes, k), rng.random(k) < 0.2
+        stop = counts.advance(lobe, through, limits)
+        scatter = ~through
+        ref["transparent"][ids] += through
+        ref["total"][ids] += scatter
+        ref["diffuse"][ids] += scatter & (lobe == lobes[0])
+        ref["glossy"][ids] += scatter & (lobe == lobes[1])
+        ref["transmission"][ids] += scatter & (lobe == lobes[2])
+        for name, values in ref.items():
+            np.testing.assert_array_equal(np.broadcast_to(getattr(counts, name), k), values[ids])
+        np.testing.assert_array_equal(stop, through & (ref["transparent"][ids] >= 2))
+        expect_finishing = ((ref["total"] > 6) | (ref["diffuse"] > 4) | (ref["glossy"] > 3)
+                            | (ref["transmission"] > 5))[ids]
+        # finishing is sticky: once past a limit a path stays finishing (counts only grow).
+        np.testing.assert_array_equal(counts.finishing, expect_finishing)
+        np.testing.assert_array_equal(
+            np.broadcast_to(counts.shadow_budget(limits), k),
+            np.maximum(2 - ref["transparent"][ids], 0))
+        keep = np.sort(rng.choice(k, k * 3 // 4, replace=False))
+        counts.take(keep)
+        ids = ids[keep]
+    if kinds == "diffuse":
+        assert isinstance(counts.total, int) and isinstance(counts.glossy, int)
