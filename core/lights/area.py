@@ -127,8 +127,20 @@ class AreaLights(LightFamily):
                              u - 0.5)
         else:
             disk, local = np.zeros(li.shape[0], bool), u - 0.5
-        q = (self._rows(lights.position, li) + local[:, 0:1] * self._rows(lights.axis_x, li)
-             + local[:, 1:2] * self._rows(lights.axis_y, li))
+        if self.only is None:
+            q = (lights.position.take(li, axis=0)
+                 + local[:, 0:1] * lights.axis_x.take(li, axis=0)
+                 + local[:, 1:2] * lights.axis_y.take(li, axis=0))
+            return q, self._area(li), disk
+        # One lamp: the same sums axis by axis, with its numbers instead of broadcast rows.
+        pos, ax, ay = (table[self.only] for table in (lights.position, lights.axis_x,
+                                                      lights.axis_y))
+        q = np.empty((li.shape[0], 3))
+        for c in range(3):
+            column = q[:, c]
+            np.multiply(local[:, 0], ax[c], out=column)
+            column += pos[c]
+            column += local[:, 1] * ay[c]
         return q, self._area(li), disk
 
     def _area(self, li):
@@ -168,9 +180,9 @@ class AreaLights(LightFamily):
     def sample_li(self, m, li, p, u, pmf, out, counters=None):
         """Uniformly by area, or rectangles by solid angle."""
         lights = self.lights
-        uu = u[m]
+        uu = batch_rows(u, m)
         q, area, _ = self._points(li, uu)
-        omega, corner, sph = self.use_spherical(li, p[m])
+        omega, corner, sph = self.use_spherical(li, batch_rows(p, m))
         if sph.any():
             q[sph] = warps.sample_spherical_rectangle(uu[sph], corner[sph],
                                                       lights.axis_x[li[sph]],
