@@ -75,7 +75,7 @@ class _Context:
         sub = getattr(self.buffers, side, None)
         if sub is None or sub.valid.shape != (depth, n):
             sub = Subpath.empty(depth, n, not self.smooth, self.prep.lambert_only,
-                                self.triangle_frames)
+                                self.triangle_frames, self.prep.tri_normal)
             setattr(self.buffers, side, sub)
             return sub
         return sub.recycle()

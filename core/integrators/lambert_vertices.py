@@ -58,7 +58,12 @@ class LambertVertices:
     @staticmethod
     def at(sub, index):
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`.subpaths.Subpath.flat`."""
-        ng = take_rows(sub.flat("ng"), index)
+        if sub.tri_normals is None:
+            ng = take_rows(sub.flat("ng"), index)
+        else:
+            # The stored ng is the triangle's normal: gathered through prim (4 bytes a row from
+            # the large table, then rows of the triangles' table) instead of 24 bytes a row.
+            ng = take_rows(sub.tri_normals, sub.prim.reshape(-1).take(index))
         # The z column read as elements 3 i + 2 of the contiguous table (np.take of the
         # strided column would copy it whole; fancy indexing of two axes is slower).
         wo_z = sub.wo_local.reshape(-1).take(index * 3 + 2)
