@@ -58,16 +58,17 @@ class LambertVertices:
     @staticmethod
     def at(sub, index):
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`.subpaths.Subpath.flat`."""
-        if sub.tri_normals is None:
-            ng = take_rows(sub.flat("ng"), index)
-        else:
-            # The stored ng is the triangle's normal: gathered through prim (4 bytes a row from
-            # the large table, then rows of the triangles' table) instead of 24 bytes a row.
-            ng = take_rows(sub.tri_normals, sub.prim.reshape(-1).take(index))
+        # The stored ng (and colour, where given) is the triangle's: gathered through prim
+        # (4 bytes a row from the large table, then rows of the triangles' table) instead of
+        # 24 bytes a row.
+        prim = None if sub.tri_normals is None else sub.prim.reshape(-1).take(index)
+        ng = take_rows(sub.flat("ng"), index) if prim is None else take_rows(sub.tri_normals, prim)
+        color = (take_rows(sub.all_params.color, index) if prim is None or sub.tri_colors is None
+                 else take_rows(sub.tri_colors, prim))
         # The z column read as elements 3 i + 2 of the contiguous table (np.take of the
         # strided column would copy it whole; fancy indexing of two axes is slower).
         wo_z = sub.wo_local.reshape(-1).take(index * 3 + 2)
-        return LambertVertices(take_rows(sub.all_params.color, index),
+        return LambertVertices(color,
                                ng if sub.flat_frames else take_rows(sub.flat("fn"), index),
                                wo_z, ng)
 

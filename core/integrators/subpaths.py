@@ -135,15 +135,18 @@ class Subpath:
     lambert: bool = False
     tri_frames: tuple = None
     # Per triangle, its geometric normal (PreparedScene.tri_normal), which ng stores at every
-    # vertex a walk makes: a connection may gather it by prim instead (LambertVertices.at).
+    # vertex a walk makes, and (None unless every material is plain diffuse and untextured)
+    # the BSDF colour every vertex on it stores (PreparedScene.tri_albedo): a connection may
+    # gather them by prim instead (LambertVertices.at).
     tri_normals: np.ndarray = None
+    tri_colors: np.ndarray = None
     # Whether a walk stored transparent passes in ``passed`` since the last recycle (which
     # then clears it; a scene without transparent surfaces never does: no fill per batch).
     passes_stored: bool = False
 
     @staticmethod
     def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None,
-              tri_normals=None):
+              tri_normals=None, tri_colors=None):
         """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
         views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
         is row ``j * n + i``, as in :meth:`flat`), with the base columns only: a group of
@@ -153,7 +156,8 @@ class Subpath:
         a plain diffuse one (``PreparedScene.lambert_only``), whose glossy columns are not
         stored; ``tri_frames``: :func:`.vertex_frames.triangle_frames` when the walk uses
         them (``fs`` and ``ft`` are then not stored: :class:`Gathered` gathers them by
-        triangle); ``tri_normals``: the triangles' geometric normals (:attr:`tri_normals`)."""
+        triangle); ``tri_normals``, ``tri_colors``: the triangles' geometric normals and
+        colours (:attr:`tri_normals`)."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
         table = _empty_params(depth * n)
         params = _vertex_views(table, depth, n)
@@ -163,7 +167,7 @@ class Subpath:
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
                        np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32),
-                       flat_frames, lambert, tri_frames, tri_normals)
+                       flat_frames, lambert, tri_frames, tri_normals, tri_colors)
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
