@@ -153,9 +153,11 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
     # which is dropped as well): its light side is not gathered.
     e = np.nonzero(max_component(f_z) > 0)[0]
-    at_y, w_e, dist_e = at_y[e], take_rows(w, e), dist[e]
+    at_y, dist_e = at_y[e], dist[e]
+    w_y = take_rows(w, e)
+    np.negative(w_y, out=w_y)  # y -> z
     yv = gather(L, at_y, IMPORTANCE)
-    f_y, toward_y, back_y = yv.values(-w_e, yv.local(-w_e))
+    f_y, toward_y, back_y = yv.values(w_y, yv.local(w_y))
     value = take_rows(L.flat("beta"), at_y)
     value *= f_y
     value *= take_rows(f_z, e)
