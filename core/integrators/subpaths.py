@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSample, eval_bsdf,
-                              pdf_bsdf, sample_bsdf)
+                              pdf_bsdf, pdf_plain_diffuse, sample_bsdf, sample_plain_diffuse)
 from ..materials.bsdf_values import eval_with_pdfs
 from ..materials.frame import shading_frame, to_local, to_world
 from ..rows import norms, put_rows
@@ -468,7 +468,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         smp, wi, weight, back = _scatter(ctx.smooth, mode, si, (fs, ft, fn), wo_l, params,
                                          u_lobe, u_bsdf, sub is not None,
                                          bends_normals(prep.scene, si.prim) if ctx.smooth
-                                         else None)
+                                         else None, prep.lambert_only)
         if sub is not None:
             back = to_area(back, cos_prev, dist)
             sub.pdf_rev[j - 1][r] = np.where(smp.delta, 1.0, back)
@@ -500,13 +500,15 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         vis = ray_class(smp.lobe[keep])
 
 
-def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, bends=None):
+def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, bends=None,
+             lambert=False):
     """Stage *sample BSDF* of a walk: the sample, its world direction ``wi``, its weight and
     (``reverse``) the other side's solid-angle density of ``si.wo`` given ``wi``. With smooth
     shading, camera paths sample as the path tracer does (Cycles' rule where the view falls
     below the shading normal) and report the light side's density, light paths sample and
     weigh as its adjoint (:mod:`.adjoint_normals`; ``bends``: :func:`.common.bends_normals`
-    of the hits)."""
+    of the hits). ``lambert``: every material is plain diffuse
+    (``PreparedScene.lambert_only``)."""
     normals = VertexNormals(params, frame, si.ng, si.nm, bends) if smooth else None
     if normals is not None and mode == IMPORTANCE:
         wi, weight, pdf, delta, lobe = normals.sample_importance(si.wo, u_lobe, u_bsdf)
@@ -517,9 +519,13 @@ def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, ben
         smp, wi, weight = normals.sample_radiance(si.wo, u_lobe, u_bsdf)
         back = normals.pdf_light(wi, si.wo) if reverse else None
         return smp, wi, weight, back
-    smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode)
+    # Plain diffuse rows (no bump or coat normals either) skip the BSDF dispatch.
+    plain = lambert and not any(params.has(group) for group in OPTIONAL_GROUPS)
+    smp = (sample_plain_diffuse(params, wo_l, u_bsdf, mode) if plain
+           else sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode))
     wi = to_world(smp.wi, *frame)
-    back = pdf_bsdf(params, smp.wi, wo_l) if reverse else None
+    pdf = pdf_plain_diffuse if plain else pdf_bsdf
+    back = pdf(params, smp.wi, wo_l) if reverse else None
     return smp, wi, smp.weight, back
 
 
