@@ -113,6 +113,8 @@ def all_lambert(smooth, subs, j=None):
         table = sub.all_params
         if any(table.has(group) for group in OPTIONAL_GROUPS):
             return False
+        if sub.lambert:  # every material is plain diffuse: no kind to look at
+            continue
         kind, valid, connectible = table.kind.reshape(sub.valid.shape), sub.valid, sub.connectible
         if j is not None:
             kind, valid, connectible = kind[j], valid[j], connectible[j]

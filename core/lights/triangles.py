@@ -234,7 +234,10 @@ class EmissiveTriangles(LightFamily):
 
     def le(self, m, e, cos, w, receiver, out):
         cos_m = cos[m]
-        le = self.emit_radiance.take(e, axis=0) * (cos_m != 0)[:, None]
+        le = self.emit_radiance.take(e, axis=0)
+        lit = cos_m != 0
+        if not lit.all():  # (where every row is lit, the product by one would change nothing)
+            le *= lit[:, None]
         if self.emit_coat is not None:
             le *= self.coat_factor(e, cos_m)
         put_rows(out, m, le)
