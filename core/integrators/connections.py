@@ -338,8 +338,8 @@ def connect_cameras(ctx, L, out):
         gather = lambda seen: Gathered.at(ctx, L, at[seen], IMPORTANCE)  # noqa: E731
     splat_vertices(ctx, level + 2, rows, take_rows(L.flat("p"), at), L.flat("prim")[at],
                    gather, lambda seen: take_rows(L.flat("beta"), at[seen]), out, L,
-                   connection_budget(ctx.settings.transparent_max_bounces,
-                                     L.flat("passed")[at]))
+                   connection_budget(ctx.settings.transparent_max_bounces, L.flat("passed")[at])
+                   if has_passes(ctx.prep) else 0)  # not read where all is opaque
 
 
 def _light_vertex_gather(ctx, L, yj, rows):

@@ -471,8 +471,10 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
                                          else None, prep.lambert_only)
         if sub is not None:
             back = to_area(back, cos_prev, dist)
-            sub.pdf_rev[j - 1][r] = np.where(smp.delta, 1.0, back)
-            sub.delta[j][r] = smp.delta
+            if smp.delta.any():  # else every flag stays as recycle() cleared it
+                back = np.where(smp.delta, 1.0, back)
+                sub.delta[j][r] = smp.delta
+            put_rows(sub.pdf_rev[j - 1], r, back)
         beta = beta * weight
         alive = (smp.pdf > 0) & finite_rows(beta)
         rr_scale = rr_scale[live]
@@ -547,7 +549,8 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         dist = hits.t[live]
         cos_prev = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
     sub.cos_prev[j][r] = cos_prev
-    cos_here = np.abs(dot(si.ng, si.wo))
+    # Where the frame's normal is ng (flat shading), wo_l's z is already that cosine.
+    cos_here = np.abs(wo_l[:, 2] if frame[2] is si.ng else dot(si.ng, si.wo))
     pdf_sa, inf = pdf_prev[live], np.isinf(dist)
     fwd = to_area(pdf_sa, cos_here, dist)
     if inf.any():
@@ -556,7 +559,8 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     sub.valid[j][r] = True
     for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("wo_local", wo_l),
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
-                        ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
+                        ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd) if prev_delta.any()
+                         else fwd)):
         put_rows(getattr(sub, name)[j], r, value)
     if sub.tri_frames is None:  # else gathered by prim (gather_frames)
         put_rows(sub.fs[j], r, frame[0])
