@@ -81,6 +81,14 @@ class LambertVertices:
         the other methods read of a local direction)."""
         return dot(w, self.fn)
 
+    def cos_ng(self, w, w_l, rows):
+        """``ng . w`` ``(k,)`` at the rows ``rows (k,)`` of world directions ``w (m, 3)``
+        whose :meth:`local` is ``w_l``: read from ``w_l`` where the frame's normal is ``ng``
+        (flat shading: the same dot product)."""
+        if self.fn is self.ng:
+            return w_l[rows]
+        return dot(take_rows(self.ng, rows), take_rows(w, rows))
+
     def _lobe_side(self, cos):
         return np.where(cos >= 0.0, 1.0, -1.0)
 

@@ -319,6 +319,14 @@ class Gathered:
         """World directions ``w (m, 3)`` in the vertices' shading frames."""
         return to_local(w, self.fs, self.ft, self.fn)
 
+    def cos_ng(self, w, w_l, rows):
+        """``ng . w`` ``(k,)`` at the rows ``rows (k,)`` of world directions ``w (m, 3)``
+        whose :meth:`local` is ``w_l``: read from ``w_l`` where the frame's normal is ``ng``
+        (flat shading: the same dot product)."""
+        if self.fn is self.ng:
+            return w_l[rows, 2]
+        return dot(take_rows(self.ng, rows), take_rows(w, rows))
+
     def f(self, w, w_l):
         """``f |cos|`` toward ``w`` (world) / ``w_l`` (local), with the geometric-side rule and,
         with smooth shading, the camera side's BSDF (Cycles' rule where its direction falls
