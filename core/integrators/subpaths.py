@@ -426,8 +426,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         live = surface_hits(prep, hits)
         if live.size == 0:
             break
-        # Smooth shading: frames around the shading normal as the path tracer's (nm).
-        si = surface_interaction(prep, hits, d, live, keep_below=True)
+        # Smooth shading: frames around the shading normal as the path tracer's (nm); flat
+        # shading's frames are around ng (si.ns is not formed).
+        si = surface_interaction(prep, hits, d, live, keep_below=True, shading=ctx.smooth)
         r = rows[live]
         # Draw for the live paths only (a copy of the stream compacted along with them).
         if path_stream is None:
