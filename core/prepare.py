@@ -12,7 +12,7 @@ import numpy as np
 
 from .accel import Accel
 from .lights import Emission, LightSampler
-from .materials.bsdf import KIND_DIELECTRIC, BSDFParams, is_delta_only
+from .materials.bsdf import KIND_DIELECTRIC, KIND_DIFFUSE, BSDFParams, is_delta_only, kind_rows
 from .materials.microfacet import alpha_from_roughness
 from .alpha import AlphaTextures, alpha_textures
 from .metallic import MetallicTextures, metallic_textures
@@ -236,12 +236,19 @@ class PreparedScene:
         Returns
         -------
         params : core.materials.bsdf.BSDFParams
+            Where every material is plain diffuse and untextured (``lambert_only``), the
+            columns diffuse BSDFs never read (``alpha``, ``eta``, ``tint``) are read-only
+            constants (:func:`core.materials.bsdf.kind_rows`), not the table's rows.
         delta_only : (k,) bool
             Whether the chosen BSDF is a pure delta distribution.
         u_lobe : (k,) float64
         """
         material, u_lobe = self.choose_material(prim, u_lobe, u, v)
-        params = self.material_bsdf.take(material)
+        if self.lambert_only and not self.scene.textures:
+            # Plain diffuse BSDFs read their colour alone: the other columns are constants.
+            params = kind_rows(self.material_bsdf, KIND_DIFFUSE, material)
+        else:
+            params = self.material_bsdf.take(material)
         delta_only = self.material_delta_only[material]
         if u is not None and self.scene.textures:
             rows, color = material_base_color(self.scene, material, prim, u, v)

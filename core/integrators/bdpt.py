@@ -119,8 +119,9 @@ def _fresh_points(ctx, stream, C):
     vertices exist), sampled for all vertices in one call."""
     # Depth-major, as a loop over the vertices would list them; each row's numbers from its
     # vertex's dimensions, drawn for these rows only (Stream.slots_of_rows: the numbers of
-    # compacted copies of the stream, without hashing the dead paths' numbers).
-    level, rows = np.nonzero(C.valid[1:] & C.connectible[1:])
+    # compacted copies of the stream, without hashing the dead paths' numbers). np.nonzero's
+    # order and values, through flatnonzero: about 2 x faster than its two-axis form.
+    level, rows = np.divmod(np.flatnonzero(C.valid[1:] & C.connectible[1:]), C.valid.shape[1])
     if rows.size == 0:
         return None
     zj = level + 1

@@ -74,8 +74,12 @@ class _Context:
         buffer for ``side`` (``"camera"`` or ``"light"``) if it has that shape."""
         sub = getattr(self.buffers, side, None)
         if sub is None or sub.valid.shape != (depth, n):
-            sub = Subpath.empty(depth, n, not self.smooth, self.prep.lambert_only,
-                                self.triangle_frames)
+            prep = self.prep
+            # Plain untextured diffuse BSDFs take their colour from the triangle's material
+            # (PreparedScene.choose_bsdf), as the path tracer's Lambert shading does.
+            colors = prep.tri_albedo if prep.lambert_only and not prep.scene.textures else None
+            sub = Subpath.empty(depth, n, not self.smooth, prep.lambert_only,
+                                self.triangle_frames, prep.tri_normal, colors)
             setattr(self.buffers, side, sub)
             return sub
         return sub.recycle()

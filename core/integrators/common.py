@@ -266,7 +266,8 @@ class Interaction:
         ``ng`` itself for flat meshes, else the interpolated corner normals
         (:func:`shading_normals`). ``ns . wo > 0`` wherever ``ng . wo != 0``, unless the
         interaction was built with ``keep_below`` (the path tracer's: Cycles' rule, see
-        :mod:`core.materials.lower_view`).
+        :mod:`core.materials.lower_view`). None where built with ``shading=False``
+        (:func:`surface_interaction`).
     wo : (k, 3) float64
         Unit direction back along the incoming ray.
     prim : (k,) int32
@@ -296,9 +297,10 @@ class Interaction:
     n_coat: np.ndarray = None
 
 
-def surface_interaction(prep, hits, d, rows, keep_below=False):
+def surface_interaction(prep, hits, d, rows, keep_below=False, shading=True):
     """Build the :class:`Interaction` of the hit rays ``rows`` for directions ``d (n, 3)``
-    (``keep_below``: see :func:`shading_normals`)."""
+    (``keep_below``: see :func:`shading_normals`; ``shading=False`` leaves ``ns`` None, for
+    callers that never read it)."""
     prim = hits.prim[rows]
     u, v = hits.u[rows], hits.v[rows]
     p = combine_rows(((u, take_rows(prep.tri_e1, prim)), (v, take_rows(prep.tri_e2, prim))),
@@ -306,16 +308,20 @@ def surface_interaction(prep, hits, d, rows, keep_below=False):
     ng = take_rows(prep.tri_normal, prim)
     wo = take_rows(d, rows)
     np.negative(wo, out=wo)
-    side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
     nm = perturbed_normals(prep, prim, u, v, ng)
-    ns = ng if nm is None else nm if keep_below else view_fallback(nm, ng, wo)
     n_bump = bump_reference_normals(prep, prim, u, v, ng)
-    if n_bump is not None:
-        n_bump *= side[:, None]
     n_coat = coat_reference_normals(prep, prim, u, v, ng)
-    if n_coat is not None:
-        n_coat *= side[:, None]
-    return Interaction(p, ng, combine_rows(((side, ns),)), wo, prim, n_bump, nm, n_coat)
+    ns = None
+    if shading or n_bump is not None or n_coat is not None:
+        side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
+        if shading:
+            ns = ng if nm is None else nm if keep_below else view_fallback(nm, ng, wo)
+            ns = combine_rows(((side, ns),))
+        if n_bump is not None:
+            n_bump *= side[:, None]
+        if n_coat is not None:
+            n_coat *= side[:, None]
+    return Interaction(p, ng, ns, wo, prim, n_bump, nm, n_coat)
 
 
 def bump_reference_normals(prep, prim, u, v, ng):

@@ -149,13 +149,17 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     dist = norms(w)
     np.divide(w, np.maximum(dist, 1e-300)[:, None], out=w)  # z -> y
     zv = gather(C, at_z, RADIANCE)
-    f_z, toward_z, back_z = zv.values(w, zv.local(w))
+    w_z = zv.local(w)
+    f_z, toward_z, back_z = zv.values(w, w_z)
     # Where the camera vertex scatters nothing toward y the path has no value (zero, or NaN,
     # which is dropped as well): its light side is not gathered.
     e = np.nonzero(max_component(f_z) > 0)[0]
-    at_y, w_e, dist_e = at_y[e], take_rows(w, e), dist[e]
+    at_y, dist_e = at_y[e], dist[e]
+    w_y = take_rows(w, e)
+    np.negative(w_y, out=w_y)  # y -> z
     yv = gather(L, at_y, IMPORTANCE)
-    f_y, toward_y, back_y = yv.values(-w_e, yv.local(-w_e))
+    w_yl = yv.local(w_y)
+    f_y, toward_y, back_y = yv.values(w_y, w_yl)
     value = take_rows(L.flat("beta"), at_y)
     value *= f_y
     value *= take_rows(f_z, e)
@@ -169,8 +173,9 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     if kept.size == 0:
         return None
     keep = e[kept]
-    w, d2 = take_rows(w, keep), np.square(dist[keep])
-    cos_z, cos_y = dot(take_rows(zv.ng, keep), w), dot(take_rows(yv.ng, kept), w)
+    d2 = np.square(dist[keep])
+    # The cosines at both ends (of y -> z at y: the densities take their absolute values).
+    cos_z, cos_y = zv.cos_ng(w, w_z, keep), yv.cos_ng(w_y, w_yl, kept)
     yj, zj, row, at_y = yj[keep], zj[keep], row[keep], at_y[kept]
     return _Joined(yj + 1, zj + 1, row, take_rows(value, kept), L.pdf_fwd[0].take(row),
                    _finite_area(toward_y[kept], cos_z, d2),
@@ -234,10 +239,10 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
                       thin=_thinner(ctx, value, row, zj))
     if keep.size == 0:
         return None
+    cos_z = np.abs(zv.cos_ng(w, w_z, keep))
     w, dist = take_rows(w, keep), dist[keep]
     zj, row = zj[keep], row[keep]
     infinite, cos_y, index = infinite[keep], cos_y[keep], pts.index[keep]
-    cos_z = np.abs(dot(take_rows(zv.ng, keep), w))
     pdf_dir = em.pdf_direction(index, take_rows(y_normal, keep), -w)
     pdf_zy = toward_z[keep]
     return _Joined(np.ones(keep.size, np.int64), zj + 1, row, take_rows(value, keep),
@@ -326,7 +331,8 @@ def connect_cameras(ctx, L, out):
         for s in range(2, depth + 1):
             connect_camera(ctx, L, s, out)
         return
-    level, rows = reach.nonzero()  # depth-major: the loop's order
+    # Depth-major (the loop's order): np.nonzero's, about 2 x faster than its two-axis form.
+    level, rows = np.divmod(np.flatnonzero(reach), n)
     if rows.size == 0:
         return
     at = (level + 1) * n + rows
@@ -336,8 +342,8 @@ def connect_cameras(ctx, L, out):
         gather = lambda seen: Gathered.at(ctx, L, at[seen], IMPORTANCE)  # noqa: E731
     splat_vertices(ctx, level + 2, rows, take_rows(L.flat("p"), at), L.flat("prim")[at],
                    gather, lambda seen: take_rows(L.flat("beta"), at[seen]), out, L,
-                   connection_budget(ctx.settings.transparent_max_bounces,
-                                     L.flat("passed")[at]))
+                   connection_budget(ctx.settings.transparent_max_bounces, L.flat("passed")[at])
+                   if has_passes(ctx.prep) else 0)  # not read where all is opaque
 
 
 def _light_vertex_gather(ctx, L, yj, rows):

@@ -58,11 +58,17 @@ class LambertVertices:
     @staticmethod
     def at(sub, index):
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`.subpaths.Subpath.flat`."""
-        ng = take_rows(sub.flat("ng"), index)
+        # The stored ng (and colour, where given) is the triangle's: gathered through prim
+        # (4 bytes a row from the large table, then rows of the triangles' table) instead of
+        # 24 bytes a row.
+        prim = None if sub.tri_normals is None else sub.prim.reshape(-1).take(index)
+        ng = take_rows(sub.flat("ng"), index) if prim is None else take_rows(sub.tri_normals, prim)
+        color = (take_rows(sub.all_params.color, index) if prim is None or sub.tri_colors is None
+                 else take_rows(sub.tri_colors, prim))
         # The z column read as elements 3 i + 2 of the contiguous table (np.take of the
         # strided column would copy it whole; fancy indexing of two axes is slower).
         wo_z = sub.wo_local.reshape(-1).take(index * 3 + 2)
-        return LambertVertices(take_rows(sub.all_params.color, index),
+        return LambertVertices(color,
                                ng if sub.flat_frames else take_rows(sub.flat("fn"), index),
                                wo_z, ng)
 
@@ -74,6 +80,14 @@ class LambertVertices:
         """``(m,)``: the z components of world directions ``w (m, 3)`` in the frames (all that
         the other methods read of a local direction)."""
         return dot(w, self.fn)
+
+    def cos_ng(self, w, w_l, rows):
+        """``ng . w`` ``(k,)`` at the rows ``rows (k,)`` of world directions ``w (m, 3)``
+        whose :meth:`local` is ``w_l``: read from ``w_l`` where the frame's normal is ``ng``
+        (flat shading: the same dot product)."""
+        if self.fn is self.ng:
+            return w_l[rows]
+        return dot(take_rows(self.ng, rows), take_rows(w, rows))
 
     def _lobe_side(self, cos):
         return np.where(cos >= 0.0, 1.0, -1.0)
@@ -107,6 +121,8 @@ def all_lambert(smooth, subs, j=None):
         table = sub.all_params
         if any(table.has(group) for group in OPTIONAL_GROUPS):
             return False
+        if sub.lambert:  # every material is plain diffuse: no kind to look at
+            continue
         kind, valid, connectible = table.kind.reshape(sub.valid.shape), sub.valid, sub.connectible
         if j is not None:
             kind, valid, connectible = kind[j], valid[j], connectible[j]

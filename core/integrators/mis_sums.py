@@ -88,18 +88,27 @@ class RunningSums:
         ``first_possible``: whether the strategy connecting at vertex 0 can (light side:
         not a delta light). None (camera side): no strategy connects at the pinhole with a
         ratio of two stored densities (that ratio is the connection's own, ``t = 2``), and
-        ``G[0] = 0``."""
+        ``G[0] = 0``.
+
+        ``G[j]`` is formed only for the subpaths that have vertex ``j + 2``: only connections
+        there and ``G[j + 1]`` read it (elsewhere the table stays zero, unread). Deep vertices
+        are few (Russian roulette), so most rows of the deep levels are skipped; each row's
+        value is the same."""
         depth, n = sub.valid.shape
         out = np.zeros((depth, n))
-        g = np.zeros(n)
         with quiet("invalid", "over"):  # one context for the loop (each costs about 0.4 us)
             for j in range(0 if first_possible is not None else 1, depth - 2):
-                possible = first_possible if j == 0 else ~(sub.delta[j - 1] | sub.delta[j])
-                factor = self.h(_ratio(sub.pdf_rev[j], sub.pdf_fwd[j]))
-                # G[j] = factor * (possible + G[j - 1]), formed in its row of the table (row
-                # by row: the rows of the table stay in the processor's cache).
-                g = np.add(possible, g, out=out[j + 2])
+                rows = np.flatnonzero(sub.valid[j + 2])
+                if j == 0:
+                    possible = first_possible[rows]
+                else:
+                    possible = ~(sub.delta[j - 1].take(rows) | sub.delta[j].take(rows))
+                factor = self.h(_ratio(sub.pdf_rev[j].take(rows), sub.pdf_fwd[j].take(rows)))
+                # G[j] = factor * (possible + G[j - 1]); G[j - 1] of these rows is in the
+                # table's row j + 1 (they have vertex j + 1 too), zero before the first.
+                g = np.add(possible, out[j + 1].take(rows))
                 g *= factor
+                out[j + 2][rows] = g
         return out
 
     def weights(self, L, C, s, t, row, near):

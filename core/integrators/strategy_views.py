@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..rows import scaled
 from .base import BatchOutput, Splats
 from .common import add_rows, finite_rows
 
@@ -30,7 +31,7 @@ class Tally:
     def add(self, s, t, rows, value, weight):
         """Add strategy ``(s, t)``'s contributions ``value (k, 3)`` with MIS weights
         ``weight (k,)`` to the camera samples ``rows (k,)`` (distinct)."""
-        weighted = value * weight[:, None]
+        weighted = scaled(value, weight)
         add_rows(self.image, rows, weighted)
         if s + t - 1 <= self.view_length:
             key = f"Strategy s{s} t{t}"
@@ -49,7 +50,7 @@ class Tally:
 
     def splat(self, s, xy, value, weight):
         """Add strategy ``(s, 1)``'s contributions at film positions ``xy``."""
-        weighted = value * weight[:, None]
+        weighted = scaled(value, weight)
         self.splats.append(Splats(xy, weighted))
         if s <= self.view_length:
             key = f"Strategy s{s} t1"

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSample, eval_bsdf,
-                              pdf_bsdf, sample_bsdf)
+                              pdf_bsdf, pdf_plain_diffuse, sample_bsdf, sample_plain_diffuse)
 from ..materials.bsdf_values import eval_with_pdfs
 from ..materials.frame import shading_frame, to_local, to_world
 from ..rows import norms, put_rows
@@ -134,12 +134,19 @@ class Subpath:
     flat_frames: bool = False
     lambert: bool = False
     tri_frames: tuple = None
+    # Per triangle, its geometric normal (PreparedScene.tri_normal), which ng stores at every
+    # vertex a walk makes, and (None unless every material is plain diffuse and untextured)
+    # the BSDF colour every vertex on it stores (PreparedScene.tri_albedo): a connection may
+    # gather them by prim instead (LambertVertices.at).
+    tri_normals: np.ndarray = None
+    tri_colors: np.ndarray = None
     # Whether a walk stored transparent passes in ``passed`` since the last recycle (which
     # then clears it; a scene without transparent surfaces never does: no fill per batch).
     passes_stored: bool = False
 
     @staticmethod
-    def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None):
+    def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None,
+              tri_normals=None, tri_colors=None):
         """Subpaths of ``depth`` vertices for ``n`` samples, none made yet. ``params[j]`` are
         views of one table ``all_params`` of ``depth * n`` rows (vertex ``j`` of subpath ``i``
         is row ``j * n + i``, as in :meth:`flat`), with the base columns only: a group of
@@ -149,7 +156,8 @@ class Subpath:
         a plain diffuse one (``PreparedScene.lambert_only``), whose glossy columns are not
         stored; ``tri_frames``: :func:`.vertex_frames.triangle_frames` when the walk uses
         them (``fs`` and ``ft`` are then not stored: :class:`Gathered` gathers them by
-        triangle)."""
+        triangle); ``tri_normals``, ``tri_colors``: the triangles' geometric normals and
+        colours (:attr:`tri_normals`)."""
         z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
         table = _empty_params(depth * n)
         params = _vertex_views(table, depth, n)
@@ -159,7 +167,7 @@ class Subpath:
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
                        np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32),
-                       flat_frames, lambert, tri_frames)
+                       flat_frames, lambert, tri_frames, tri_normals, tri_colors)
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
@@ -311,6 +319,14 @@ class Gathered:
         """World directions ``w (m, 3)`` in the vertices' shading frames."""
         return to_local(w, self.fs, self.ft, self.fn)
 
+    def cos_ng(self, w, w_l, rows):
+        """``ng . w`` ``(k,)`` at the rows ``rows (k,)`` of world directions ``w (m, 3)``
+        whose :meth:`local` is ``w_l``: read from ``w_l`` where the frame's normal is ``ng``
+        (flat shading: the same dot product)."""
+        if self.fn is self.ng:
+            return w_l[rows, 2]
+        return dot(take_rows(self.ng, rows), take_rows(w, rows))
+
     def f(self, w, w_l):
         """``f |cos|`` toward ``w`` (world) / ``w_l`` (local), with the geometric-side rule and,
         with smooth shading, the camera side's BSDF (Cycles' rule where its direction falls
@@ -410,8 +426,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         live = surface_hits(prep, hits)
         if live.size == 0:
             break
-        # Smooth shading: frames around the shading normal as the path tracer's (nm).
-        si = surface_interaction(prep, hits, d, live, keep_below=True)
+        # Smooth shading: frames around the shading normal as the path tracer's (nm); flat
+        # shading's frames are around ng (si.ns is not formed).
+        si = surface_interaction(prep, hits, d, live, keep_below=True, shading=ctx.smooth)
         r = rows[live]
         # Draw for the live paths only (a copy of the stream compacted along with them).
         if path_stream is None:
@@ -460,11 +477,13 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         smp, wi, weight, back = _scatter(ctx.smooth, mode, si, (fs, ft, fn), wo_l, params,
                                          u_lobe, u_bsdf, sub is not None,
                                          bends_normals(prep.scene, si.prim) if ctx.smooth
-                                         else None)
+                                         else None, prep.lambert_only)
         if sub is not None:
             back = to_area(back, cos_prev, dist)
-            sub.pdf_rev[j - 1][r] = np.where(smp.delta, 1.0, back)
-            sub.delta[j][r] = smp.delta
+            if smp.delta.any():  # else every flag stays as recycle() cleared it
+                back = np.where(smp.delta, 1.0, back)
+                sub.delta[j][r] = smp.delta
+            put_rows(sub.pdf_rev[j - 1], r, back)
         beta = beta * weight
         alive = (smp.pdf > 0) & finite_rows(beta)
         rr_scale = rr_scale[live]
@@ -492,13 +511,15 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         vis = ray_class(smp.lobe[keep])
 
 
-def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, bends=None):
+def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, bends=None,
+             lambert=False):
     """Stage *sample BSDF* of a walk: the sample, its world direction ``wi``, its weight and
     (``reverse``) the other side's solid-angle density of ``si.wo`` given ``wi``. With smooth
     shading, camera paths sample as the path tracer does (Cycles' rule where the view falls
     below the shading normal) and report the light side's density, light paths sample and
     weigh as its adjoint (:mod:`.adjoint_normals`; ``bends``: :func:`.common.bends_normals`
-    of the hits)."""
+    of the hits). ``lambert``: every material is plain diffuse
+    (``PreparedScene.lambert_only``)."""
     normals = VertexNormals(params, frame, si.ng, si.nm, bends) if smooth else None
     if normals is not None and mode == IMPORTANCE:
         wi, weight, pdf, delta, lobe = normals.sample_importance(si.wo, u_lobe, u_bsdf)
@@ -509,9 +530,13 @@ def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, ben
         smp, wi, weight = normals.sample_radiance(si.wo, u_lobe, u_bsdf)
         back = normals.pdf_light(wi, si.wo) if reverse else None
         return smp, wi, weight, back
-    smp = sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode)
+    # Plain diffuse rows (no bump or coat normals either) skip the BSDF dispatch.
+    plain = lambert and not any(params.has(group) for group in OPTIONAL_GROUPS)
+    smp = (sample_plain_diffuse(params, wo_l, u_bsdf, mode) if plain
+           else sample_bsdf(params, wo_l, u_lobe, u_bsdf, mode))
     wi = to_world(smp.wi, *frame)
-    back = pdf_bsdf(params, smp.wi, wo_l) if reverse else None
+    pdf = pdf_plain_diffuse if plain else pdf_bsdf
+    back = pdf(params, smp.wi, wo_l) if reverse else None
     return smp, wi, smp.weight, back
 
 
@@ -533,7 +558,8 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         dist = hits.t[live]
         cos_prev = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
     sub.cos_prev[j][r] = cos_prev
-    cos_here = np.abs(dot(si.ng, si.wo))
+    # Where the frame's normal is ng (flat shading), wo_l's z is already that cosine.
+    cos_here = np.abs(wo_l[:, 2] if frame[2] is si.ng else dot(si.ng, si.wo))
     pdf_sa, inf = pdf_prev[live], np.isinf(dist)
     fwd = to_area(pdf_sa, cos_here, dist)
     if inf.any():
@@ -542,7 +568,8 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     sub.valid[j][r] = True
     for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("wo_local", wo_l),
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
-                        ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd))):
+                        ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd) if prev_delta.any()
+                         else fwd)):
         put_rows(getattr(sub, name)[j], r, value)
     if sub.tri_frames is None:  # else gathered by prim (gather_frames)
         put_rows(sub.fs[j], r, frame[0])

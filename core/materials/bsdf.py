@@ -108,7 +108,8 @@ __all__ = [
     "KINDS", "KIND_NAMES",
     "RADIANCE", "IMPORTANCE", "TRANSPORT_MODES", "LOBE_REFLECT", "LOBE_TRANSMIT", "LOBE_DIFFUSE",
     "LOBE_GLOSSY", "LOBE_SINGULAR", "BSDFParams", "OPTIONAL_GROUPS", "BSDFSample", "make_params",
-    "eval_bsdf", "pdf_bsdf", "sample_bsdf", "is_delta_only",
+    "eval_bsdf", "pdf_bsdf", "sample_bsdf", "sample_plain_diffuse", "pdf_plain_diffuse",
+    "is_delta_only",
 ]
 
 
@@ -588,6 +589,25 @@ def sample_bsdf(params, wo, u_lobe, u, mode=RADIANCE):
     else:
         smp = _sample_below_sheen(params, wo, u_lobe, u, mode)
     return _bump_corrected_weight(params, wo, smp, mode)
+
+
+def sample_plain_diffuse(params, wo, u, mode=RADIANCE):
+    """:func:`sample_bsdf` of rows that are all plain diffuse (``KIND_DIFFUSE``, no optional
+    group): the same sample, without the dispatch over kinds, layers and bump correction.
+
+    A diffuse direction is drawn on ``wo``'s side of the surface (it never crosses it), so
+    the lobe is a diffuse reflection wherever the density is positive, as
+    :func:`_sample_bases` labels it.
+    """
+    wi, weight, pdf, delta = FAMILIES[KIND_DIFFUSE][2](params, wo, None, u, mode)
+    lobe = np.where(pdf > 0.0, LOBE_REFLECT | LOBE_DIFFUSE, 0).astype(np.uint8)
+    return BSDFSample(wi, weight, pdf, delta, lobe)
+
+
+def pdf_plain_diffuse(params, wo, wi):
+    """:func:`pdf_bsdf` of rows that are all plain diffuse (as :func:`sample_plain_diffuse`):
+    ``(k,)``, the same values."""
+    return FAMILIES[KIND_DIFFUSE][1](params, wo, wi)
 
 
 def _bump_corrected_weight(params, wo, smp, mode):

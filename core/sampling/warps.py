@@ -180,8 +180,10 @@ def uniform_triangle_barycentrics(u):
     u0 = np.asarray(u[:, 0], np.float64)
     u1 = np.asarray(u[:, 1], np.float64)
     lower = u0 < u1
-    b0 = np.where(lower, u0 / 2, u0 - u1 / 2)
-    b1 = np.where(lower, u1 - u0 / 2, u1 / 2)
+    # Halving is exact (u * 0.5 is u / 2 to the last bit): each half formed once.
+    h0, h1 = u0 * 0.5, u1 * 0.5
+    b0 = np.where(lower, h0, u0 - h1)
+    b1 = np.where(lower, u1 - h0, h1)
     return b0, b1, 1.0 - b0 - b1
 
 

@@ -63,3 +63,28 @@ def test_one_call_on_no_rows_gives_empty_values():
     p = B.make_params(B.KIND_DIFFUSE, 0.5, k=0)
     f, pdf_wi, pdf_wo = eval_with_pdfs(p, np.zeros((0, 3)), np.zeros((0, 3)))
     assert f.shape == (0, 3) and pdf_wi.shape == (0,) and pdf_wo.shape == (0,)
+
+
+def test_plain_diffuse_sample_and_pdf_equal_the_general_ones_bit_for_bit():
+    """``sample_plain_diffuse`` / ``pdf_plain_diffuse`` (the walks' form for scenes of plain
+    diffuse materials) give ``sample_bsdf`` / ``pdf_bsdf``'s values, both sides of the surface,
+    directions in the tangent plane and degenerate numbers included."""
+    rng = np.random.default_rng(11)
+    k = 5000
+    params = _params(rng, B.KIND_DIFFUSE, k)
+    wo = _directions(rng, k)
+    wo[:40, 2] = 0.0  # in the tangent plane
+    wo[40:80, 2] = -0.0
+    u = rng.random((k, 2))
+    u[80:120] = 0.5  # the concentric map's centre: z = 1, or the disk's rim
+    u[120:160, 0] = 0.0
+    for mode in B.TRANSPORT_MODES:
+        lean = B.sample_plain_diffuse(params, wo, u, mode)
+        general = B.sample_bsdf(params, wo, rng.random(k), u, mode)
+        for a, b in zip(lean, general):
+            assert a.dtype == b.dtype
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(B.pdf_plain_diffuse(params, lean.wi, wo),
+                                      B.pdf_bsdf(params, lean.wi, wo))
+    # Rows below the surface, and rim samples of density zero (lobe 0), occur.
+    assert (wo[:, 2] < 0).any() and (lean.pdf == 0).any() and (lean.lobe == 0).any()
