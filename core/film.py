@@ -37,6 +37,20 @@ def blackman_harris(x, width):
     return 0.35875 - 0.48829 * np.cos(a) + 0.14128 * np.cos(2 * a) - 0.01168 * np.cos(3 * a)
 
 
+class UnitPixels(NamedTuple):
+    """The window pixels of a work unit's samples without the array: each pixel of
+    ``start .. stop - 1`` ``count`` times in a row (:meth:`array`), the layout
+    :func:`core.passes.render_unit` renders."""
+
+    start: int
+    stop: int
+    count: int
+
+    def array(self):
+        """The pixels ``(n,)`` int64: ``np.repeat(np.arange(start, stop), count)``."""
+        return np.repeat(np.arange(self.start, self.stop, dtype=np.int64), self.count)
+
+
 class PixelFilter:
     """A separable pixel filter sampled through its tabulated CDF (as Cycles' filter table).
 
@@ -204,9 +218,12 @@ class Film:
         return self.width * self.height
 
     def add_samples(self, pixel, radiance, transparency=None):
-        """Accumulate camera samples ``radiance (k, 3)`` into their pixels ``pixel (k,)``;
-        ``transparency (k,)``: what of each reached a transparent film's background (None:
-        nothing)."""
+        """Accumulate camera samples ``radiance (k, 3)`` into their pixels ``pixel (k,)`` (or a
+        :class:`UnitPixels`); ``transparency (k,)``: what of each reached a transparent film's
+        background (None: nothing)."""
+        if isinstance(pixel, UnitPixels):
+            self._add_unit_samples(pixel, radiance, transparency)
+            return
         if pixel.size == 0:
             return
         # Over the span of pixels the batch touches (a work unit's own pixels), not the whole
@@ -221,6 +238,30 @@ class Film:
             self.sum[lo:hi, c] += np.bincount(local, radiance[:, c], minlength=span)
             self.sum_sq[lo:hi, c] += np.bincount(local, radiance[:, c] ** 2, minlength=span)
         self.count[lo:hi] += np.bincount(local, minlength=span)
+
+    def _add_unit_samples(self, unit, radiance, transparency):
+        """:meth:`add_samples` of a work unit's samples: each pixel's ``unit.count`` samples
+        are consecutive rows, added to one another in that order (the sums ``np.bincount``
+        forms, to the bit) by ``unit.count`` whole-span additions instead of seven bincounts."""
+        lo, hi, k = unit
+        if hi <= lo or k == 0:
+            return
+        r = radiance.reshape(hi - lo, k, 3)
+        total, total_sq = r[:, 0].copy(), r[:, 0] ** 2
+        for j in range(1, k):
+            total += r[:, j]
+            total_sq += r[:, j] ** 2
+        self.sum[lo:hi] += total
+        self.sum_sq[lo:hi] += total_sq
+        self.count[lo:hi] += k
+        if transparency is not None:
+            if self.transparency is None:
+                self.transparency = np.zeros(self.n_pixels)
+            t = transparency.reshape(hi - lo, k)
+            alpha = t[:, 0].copy()
+            for j in range(1, k):
+                alpha += t[:, j]
+            self.transparency[lo:hi] += alpha
 
     def splat(self, film_xy, value, pixel_filter=None):
         """Add light-path contributions ``value (k, 3)`` at film positions ``film_xy (k, 2)``.

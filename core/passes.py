@@ -22,7 +22,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 
 import numpy as np
 
-from .film import PixelFilter, SplatSums
+from .film import PixelFilter, SplatSums, UnitPixels
 from .integrators.base import UNIT_PATHS, Counters
 from .sampling.stream import Aborted
 
@@ -109,6 +109,8 @@ class Passes:
         elif out.splats is not None and len(out.splats.xy):
             film.splat(out.splats.xy, out.splats.value, pixel_filter)
         film.add_splat_paths(out.light_paths)
+        if out.camera_layers and isinstance(pixels, UnitPixels):
+            pixels = pixels.array()
         for name, values in out.camera_layers.items():
             film.add_layer(name, pixels, values)
         for name, splats in out.splat_layers.items():
@@ -317,12 +319,13 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
     Returns
     -------
     tuple or None
-        ``(pixels (n,) int64, BatchOutput, Counters, taps)`` for :meth:`Passes.accumulate`
-        (``taps``: the splats' filter taps or their ``SplatSums``, see
-        ``Film.compact_splat_taps``; None without splats), or None if ``abort`` stopped it.
+        ``(pixels, BatchOutput, Counters, taps)`` for :meth:`Passes.accumulate` (``pixels``:
+        the unit's :class:`core.film.UnitPixels`; ``taps``: the splats' filter taps or their
+        ``SplatSums``, see ``Film.compact_splat_taps``; None without splats), or None if
+        ``abort`` stopped it.
     """
     p0, p1, s0, k = unit
-    pixels = np.repeat(np.arange(p0, p1, dtype=np.int64), k)
+    pixels = UnitPixels(p0, p1, k).array()
     samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
     # Streams and camera rays are indexed by frame pixel, the film by window pixel.
     frame_pixels = ((film.y0 + pixels // film.width) * frame_width + film.x0
@@ -343,7 +346,8 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
             if out.splats is not None and len(out.splats.xy) else None)
     if taps is not None:
         out.splats = None  # in the taps now: not sent back twice
-    return pixels, out, local, taps
+    # The film needs the layout, not the array (a smaller payload from a worker process).
+    return UnitPixels(p0, p1, k), out, local, taps
 
 
 def _started(pending):
