@@ -327,9 +327,13 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
     p0, p1, s0, k = unit
     pixels = UnitPixels(p0, p1, k).array()
     samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
-    # Streams and camera rays are indexed by frame pixel, the film by window pixel.
-    frame_pixels = ((film.y0 + pixels // film.width) * frame_width + film.x0
-                    + pixels % film.width)
+    # Streams and camera rays are indexed by frame pixel, the film by window pixel (the same
+    # numbers when the film is the whole frame).
+    if film.x0 == 0 and film.y0 == 0 and film.width == frame_width:
+        frame_pixels = pixels
+    else:
+        frame_pixels = ((film.y0 + pixels // film.width) * frame_width + film.x0
+                        + pixels % film.width)
     local = Counters()
     stream = sampler.stream(frame_pixels, samples)
     stream.abort = abort
