@@ -96,8 +96,9 @@ class Passes:
 
     def accumulate(self, pixels, out, local, taps=None):
         """Add one unit's output to the film (in unit order: the image is deterministic);
-        ``taps``: the splats' filter taps if :meth:`run_unit` made them, or their per-pixel
-        sums (:class:`core.film.SplatSums`)."""
+        ``pixels``: the unit's :class:`core.film.UnitPixels`; ``taps``: the splats' filter
+        taps if :meth:`run_unit` made them, or their per-pixel sums
+        (:class:`core.film.SplatSums`)."""
         film, pixel_filter = self.film, self.pixel_filter
         self.unshown += 1
         self.counters.add(local)
@@ -109,8 +110,8 @@ class Passes:
         elif out.splats is not None and len(out.splats.xy):
             film.splat(out.splats.xy, out.splats.value, pixel_filter)
         film.add_splat_paths(out.light_paths)
-        if out.camera_layers and isinstance(pixels, UnitPixels):
-            pixels = pixels.array()
+        if out.camera_layers:
+            pixels = pixels.array()  # the unit's UnitPixels, as one pixel per sample
         for name, values in out.camera_layers.items():
             film.add_layer(name, pixels, values)
         for name, splats in out.splat_layers.items():
@@ -325,7 +326,8 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
         ``abort`` stopped it.
     """
     p0, p1, s0, k = unit
-    pixels = UnitPixels(p0, p1, k).array()
+    unit_pixels = UnitPixels(p0, p1, k)
+    pixels = unit_pixels.array()
     samples = np.tile(np.arange(s0, s0 + k, dtype=np.int64), p1 - p0)
     # Streams and camera rays are indexed by frame pixel, the film by window pixel (the same
     # numbers when the film is the whole frame).
@@ -351,7 +353,7 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
     if taps is not None:
         out.splats = None  # in the taps now: not sent back twice
     # The film needs the layout, not the array (a smaller payload from a worker process).
-    return UnitPixels(p0, p1, k), out, local, taps
+    return unit_pixels, out, local, taps
 
 
 def _started(pending):

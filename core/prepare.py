@@ -171,6 +171,12 @@ class PreparedScene:
     alpha: AlphaTextures = None
     material_mix_weights: np.ndarray = None
 
+    @property
+    def plain_diffuse(self):
+        """Every material a triangle uses is one untextured diffuse BSDF (``lambert_only``
+        without textures): a vertex's BSDF is its triangle's colour (``tri_albedo``)."""
+        return self.lambert_only and not self.scene.textures
+
     def bsdf(self, prim):
         """BSDF parameters of the hit triangles' own material rows ``(k,)`` and whether each
         is delta-only. A mixture row's own parameters are not what shades it: integrators use
@@ -236,7 +242,7 @@ class PreparedScene:
         Returns
         -------
         params : core.materials.bsdf.BSDFParams
-            Where every material is plain diffuse and untextured (``lambert_only``), the
+            Where every material is plain diffuse and untextured (:attr:`plain_diffuse`), the
             columns diffuse BSDFs never read (``alpha``, ``eta``, ``tint``) are read-only
             constants (:func:`core.materials.bsdf.kind_rows`), not the table's rows.
         delta_only : (k,) bool
@@ -244,7 +250,7 @@ class PreparedScene:
         u_lobe : (k,) float64
         """
         material, u_lobe = self.choose_material(prim, u_lobe, u, v)
-        if self.lambert_only and not self.scene.textures:
+        if self.plain_diffuse:
             # Plain diffuse BSDFs read their colour alone: the other columns are constants.
             params = kind_rows(self.material_bsdf, KIND_DIFFUSE, material)
         else:

@@ -67,7 +67,7 @@ import numpy as np
 
 from ..lights.emission import EmitterPoints
 from .bidir import DIMS_CAMERA, DIMS_PER_CAMERA_VERTEX, Bidirectional
-from .common import take_rows
+from .common import nonzero_rows, take_rows
 from .connection_roulette import for_batch as roulette_for_batch
 from .connections import Fresh, connect_all, connect_emitter_to_camera
 
@@ -119,9 +119,8 @@ def _fresh_points(ctx, stream, C):
     vertices exist), sampled for all vertices in one call."""
     # Depth-major, as a loop over the vertices would list them; each row's numbers from its
     # vertex's dimensions, drawn for these rows only (Stream.slots_of_rows: the numbers of
-    # compacted copies of the stream, without hashing the dead paths' numbers). np.nonzero's
-    # order and values, through flatnonzero: about 2 x faster than its two-axis form.
-    level, rows = np.divmod(np.flatnonzero(C.valid[1:] & C.connectible[1:]), C.valid.shape[1])
+    # compacted copies of the stream, without hashing the dead paths' numbers).
+    level, rows = nonzero_rows(C.valid[1:] & C.connectible[1:])
     if rows.size == 0:
         return None
     zj = level + 1

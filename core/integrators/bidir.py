@@ -77,7 +77,7 @@ class _Context:
             prep = self.prep
             # Plain untextured diffuse BSDFs take their colour from the triangle's material
             # (PreparedScene.choose_bsdf), as the path tracer's Lambert shading does.
-            colors = prep.tri_albedo if prep.lambert_only and not prep.scene.textures else None
+            colors = prep.tri_albedo if prep.plain_diffuse else None
             sub = Subpath.empty(depth, n, not self.smooth, prep.lambert_only,
                                 self.triangle_frames, prep.tri_normal, colors)
             setattr(self.buffers, side, sub)

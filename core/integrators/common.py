@@ -32,6 +32,13 @@ def add_rows(L, rows, value):
     put_rows(L, rows, acc)
 
 
+def nonzero_rows(mask):
+    """``np.nonzero`` of a 2-D mask ``(a, n)``: its ``(index, row)`` pairs in the same order
+    (row-major), formed through ``np.flatnonzero``, about 2-3 x faster than the two-axis
+    form."""
+    return np.divmod(np.flatnonzero(mask), mask.shape[1])
+
+
 def max_component(v):
     """Largest of the three channels of ``v (n, 3)`` (much faster than ``v.max(axis=1)``)."""
     return np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])

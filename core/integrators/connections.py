@@ -19,7 +19,7 @@ from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
 from ..rows import combine_rows, divide_rows, norms, scaled
 from ..scene import VIS_CAMERA, VIS_SHADOW
-from .common import bends_normals, finite_rows, max_component, take_rows
+from .common import bends_normals, finite_rows, max_component, nonzero_rows, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
 from .mis_densities import (Near, connection_weight, direct_weight, splat_weight,
                             splat_weights)
@@ -123,10 +123,9 @@ def _connect_vertices(ctx, L, C, gather):
     connectible camera vertex of its sample (paths of at most ``depth`` segments), their ends
     gathered by ``gather`` (:func:`.lambert_vertices.gatherer`); a list of :class:`_Joined`
     pieces."""
-    depth, n = C.valid.shape
-    pairs = _vertex_pairs(depth)
+    pairs = _vertex_pairs(C.valid.shape[0])
     both = (C.valid & C.connectible)[pairs[:, 0]] & (L.valid & L.connectible)[pairs[:, 1]]
-    pair, row = np.divmod(np.flatnonzero(both), n)  # np.nonzero's order, about 3 x faster
+    pair, row = nonzero_rows(both)
     return _in_pieces(lambda e: _join_vertices(ctx, L, C, pairs[pair[e], 0], pairs[pair[e], 1],
                                                row[e], gather), row.size)
 
@@ -331,8 +330,7 @@ def connect_cameras(ctx, L, out):
         for s in range(2, depth + 1):
             connect_camera(ctx, L, s, out)
         return
-    # Depth-major (the loop's order): np.nonzero's, about 2 x faster than its two-axis form.
-    level, rows = np.divmod(np.flatnonzero(reach), n)
+    level, rows = nonzero_rows(reach)  # depth-major: the loop's order
     if rows.size == 0:
         return
     at = (level + 1) * n + rows

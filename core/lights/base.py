@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..rows import put_rows
 from ..scene import Lights
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -34,11 +35,11 @@ def batch_rows(a, m):
 
 def set_batch_rows(a, m, values):
     """``a[m] = values`` for ``m`` as in :func:`batch_rows` (a plain copy when ``m`` is every
-    row)."""
+    row, else a row scatter, :func:`core.rows.put_rows`)."""
     if m.size == a.shape[0]:
         a[...] = values
     else:
-        a[m] = values
+        put_rows(a, m, values)
 
 
 def length_and_direction(v):

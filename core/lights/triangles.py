@@ -19,7 +19,7 @@ from ..materials.microfacet import alpha_from_roughness
 from ..rows import put_rows
 from ..sampling import warps
 from .area import area_point_pdf, cosine_directions, pick_face, solid_angle_pdf
-from .base import LUMINANCE, LightFamily, batch_rows, dot
+from .base import LUMINANCE, LightFamily, batch_rows, dot, set_batch_rows
 from ..quiet import quiet
 
 
@@ -233,18 +233,14 @@ class EmissiveTriangles(LightFamily):
                               for a in (self.face_s, self.face_t, self.face_normal)], uu, 0.5, out)
 
     def le(self, m, e, cos, w, receiver, out):
-        whole = m.size == out.shape[0]  # m is then 0..n-1 (as in sample_le_origin)
-        cos_m = cos if whole else cos[m]
+        cos_m = batch_rows(cos, m)
         le = self.emit_radiance.take(e, axis=0)
         lit = cos_m != 0
         if not lit.all():  # (where every row is lit, the product by one would change nothing)
             le *= lit[:, None]
         if self.emit_coat is not None:
             le *= self.coat_factor(e, cos_m)
-        if whole:
-            out[...] = le
-        else:
-            put_rows(out, m, le)
+        set_batch_rows(out, m, le)
 
     def pdf_le_origin(self, m, e, sel, w, out):
         out[m] = sel[m] / self.emit_area[e]
