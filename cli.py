@@ -289,7 +289,7 @@ def _because(name, settings):
         return f" with --radiosity-solver {settings.radiosity_solver}"
     if name in ("light_selection", "light_sampling") and settings.integrator == "radiosity":
         return f" with --radiosity-display {settings.radiosity_display}"
-    if name == "rr_min_bounces" and not settings.use_russian_roulette:
+    if name in ("rr_min_bounces", "rr_survival") and not settings.use_russian_roulette:
         return " with --no-russian-roulette"
     if name == "strategy_max_length" and settings.integrator == "bdpt":
         return " without --strategy-views"

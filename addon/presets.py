@@ -20,7 +20,7 @@ BUNDLED_DIR = Path(__file__).resolve().parent.parent / "presets" / PRESET_SUBDIR
 PRESET_VALUES = [f"settings.{name}" for name in (
     "integrator", "sampler", "samples", "time_limit", "max_bounces", "diffuse_bounces",
     "glossy_bounces", "transmission_bounces", "transparent_max_bounces", "use_russian_roulette",
-    "rr_min_bounces", "connection_roulette", "mis_heuristic", "mis_beta", "mis_alpha",
+    "rr_min_bounces", "rr_survival", "connection_roulette", "mis_heuristic", "mis_beta", "mis_alpha",
     "light_selection", "light_sampling", "distribution", "use_strategy_views",
     "strategy_max_length")]
 

@@ -85,6 +85,7 @@ class SamplingLabSettings(PropertyGroup):
     transparent_max_bounces: _property("transparent_max_bounces", soft_max=64)
     use_russian_roulette: _property("use_russian_roulette")
     rr_min_bounces: _property("rr_min_bounces", soft_max=64)
+    rr_survival: _property("rr_survival")
     connection_roulette: _property("connection_roulette", soft_max=1.0, precision=2)
     mis_heuristic: _property("mis_heuristic")
     mis_beta: _property("mis_beta", soft_min=0.5, soft_max=8.0, precision=2)

@@ -232,6 +232,7 @@ class SAMPLINGLAB_RENDER_PT_light_paths(SamplingLabButtonsPanel, Panel):
         # The threshold only matters while roulette is on.
         sub.active = rr.active and settings.use_russian_roulette
         sub.prop(settings, "rr_min_bounces")
+        sub.prop(settings, "rr_survival")
         # Roulette of connections (before their shadow rays): Bidirectional's alone.
         connection = col.column()
         connection.active = settings.integrator == 'BDPT'

@@ -173,11 +173,11 @@ def unused_options(settings):
     na = "n/a"
     integrator = settings.integrator
     if integrator == "radiosity":
-        unused.update(max_bounces=na, use_russian_roulette=na, rr_min_bounces=na)
+        unused.update(max_bounces=na, use_russian_roulette=na, rr_min_bounces=na, rr_survival=na)
     if integrator in PHOTON_INTEGRATORS:
-        unused.update(use_russian_roulette=na, rr_min_bounces=na)
+        unused.update(use_russian_roulette=na, rr_min_bounces=na, rr_survival=na)
     if not settings.use_russian_roulette:
-        unused["rr_min_bounces"] = na
+        unused.update(rr_min_bounces=na, rr_survival=na)
     views = integrator_class(integrator).strategy_views
     if not views:
         unused["strategy_views"] = na

@@ -26,6 +26,7 @@ import numbers
 from dataclasses import dataclass
 
 from .integrators import INTEGRATORS
+from .integrators.common import ROULETTE_SURVIVALS
 from .integrators.radiosity import DISPLAYS as RADIOSITY_DISPLAYS
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
 from .radiosity.solvers import SOLVERS as RADIOSITY_SOLVERS
@@ -376,6 +377,17 @@ _DISTRIBUTION_TEXT = {
 }
 
 # The pixel filters core.film.PixelFilter implements and the UI offers (this list is the source).
+_ROULETTE_SURVIVAL_TEXT = {
+    "square_root": (
+        "Square Root",
+        "A path survives with probability sqrt(throughput), Cycles' rule: paths end later "
+        "than by their throughput, with less noise per sample for a little more work each"),
+    "throughput": (
+        "Throughput",
+        "A path survives with probability equal to its throughput (its largest colour "
+        "component), pbrt's and Mitsuba's rule: the shortest paths, the most noise"),
+}
+
 FILTER_CHOICES = (
     Choice("box", "Box", "Box filter: every sample counts only for the pixel it falls in"),
     Choice("blackman_harris", "Blackman-Harris",
@@ -437,8 +449,12 @@ OPTIONS = {o.name: o for o in (
            "trades a little variance for a lot less work on long paths", True,
            flag="--russian-roulette"),
     Option("rr_min_bounces", int, "Min Bounces",
-           "Number of bounces every path survives before Russian roulette may terminate it", 3,
+           "Number of bounces every path survives before Russian roulette may terminate it", 2,
            minimum=0, maximum=1024),
+    _menu("rr_survival", "Survival",
+          "How Russian roulette turns a path's throughput into its probability of going on. "
+          "Both rules are unbiased", "square_root",
+          _choices(ROULETTE_SURVIVALS, _ROULETTE_SURVIVAL_TEXT)),
     Option("connection_roulette", float, "Connection Roulette",
            "Bidirectional only: Russian roulette of the connections before their shadow rays. "
            "A connection whose contribution is below this many times the mean of its batch's "

@@ -89,6 +89,7 @@ class RenderSettings:
     transparent_max_bounces: int = DEFAULTS["transparent_max_bounces"]
     use_russian_roulette: bool = DEFAULTS["use_russian_roulette"]
     rr_min_bounces: int = DEFAULTS["rr_min_bounces"]
+    rr_survival: str = DEFAULTS["rr_survival"]
     connection_roulette: float = DEFAULTS["connection_roulette"]
     mis_heuristic: str = DEFAULTS["mis_heuristic"]
     mis_beta: float = DEFAULTS["mis_beta"]

@@ -61,6 +61,11 @@ def next_1d_if(stream, needed):
     return None
 
 
+# How Russian roulette turns a path's throughput into its survival probability (the
+# ``rr_survival`` setting): pbrt's and Mitsuba's rule, or Cycles' gentler square root.
+ROULETTE_SURVIVALS = ("throughput", "square_root")
+
+
 def roulette_at(settings, bounce):
     """Whether :func:`russian_roulette` draws on its random number after ``bounce``."""
     return settings.use_russian_roulette and bounce >= settings.rr_min_bounces
@@ -70,8 +75,10 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     """Stage *Russian roulette*: unbiased termination of low-throughput paths.
 
     After ``settings.rr_min_bounces`` bounces (if ``use_russian_roulette``) a path survives
-    with probability ``q = min(1, max(beta) * eta_scale)`` and its throughput is divided by
-    ``q``; paths of zero throughput end. ``eta_scale (k,)`` (None: 1) scales the throughput
+    with probability ``q = min(1, t)`` of its throughput ``t = max(beta) * eta_scale``
+    (``rr_survival`` ``'throughput'``, pbrt's rule) or ``q = min(1, sqrt(t))``
+    (``'square_root'``, Cycles' rule: paths end later, with less noise per sample), and its
+    throughput is divided by ``q``; paths of zero throughput end. ``eta_scale (k,)`` (None: 1) scales the throughput
     looked at: the path tracer's undoes the ``1 / etap^2`` of refractions in radiance mode (the
     throughput a path will have once it has left the glass); random walks' divide by the first
     ray's throughput (:func:`.subpaths.walk`). Any ``q`` in (0, 1] keeps the estimate unbiased. Returns the new
@@ -79,7 +86,11 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     """
     if roulette_at(settings, bounce):
         q = max_component(beta)
-        q = np.minimum(1.0, q if eta_scale is None else q * eta_scale)
+        if eta_scale is not None:
+            q = q * eta_scale
+        if settings.rr_survival == "square_root":
+            q = np.sqrt(q)
+        q = np.minimum(1.0, q)
         alive = alive & (u_rr < q)
         beta = divide_rows(beta, np.maximum(q, 1e-12))
     return alive & (max_component(beta) > 0), beta

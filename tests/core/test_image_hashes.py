@@ -58,17 +58,17 @@ CASES = {
 }
 
 PINNED = {
-    "bdpt cornell area power views": "b783e6d8d33ba87a085756761f6371ee54c6651e546f0a9b8dcf8ae83ddfdcfe",
-    "bdpt cornell point balance": "c14a376d6405969258ff0fe61d392018271d5a34b9dd49249749998dbcc2a621",
-    "bdpt glass sphere light maximum": "4c3aba75e66caefbbc7469f0dd16d616402c03957ac9ca553d0a3f6213690cc9",
-    "light cornell mesh": "336841007cc43b73ad8543a1581b6fbd453d26f1c124e658be4646100f15a83e",
-    "light glass point": "4dce5ed3dcd1d0a5021284b0e9a9bc7346021ee9f3a9715316dcc3088dc913fd",
-    "path cornell area solid angle sobol": "1f8724ec64ddb022426641a4abb5a283ab1ac11eb4ac546da930a60fed1020f2",
-    "path cornell area defaults": "16cc4bba1560a479394f2845b9f9bc89c8bf1a6e71ea0350ab0f41fc876c5941",
-    "path glass sphere area power": "56b95e41c3debbfe2a6316cef117e8eaa63579c0afcf748032d19516c3e602b6",
-    "path cornell mesh power": "ccc104eb8778757a5b1fa5b2eb1759b3a9682cae9899cd8fce4660db98ec7a08",
-    "path glass sphere light alias uniform": "f3df55af663f530a7d9e048f312f1a376aeb689ea68c11e382061a905a4ec61a",
-    "path mirror point cutoff": "f03fad457978abd7f66f895bcbf19323dda6d82ca39f5338e3f19dab1ae69d6d",
+    "bdpt cornell area power views": "bd26156cba63f4c3a4ff154b73d30c5944298c2f8fabbba140c5c92bf8b1cbce",
+    "bdpt cornell point balance": "9996a9328e5d914941bc2f713fec076adb39c2c6f66e7fec1568ac7d0bad712d",
+    "bdpt glass sphere light maximum": "16ef55e7b142d14bfd3ea07930bafe419c8060c6c354bf4d55eac9102a077574",
+    "light cornell mesh": "0416524d5d617547675f7a457652dfb288c209e5524438ce86e65dce3e65da16",
+    "light glass point": "e04c5c1e77519051193fa255574b217465e05ee0e6c22da61dcd2ca6a112a973",
+    "path cornell area solid angle sobol": "02be7a38affd970c515226ec5e0d27269b4d26f28b414d422fbdc2f73aca2aac",
+    "path cornell area defaults": "3b723c18e28e638b702a110480cbfd5d4a32a8993cdc7b3452c541f6459f7042",
+    "path glass sphere area power": "163b4861599c11b1f41c2dc0f52138bc5ea038f9c3cc5677a9e67a2bb2ab4e06",
+    "path cornell mesh power": "7f3418122c34f1381dbf8210505e07616f10f27e0948c85f2109ad5b0400762d",
+    "path glass sphere light alias uniform": "68d24b3a6280a2bab4ffc49604316878dacb276f461a2559d607c10533eda80e",
+    "path mirror point cutoff": "54c8355d09a83f2e55e90d2be8f0e42cc25ff01c4157eccef3ba0b7ef59bc5ec",
 }
 
 

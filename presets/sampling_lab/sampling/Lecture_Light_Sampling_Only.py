@@ -8,6 +8,7 @@ settings.time_limit = 0.0
 settings.max_bounces = 8
 settings.use_russian_roulette = True
 settings.rr_min_bounces = 3
+settings.rr_survival = 'THROUGHPUT'
 settings.mis_heuristic = 'LIGHT'
 settings.mis_beta = 2.0
 settings.mis_alpha = 0.1
