@@ -52,7 +52,7 @@ from ..core.metrics import rel_mse
 from ..core.render import RenderSettings, render
 from ..core.scenes import cornell_box
 from .common import EPS, loadavg, machine_summary, mean_ratio, stage, write_csv
-from .cycles import CyclesRunner
+from .cycles_runner import CyclesRunner
 from ..core.integrators.bounces import uniform_limits
 
 # Rays in the raw embreex batch, and how often each thread count is timed (best is kept).

@@ -38,7 +38,7 @@ from ..core.metrics import rel_mse
 from ..core.options import DEFAULTS
 from ..core.render import RenderSettings, render
 from .common import EPS, loadavg, machine_summary, stage, write_csv
-from .cycles import CyclesRunner
+from .cycles_runner import CyclesRunner
 from .hard_scenes import SCENES, build_scene
 from ..core.integrators.bounces import uniform_limits
 

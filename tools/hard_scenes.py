@@ -59,7 +59,7 @@ from ..core.options import DEFAULTS
 from ..core.render import RenderSettings, render
 from ..core.sampling.samplers import available as available_samplers
 from .common import EPS, loadavg, machine_summary, mean_ratio, stage, write_csv
-from .cycles import CyclesRunner
+from .cycles_runner import CyclesRunner
 from .hard_scenes_reference import CHUNKS, chunk_mean, combine, flagged, noise
 from .hard_scenes_report import print_scene, write_montage, write_report
 from .outputs import publish

@@ -365,7 +365,7 @@ def _cycles(name, scene, bounces, seconds, threads, ref, mask):
     """Cycles at equal time on the scene rebuilt in ``bpy`` with its mirror and glass."""
     from . import blender_scene as bs
     from . import bpy_scenes
-    from .cycles import CyclesRunner
+    from .cycles_runner import CyclesRunner
 
     stage(f"{name}: Cycles, {seconds:g} s")
     try:

@@ -126,7 +126,7 @@ def equal_time(size=(64, 64), seconds=10.0, reference_seconds=120.0, cycles=True
                                        seed=1, threads=threads))
     add("path tracing", res.film.mean(), res.stats["spp"], time.perf_counter() - t0)
     if cycles:
-        from .cycles import CyclesRunner
+        from .cycles_runner import CyclesRunner
 
         stage(f"Cycles for {seconds:g} s")
         cy = CyclesRunner(scene, threads, max_bounces)
