@@ -449,7 +449,7 @@ OPTIONS = {o.name: o for o in (
            "trades a little variance for a lot less work on long paths", True,
            flag="--russian-roulette"),
     Option("rr_min_bounces", int, "Min Bounces",
-           "Number of bounces every path survives before Russian roulette may terminate it", 2,
+           "Number of bounces every path survives before Russian roulette may terminate it", 3,
            minimum=0, maximum=1024),
     _menu("rr_survival", "Survival",
           "How Russian roulette turns a path's throughput into its probability of going on. "

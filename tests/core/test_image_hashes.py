@@ -58,17 +58,17 @@ CASES = {
 }
 
 PINNED = {
-    "bdpt cornell area power views": "bd26156cba63f4c3a4ff154b73d30c5944298c2f8fabbba140c5c92bf8b1cbce",
-    "bdpt cornell point balance": "9996a9328e5d914941bc2f713fec076adb39c2c6f66e7fec1568ac7d0bad712d",
-    "bdpt glass sphere light maximum": "16ef55e7b142d14bfd3ea07930bafe419c8060c6c354bf4d55eac9102a077574",
-    "light cornell mesh": "0416524d5d617547675f7a457652dfb288c209e5524438ce86e65dce3e65da16",
-    "light glass point": "e04c5c1e77519051193fa255574b217465e05ee0e6c22da61dcd2ca6a112a973",
-    "path cornell area solid angle sobol": "02be7a38affd970c515226ec5e0d27269b4d26f28b414d422fbdc2f73aca2aac",
-    "path cornell area defaults": "3b723c18e28e638b702a110480cbfd5d4a32a8993cdc7b3452c541f6459f7042",
-    "path glass sphere area power": "163b4861599c11b1f41c2dc0f52138bc5ea038f9c3cc5677a9e67a2bb2ab4e06",
-    "path cornell mesh power": "7f3418122c34f1381dbf8210505e07616f10f27e0948c85f2109ad5b0400762d",
-    "path glass sphere light alias uniform": "68d24b3a6280a2bab4ffc49604316878dacb276f461a2559d607c10533eda80e",
-    "path mirror point cutoff": "54c8355d09a83f2e55e90d2be8f0e42cc25ff01c4157eccef3ba0b7ef59bc5ec",
+    "bdpt cornell area power views": "5213099b9dbd746d096d3c718793bd93c4a1c2642c7fea103e6ca15cb7f95546",
+    "bdpt cornell point balance": "fcad3b14b2176d279b44810d4ae75c7bbdb827954a0f413f6aea6a7418375613",
+    "bdpt glass sphere light maximum": "4bc72f560d93b51fe4516484154307a739de35c1422906d406378787b65896b8",
+    "light cornell mesh": "5d0c0cabf177cf5472a5c6c70494df1e7f49dee4f1064659ae24b263184dc6f8",
+    "light glass point": "e385ad0ae0bd386ec303cc180eef776c165e0b921be57589ad4645f65e2b9a22",
+    "path cornell area solid angle sobol": "e1e33772f633a4b90b089d971807e5bb219d37283854080a15acef3e6ea3b7dc",
+    "path cornell area defaults": "af26d0e1b52126b9dab64f4633fc7dd51d558012806f83caedea5d524bce8e83",
+    "path glass sphere area power": "886a34b3251570e895e783c2d06754f1db1af2970a1456b029851cd298cb325e",
+    "path cornell mesh power": "7beca62640212ea2f72906c1eec924a29dec4435527f02d9ccea6e5e647e69f2",
+    "path glass sphere light alias uniform": "17487164fec9d2443f153ef77401af1a463d5663b09db89d5e63cb86f226618e",
+    "path mirror point cutoff": "22fb51126f66e7c3a16b2c0a917b8456c95d0f99467ecf7d1d58f6105a555c4f",
 }
 
 
