@@ -42,18 +42,37 @@ def sample_uniform_disk_concentric(u):
 
 
 def _concentric(u, out):
-    """The concentric map of ``u (n, 2)`` written into ``out (n, >= 2)`` (columns 0 and 1)."""
-    a = 2.0 * u[:, 0] - 1.0
-    b = 2.0 * u[:, 1] - 1.0
+    """The concentric map of ``u (n, 2)`` written into ``out (n, >= 2)`` (columns 0 and 1).
+
+    Computed in float32, at half the cost of float64 (float64 ``cos`` and ``sin`` alone cost
+    more than the rest): the points are within about 1.5e-7 of the exact map, finer than the
+    float32 rays Embree traces, and every caller derives its density from the point it got,
+    not from ``u``. Sampler values (24-bit fractions) are exact in float32, and so is the
+    point's radius, which is returned: ``(n,)`` float32 (the error is only along the circle).
+    """
+    f32 = np.float32
+    a = u[:, 0].astype(f32)
+    a *= f32(2.0)
+    a -= f32(1.0)
+    b = u[:, 1].astype(f32)
+    b *= f32(2.0)
+    b -= f32(1.0)
     use_a = np.abs(a) > np.abs(b)
+    # r is the larger of |a|, |b| with its sign; the angle within the wedge is pi/4 times the
+    # smaller over the larger (one division; r is zero only at a = b = 0, the centre).
     r = np.where(use_a, a, b)
-    # One division: b / a where |a| > |b|, else a / b (r is the larger; zero only at a = b = 0).
     with quiet("divide", "invalid"):
-        q = (np.pi / 4) * (np.where(use_a, b, a) / r)
-    theta = np.where(use_a, q, np.pi / 2 - q)
-    theta[r == 0] = 0.0
-    np.multiply(r, np.cos(theta), out=out[:, 0])
-    np.multiply(r, np.sin(theta), out=out[:, 1])
+        q = np.where(use_a, b, a) / r
+    q[r == 0] = 0.0
+    q *= f32(np.pi / 4)
+    c = np.cos(q)
+    c *= r
+    s = np.sin(q)
+    s *= r
+    # Wedges of a (|a| > |b|): (r cos q, r sin q); wedges of b: (r sin q, r cos q).
+    out[:, 0] = np.where(use_a, c, s)
+    out[:, 1] = np.where(use_a, s, c)
+    return np.abs(r)
 
 
 def uniform_disk_pdf(p):
@@ -96,9 +115,9 @@ def sample_cosine_hemisphere(u):
     (n, 3) float64 unit vectors with z >= 0.
     """
     out = np.empty((u.shape[0], 3))
-    _concentric(u, out)
-    x, y = out[:, 0], out[:, 1]
-    np.sqrt(np.maximum(0.0, 1.0 - x ** 2 - y ** 2), out=out[:, 2])
+    r = _concentric(u, out).astype(np.float64)
+    # z from the exact radius: grazing directions do not amplify the angle's float32 rounding.
+    np.sqrt(np.maximum(0.0, 1.0 - r * r), out=out[:, 2])
     return out
 
 

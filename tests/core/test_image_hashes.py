@@ -58,17 +58,17 @@ CASES = {
 }
 
 PINNED = {
-    "bdpt cornell area power views": "5213099b9dbd746d096d3c718793bd93c4a1c2642c7fea103e6ca15cb7f95546",
-    "bdpt cornell point balance": "fcad3b14b2176d279b44810d4ae75c7bbdb827954a0f413f6aea6a7418375613",
-    "bdpt glass sphere light maximum": "4bc72f560d93b51fe4516484154307a739de35c1422906d406378787b65896b8",
-    "light cornell mesh": "5d0c0cabf177cf5472a5c6c70494df1e7f49dee4f1064659ae24b263184dc6f8",
-    "light glass point": "e385ad0ae0bd386ec303cc180eef776c165e0b921be57589ad4645f65e2b9a22",
-    "path cornell area solid angle sobol": "e1e33772f633a4b90b089d971807e5bb219d37283854080a15acef3e6ea3b7dc",
-    "path cornell area defaults": "af26d0e1b52126b9dab64f4633fc7dd51d558012806f83caedea5d524bce8e83",
-    "path glass sphere area power": "886a34b3251570e895e783c2d06754f1db1af2970a1456b029851cd298cb325e",
-    "path cornell mesh power": "7beca62640212ea2f72906c1eec924a29dec4435527f02d9ccea6e5e647e69f2",
-    "path glass sphere light alias uniform": "17487164fec9d2443f153ef77401af1a463d5663b09db89d5e63cb86f226618e",
-    "path mirror point cutoff": "22fb51126f66e7c3a16b2c0a917b8456c95d0f99467ecf7d1d58f6105a555c4f",
+    "bdpt cornell area power views": "a9f2c7eee74839585d968b56ae77750a3f6627f7f47405213b2f08b6d98b4188",
+    "bdpt cornell point balance": "bc824c610e3b996a9759fe412153e813a00603f86cdf1b7203b92edc8896be50",
+    "bdpt glass sphere light maximum": "77bad2e2f963a0b46e5c564d29c0cb2373ad35320daa6f7b74ffcce6e436efcc",
+    "light cornell mesh": "7bdaea47c1f03443b6f9af5768dcaa445d18319d73d2956d00545c7a0e8c811e",
+    "light glass point": "09d2d760f0d0d821c8a18a6ccf1ee74489c24dbe5337e607e4ef7d20412af4f7",
+    "path cornell area solid angle sobol": "4a0ec16d62462b01061f0eedc2790fa8c616a93abf72503513359101fae77d9e",
+    "path cornell area defaults": "12f764085359552a006c79170b66f288a3c02077211ab909e482964bed71ae28",
+    "path glass sphere area power": "c19de56b52a0ff9003db71baa7e75ea3a3b79b0fbac13c8bc82316b43f0cdf34",
+    "path cornell mesh power": "28ddadd4083e439330cc890943f66f690ecda232bfa7047a6539ae5acafc904a",
+    "path glass sphere light alias uniform": "fe9e4b21693b54cf4095cb31684de3286d80781ce76edde504ea29b4ab637402",
+    "path mirror point cutoff": "fd5daec1b1c48774cab389d1f7a317153394bc4f81c4ae7ee00019167aa694c5",
 }
 
 

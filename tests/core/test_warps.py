@@ -210,6 +210,12 @@ def _round_trip_u():
     return np.concatenate([rng.random((20_000, 2)), grid])
 
 
+# Warps through the concentric map, which is computed in float32: disk points within 1.5e-7
+# of the exact map. A u off the samplers' 24-bit grid is rounded to float32 (6e-8 in the
+# radius), which a cosine-weighted direction's z amplifies near the horizon (7e-6 at worst).
+FLOAT32_WARPS = ("disk", "cosine_hemisphere")
+FLOAT32_ATOL = 1e-5
+
 ROUND_TRIPS = {
     "disk": (W.sample_uniform_disk_concentric, W.invert_uniform_disk_concentric),
     "cosine_hemisphere": (W.sample_cosine_hemisphere, W.invert_cosine_hemisphere_sample),
@@ -227,8 +233,9 @@ def test_sample_then_invert_recovers_u(name):
     sample, invert = ROUND_TRIPS[name]
     u = _round_trip_u()
     back = invert(sample(u))
-    # The cone's 1 - cos_max amplifies rounding by 1 / (1 - cos_max).
-    atol = 1e-8 if name == "cone_0.9999" else 1e-11
+    # The cone's 1 - cos_max amplifies rounding by 1 / (1 - cos_max); the concentric map
+    # (disk, cosine hemisphere) runs in float32 (warps._concentric).
+    atol = {"cone_0.9999": 1e-8, **dict.fromkeys(FLOAT32_WARPS, FLOAT32_ATOL)}.get(name, 1e-11)
     np.testing.assert_allclose(back, u, rtol=0, atol=atol, err_msg=name)
 
 
@@ -269,7 +276,8 @@ def test_invert_maps_uniform_domain_points_to_uniform_u(name):
     assert np.all((u >= -1e-12) & (u <= 1 + 1e-12)), name
     chi_square_uniform_square(np.clip(u, 0.0, 1.0), res=(16, 16), what=f"invert {name}")
     # And the warp takes them back to where they came from.
-    np.testing.assert_allclose(sample(u), pts, rtol=0, atol=1e-8, err_msg=name)
+    atol = FLOAT32_ATOL if name in FLOAT32_WARPS else 1e-8
+    np.testing.assert_allclose(sample(u), pts, rtol=0, atol=atol, err_msg=name)
 
 
 # --------------------------------------------------------------------------------------------
