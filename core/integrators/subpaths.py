@@ -14,8 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSample, eval_bsdf,
-                              pdf_bsdf, pdf_plain_diffuse, sample_bsdf, sample_plain_diffuse)
+from ..materials.bsdf import (IMPORTANCE, KIND_DIFFUSE, OPTIONAL_GROUPS, BSDFParams,
+                              BSDFSample, eval_bsdf, pdf_bsdf, pdf_plain_diffuse, sample_bsdf,
+                              sample_plain_diffuse)
 from ..materials.bsdf_values import eval_with_pdfs
 from ..materials.frame import shading_frame, to_local, to_world
 from ..rows import norms, put_rows
@@ -65,7 +66,8 @@ def take_params(params, rows, lambert=False):
 
 
 # Columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth shading
-# only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone; each
+# only: Gathered reads them only then; ``ng`` not where Subpath.by_triangle says its readers
+# gather it by triangle), so that a reset may leave vertices 1..D-1 alone; each
 # with its value before any vertex is made (Subpath.empty's). The densities, edges and
 # triangles (pdf_fwd, d_prev, cos_prev, prim: (depth, n) tables a recycle filled whole) are
 # among them: readers look at made vertices only. So is pdf_rev, written at a vertex when the
@@ -134,15 +136,48 @@ class Subpath:
     flat_frames: bool = False
     lambert: bool = False
     tri_frames: tuple = None
-    # Per triangle, its geometric normal (PreparedScene.tri_normal), which ng stores at every
+    # Per triangle, its geometric normal (PreparedScene.tri_normal), what ng holds at every
     # vertex a walk makes, and (None unless every material is plain diffuse and untextured)
-    # the BSDF colour every vertex on it stores (PreparedScene.tri_albedo): a connection may
-    # gather them by prim instead (LambertVertices.at).
+    # the BSDF colour of every vertex on it (PreparedScene.tri_albedo): a connection may
+    # gather them by prim instead (LambertVertices.at), and where every reader does, the
+    # walks store neither (by_triangle).
     tri_normals: np.ndarray = None
     tri_colors: np.ndarray = None
     # Whether a walk stored transparent passes in ``passed`` since the last recycle (which
     # then clears it; a scene without transparent surfaces never does: no fill per batch).
     passes_stored: bool = False
+
+    @property
+    def by_triangle(self):
+        """Whether the walks leave ``ng`` (and ``fn``, the same array) and the BSDF table
+        unwritten at vertices ``1..D-1``: under flat shading with every material plain
+        diffuse and untextured (``tri_colors`` given) and a table of the base columns only,
+        every reader gathers a vertex's normal and colour by its triangle (:meth:`normals`;
+        :class:`.lambert_vertices.LambertVertices`, which
+        :func:`.lambert_vertices.all_lambert` then picks for every connection end)."""
+        return (self.flat_frames and self.tri_colors is not None
+                and not any(self.all_params.has(group) for group in OPTIONAL_GROUPS))
+
+    def vertex_rows(self, index, lambert=False):
+        """Geometric normals ``(m, 3)`` and BSDF rows (:func:`take_params`, ``lambert`` as
+        there) of the surface vertices ``index (m,)`` (rows of :meth:`flat`): the stored
+        ones, or where the walks store none (:attr:`by_triangle`) their triangles' (plain
+        diffuse rows of the triangles' colours, the values choose_bsdf gave them)."""
+        params = take_params(self.all_params, index, lambert)
+        if not self.by_triangle:
+            return take_rows(self.flat("ng"), index), params
+        prim = self.prim.reshape(-1).take(index)
+        params.kind = np.full(index.size, KIND_DIFFUSE, params.kind.dtype)
+        params.color = take_rows(self.tri_colors, prim)
+        return take_rows(self.tri_normals, prim), params
+
+    def normals(self, j, rows):
+        """Geometric normals ``(k, 3)`` of vertex ``j`` of the subpaths ``rows (k,)``: at
+        surface vertices (``j >= 1``) their triangles' (the values ``ng`` stores), gathered by
+        ``prim``."""
+        if j == 0:
+            return take_rows(self.ng[0], rows)
+        return take_rows(self.tri_normals, self.prim[j].take(rows))
 
     @staticmethod
     def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None,
@@ -246,9 +281,9 @@ class Gathered:
 
     def __init__(self, ctx, sub, j, rows, mode):
         self.smooth, self.mode, self.lambert = ctx.smooth, mode, ctx.prep.lambert_only
-        self.params = take_params(sub.params[j], rows, self.lambert)
+        self.ng, self.params = sub.vertex_rows(j * sub.valid.shape[1] + rows, self.lambert)
         self.wo = take_rows(sub.wo[j], rows) if ctx.smooth else None
-        self.wo_l, self.ng = take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows)
+        self.wo_l = take_rows(sub.wo_local[j], rows)
         self.fs, self.ft, self.fn = gather_frames(
             sub, lambda name: take_rows(getattr(sub, name)[j], rows), self.ng)
         self.nm = take_rows(sub.nm[j], rows) if self.smooth else None
@@ -261,8 +296,8 @@ class Gathered:
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`Subpath.flat` (each any vertex
         of any subpath), gathered once."""
         lambert = ctx.prep.lambert_only
-        ng = take_rows(sub.flat("ng"), index)
-        return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index, lambert),
+        ng, params = sub.vertex_rows(index, lambert)
+        return Gathered.of(ctx.smooth, mode, params,
                            gather_frames(sub, lambda name: take_rows(sub.flat(name), index), ng),
                            take_rows(sub.flat("wo"), index) if ctx.smooth else None,
                            take_rows(sub.flat("wo_local"), index), ng,
@@ -556,7 +591,7 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         cos_prev = sub.cos_prev[0][r]
     else:
         dist = hits.t[live]
-        cos_prev = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
+        cos_prev = np.abs(dot(sub.normals(j - 1, r), si.wo))
     sub.cos_prev[j][r] = cos_prev
     # Where the frame's normal is ng (flat shading), wo_l's z is already that cosine.
     cos_here = np.abs(wo_l[:, 2] if frame[2] is si.ng else dot(si.ng, si.wo))
@@ -566,11 +601,14 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         fwd = np.where(inf, pdf_sa * cos_here, fwd)
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
-    for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("wo_local", wo_l),
+    for name, value in (("p", si.p), ("prim", si.prim), ("wo_local", wo_l),
                         ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd) if prev_delta.any()
                          else fwd)):
         put_rows(getattr(sub, name)[j], r, value)
+    by_triangle = sub.by_triangle  # else ng, fn (flat shading: ng) and the BSDF rows stored
+    if not by_triangle:
+        put_rows(sub.ng[j], r, si.ng)
     if sub.tri_frames is None:  # else gathered by prim (gather_frames)
         put_rows(sub.fs[j], r, frame[0])
         put_rows(sub.ft[j], r, frame[1])
@@ -579,5 +617,6 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     if si.nm is not None:  # smooth shading (corner normals): what Gathered reads then
         put_rows(sub.wo[j], r, si.wo)
         put_rows(sub.nm[j], r, si.nm)
-    sub.store_params(j, r, params)
+    if not by_triangle:
+        sub.store_params(j, r, params)
     return dist, cos_prev
