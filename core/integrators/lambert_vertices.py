@@ -66,8 +66,10 @@ class LambertVertices:
         color = (take_rows(sub.all_params.color, index) if prim is None or sub.tri_colors is None
                  else take_rows(sub.tri_colors, prim))
         # The z column read as elements 3 i + 2 of the contiguous table (np.take of the
-        # strided column would copy it whole; fancy indexing of two axes is slower).
-        wo_z = sub.wo_local.reshape(-1).take(index * 3 + 2)
+        # strided column would copy it whole; fancy indexing of two axes is slower), or
+        # where the walks store it alone, from its own table.
+        wo_z = (sub.wo_z.reshape(-1).take(index) if sub.by_triangle
+                else sub.wo_local.reshape(-1).take(index * 3 + 2))
         return LambertVertices(color,
                                ng if sub.flat_frames else take_rows(sub.flat("fn"), index),
                                wo_z, ng)

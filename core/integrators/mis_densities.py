@@ -15,7 +15,6 @@ from typing import NamedTuple
 import numpy as np
 
 from ..camera import camera_pdf
-from .common import take_rows
 from .mis_sums import heuristic
 from .subpaths import dot, to_area
 from ..quiet import quiet
@@ -97,7 +96,7 @@ def camera_hit_weight(ctx, cam, j, r, index, q, normal, t, w_travel, pdf_prev, p
     cos_l = np.where(infinite, 1.0, np.abs(dot(normal, w_travel)))
     p_camera[0] = np.where(prev_delta, 1.0, to_area(pdf_prev, cos_l, t))
     # The emitter makes z_{j-1} by its direction density.
-    cos_z = np.abs(dot(take_rows(cam.ng[j - 1], r), w_travel))
+    cos_z = np.abs(dot(cam.normals(j - 1, r), w_travel))
     pdf_dir = em.pdf_direction(index, normal, w_travel)
     p_light[1] = np.where(infinite, pdf_dir * cos_z, to_area(pdf_dir, cos_z, t))
     for i in range(1, k + 1):

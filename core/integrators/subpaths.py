@@ -14,8 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..materials.bsdf import (IMPORTANCE, OPTIONAL_GROUPS, BSDFParams, BSDFSample, eval_bsdf,
-                              pdf_bsdf, pdf_plain_diffuse, sample_bsdf, sample_plain_diffuse)
+from ..materials.bsdf import (IMPORTANCE, KIND_DIFFUSE, OPTIONAL_GROUPS, BSDFParams,
+                              BSDFSample, eval_bsdf, pdf_bsdf, pdf_plain_diffuse, sample_bsdf,
+                              sample_plain_diffuse)
 from ..materials.bsdf_values import eval_with_pdfs
 from ..materials.frame import shading_frame, to_local, to_world
 from ..rows import norms, put_rows
@@ -65,14 +66,15 @@ def take_params(params, rows, lambert=False):
 
 
 # Columns that walk() stores at every vertex it makes (``wo`` and ``nm`` with smooth shading
-# only: Gathered reads them only then), so that a reset may leave vertices 1..D-1 alone; each
+# only: Gathered reads them only then; ``ng`` not where Subpath.by_triangle says its readers
+# gather it by triangle), so that a reset may leave vertices 1..D-1 alone; each
 # with its value before any vertex is made (Subpath.empty's). The densities, edges and
 # triangles (pdf_fwd, d_prev, cos_prev, prim: (depth, n) tables a recycle filled whole) are
 # among them: readers look at made vertices only. So is pdf_rev, written at a vertex when the
 # next one is sampled from it: readers look at it only there (the MIS sums and weights end a
 # path's stored factors before its last vertex, the connection supplies that one's).
 _STORED = {"p": 0.0, "ng": 0.0, "fs": 0.0, "ft": 0.0, "fn": 0.0, "wo": 0.0, "wo_local": 0.0,
-           "beta": 0.0, "nm": 0.0, "pdf_fwd": 0.0, "d_prev": np.inf, "cos_prev": 1.0,
+           "wo_z": 0.0, "beta": 0.0, "nm": 0.0, "pdf_fwd": 0.0, "d_prev": np.inf, "cos_prev": 1.0,
            "prim": 0, "pdf_rev": 0.0}
 
 
@@ -134,15 +136,57 @@ class Subpath:
     flat_frames: bool = False
     lambert: bool = False
     tri_frames: tuple = None
-    # Per triangle, its geometric normal (PreparedScene.tri_normal), which ng stores at every
+    # Per triangle, its geometric normal (PreparedScene.tri_normal), what ng holds at every
     # vertex a walk makes, and (None unless every material is plain diffuse and untextured)
-    # the BSDF colour every vertex on it stores (PreparedScene.tri_albedo): a connection may
-    # gather them by prim instead (LambertVertices.at).
+    # the BSDF colour of every vertex on it (PreparedScene.tri_albedo): a connection may
+    # gather them by prim instead (LambertVertices.at), and where every reader does, the
+    # walks store neither (by_triangle).
     tri_normals: np.ndarray = None
     tri_colors: np.ndarray = None
     # Whether a walk stored transparent passes in ``passed`` since the last recycle (which
     # then clears it; a scene without transparent surfaces never does: no fill per batch).
     passes_stored: bool = False
+    # Where by_triangle: the z of wo_local (all that plain diffuse BSDFs read of it), stored
+    # instead of wo_local: (depth, n).
+    wo_z: np.ndarray = None
+
+    @property
+    def by_triangle(self):
+        """Whether the walks leave ``ng`` (and ``fn``, the same array), the BSDF table and
+        ``wo_local`` (but its z, :attr:`wo_z`) unwritten at vertices ``1..D-1``: under flat
+        shading with every material plain
+        diffuse and untextured (``tri_colors`` given) and a table of the base columns only,
+        every reader gathers a vertex's normal and colour by its triangle (:meth:`normals`;
+        :class:`.lambert_vertices.LambertVertices`, which
+        :func:`.lambert_vertices.all_lambert` then picks for every connection end)."""
+        return (self.flat_frames and self.tri_colors is not None
+                and not any(self.all_params.has(group) for group in OPTIONAL_GROUPS))
+
+    def vertex_rows(self, index, lambert=False):
+        """Geometric normals ``(m, 3)``, BSDF rows (:func:`take_params`, ``lambert`` as there)
+        and ``wo_local`` ``(m, 3)`` of the surface vertices ``index (m,)`` (rows of
+        :meth:`flat`): the stored ones, or where the walks store none (:attr:`by_triangle`)
+        their triangles' (plain diffuse rows of the triangles' colours, the values
+        choose_bsdf gave them) and ``wo_local`` of x and y zero (which such rows never
+        read)."""
+        params = take_params(self.all_params, index, lambert)
+        if not self.by_triangle:
+            return take_rows(self.flat("ng"), index), params, take_rows(self.flat("wo_local"),
+                                                                        index)
+        prim = self.prim.reshape(-1).take(index)
+        params.kind = np.full(index.size, KIND_DIFFUSE, params.kind.dtype)
+        params.color = take_rows(self.tri_colors, prim)
+        wo_l = np.zeros((index.size, 3))
+        wo_l[:, 2] = self.wo_z.reshape(-1).take(index)
+        return take_rows(self.tri_normals, prim), params, wo_l
+
+    def normals(self, j, rows):
+        """Geometric normals ``(k, 3)`` of vertex ``j`` of the subpaths ``rows (k,)``: at
+        surface vertices (``j >= 1``) their triangles' (the values ``ng`` stores), gathered by
+        ``prim``."""
+        if j == 0:
+            return take_rows(self.ng[0], rows)
+        return take_rows(self.tri_normals, self.prim[j].take(rows))
 
     @staticmethod
     def empty(depth, n, flat_frames=False, lambert=False, tri_frames=None,
@@ -167,7 +211,8 @@ class Subpath:
                        np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
                        np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32),
-                       flat_frames, lambert, tri_frames, tri_normals, tri_colors)
+                       flat_frames, lambert, tri_frames, tri_normals, tri_colors,
+                       wo_z=np.zeros((depth, n)))
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new
@@ -246,9 +291,9 @@ class Gathered:
 
     def __init__(self, ctx, sub, j, rows, mode):
         self.smooth, self.mode, self.lambert = ctx.smooth, mode, ctx.prep.lambert_only
-        self.params = take_params(sub.params[j], rows, self.lambert)
+        self.ng, self.params, self.wo_l = sub.vertex_rows(j * sub.valid.shape[1] + rows,
+                                                          self.lambert)
         self.wo = take_rows(sub.wo[j], rows) if ctx.smooth else None
-        self.wo_l, self.ng = take_rows(sub.wo_local[j], rows), take_rows(sub.ng[j], rows)
         self.fs, self.ft, self.fn = gather_frames(
             sub, lambda name: take_rows(getattr(sub, name)[j], rows), self.ng)
         self.nm = take_rows(sub.nm[j], rows) if self.smooth else None
@@ -261,11 +306,10 @@ class Gathered:
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`Subpath.flat` (each any vertex
         of any subpath), gathered once."""
         lambert = ctx.prep.lambert_only
-        ng = take_rows(sub.flat("ng"), index)
-        return Gathered.of(ctx.smooth, mode, take_params(sub.all_params, index, lambert),
+        ng, params, wo_l = sub.vertex_rows(index, lambert)
+        return Gathered.of(ctx.smooth, mode, params,
                            gather_frames(sub, lambda name: take_rows(sub.flat(name), index), ng),
-                           take_rows(sub.flat("wo"), index) if ctx.smooth else None,
-                           take_rows(sub.flat("wo_local"), index), ng,
+                           take_rows(sub.flat("wo"), index) if ctx.smooth else None, wo_l, ng,
                            take_rows(sub.flat("nm"), index) if ctx.smooth else None, lambert,
                            bends_normals(ctx.prep.scene, take_rows(sub.flat("prim"), index))
                            if ctx.smooth else None)
@@ -455,7 +499,12 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
                           take_rows(ctx.triangle_frames[1], si.prim), si.ng)
         else:
             fs, ft, fn = shading_frame(si.ng, tangent)
-        wo_l = to_local(si.wo, fs, ft, fn)
+        if sub is not None and on_vertex is None and sub.by_triangle:
+            # Its z alone (the frame's normal is ng): all that is stored and read of it.
+            wo_l = np.zeros((r.size, 3))
+            np.einsum("ij,ij->i", si.wo, fn, out=wo_l[:, 2])
+        else:
+            wo_l = to_local(si.wo, fs, ft, fn)
         params = with_bump_normals(params, si, (fs, ft, fn))
         params = with_coat_normals(params, coat_normals_in_front(si), (fs, ft, fn))
         beta = take_rows(beta, live)
@@ -556,7 +605,7 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         cos_prev = sub.cos_prev[0][r]
     else:
         dist = hits.t[live]
-        cos_prev = np.abs(dot(take_rows(sub.ng[j - 1], r), si.wo))
+        cos_prev = np.abs(dot(sub.normals(j - 1, r), si.wo))
     sub.cos_prev[j][r] = cos_prev
     # Where the frame's normal is ng (flat shading), wo_l's z is already that cosine.
     cos_here = np.abs(wo_l[:, 2] if frame[2] is si.ng else dot(si.ng, si.wo))
@@ -566,11 +615,18 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         fwd = np.where(inf, pdf_sa * cos_here, fwd)
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
-    for name, value in (("p", si.p), ("ng", si.ng), ("prim", si.prim), ("wo_local", wo_l),
-                        ("connectible", ~delta_only), ("beta", beta), ("d_prev", dist),
+    for name, value in (("p", si.p), ("prim", si.prim), ("connectible", ~delta_only),
+                        ("beta", beta), ("d_prev", dist),
                         ("pdf_fwd", np.where(prev_delta[live], 1.0, fwd) if prev_delta.any()
                          else fwd)):
         put_rows(getattr(sub, name)[j], r, value)
+    # Else ng, fn (flat shading: ng), the BSDF rows and the whole of wo_local are stored.
+    by_triangle = sub.by_triangle
+    if by_triangle:
+        put_rows(sub.wo_z[j], r, wo_l[:, 2])
+    else:
+        put_rows(sub.ng[j], r, si.ng)
+        put_rows(sub.wo_local[j], r, wo_l)
     if sub.tri_frames is None:  # else gathered by prim (gather_frames)
         put_rows(sub.fs[j], r, frame[0])
         put_rows(sub.ft[j], r, frame[1])
@@ -579,5 +635,6 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
     if si.nm is not None:  # smooth shading (corner normals): what Gathered reads then
         put_rows(sub.wo[j], r, si.wo)
         put_rows(sub.nm[j], r, si.nm)
-    sub.store_params(j, r, params)
+    if not by_triangle:
+        sub.store_params(j, r, params)
     return dist, cos_prev

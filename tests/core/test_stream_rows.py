@@ -4,8 +4,8 @@ connectible camera vertices of every depth at once.
 
 Properties: for every row, the values equal those of a copy of the stream compacted to that
 path and skipped to that dimension (the definition), for the generic implementation (one copy
-per distinct dimension) and for the Sobol stream's row-wise override, also when the rows are
-cut into batches; the stream itself is not advanced. Smallest error detected: any changed bit
+per distinct dimension) and for the row-wise overrides of the Sobol stream (also when the rows
+are cut into batches) and of the independent stream; the stream itself is not advanced. Smallest error detected: any changed bit
 of any value (byte equality).
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from sampling_lab.core.sampling.samplers import make_sampler
-from sampling_lab.core.sampling.samplers import sobol
+from sampling_lab.core.sampling.samplers import independent, sobol
 
 
 def _stream(name, n=3000):
@@ -63,3 +63,12 @@ def test_sobol_rows_equal_the_generic_copies_also_in_batches(monkeypatch, sizes)
     assert _same(stream.slots_of_rows(rows, dims, sizes), generic)
     monkeypatch.setattr(sobol, "BATCH_PATHS", 700)  # batches of rows, the last one partial
     assert _same(stream.slots_of_rows(rows, dims, sizes), generic)
+
+
+@pytest.mark.parametrize("sizes", [(1, 2), (2,), (2, 1, 1)])
+def test_independent_rows_equal_the_generic_copies(sizes):
+    stream = _stream("independent")
+    rows, dims = _rows(len(stream))
+    generic = super(independent.IndependentStream, stream).slots_of_rows(rows, dims, sizes)
+    assert _same(stream.slots_of_rows(rows, dims, sizes), generic)
+    assert stream.dimension == 0

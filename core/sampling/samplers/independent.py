@@ -22,6 +22,11 @@ import numpy as np
 from ..stream import SampleStream, hash_u32, u32_to_unit_float
 
 
+def _dimension_key(dimension):
+    """The hashed key of sample dimension ``dimension`` (an int), xored into the path keys."""
+    return hash_u32(np.uint32(dimension * 0x27D4EB2F & 0xFFFFFFFF))
+
+
 class IndependentStream(SampleStream):
     def __init__(self, pixel, sample_index, seed):
         super().__init__(pixel, sample_index, seed)
@@ -40,8 +45,24 @@ class IndependentStream(SampleStream):
     def sample(self, dimension, count):
         out = np.empty((len(self), count))
         for j in range(count):
-            dim_key = hash_u32(np.uint32((dimension + j) * 0x27D4EB2F & 0xFFFFFFFF))
-            out[:, j] = u32_to_unit_float(hash_u32(self._key ^ dim_key))
+            out[:, j] = u32_to_unit_float(hash_u32(self._key ^ _dimension_key(dimension + j)))
+        return out
+
+    def slots_of_rows(self, rows, dimensions, sizes):
+        # Each row's path key with its own dimension's key: one hash per slot column for all
+        # rows (bit for bit the values of the base class's copies per dimension, whose
+        # compare, gather and scatter per distinct dimension cost more than the hashes).
+        self.check_abort()
+        key = self._key.take(rows)
+        uniq, which = np.unique(dimensions, return_inverse=True)
+        out, offset = [], 0
+        for size in sizes:
+            cols = [u32_to_unit_float(hash_u32(key ^ np.array(
+                        [_dimension_key(d + offset + j) for d in uniq.tolist()],
+                        np.uint32).take(which)))
+                    for j in range(size)]
+            out.append(cols[0] if size == 1 else np.stack(cols, axis=1))
+            offset += max(size, 1)
         return out
 
 
