@@ -48,9 +48,12 @@ def _furnace_with(kind, color=1.0, roughness=0.0, ior=1.5, rho=0.5, size=16):
                                       (MAT_CONDUCTOR, 1.5)])
 def test_lossless_smooth_object_in_furnace_keeps_le_over_one_minus_albedo(kind, ior):
     # Uniform radiance Le / (1 - rho) everywhere is the equilibrium; a smooth white conductor
-    # (F0 = 1) or clear glass only redirects it. Deep bounce limit: truncation < 1e-4.
+    # (F0 = 1) or clear glass only redirects it. Deep bounce limit: the faceted glass ball
+    # (ior 1.5) keeps some paths inside for many lossless bounces, so the truncated tail
+    # decays slowly (the mean over 8 seeds, square-root roulette: 1.955 at 12 bounces,
+    # 1.976 at 24, 1.996 at 64, 2.001 +- 0.001 at 256).
     scene = _furnace_with(kind, color=1.0, roughness=0.0, ior=ior)
-    res = render(scene, plain_settings(spp=64, max_bounces=24, seed=11))
+    res = render(scene, plain_settings(spp=64, max_bounces=256, seed=11))
     _finite_nonneg(res)
     assert_mean_within_ci(pixel_means(res), 2.0, atol=2e-3)
 
