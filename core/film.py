@@ -51,6 +51,54 @@ class UnitPixels(NamedTuple):
         return np.repeat(np.arange(self.start, self.stop, dtype=np.int64), self.count)
 
 
+class UnitSums(NamedTuple):
+    """A work unit's camera samples summed per pixel (:func:`unit_sums`), as the worker hands
+    them to the render loop: ``k / 2`` times less to send than a value per sample, and the
+    loop only adds them up.
+
+    Attributes
+    ----------
+    pixels : UnitPixels
+        The unit's layout: pixels ``start .. stop - 1``, ``count`` samples each.
+    total, total_sq : (p, 3) float64
+        Per pixel, the sum of its samples' radiance and of their squares; with one sample per
+        pixel ``total_sq`` is None (the square of ``total``, formed where it is added: half
+        the payload).
+    alpha : (p,) float64 or None
+        Per pixel, the sum of the samples' transparency (None: opaque).
+    """
+
+    pixels: UnitPixels
+    total: np.ndarray
+    total_sq: np.ndarray
+    alpha: np.ndarray
+
+
+def unit_sums(unit, radiance, transparency):
+    """:class:`UnitSums` of a unit's camera samples ``radiance (n, 3)`` and ``transparency
+    (n,)`` (or None) laid out as ``unit`` (:class:`UnitPixels`): each pixel's consecutive
+    samples added in order, to the bit the sums ``np.bincount`` forms."""
+    lo, hi, k = unit
+    if hi <= lo or k == 0:
+        empty = np.zeros((0, 3))
+        return UnitSums(unit, empty, empty, None)
+    r = radiance.reshape(hi - lo, k, 3)
+    if k == 1:
+        total, total_sq = r[:, 0], None
+    else:
+        total, total_sq = r[:, 0].copy(), r[:, 0] ** 2
+        for j in range(1, k):
+            total += r[:, j]
+            total_sq += r[:, j] ** 2
+    alpha = None
+    if transparency is not None:
+        t = transparency.reshape(hi - lo, k)
+        alpha = t[:, 0].copy()
+        for j in range(1, k):
+            alpha += t[:, j]
+    return UnitSums(unit, total, total_sq, alpha)
+
+
 class PixelFilter:
     """A separable pixel filter sampled through its tabulated CDF (as Cycles' filter table).
 
@@ -222,7 +270,7 @@ class Film:
         :class:`UnitPixels`); ``transparency (k,)``: what of each reached a transparent film's
         background (None: nothing)."""
         if isinstance(pixel, UnitPixels):
-            self._add_unit_samples(pixel, radiance, transparency)
+            self.add_unit_sums(unit_sums(pixel, radiance, transparency))
             return
         if pixel.size == 0:
             return
@@ -239,29 +287,19 @@ class Film:
             self.sum_sq[lo:hi, c] += np.bincount(local, radiance[:, c] ** 2, minlength=span)
         self.count[lo:hi] += np.bincount(local, minlength=span)
 
-    def _add_unit_samples(self, unit, radiance, transparency):
-        """:meth:`add_samples` of a work unit's samples: each pixel's ``unit.count`` samples
-        are consecutive rows, added to one another in that order (the sums ``np.bincount``
-        forms, to the bit) by ``unit.count`` whole-span additions instead of seven bincounts."""
-        lo, hi, k = unit
+    def add_unit_sums(self, sums):
+        """Add a work unit's :class:`UnitSums` (its samples summed per pixel by
+        :func:`unit_sums`): the same film sums as :meth:`add_samples` of the samples."""
+        lo, hi, k = sums.pixels
         if hi <= lo or k == 0:
             return
-        r = radiance.reshape(hi - lo, k, 3)
-        total, total_sq = r[:, 0].copy(), r[:, 0] ** 2
-        for j in range(1, k):
-            total += r[:, j]
-            total_sq += r[:, j] ** 2
-        self.sum[lo:hi] += total
-        self.sum_sq[lo:hi] += total_sq
+        self.sum[lo:hi] += sums.total
+        self.sum_sq[lo:hi] += sums.total ** 2 if sums.total_sq is None else sums.total_sq
         self.count[lo:hi] += k
-        if transparency is not None:
+        if sums.alpha is not None:
             if self.transparency is None:
                 self.transparency = np.zeros(self.n_pixels)
-            t = transparency.reshape(hi - lo, k)
-            alpha = t[:, 0].copy()
-            for j in range(1, k):
-                alpha += t[:, j]
-            self.transparency[lo:hi] += alpha
+            self.transparency[lo:hi] += sums.alpha
 
     def splat(self, film_xy, value, pixel_filter=None):
         """Add light-path contributions ``value (k, 3)`` at film positions ``film_xy (k, 2)``.

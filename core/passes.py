@@ -22,7 +22,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 
 import numpy as np
 
-from .film import PixelFilter, SplatSums, UnitPixels
+from .film import PixelFilter, SplatSums, UnitPixels, unit_sums
 from .integrators.base import UNIT_PATHS, Counters
 from .sampling.stream import Aborted
 
@@ -94,15 +94,15 @@ class Passes:
         return render_unit(self.integrator, self.sampler, self.film, self.frame_width,
                            self.pixel_filter, unit, self.stop.is_set)
 
-    def accumulate(self, pixels, out, local, taps=None):
+    def accumulate(self, sums, out, local, taps=None):
         """Add one unit's output to the film (in unit order: the image is deterministic);
-        ``pixels``: the unit's :class:`core.film.UnitPixels`; ``taps``: the splats' filter
-        taps if :meth:`run_unit` made them, or their per-pixel sums
+        ``sums``: its camera samples summed per pixel (:class:`core.film.UnitSums`); ``taps``:
+        the splats' filter taps if :meth:`run_unit` made them, or their per-pixel sums
         (:class:`core.film.SplatSums`)."""
         film, pixel_filter = self.film, self.pixel_filter
         self.unshown += 1
         self.counters.add(local)
-        film.add_samples(pixels, out.radiance, out.transparency)
+        film.add_unit_sums(sums)
         if isinstance(taps, SplatSums):
             film.add_splat_sums(taps)
         elif taps is not None:
@@ -111,7 +111,7 @@ class Passes:
             film.splat(out.splats.xy, out.splats.value, pixel_filter)
         film.add_splat_paths(out.light_paths)
         if out.camera_layers:
-            pixels = pixels.array()  # the unit's UnitPixels, as one pixel per sample
+            pixels = sums.pixels.array()  # one pixel per sample
         for name, values in out.camera_layers.items():
             film.add_layer(name, pixels, values)
         for name, splats in out.splat_layers.items():
@@ -320,10 +320,11 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
     Returns
     -------
     tuple or None
-        ``(pixels, BatchOutput, Counters, taps)`` for :meth:`Passes.accumulate` (``pixels``:
-        the unit's :class:`core.film.UnitPixels`; ``taps``: the splats' filter taps or their
-        ``SplatSums``, see ``Film.compact_splat_taps``; None without splats), or None if
-        ``abort`` stopped it.
+        ``(sums, BatchOutput, Counters, taps)`` for :meth:`Passes.accumulate` (``sums``: the
+        camera samples summed per pixel, :class:`core.film.UnitSums`, the output's
+        ``radiance`` and ``transparency`` then None; ``taps``: the splats' filter taps or
+        their ``SplatSums``, see ``Film.compact_splat_taps``; None without splats), or None
+        if ``abort`` stopped it.
     """
     p0, p1, s0, k = unit
     unit_pixels = UnitPixels(p0, p1, k)
@@ -352,8 +353,11 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
             if out.splats is not None and len(out.splats.xy) else None)
     if taps is not None:
         out.splats = None  # in the taps now: not sent back twice
-    # The film needs the layout, not the array (a smaller payload from a worker process).
-    return unit_pixels, out, local, taps
+    # Summed per pixel here too: a smaller payload from a worker process (k / 2 times), and
+    # the render loop, which every worker waits for, only adds the sums.
+    sums = unit_sums(unit_pixels, out.radiance, out.transparency)
+    out.radiance = out.transparency = None  # in the sums now: not sent back twice
+    return sums, out, local, taps
 
 
 def _started(pending):
