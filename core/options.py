@@ -376,7 +376,6 @@ _DISTRIBUTION_TEXT = {
         "an O(n) build, but scrambles the stratification of the sampler's numbers"),
 }
 
-# The pixel filters core.film.PixelFilter implements and the UI offers (this list is the source).
 _ROULETTE_SURVIVAL_TEXT = {
     "square_root": (
         "Square Root",
@@ -388,6 +387,7 @@ _ROULETTE_SURVIVAL_TEXT = {
         "component), pbrt's and Mitsuba's rule: the shortest paths, the most noise"),
 }
 
+# The pixel filters core.film.PixelFilter implements and the UI offers (this list is the source).
 FILTER_CHOICES = (
     Choice("box", "Box", "Box filter: every sample counts only for the pixel it falls in"),
     Choice("blackman_harris", "Blackman-Harris",

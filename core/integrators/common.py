@@ -78,11 +78,12 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     with probability ``q = min(1, t)`` of its throughput ``t = max(beta) * eta_scale``
     (``rr_survival`` ``'throughput'``, pbrt's rule) or ``q = min(1, sqrt(t))``
     (``'square_root'``, Cycles' rule: paths end later, with less noise per sample), and its
-    throughput is divided by ``q``; paths of zero throughput end. ``eta_scale (k,)`` (None: 1) scales the throughput
-    looked at: the path tracer's undoes the ``1 / etap^2`` of refractions in radiance mode (the
-    throughput a path will have once it has left the glass); random walks' divide by the first
-    ray's throughput (:func:`.subpaths.walk`). Any ``q`` in (0, 1] keeps the estimate unbiased. Returns the new
-    ``alive (k,)`` mask and ``beta (k, 3)``.
+    throughput is divided by ``q``; paths of zero throughput end. ``eta_scale (k,)`` (None:
+    1) scales the throughput looked at: the path tracer's undoes the ``1 / etap^2`` of
+    refractions in radiance mode (the throughput a path will have once it has left the
+    glass); random walks' divide by the first ray's throughput (:func:`.subpaths.walk`). Any
+    ``q`` in (0, 1] keeps the estimate unbiased. Returns the new ``alive (k,)`` mask and
+    ``beta (k, 3)``.
     """
     if roulette_at(settings, bounce):
         q = max_component(beta)
