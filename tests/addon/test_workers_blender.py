@@ -43,12 +43,14 @@ def test_worker_processes_send_back_the_classes_of_blenders_package(addon):
                                          core["render"].preparation_key(scene, settings),
                                          (0, 0, 8, 8), 8)
     try:
-        pixels, out, counters, taps = units.submit((0, 64, 0, 1)).result(timeout=120)
+        sums, out, counters, taps = units.submit((0, 64, 0, 1)).result(timeout=120)
     finally:
         units.release()
     # Pickles name classes by module: the child imported the extension as Blender names it.
     assert type(out).__module__ == f"{ADDON_MODULE}.core.integrators.base"
-    assert out.radiance.shape == (64, 3) and counters.camera_samples == 64
+    assert type(sums).__module__ == f"{ADDON_MODULE}.core.film"
+    # One sample per pixel: the unit's 64 pixels' totals (their squares formed where added).
+    assert sums.total.shape == (64, 3) and counters.camera_samples == 64
 
 
 @pytest.mark.parametrize("integrator, threads, active", [
