@@ -266,12 +266,10 @@ class Film:
         return self.width * self.height
 
     def add_samples(self, pixel, radiance, transparency=None):
-        """Accumulate camera samples ``radiance (k, 3)`` into their pixels ``pixel (k,)`` (or a
-        :class:`UnitPixels`); ``transparency (k,)``: what of each reached a transparent film's
-        background (None: nothing)."""
-        if isinstance(pixel, UnitPixels):
-            self.add_unit_sums(unit_sums(pixel, radiance, transparency))
-            return
+        """Accumulate camera samples ``radiance (k, 3)`` into their pixels ``pixel (k,)``;
+        ``transparency (k,)``: what of each reached a transparent film's background (None:
+        nothing). A work unit's samples come summed per pixel instead
+        (:meth:`add_unit_sums`)."""
         if pixel.size == 0:
             return
         # Over the span of pixels the batch touches (a work unit's own pixels), not the whole

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sampling_lab.core.film import Film, PixelFilter, UnitPixels
+from sampling_lab.core.film import Film, PixelFilter, UnitPixels, unit_sums
 from sampling_lab.core.render import render
 from sampling_lab.core.scene import Camera, Lights, Materials, Scene
 from sampling_lab.core.scenes import look_at
@@ -391,8 +391,9 @@ def test_sums_beyond_float32_become_its_largest_value_not_inf():
 
 @pytest.mark.parametrize("k", [1, 3, 64])
 def test_a_units_pixel_layout_adds_the_same_sums_as_its_pixel_array(k):
-    # Property: Film.add_samples of UnitPixels (a work unit's layout, no array) and of the
-    # pixels it stands for give the same sums, squares, counts and transparency, bit for bit.
+    # Property: a work unit's samples summed per pixel by its layout (unit_sums, no array; what
+    # a worker sends) and added by Film.add_unit_sums give the same sums, squares, counts and
+    # transparency as Film.add_samples of the pixels it stands for, bit for bit.
     # Smallest error detected: any difference in any bit.
     rng = np.random.default_rng(k)
     unit = UnitPixels(7, 7 + 50, k)
@@ -400,8 +401,8 @@ def test_a_units_pixel_layout_adds_the_same_sums_as_its_pixel_array(k):
     radiance = rng.random((n, 3)) * 10.0 ** rng.uniform(-8, 8, (n, 1))
     alpha = rng.random(n)
     films = [Film(10, 10), Film(10, 10)]
-    for film, pixels in zip(films, (unit, unit.array())):
-        film.add_samples(pixels, radiance, alpha)
-        film.add_samples(pixels, radiance[::-1].copy(), alpha[::-1].copy())
+    for values, alphas in ((radiance, alpha), (radiance[::-1].copy(), alpha[::-1].copy())):
+        films[0].add_unit_sums(unit_sums(unit, values, alphas))
+        films[1].add_samples(unit.array(), values, alphas)
     for name in ("sum", "sum_sq", "count", "transparency"):
         np.testing.assert_array_equal(getattr(films[0], name), getattr(films[1], name))
