@@ -23,7 +23,7 @@ import numpy as np
 
 from .embree_commit import build_scene
 from .scene import VIS_ALL, VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
-from .rows import scaled
+from .rows import dots, scaled
 
 RAY_CLASSES = (VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION, VIS_SHADOW)
 
@@ -205,10 +205,10 @@ class Accel:
         q += p
         scale = np.maximum(max_abs_component(q), max_abs_component(p))
         eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(scale, 1e-30)
-        toward = np.sign(np.einsum("ij,ij->i", light_normal, origins - q))
+        toward = np.sign(dots(light_normal, origins - q))
         q += scaled(light_normal, toward * eps)
         seg = np.subtract(q, origins, out=q)
-        length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
+        length = np.sqrt(dots(seg, seg))
         ok = finite & (length > 0)
         directions = np.divide(seg, np.maximum(length, 1e-300)[:, None], out=seg)
         if ok.all():
@@ -225,7 +225,7 @@ class Accel:
         The push is ``OFFSET_ULPS`` float32 ulps of the triangle's largest coordinate, along its
         unit geometric normal ``ng (n, 3)``.
         """
-        side = np.sign(np.einsum("ij,ij->i", ng, w))
+        side = np.sign(dots(ng, w))
         side[side == 0] = 1.0
         out = scaled(ng, side * self.tri_offset[prim])
         out += p

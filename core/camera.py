@@ -6,6 +6,7 @@ import numpy as np
 
 from .scene import Camera
 from .quiet import quiet
+from .rows import dots
 
 
 def view_extent(cam: Camera):
@@ -129,7 +130,7 @@ def project(cam: Camera, p, margin=0.0, window=None):
     rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0, keepdims=True)
     local = np.einsum("ij,jk->ik", p - m[:3, 3], rot)
     depth = -local[:, 2]
-    dist = np.sqrt(np.einsum("ij,ij->i", local, local))
+    dist = np.sqrt(dots(local, local))
     with quiet("divide", "invalid"):
         tx = local[:, 0] / depth
         ty = local[:, 1] / depth

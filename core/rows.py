@@ -1,6 +1,7 @@
 """Row operations on NumPy arrays, faster than NumPy's plain forms and with the same values:
 row scatters (:func:`put_rows`) and row-wise arithmetic on ``(k, c)`` vectors done one component
-at a time (:func:`combine_rows`, :func:`divide_rows`, :func:`scaled`, :func:`norms`).
+at a time (:func:`combine_rows`, :func:`divide_rows`, :func:`scaled`, :func:`norms`,
+:func:`dots`).
 
 NumPy broadcasts a ``(k, 3)`` array against a ``(k, 1)`` column through an inner loop of three
 elements per row: on 8,192 rows ``v * s[:, None]`` took 22 us against 9 us here and 4 us for
@@ -96,6 +97,30 @@ def norms(v):
     out += y * y
     out += z * z
     return np.sqrt(out, out=out)
+
+
+# Rows from which :func:`dots` goes column by column: below, its five calls cost more than
+# einsum's one.
+DOTS_COLUMNWISE_ROWS = 512
+
+
+def dots(a, b, out=None):
+    """``np.einsum("ij,ij->i", a, b)`` of rows ``a, b (k, 3)``: ``(k,)``, the same values.
+
+    einsum's loop for this product costs about twice the three column products on the row
+    counts of a batch (16,384 rows: 58.7 against 29.3 us; 4,096: 15.1 against 8.5; NumPy 1.26,
+    Intel Xeon VM, 2026-11-26). It adds the three products as ``(x + z) + y`` (measured: every
+    row of random inputs of any size, rows contiguous or strided), and so does this: the same
+    bits. Other layouts (Fortran-ordered, float32, not three columns) and small batches go to
+    einsum itself. ``out``: a float64 ``(k,)`` array (or column view) to write them into."""
+    if (a.shape[0] < DOTS_COLUMNWISE_ROWS or a.ndim != 2 or a.shape[1] != 3
+            or a.shape != b.shape or a.dtype != np.float64 or b.dtype != np.float64
+            or a.strides[1] != 8 or b.strides[1] != 8):
+        return np.einsum("ij,ij->i", a, b, out=out)
+    out = np.multiply(a[:, 0], b[:, 0], out=out)
+    out += a[:, 2] * b[:, 2]
+    out += a[:, 1] * b[:, 1]
+    return out
 
 
 def scaled(v, s, out=None):

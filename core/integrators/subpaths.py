@@ -19,7 +19,7 @@ from ..materials.bsdf import (IMPORTANCE, KIND_DIFFUSE, OPTIONAL_GROUPS, BSDFPar
                               sample_plain_diffuse)
 from ..materials.bsdf_values import eval_with_pdfs
 from ..materials.frame import shading_frame, to_local, to_world
-from ..rows import norms, put_rows
+from ..rows import dots, norms, put_rows
 from .adjoint_normals import VertexNormals
 from .common import (bends_normals, coat_normals_in_front, finite_rows, intersect_by_class,
                      max_component, ray_class, roulette_at, russian_roulette,
@@ -30,7 +30,7 @@ from .vertex_frames import gather_frames
 
 
 def dot(a, b):
-    return np.einsum("ij,ij->i", a, b)
+    return dots(a, b)
 
 
 def _empty_params(n):
@@ -502,7 +502,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         if sub is not None and on_vertex is None and sub.by_triangle:
             # Its z alone (the frame's normal is ng): all that is stored and read of it.
             wo_l = np.zeros((r.size, 3))
-            np.einsum("ij,ij->i", si.wo, fn, out=wo_l[:, 2])
+            dots(si.wo, fn, out=wo_l[:, 2])
         else:
             wo_l = to_local(si.wo, fs, ft, fn)
         params = with_bump_normals(params, si, (fs, ft, fn))

@@ -15,15 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rows import put_rows
+from ..rows import dots, put_rows
 from ..scene import Lights
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
 def dot(a, b):
-    """Row-wise dot products of ``(n, 3)`` arrays: ``(n,)``."""
-    return np.einsum("ij,ij->i", a, b)
+    """Row-wise dot products of ``(n, 3)`` arrays: ``(n,)`` (:func:`core.rows.dots`)."""
+    return dots(a, b)
 
 
 def batch_rows(a, m):

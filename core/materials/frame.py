@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..rows import dots
 from ..sampling import warps
 
 
 def dot(a, b):
-    """Row-wise dot products of ``a, b : (k, 3)`` -> ``(k,)``."""
-    return np.einsum("ij,ij->i", a, b)
+    """Row-wise dot products of ``a, b : (k, 3)`` -> ``(k,)`` (:func:`core.rows.dots`)."""
+    return dots(a, b)
 
 
 def shading_frame(n, tangent=None):
@@ -54,7 +55,7 @@ def to_local(v, s, t, n):
     """World vectors ``v : (k, 3)`` in the frames ``(s, t, n)`` -> local ``(k, 3)``."""
     out = np.empty((v.shape[0], 3), np.result_type(v, s, t, n))
     for column, axis in enumerate((s, t, n)):  # each dot product straight into its column
-        np.einsum("ij,ij->i", v, axis, out=out[:, column])
+        dots(v, axis, out=out[:, column])
     return out
 
 

@@ -9,19 +9,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rows import scaled
+from ..rows import dots, scaled
 from ..sampling import warps
 
 
 def eval_lambert(albedo, n, wi):
     """``f * cos(theta_i)`` for ``albedo (k, 3)``, normals ``n (k, 3)``, ``wi (k, 3)`` -> ``(k, 3)``."""
-    cos = np.einsum("ij,ij->i", n, wi)
+    cos = dots(n, wi)
     return scaled(albedo, np.maximum(cos, 0.0) * warps.INV_PI)
 
 
 def pdf_lambert(n, wi):
     """Solid-angle pdf of :func:`sample_lambert` ``(k,)``."""
-    return warps.cosine_hemisphere_pdf(np.einsum("ij,ij->i", n, wi))
+    return warps.cosine_hemisphere_pdf(dots(n, wi))
 
 
 def sample_lambert(albedo, n, u):
