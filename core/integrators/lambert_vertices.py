@@ -40,14 +40,20 @@ class LambertVertices:
 
     Attributes
     ----------
-    color : (m, 3) float64 or None
+    color : (m, 3) float32 or float64, or None
         Albedo (None once only densities are needed).
-    fn : (m, 3) float64 or None
+    fn : (m, 3) float32 or float64, or None
         The frame's normal (the geometric normal, flat shading).
-    wo_z : (m,) float64
+    wo_z : (m,) float32 or float64
         The incoming direction's z in the frame.
-    ng : (m, 3) float64
+    ng : (m, 3) float32 or float64
         Geometric normal.
+
+    Gathered by :meth:`at` from a subpath whose walks store no normals or colours
+    (:attr:`.subpaths.Subpath.by_triangle`, the usual case) they are float32, and so is
+    everything formed from them and float32 directions; the values are the general gather's
+    to float32 rounding. Given float64 columns they are float64 and equal its values bit for
+    bit (``tests/core/test_lambert_vertices.py``).
     """
 
     __slots__ = ("color", "fn", "wo_z", "ng")
@@ -60,11 +66,13 @@ class LambertVertices:
         """Vertices ``index (m,)`` of ``sub`` as rows of :meth:`.subpaths.Subpath.flat`."""
         # The stored ng (and colour, where given) is the triangle's: gathered through prim
         # (4 bytes a row from the large table, then rows of the triangles' table) instead of
-        # 24 bytes a row.
+        # 24 bytes a row, from the float32 copies of those tables: with the float32 positions,
+        # throughputs and wo_z of Subpath, the connection's values are formed in float32.
         prim = None if sub.tri_normals is None else sub.prim.reshape(-1).take(index)
-        ng = take_rows(sub.flat("ng"), index) if prim is None else take_rows(sub.tri_normals, prim)
+        ng = (take_rows(sub.flat("ng"), index) if prim is None
+              else take_rows(sub.tri_normals32, prim))
         color = (take_rows(sub.all_params.color, index) if prim is None or sub.tri_colors is None
-                 else take_rows(sub.tri_colors, prim))
+                 else take_rows(sub.tri_colors32, prim))
         # The z column read as elements 3 i + 2 of the contiguous table (np.take of the
         # strided column would copy it whole; fancy indexing of two axes is slower), or
         # where the walks store it alone, from its own table.
@@ -92,7 +100,8 @@ class LambertVertices:
         return dot(take_rows(self.ng, rows), take_rows(w, rows))
 
     def _lobe_side(self, cos):
-        return np.where(cos >= 0.0, 1.0, -1.0)
+        one = np.ones((), cos.dtype)  # float32 cosines stay float32
+        return np.where(cos >= 0.0, one, -one)
 
     def f(self, w, w_l):
         """``f |cos|`` ``(m, 3)`` toward ``w_l`` (from :meth:`local`; ``w`` unused)."""

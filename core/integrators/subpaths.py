@@ -105,6 +105,13 @@ class Subpath:
     of normal (:mod:`.adjoint_normals`; smooth-shaded scenes only). ``passed`` counts the
     transparent surfaces the subpath passed straight through before each vertex (not vertices:
     :mod:`.transparent_passes`).
+
+    ``p``, ``beta`` and ``wo_z`` are float32 (everything else float64): every connection
+    gathers positions and throughputs from these tables, at half the bytes, and the plain
+    Lambert connection ends (:mod:`.lambert_vertices`) compute in float32 from them (BDPT 3 %
+    less CPU per sample on the bench box, docs/BENCHMARKS.md, twelfth round). A position is
+    then within half a float32 ulp of the hit, as Embree itself traces (float32 rays), and far
+    below the 64-ulp offsets of the shadow rays that leave it (:mod:`core.accel`).
     """
 
     valid: np.ndarray
@@ -143,6 +150,9 @@ class Subpath:
     # walks store neither (by_triangle).
     tri_normals: np.ndarray = None
     tri_colors: np.ndarray = None
+    # The same two tables in float32, for the float32 Lambert ends (made by empty()).
+    tri_normals32: np.ndarray = None
+    tri_colors32: np.ndarray = None
     # Whether a walk stored transparent passes in ``passed`` since the last recycle (which
     # then clears it; a scene without transparent surfaces never does: no fill per batch).
     passes_stored: bool = False
@@ -202,17 +212,19 @@ class Subpath:
         them (``fs`` and ``ft`` are then not stored: :class:`Gathered` gathers them by
         triangle); ``tri_normals``, ``tri_colors``: the triangles' geometric normals and
         colours (:attr:`tri_normals`)."""
-        z3 = lambda: np.zeros((depth, n, 3))  # noqa: E731
+        z3 = lambda dtype=np.float64: np.zeros((depth, n, 3), dtype)  # noqa: E731
+        f32 = lambda a: None if a is None else a.astype(np.float32)  # noqa: E731
         table = _empty_params(depth * n)
         params = _vertex_views(table, depth, n)
         ng = z3()
-        return Subpath(np.zeros((depth, n), bool), z3(), ng, np.zeros((depth, n), np.int32),
+        return Subpath(np.zeros((depth, n), bool), z3(np.float32), ng,
+                       np.zeros((depth, n), np.int32),
                        z3(), z3(), ng if flat_frames else z3(), z3(), z3(), params,
-                       np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(),
+                       np.zeros((depth, n), bool), np.zeros((depth, n), bool), z3(np.float32),
                        np.zeros((depth, n)), np.zeros((depth, n)), np.full((depth, n), np.inf),
                        np.ones((depth, n)), table, z3(), np.zeros((depth, n), np.int32),
                        flat_frames, lambert, tri_frames, tri_normals, tri_colors,
-                       wo_z=np.zeros((depth, n)))
+                       f32(tri_normals), f32(tri_colors), wo_z=np.zeros((depth, n), np.float32))
 
     def reset(self):
         """Make this as :meth:`empty` made it (no vertex), reusing its memory: a new

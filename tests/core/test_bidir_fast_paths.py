@@ -3,11 +3,14 @@
 - BDPT's subpath tables carry only the optional BSDF column groups (coat, sheen, anisotropy,
   bump) that the stored vertices use, so a diffuse scene pays for none. Property: the same
   image, bit for bit, as tables that carry every group in every batch (the general layout
-  before), on a scene without any group and on one that uses three of them on different
-  materials; and the tables hold exactly the groups the scene's materials use.
+  before), on a scene that uses three of them on different materials, and to float32 rounding
+  (:func:`_same_to_float32`) on a scene without any group, whose lean tables let the Lambert
+  connection ends compute in float32; and the tables hold exactly the groups the scene's
+  materials use.
 - In a scene of plain diffuse materials (``PreparedScene.lambert_only``) the connections
-  gather no glossy parameters (alpha, IOR, tint) of their vertices. Property: the same image,
-  bit for bit, as the general gather, for light tracing and BDPT.
+  gather no glossy parameters (alpha, IOR, tint) of their vertices. Property: the same image
+  as the general gather, bit for bit for light tracing, to float32 rounding for BDPT (whose
+  lean ends are float32).
 - Light tracing connects its vertices to the pinhole with the occlusion query alone when no
   material is transparent. Property: the same image, bit for bit, as the transmittance walk
   (:func:`core.integrators.shadows.shadow_transmittance`) that a scene with transparent
@@ -64,16 +67,24 @@ def _with_every_group(monkeypatch):
     monkeypatch.setattr(subpaths.Subpath, "reset", reset_keeping_every_group)
 
 
-@pytest.mark.parametrize("make_scene", [_diffuse_scene, _layered_scene],
+def _same_to_float32(a, b):
+    """BDPT's float32 Lambert connection ends against float64 ones: within 1e-5 relative
+    (measured at most 6e-7 in any pass, 2026-11-26); a changed value, density or weight, or a
+    dropped connection, is off by more."""
+    np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-7 * max(np.abs(b).max(), 1e-30))
+
+
+@pytest.mark.parametrize("make_scene, exact", [(_diffuse_scene, False), (_layered_scene, True)],
                          ids=["diffuse", "coat sheen aniso"])
-def test_bdpt_image_is_the_same_with_only_the_groups_the_scene_uses(make_scene, monkeypatch):
+def test_bdpt_image_is_the_same_with_only_the_groups_the_scene_uses(make_scene, exact,
+                                                                    monkeypatch):
     lean = _passes(make_scene())
     with monkeypatch.context() as m:
         _with_every_group(m)
         full = _passes(make_scene())
     assert len(lean) == len(full) > 2
     for a, b in zip(lean, full):
-        np.testing.assert_array_equal(a, b)
+        (np.testing.assert_array_equal if exact else _same_to_float32)(a, b)
     assert np.isfinite(lean[0]).all() and lean[0].max() > 0
 
 
@@ -114,8 +125,9 @@ def test_lambert_gathers_give_the_same_image_as_the_general_gather(integrator):
     assert prep.lambert_only
     prep.lambert_only = False  # gather every parameter column
     general = render(scene, settings, prepared=prep)
-    np.testing.assert_array_equal(lean.combined(), general.combined())
-    np.testing.assert_array_equal(lean.variance(), general.variance())
+    same = np.testing.assert_array_equal if integrator == "light" else _same_to_float32
+    same(lean.combined(), general.combined())
+    same(lean.variance(), general.variance())
     assert lean.combined().max() > 0
 
 
