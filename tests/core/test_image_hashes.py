@@ -58,9 +58,9 @@ CASES = {
 }
 
 PINNED = {
-    "bdpt cornell area power views": "a9f2c7eee74839585d968b56ae77750a3f6627f7f47405213b2f08b6d98b4188",
-    "bdpt cornell point balance": "bc824c610e3b996a9759fe412153e813a00603f86cdf1b7203b92edc8896be50",
-    "bdpt glass sphere light maximum": "77bad2e2f963a0b46e5c564d29c0cb2373ad35320daa6f7b74ffcce6e436efcc",
+    "bdpt cornell area power views": "faf69cfea0a6b4d1ad14c61f878f860502e0b51ad1267b2f628b9d4d7b56406f",
+    "bdpt cornell point balance": "8b4c356e0a9e6783d46eff59b5b0d6f9644f277f4c57cadeaa60c784a2fad173",
+    "bdpt glass sphere light maximum": "04ca11258e12bca32a88a98fe6eb1d3aacc4ce56503eca16ec50367082c2f13a",
     "light cornell mesh": "7bdaea47c1f03443b6f9af5768dcaa445d18319d73d2956d00545c7a0e8c811e",
     "light glass point": "09d2d760f0d0d821c8a18a6ccf1ee74489c24dbe5337e607e4ef7d20412af4f7",
     "path cornell area solid angle sobol": "4a0ec16d62462b01061f0eedc2790fa8c616a93abf72503513359101fae77d9e",
