@@ -101,6 +101,7 @@ class Accel:
                           else np.zeros(t))
         # The push off each triangle (offset_origin), computed once per scene.
         self.tri_offset = OFFSET_ULPS * FLOAT32_EPS * np.maximum(self.tri_scale, 1e-30)
+        self.tri_offset32 = self.tri_offset.astype(np.float32)  # for float32 points
         self._scenes = {}
         self._building = threading.Lock()
         self.builds = {}
@@ -182,21 +183,29 @@ class Accel:
 
         Parameters
         ----------
-        p, ng : (n, 3) float64
+        p, ng : (n, 3) float64 or float32
             Receiving points and their unit geometric normals on triangles ``prim (n,)``.
-        wi : (n, 3) float64
+        wi : (n, 3) float64 or float32
             Unit directions toward the light samples at distances ``dist (n,)`` (inf for
             directions to the sun or the world).
-        light_normal : (n, 3) float64
+        light_normal : (n, 3) float64 or float32
             Normal at the light sample (zero for points and directions).
 
         Returns
         -------
-        origins, directions : (n, 3) float64
-        tmax : (n,) float64
+        origins, directions : (n, 3) float64, or float32 where every input is
+        tmax : (n,)
             The segment stops short of the light sample by the same float32 margin as the
             origin, so an emitting triangle never shadows its own sample.
+
+        Mixed float32 and float64 inputs are all taken in float64 (operations on mixed types
+        cost about 1.5 x those on either); all-float32 ones (BDPT's float32 connection ends)
+        in float32, as Embree traces them: 64-ulp offsets are far above float32 rounding.
         """
+        dtype = np.result_type(p, ng, wi, dist, light_normal)
+        if dtype != np.float32:
+            p, ng, wi, dist, light_normal = (np.asarray(a, np.float64)
+                                             for a in (p, ng, wi, dist, light_normal))
         origins = self.offset_origin(p, ng, prim, wi)
         finite = np.isfinite(dist)
         every_finite = finite.all()  # points on lamps and emitters (no sun, no world)
@@ -210,7 +219,8 @@ class Accel:
         seg = np.subtract(q, origins, out=q)
         length = np.sqrt(dots(seg, seg))
         ok = finite & (length > 0)
-        directions = np.divide(seg, np.maximum(length, 1e-300)[:, None], out=seg)
+        tiny = 1e-300 if length.dtype == np.float64 else float(np.finfo(np.float32).tiny)
+        directions = np.divide(seg, np.maximum(length, tiny)[:, None], out=seg)
         if ok.all():
             # Every segment has a length (so every distance is finite): no choice per row.
             tmax = np.subtract(length, eps, out=length)
@@ -227,6 +237,9 @@ class Accel:
         """
         side = np.sign(dots(ng, w))
         side[side == 0] = 1.0
-        out = scaled(ng, side * self.tri_offset[prim])
+        # float32 normals and directions: float32 offsets (a float64 product would make the
+        # rest mixed-type, and slower).
+        offsets = self.tri_offset32 if side.dtype == np.float32 else self.tri_offset
+        out = scaled(ng, side * offsets[prim])
         out += p
         return out

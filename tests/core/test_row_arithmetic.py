@@ -55,10 +55,14 @@ def test_dots_equal_einsum_bit_for_bit():
             table = np.zeros((n, 3))
             assert dots(a, b, out=table[:, 2]).base is table
             np.testing.assert_array_equal(table[:, 2], want)
-    # A Fortran-ordered operand and float32 rows go to einsum itself.
+    # float32 rows (einsum adds them in another order), a Fortran-ordered operand and mixed
+    # types (einsum itself).
     f = np.asfortranarray(_rows(rng, 5000))
     g = _rows(rng, 5000)
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         np.testing.assert_array_equal(dots(f, g), np.einsum("ij,ij->i", f, g))
-        h = g.astype(np.float32)
-        assert dots(h, h).dtype == np.float32
+        h = (rng.standard_normal((5000, 3)) * np.exp(rng.uniform(-20, 20, (5000, 1))))
+        h, k = h.astype(np.float32), (rng.standard_normal((5000, 3)) * 1e3).astype(np.float32)
+        assert dots(h, k).dtype == np.float32
+        np.testing.assert_array_equal(dots(h, k), np.einsum("ij,ij->i", h, k))
+        np.testing.assert_array_equal(dots(h, g), np.einsum("ij,ij->i", h, g))
