@@ -229,13 +229,18 @@ def _join_emitters(ctx, L, C, zj, row, pts, gather):
     at_z = zj * n + row
     z = take_rows(C.flat("p"), at_z)
     infinite = pts.infinite
-    w, dist, y_normal, g = _toward_emitters(pts, z)
     zv = gather(C, at_z, RADIANCE)
+    f32 = zv.ng.dtype == np.float32 and not infinite.any()
+    if f32:  # float32 Lambert ends (.lambert_vertices) toward points: the values in float32
+        pts = pts._replace(p=pts.p.astype(np.float32), normal=pts.normal.astype(np.float32))
+    w, dist, y_normal, g = _toward_emitters(pts, z)
     w_z = zv.local(w)
     le = em.radiance(pts.index, pts.p, pts.normal, -w, z)
     point = pts.delta_light & ~infinite
     cos_y = np.where(infinite | point, 1.0, np.abs(dot(pts.normal, w)))
     beta_y = 1.0 / np.where(pts.pdf_origin > 0, pts.pdf_origin, np.inf)
+    if f32:
+        le, beta_y = le.astype(np.float32), beta_y.astype(np.float32)
     f_z, toward_z, back_z = zv.values(w, w_z)
     value = scaled(le, cos_y) * f_z * take_rows(C.flat("beta"), at_z)
     scaled(value, beta_y, out=value)
@@ -270,8 +275,8 @@ def _toward_emitters(pts, z):
     if not infinite.any():
         w = pts.p - z
         dist = norms(w)
-        np.divide(w, np.maximum(dist, 1e-300)[:, None], out=w)
-        return w, dist, pts.normal, 1.0 / np.maximum(dist ** 2, 1e-300)
+        np.divide(w, _at_least_tiny(dist)[:, None], out=w)
+        return w, dist, pts.normal, 1.0 / _at_least_tiny(dist ** 2)
     to_y = np.where(infinite[:, None], -pts.w_inf, pts.p - z)
     dist = np.where(infinite, np.inf, norms(to_y))
     w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y

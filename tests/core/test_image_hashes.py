@@ -58,9 +58,9 @@ CASES = {
 }
 
 PINNED = {
-    "bdpt cornell area power views": "faf69cfea0a6b4d1ad14c61f878f860502e0b51ad1267b2f628b9d4d7b56406f",
-    "bdpt cornell point balance": "8b4c356e0a9e6783d46eff59b5b0d6f9644f277f4c57cadeaa60c784a2fad173",
-    "bdpt glass sphere light maximum": "04ca11258e12bca32a88a98fe6eb1d3aacc4ce56503eca16ec50367082c2f13a",
+    "bdpt cornell area power views": "d718c9aec96675fc0106fb1b05bf8f427b26ab735285f1d1fbdfc17db7141896",
+    "bdpt cornell point balance": "417567b2f08d4dabeaaf8f493219a50cf01242d4857d7d13d6679fbb708baf63",
+    "bdpt glass sphere light maximum": "e2a448593ac51a9da8c45258311bf18b9aef5c679bfc78bdfeaae12438ff0cba",
     "light cornell mesh": "7bdaea47c1f03443b6f9af5768dcaa445d18319d73d2956d00545c7a0e8c811e",
     "light glass point": "09d2d760f0d0d821c8a18a6ccf1ee74489c24dbe5337e607e4ef7d20412af4f7",
     "path cornell area solid angle sobol": "4a0ec16d62462b01061f0eedc2790fa8c616a93abf72503513359101fae77d9e",
