@@ -111,12 +111,19 @@ def _connection_weights(ctx, L, C, parts, runs):
         # Piece by piece: the weights are row-wise (the same values); joining the pieces' nine
         # columns first copied them all for a fifth of the stage's time.
         sums = RunningSums(ctx.mis, L, C, ctx.light_points.delta_light)
-        return [sums.weights(L, C, p.s, p.t, p.row, Near(*p[4:])) for p in parts]
+        return [sums.weights(L, C, p.s, p.t, p.row, _near(p)) for p in parts]
     weights = [np.empty(p.row.size) for p in parts]
     for s, t, i, e in runs:
         weights[i][e] = connection_weight(ctx.mis, L, C, s, t, parts[i].row[e],
-                                          Near(*(c[e] for c in parts[i][4:])))
+                                          Near(*(c[e] for c in _near(parts[i]))))
     return weights
+
+
+def _near(part):
+    """The :class:`Near` densities of a :class:`_Joined` piece, in float64 (float32 Lambert
+    ends form some in float32; the weights read them beside the subpaths' float64 tables, and
+    operations on mixed types cost more than on either)."""
+    return Near(*(c.astype(np.float64) if c.dtype == np.float32 else c for c in part[4:]))
 
 
 def _vertex_pairs(depth):
