@@ -17,7 +17,7 @@ from ..allocator import keeps_freed
 from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
-from ..rows import combine_rows, divide_rows, norms, scaled
+from ..rows import divide_rows, norms, scaled
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import bends_normals, finite_rows, max_component, nonzero_rows, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
@@ -400,16 +400,20 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
     seen = visible.nonzero()[0]
     if seen.size == 0:
         return
-    rows, film_xy, cos_theta, dist, y, prim = (rows[seen], take_rows(film_xy, seen),
-                                               cos_theta[seen], dist[seen], take_rows(y, seen),
-                                               prim[seen])
-    if np.ndim(s):
-        s = s[seen]
+    if seen.size < rows.size:  # else all are (every light vertex of the bench box): no copies
+        rows, film_xy, cos_theta, dist, y, prim, budget = (
+            rows[seen], take_rows(film_xy, seen), cos_theta[seen], dist[seen],
+            take_rows(y, seen), prim[seen], budget[seen])
+        if np.ndim(s):
+            s = s[seen]
     w = divide_rows(ctx.cam_pos - y, np.maximum(dist, 1e-300))  # y -> camera
     yv = gather(seen)
     w_y = yv.local(w)
     we = importance(cam, cos_theta)
-    value = combine_rows(((we / np.maximum(dist * dist, 1e-300), beta_of(seen) * yv.f(w, w_y)),))
+    # (beta f) scaled by We / d^2 in place, column by column: the values of combine_rows'
+    # broadcast, 272 -> 131 us on 39 k rows.
+    value = beta_of(seen) * yv.f(w, w_y)
+    scaled(value, we / np.maximum(dist * dist, 1e-300), out=value)
     ok = (max_component(value) > 0) & finite_rows(value)
     cand = ok.nonzero()[0]
     if cand.size == 0:
@@ -419,7 +423,7 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
         np.zeros((cand.size, 3)))
     ctx.counters.rays += cand.size
     # Through transparent surfaces, as the path tracer's shadow rays (:mod:`.shadows`).
-    through, transmit = transmitted(ctx, o, dirs, tmax, budget[seen][cand], VIS_CAMERA)
+    through, transmit = transmitted(ctx, o, dirs, tmax, budget[cand], VIS_CAMERA)
     keep = cand[through]
     value = take_rows(value, keep)
     if transmit is not None:
