@@ -181,8 +181,11 @@ def importance(cam: Camera, cos_theta):
     """
     a_pixel = film_plane_area(cam) / (cam.width * cam.height)
     c = np.asarray(cos_theta, np.float64)
+    front = c > 0
     with quiet("divide"):
-        return np.where(c > 0, 1.0 / (a_pixel * c**3), 0.0)
+        if front.all():  # points in view (the splats'): no selection, the same values
+            return 1.0 / (a_pixel * c**3)
+        return np.where(front, 1.0 / (a_pixel * c**3), 0.0)
 
 
 def camera_pdf(cam: Camera, cos_theta, pixels=None):
@@ -196,5 +199,8 @@ def camera_pdf(cam: Camera, cos_theta, pixels=None):
     area = film_plane_area(cam)
     if pixels is not None:
         area *= pixels / (cam.width * cam.height)
+    front = c > 0
     with quiet("divide"):
-        return np.where(c > 0, 1.0 / (area * c**3), 0.0)
+        if front.all():  # directions in view (the splats'): no selection, the same values
+            return 1.0 / (area * c**3)
+        return np.where(front, 1.0 / (area * c**3), 0.0)

@@ -334,12 +334,15 @@ def connect_cameras(ctx, L, out):
     if rows.size == 0:
         return
     at = (level + 1) * n + rows
+    # The rows ``seen`` of ``at`` for the gather and the throughputs: ``at`` itself where
+    # every vertex is seen (no copies).
+    at_seen = lambda seen: at if seen.size == at.size else at[seen]  # noqa: E731
     if lambert[0]:
-        gather = lambda seen: LambertVertices.at(L, at[seen])  # noqa: E731
+        gather = lambda seen: LambertVertices.at(L, at_seen(seen))  # noqa: E731
     else:
-        gather = lambda seen: Gathered.at(ctx, L, at[seen], IMPORTANCE)  # noqa: E731
+        gather = lambda seen: Gathered.at(ctx, L, at_seen(seen), IMPORTANCE)  # noqa: E731
     splat_vertices(ctx, level + 2, rows, take_rows(L.flat("p"), at), L.flat("prim")[at],
-                   gather, lambda seen: take_rows(L.flat("beta"), at[seen]), out, L,
+                   gather, lambda seen: take_rows(L.flat("beta"), at_seen(seen)), out, L,
                    connection_budget(ctx.settings.transparent_max_bounces, L.flat("passed")[at])
                    if has_passes(ctx.prep) else 0)  # not read where all is opaque
 

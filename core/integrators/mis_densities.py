@@ -242,18 +242,25 @@ def _summed_weight(ctx, L, rows, first, top, ratios):
     delta_light = ctx.light_points.delta_light[rows]
     none = mis.setting == "none"
     total = np.zeros(m, np.int64 if none else np.float64)
+    # A splat's own term: the heuristic of a ratio of one is one for every summed heuristic
+    # (balance 1, power 1 ** beta, 'none' [1 > 0]).
+    own = 1 if none else 1.0
     with quiet("divide", "invalid", "over"):
         for sp in range(top + 1):
             a = first[sp + 1]
             if sp > 0:  # splats of strategy sp: their own term
-                total[first[sp]:a] += 1 if none else heuristic(mis, np.ones(a - first[sp]))
+                total[first[sp]:a] += own
             if sp == top:
                 break
             r = rows[a:]
             if sp == 0:
                 ok = ~delta_light[a:]
             else:
-                ok = _not_delta(L, sp - 1, r, first, a) & _not_delta(L, sp, r, first, a)
+                # Vertex sp - 1's flags were gathered for strategy sp - 1 over rows[a_prev:],
+                # masked there at splats of strategy sp only (before a): reused.
+                here = _not_delta(L, sp, r, first, a)
+                ok = here if sp == 1 else prev[a - a_prev:] & here
+                prev, a_prev = here, a
             valid = ok & (ratios[sp] > 0)
             total[a:] += valid if none else heuristic(mis, np.where(valid, ratios[sp], 0.0))
         w = 1.0 / total
