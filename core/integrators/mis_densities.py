@@ -225,13 +225,19 @@ def _suffix_ratios(L, rows, first, top, near):
     :func:`strategy_weight`, from each splat's own strategy down)."""
     cur = np.empty(rows.size)
     ratios = [None] * top
+    # Rows of the (depth, n) tables by ndarray.take of one row (not [sp, rows], the slower
+    # two-axis fancy index); each step written into ``cur`` and copied once.
     with quiet("divide", "invalid", "over"):
         for sp in range(top - 1, -1, -1):
             a, b, c = first[sp + 1], first[sp + 2], first[sp + 3]
             cur[a:b] = 1.0  # strategy sp + 1's own ratio
-            num = np.concatenate([near[0][a:b], near[1][b:c], L.pdf_rev[sp, rows[c:]]])
-            cur[a:] = _step(cur[a:], num, L.pdf_fwd[sp, rows[a:]])
-            ratios[sp] = cur[a:].copy()
+            num = np.concatenate([near[0][a:b], near[1][b:c], L.pdf_rev[sp].take(rows[c:])])
+            den = L.pdf_fwd[sp].take(rows[a:])
+            tail = cur[a:]
+            num *= tail
+            tail.fill(0.0)  # _step: zero where den is not positive
+            np.divide(num, den, out=tail, where=den > 0)
+            ratios[sp] = tail.copy()
     return ratios
 
 
