@@ -225,13 +225,19 @@ def _suffix_ratios(L, rows, first, top, near):
     :func:`strategy_weight`, from each splat's own strategy down)."""
     cur = np.empty(rows.size)
     ratios = [None] * top
+    # Rows of the (depth, n) tables by ndarray.take of one row (not [sp, rows], the slower
+    # two-axis fancy index); each step written into ``cur`` and copied once.
     with quiet("divide", "invalid", "over"):
         for sp in range(top - 1, -1, -1):
             a, b, c = first[sp + 1], first[sp + 2], first[sp + 3]
             cur[a:b] = 1.0  # strategy sp + 1's own ratio
-            num = np.concatenate([near[0][a:b], near[1][b:c], L.pdf_rev[sp, rows[c:]]])
-            cur[a:] = _step(cur[a:], num, L.pdf_fwd[sp, rows[a:]])
-            ratios[sp] = cur[a:].copy()
+            num = np.concatenate([near[0][a:b], near[1][b:c], L.pdf_rev[sp].take(rows[c:])])
+            den = L.pdf_fwd[sp].take(rows[a:])
+            tail = cur[a:]
+            num *= tail
+            tail.fill(0.0)  # _step: zero where den is not positive
+            np.divide(num, den, out=tail, where=den > 0)
+            ratios[sp] = tail.copy()
     return ratios
 
 
@@ -242,18 +248,25 @@ def _summed_weight(ctx, L, rows, first, top, ratios):
     delta_light = ctx.light_points.delta_light[rows]
     none = mis.setting == "none"
     total = np.zeros(m, np.int64 if none else np.float64)
+    # A splat's own term: the heuristic of a ratio of one is one for every summed heuristic
+    # (balance 1, power 1 ** beta, 'none' [1 > 0]).
+    own = 1 if none else 1.0
     with quiet("divide", "invalid", "over"):
         for sp in range(top + 1):
             a = first[sp + 1]
             if sp > 0:  # splats of strategy sp: their own term
-                total[first[sp]:a] += 1 if none else heuristic(mis, np.ones(a - first[sp]))
+                total[first[sp]:a] += own
             if sp == top:
                 break
             r = rows[a:]
             if sp == 0:
                 ok = ~delta_light[a:]
             else:
-                ok = _not_delta(L, sp - 1, r, first, a) & _not_delta(L, sp, r, first, a)
+                # Vertex sp - 1's flags were gathered for strategy sp - 1 over rows[a_prev:],
+                # masked there at splats of strategy sp only (before a): reused.
+                here = _not_delta(L, sp, r, first, a)
+                ok = here if sp == 1 else prev[a - a_prev:] & here
+                prev, a_prev = here, a
             valid = ok & (ratios[sp] > 0)
             total[a:] += valid if none else heuristic(mis, np.where(valid, ratios[sp], 0.0))
         w = 1.0 / total

@@ -23,7 +23,7 @@ import itertools
 import numpy as np
 import pytest
 
-from sampling_lab.core.camera import generate_rays
+from sampling_lab.core.camera import generate_rays, project, view_extent
 from sampling_lab.core.scene import Camera
 from tests.helpers import random_rigid
 
@@ -134,6 +134,34 @@ def test_perspective_ray_through_projected_point_passes_through_it(case):
     miss, along = distance_to_rays(points, o, d)
     assert np.all(along > 0), "the point lies behind the ray"
     assert miss.max() < 1e-12 * np.linalg.norm(local, axis=1).max()
+
+
+@pytest.mark.parametrize("scale, shift", [((1.0, 1.0, 1.0), (0.15, -0.3)),
+                                          ((0.5, 2.0, 1.5), (0.0, 0.0))])
+def test_project_axis_by_axis_equals_einsum_form_to_the_bit(scale, shift):
+    # core.camera.project forms camera space one axis at a time: the same values as the
+    # einsum form it replaced (products added in order, |local|^2 as (x x + z z) + y y),
+    # for points in front of, beside and behind the camera.
+    cam = make_camera("landscape", "AUTO", shift, to_world=camera_matrix(3, scale))
+    points = np.random.default_rng(2).normal(size=(5000, 3)) * 6.0
+    film_xy, visible, cos_theta, dist = project(cam, points, 1.5)
+    m = np.asarray(cam.to_world, np.float64)
+    rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0, keepdims=True)
+    local = np.einsum("ij,jk->ik", points - m[:3, 3], rot)
+    depth = -local[:, 2]
+    ref_dist = np.sqrt(np.einsum("ij,ij->i", local, local))
+    half_x, half_y, sx, sy = view_extent(cam)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fx = ((local[:, 0] / depth - sx) / (2.0 * half_x) + 0.5) * cam.width
+        fy = ((local[:, 1] / depth - sy) / (2.0 * half_y) + 0.5) * cam.height
+    ref_visible = ((depth > 0) & (depth >= cam.clip_start) & (depth <= cam.clip_end)
+                   & (fx >= -1.5) & (fx < cam.width + 1.5) & (fy >= -1.5)
+                   & (fy < cam.height + 1.5))
+    assert np.array_equal(visible, ref_visible)
+    assert 0 < visible.sum() < visible.size
+    assert np.array_equal(dist, ref_dist)
+    assert np.array_equal(cos_theta[visible], (depth / ref_dist)[visible])
+    assert np.array_equal(film_xy[visible], np.stack([fx, fy], axis=1)[visible])
 
 
 def test_fitted_dimension_spans_sensor_over_lens_landscape():
