@@ -276,8 +276,20 @@ def intersect_by_class(accel, o, d, tmax, vis):
 def surface_hits(prep, hits):
     """Stage *compact*: the rows ``(k,)`` of ``hits`` on a surface; rays that escaped or hit a
     degenerate (zero-area) triangle end their paths."""
-    live = np.nonzero(hits.hit)[0]
+    live = hits.hit.nonzero()[0]
+    if _every_area_positive(prep):  # no degenerate triangle to drop (no gathers per bounce)
+        return live
     return live[prep.tri_area[hits.prim[live]] > 0]
+
+
+def _every_area_positive(prep):
+    """Whether every triangle of ``prep`` has a positive area (``tri_area``), found once per
+    table."""
+    cached = prep.__dict__.get("_every_area_positive")
+    if cached is None or cached[0] is not prep.tri_area:
+        cached = (prep.tri_area, bool(np.all(prep.tri_area > 0)))
+        prep.__dict__["_every_area_positive"] = cached
+    return cached[1]
 
 
 @dataclass
