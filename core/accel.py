@@ -225,13 +225,14 @@ class Accel:
         tmax = np.where(finite, np.where(ok, length - eps, 0.0), np.inf)
         return origins, directions, np.maximum(tmax, 0.0)
 
-    def offset_origin(self, p, ng, prim, w):
+    def offset_origin(self, p, ng, prim, w, cos=None):
         """Push points ``p (n, 3)`` off triangles ``prim (n,)`` to the side of ``w (n, 3)``.
 
         The push is ``OFFSET_ULPS`` float32 ulps of the triangle's largest coordinate, along its
-        unit geometric normal ``ng (n, 3)``.
+        unit geometric normal ``ng (n, 3)``. ``cos (n,)``: ``np.einsum("ij,ij->i", ng, w)``
+        where the caller has it already (the random walks keep it for the next vertex).
         """
-        side = np.sign(np.einsum("ij,ij->i", ng, w))
+        side = np.sign(np.einsum("ij,ij->i", ng, w) if cos is None else cos)
         side[side == 0] = 1.0
         out = scaled(ng, side * self.tri_offset[prim])
         out += p

@@ -457,6 +457,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     # Plain diffuse BSDFs under flat shading choose no lobe, component or pass: the lobe's
     # number is not drawn (its dimension is skipped, as the path tracer skips it).
     draws_lobe = not (prep.lambert_only and not ctx.smooth and passes is None)
+    # ng . d of the rays' origins (j >= 2), from their offsets: |ng . wo| at the hits' previous
+    # vertex, for _store_vertex (the same einsum per row, and wo = -d changes only its sign).
+    cos_origin = None
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         ctx.counters.rays += o.shape[0]
@@ -517,7 +520,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta)
         if sub is not None:
             dist, cos_prev, d2 = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l,
-                                               params, delta_only, beta, pdf_prev, prev_delta)
+                                               params, delta_only, beta, pdf_prev, prev_delta,
+                                               cos_origin)
             if passes is not None:
                 sub.passed[j][r] = passes.passed
                 sub.passes_stored = True
@@ -546,7 +550,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         if keep.size == 0:
             break
         if keep.size == alive.size:  # every path goes on: no compaction (same arrays)
-            rows, d, o = r, wi, prep.accel.offset_origin(si.p, si.ng, si.prim, wi)
+            cos_origin = dot(si.ng, wi)
+            rows, d, o = r, wi, prep.accel.offset_origin(si.p, si.ng, si.prim, wi, cos_origin)
             pdf_prev, prev_delta, vis = smp.pdf, smp.delta, ray_class(smp.lobe)
             tmax = np.full(keep.size, np.inf)
             continue
@@ -558,8 +563,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         path_stream.compact(keep)
         beta = take_rows(beta, keep)
         d = take_rows(wi, keep)
-        o = prep.accel.offset_origin(take_rows(si.p, keep), take_rows(si.ng, keep),
-                                     si.prim[keep], d)
+        ng = take_rows(si.ng, keep)
+        cos_origin = dot(ng, d)
+        o = prep.accel.offset_origin(take_rows(si.p, keep), ng, si.prim[keep], d, cos_origin)
         tmax = np.full(keep.size, np.inf)
         pdf_prev = smp.pdf[keep]
         prev_delta = smp.delta[keep]
@@ -596,11 +602,12 @@ def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, ben
 
 
 def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, beta, pdf_prev,
-                  prev_delta):
+                  prev_delta, cos_origin=None):
     """Store the surface hits ``live`` as vertex ``j`` of the subpaths ``r`` of ``sub``, with the
     shading ``frame`` (three (k, 3) axes), ``wo_l`` in it and the chosen BSDF ``params``;
     ``beta`` is the hits' throughput, ``pdf_prev`` and ``prev_delta`` those of the rays that
-    found them (all the rays, ``live`` picks the hits). Returns
+    found them (all the rays, ``live`` picks the hits), ``cos_origin`` (all the rays, ``j >= 2``)
+    ``ng . d`` at their origins (else gathered by :meth:`Subpath.normals`). Returns
     the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint),
     the cosines ``(k,)`` stored there as ``cos_prev`` and, where every distance is finite,
     the clamped squared distances ``(k,)`` that :func:`to_area` divides by (else None)."""
@@ -612,7 +619,8 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         cos_prev = sub.cos_prev[0][r]
     else:
         dist = hits.t[live]
-        cos_prev = np.abs(dot(sub.normals(j - 1, r), si.wo))
+        cos_prev = np.abs(dot(sub.normals(j - 1, r), si.wo) if cos_origin is None
+                          else cos_origin[live])
     sub.cos_prev[j][r] = cos_prev
     # Where the frame's normal is ng (flat shading), wo_l's z is already that cosine.
     cos_here = np.abs(wo_l[:, 2] if frame[2] is si.ng else dot(si.ng, si.wo))
