@@ -460,6 +460,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     # ng . d of the rays' origins (j >= 2), from their offsets: |ng . wo| at the hits' previous
     # vertex, for _store_vertex (the same einsum per row, and wo = -d changes only its sign).
     cos_origin = None
+    # The survivors of the last roulette, not yet taken from path_stream: its compactions are
+    # composed with the next hits' (one gather of its per-path arrays per bounce, not two).
+    pending = None
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         ctx.counters.rays += o.shape[0]
@@ -485,7 +488,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             path_stream = copy.copy(stream)
             path_stream.compact(r)
         else:
-            path_stream.compact(live)
+            path_stream.compact(live if pending is None else pending[live])
+            pending = None
         path_stream.skip_to(dims_of(j))
         # Lobe (or skipped), BSDF and roulette (or skipped) numbers in one call.
         u_lobe, u_bsdf, u_rr = path_stream.next_slots(
@@ -560,7 +564,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             rr_scale = rr_scale[keep]
         if passes is not None:
             passes.take(keep)
-        path_stream.compact(keep)
+        pending = keep
         beta = take_rows(beta, keep)
         d = take_rows(wi, keep)
         ng = take_rows(si.ng, keep)
