@@ -86,14 +86,17 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     ``beta (k, 3)``.
     """
     if roulette_at(settings, bounce):
-        q = max_component(beta)
-        if eta_scale is not None:
-            q = q * eta_scale
+        largest = max_component(beta)
+        q = largest if eta_scale is None else largest * eta_scale
         if settings.rr_survival == "square_root":
             q = np.sqrt(q)
         q = np.minimum(1.0, q)
         alive = alive & (u_rr < q)
         beta = divide_rows(beta, np.maximum(q, 1e-12))
+        # Whether the divided throughput is positive, read before the division: dividing by
+        # a q in [1e-12, 1] keeps every sign, zero and NaN (and where q is NaN, u_rr < q
+        # already ended the path), so the mask is max_component(beta) > 0's after it.
+        return alive & (largest > 0), beta
     return alive & (max_component(beta) > 0), beta
 
 
