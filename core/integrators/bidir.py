@@ -112,18 +112,24 @@ def _light_subpath(ctx, stream, n, base, depth, on_vertex=None):
     if depth < 2 or rows.size == 0:
         return L
     # Rays leave lamps (not geometry) from the point itself, emissive triangles pushed off.
-    o, w = take_rows(origin, rows), take_rows(w, rows)
+    # Where every path goes on (the usual case), the arrays themselves (walk writes none of
+    # them), not gathered copies.
+    every = rows.size == n
+    pick = (lambda a: a) if every else (lambda a: take_rows(a, rows))  # noqa: E731
+    o, w = pick(origin), pick(w)
+    index = pick(pts.index)
     k = prep.lights.n_lights
-    tri = np.nonzero((pts.index[rows] >= k) & ~pts.infinite[rows])[0]
+    tri = np.nonzero((index >= k) & ~pick(pts.infinite))[0]
     if tri.size == rows.size:  # every path leaves an emissive triangle: no row selections
-        o = prep.accel.offset_origin(o, take_rows(pts.normal, rows),
-                                     prep.lights.emissive_tris[pts.index[rows] - k], w)
+        o = prep.accel.offset_origin(o, pick(pts.normal), prep.lights.emissive_tris[index - k],
+                                     w)
     elif tri.size:
-        prim = prep.lights.emissive_tris[pts.index[rows][tri] - k]
+        o = o.copy() if every else o  # (origin is the light points' own array)
+        prim = prep.lights.emissive_tris[index[tri] - k]
         o[tri] = prep.accel.offset_origin(take_rows(o, tri), take_rows(pts.normal, rows[tri]),
                                           prim, take_rows(w, tri))
     walk(ctx, L if on_vertex is None else None, o, w, np.full(rows.size, np.inf),
-         take_rows(beta, rows), pdf_dir[rows], np.zeros(rows.size, bool),
+         pick(beta), pick(pdf_dir), np.zeros(rows.size, bool),
          np.full(rows.size, VIS_SHADOW, np.int32), rows, stream, IMPORTANCE,
          lambda j: base + DIMS_LIGHT_START + (j - 1) * DIMS_PER_LIGHT_VERTEX, depth,
          on_vertex=on_vertex)

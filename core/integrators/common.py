@@ -86,26 +86,39 @@ def russian_roulette(beta, alive, u_rr, settings, bounce, eta_scale=None):
     ``beta (k, 3)``.
     """
     if roulette_at(settings, bounce):
-        q = max_component(beta)
-        if eta_scale is not None:
-            q = q * eta_scale
+        largest = max_component(beta)
+        q = largest if eta_scale is None else largest * eta_scale
         if settings.rr_survival == "square_root":
             q = np.sqrt(q)
         q = np.minimum(1.0, q)
         alive = alive & (u_rr < q)
         beta = divide_rows(beta, np.maximum(q, 1e-12))
+        # Whether the divided throughput is positive, read before the division: dividing by
+        # a q in [1e-12, 1] keeps every sign, zero and NaN (and where q is NaN, u_rr < q
+        # already ended the path), so the mask is max_component(beta) > 0's after it.
+        return alive & (largest > 0), beta
     return alive & (max_component(beta) > 0), beta
+
+
+def _ray_class_rule(lobe):
+    return np.where((lobe & LOBE_TRANSMIT) != 0, VIS_TRANSMISSION,
+                    np.where((lobe & LOBE_DIFFUSE) != 0, VIS_DIFFUSE, VIS_GLOSSY)).astype(np.int32)
+
+
+# ray_class of every uint8 lobe value: one gather instead of six passes over the rows.
+_RAY_CLASS_OF_LOBE = _ray_class_rule(np.arange(256))
 
 
 def ray_class(lobe):
     """Object ray visibility class of rays leaving a vertex by the sampled ``lobe (k,)`` bits.
 
     As Cycles: transmissions trace with ``VIS_TRANSMISSION``, diffuse reflections with
-    ``VIS_DIFFUSE``, glossy and singular reflections with ``VIS_GLOSSY``.
+    ``VIS_DIFFUSE``, glossy and singular reflections with ``VIS_GLOSSY``. ``(k,)`` int32.
     """
     lobe = np.asarray(lobe)
-    return np.where((lobe & LOBE_TRANSMIT) != 0, VIS_TRANSMISSION,
-                    np.where((lobe & LOBE_DIFFUSE) != 0, VIS_DIFFUSE, VIS_GLOSSY)).astype(np.int32)
+    if lobe.dtype == np.uint8:  # BSDFSample's lobes: looked up in the table of the rule
+        return _RAY_CLASS_OF_LOBE.take(lobe)
+    return _ray_class_rule(lobe)
 
 
 def geometric_side_valid(ng, wo, wi, transmit):
@@ -266,8 +279,20 @@ def intersect_by_class(accel, o, d, tmax, vis):
 def surface_hits(prep, hits):
     """Stage *compact*: the rows ``(k,)`` of ``hits`` on a surface; rays that escaped or hit a
     degenerate (zero-area) triangle end their paths."""
-    live = np.nonzero(hits.hit)[0]
+    live = hits.hit.nonzero()[0]
+    if _every_area_positive(prep):  # no degenerate triangle to drop (no gathers per bounce)
+        return live
     return live[prep.tri_area[hits.prim[live]] > 0]
+
+
+def _every_area_positive(prep):
+    """Whether every triangle of ``prep`` has a positive area (``tri_area``), found once per
+    table."""
+    cached = prep.__dict__.get("_every_area_positive")
+    if cached is None or cached[0] is not prep.tri_area:
+        cached = (prep.tri_area, bool(np.all(prep.tri_area > 0)))
+        prep.__dict__["_every_area_positive"] = cached
+    return cached[1]
 
 
 @dataclass
@@ -304,6 +329,9 @@ class Interaction:
         material has a coat and a normal map or bump (the Principled coat shades around it,
         :mod:`core.materials.coat`; :func:`coat_reference_normals`); zero elsewhere. None
         when no such hit.
+    u, v : (k,) float64 or None
+        The hits' barycentrics (weights of vertices 1 and 2), as :func:`surface_interaction`
+        gathered them (None where an Interaction is built otherwise).
     """
 
     p: np.ndarray
@@ -314,6 +342,8 @@ class Interaction:
     n_bump: np.ndarray = None
     nm: np.ndarray = None
     n_coat: np.ndarray = None
+    u: np.ndarray = None
+    v: np.ndarray = None
 
 
 def surface_interaction(prep, hits, d, rows, keep_below=False, shading=True):
@@ -327,9 +357,14 @@ def surface_interaction(prep, hits, d, rows, keep_below=False, shading=True):
     ng = take_rows(prep.tri_normal, prim)
     wo = take_rows(d, rows)
     np.negative(wo, out=wo)
-    nm = perturbed_normals(prep, prim, u, v, ng)
-    n_bump = bump_reference_normals(prep, prim, u, v, ng)
-    n_coat = coat_reference_normals(prep, prim, u, v, ng)
+    if prep.scene.corner_normals is None:
+        # Each of them is None without corner normals (flat shading): not asked one by one
+        # (their material tests cost about 20 us a call, several calls per bounce).
+        nm = n_bump = n_coat = None
+    else:
+        nm = perturbed_normals(prep, prim, u, v, ng)
+        n_bump = bump_reference_normals(prep, prim, u, v, ng)
+        n_coat = coat_reference_normals(prep, prim, u, v, ng)
     ns = None
     if shading or n_bump is not None or n_coat is not None:
         side = np.where(np.einsum("ij,ij->i", ng, wo) >= 0, 1.0, -1.0)
@@ -340,7 +375,7 @@ def surface_interaction(prep, hits, d, rows, keep_below=False, shading=True):
             n_bump *= side[:, None]
         if n_coat is not None:
             n_coat *= side[:, None]
-    return Interaction(p, ng, ns, wo, prim, n_bump, nm, n_coat)
+    return Interaction(p, ng, ns, wo, prim, n_bump, nm, n_coat, u, v)
 
 
 def bump_reference_normals(prep, prim, u, v, ng):

@@ -460,12 +460,21 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     prep, settings = ctx.prep, ctx.settings
     path_stream = None
     start = max_component(beta)
-    rr_scale = np.where(start > 0, 1.0 / np.where(start > 0, start, 1.0), 1.0)
+    # None where every first ray's throughput is one (camera rays): the roulette's scaling by
+    # one would change no value, and its gathers per bounce are saved.
+    rr_scale = (None if (start == 1.0).all()
+                else np.where(start > 0, 1.0 / np.where(start > 0, start, 1.0), 1.0))
     last = depth + int(on_segment is not None)
     passes = Passes(rows.size) if has_passes(prep) else None
     # Plain diffuse BSDFs under flat shading choose no lobe, component or pass: the lobe's
     # number is not drawn (its dimension is skipped, as the path tracer skips it).
     draws_lobe = not (prep.lambert_only and not ctx.smooth and passes is None)
+    # ng . d of the rays' origins (j >= 2), from their offsets: |ng . wo| at the hits' previous
+    # vertex, for _store_vertex (the same einsum per row, and wo = -d changes only its sign).
+    cos_origin = None
+    # The survivors of the last roulette, not yet taken from path_stream: its compactions are
+    # composed with the next hits' (one gather of its per-path arrays per bounce, not two).
+    pending = None
     for j in range(1, last):
         hits = intersect_by_class(prep.accel, o, d, tmax, vis)
         ctx.counters.rays += o.shape[0]
@@ -491,7 +500,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             path_stream = copy.copy(stream)
             path_stream.compact(r)
         else:
-            path_stream.compact(live)
+            path_stream.compact(live if pending is None else pending[live])
+            pending = None
         path_stream.skip_to(dims_of(j))
         # Lobe (or skipped), BSDF and roulette (or skipped) numbers in one call.
         u_lobe, u_bsdf, u_rr = path_stream.next_slots(
@@ -500,8 +510,7 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
             u_lobe = np.zeros(r.size)
         if u_pass is not None:  # the number left after the choices of the passes
             u_lobe = np.where(np.isnan(u_pass[live]), u_lobe, u_pass[live])
-        params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, hits.u[live],
-                                                      hits.v[live])
+        params, delta_only, u_lobe = prep.choose_bsdf(si.prim, u_lobe, si.u, si.v)
         tangent = shading_tangents(prep, si)
         if ctx.smooth:
             front = np.where(dot(si.ns, si.ng) < 0, -1.0, 1.0)
@@ -526,8 +535,9 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
         if on_vertex is not None:
             on_vertex(j, r, si, (fs, ft, fn), wo_l, params, delta_only, beta)
         if sub is not None:
-            dist, cos_prev = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l,
-                                           params, delta_only, beta, pdf_prev, prev_delta)
+            dist, cos_prev, d2 = _store_vertex(sub, j, r, si, hits, live, (fs, ft, fn), wo_l,
+                                               params, delta_only, beta, pdf_prev, prev_delta,
+                                               cos_origin)
             if passes is not None:
                 sub.passed[j][r] = passes.passed
                 sub.passes_stored = True
@@ -540,32 +550,38 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
                                          bends_normals(prep.scene, si.prim) if ctx.smooth
                                          else None, prep.lambert_only)
         if sub is not None:
-            back = to_area(back, cos_prev, dist)
+            # As to_area, with the squared distances the forward density took.
+            back = (to_area(back, cos_prev, dist) if d2 is None
+                    else back * np.abs(cos_prev) / d2)
             if smp.delta.any():  # else every flag stays as recycle() cleared it
                 back = np.where(smp.delta, 1.0, back)
                 sub.delta[j][r] = smp.delta
             put_rows(sub.pdf_rev[j - 1], r, back)
         beta = beta * weight
         alive = (smp.pdf > 0) & finite_rows(beta)
-        rr_scale = rr_scale[live]
+        if rr_scale is not None:
+            rr_scale = rr_scale[live]
         alive, beta = russian_roulette(beta, alive, u_rr, settings, j - 1, rr_scale)
         keep = alive.nonzero()[0]
         if keep.size == 0:
             break
         if keep.size == alive.size:  # every path goes on: no compaction (same arrays)
-            rows, d, o = r, wi, prep.accel.offset_origin(si.p, si.ng, si.prim, wi)
+            cos_origin = dot(si.ng, wi)
+            rows, d, o = r, wi, prep.accel.offset_origin(si.p, si.ng, si.prim, wi, cos_origin)
             pdf_prev, prev_delta, vis = smp.pdf, smp.delta, ray_class(smp.lobe)
             tmax = np.full(keep.size, np.inf)
             continue
         rows = r[keep]
-        rr_scale = rr_scale[keep]
+        if rr_scale is not None:
+            rr_scale = rr_scale[keep]
         if passes is not None:
             passes.take(keep)
-        path_stream.compact(keep)
+        pending = keep
         beta = take_rows(beta, keep)
         d = take_rows(wi, keep)
-        o = prep.accel.offset_origin(take_rows(si.p, keep), take_rows(si.ng, keep),
-                                     si.prim[keep], d)
+        ng = take_rows(si.ng, keep)
+        cos_origin = dot(ng, d)
+        o = prep.accel.offset_origin(take_rows(si.p, keep), ng, si.prim[keep], d, cos_origin)
         tmax = np.full(keep.size, np.inf)
         pdf_prev = smp.pdf[keep]
         prev_delta = smp.delta[keep]
@@ -602,13 +618,15 @@ def _scatter(smooth, mode, si, frame, wo_l, params, u_lobe, u_bsdf, reverse, ben
 
 
 def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, beta, pdf_prev,
-                  prev_delta):
+                  prev_delta, cos_origin=None):
     """Store the surface hits ``live`` as vertex ``j`` of the subpaths ``r`` of ``sub``, with the
     shading ``frame`` (three (k, 3) axes), ``wo_l`` in it and the chosen BSDF ``params``;
     ``beta`` is the hits' throughput, ``pdf_prev`` and ``prev_delta`` those of the rays that
-    found them (all the rays, ``live`` picks the hits). Returns
-    the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint) and
-    the cosines ``(k,)`` stored there as ``cos_prev``."""
+    found them (all the rays, ``live`` picks the hits), ``cos_origin`` (all the rays, ``j >= 2``)
+    ``ng . d`` at their origins (else gathered by :meth:`Subpath.normals`). Returns
+    the distances ``(k,)`` from vertex ``j - 1`` (inf after an infinite light endpoint),
+    the cosines ``(k,)`` stored there as ``cos_prev`` and, where every distance is finite,
+    the clamped squared distances ``(k,)`` that :func:`to_area` divides by (else None)."""
     # The edge from vertex j - 1, then the forward density in area measure (times the cosine
     # alone after an infinite endpoint, whose rays are parallel).
     if j == 1:
@@ -617,14 +635,21 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         cos_prev = sub.cos_prev[0][r]
     else:
         dist = hits.t[live]
-        cos_prev = np.abs(dot(sub.normals(j - 1, r), si.wo))
+        cos_prev = np.abs(dot(sub.normals(j - 1, r), si.wo) if cos_origin is None
+                          else cos_origin[live])
     sub.cos_prev[j][r] = cos_prev
     # Where the frame's normal is ng (flat shading), wo_l's z is already that cosine.
     cos_here = np.abs(wo_l[:, 2] if frame[2] is si.ng else dot(si.ng, si.wo))
-    pdf_sa, inf = pdf_prev[live], np.isinf(dist)
-    fwd = to_area(pdf_sa, cos_here, dist)
-    if inf.any():
-        fwd = np.where(inf, pdf_sa * cos_here, fwd)
+    pdf_sa = pdf_prev[live]
+    if np.isfinite(dist).all():  # to_area's values; its d2 kept for the reverse density
+        d2 = np.maximum(dist * dist, 1e-300)
+        fwd = pdf_sa * cos_here / d2  # cos_here is non-negative: to_area's abs is a no-op
+    else:
+        d2 = None
+        fwd = to_area(pdf_sa, cos_here, dist)
+        inf = np.isinf(dist)
+        if inf.any():
+            fwd = np.where(inf, pdf_sa * cos_here, fwd)
     # Stores go through the vertex's own rows (sub.x[j], contiguous): faster than sub.x[j, r].
     sub.valid[j][r] = True
     for name, value in (("p", si.p), ("prim", si.prim), ("connectible", ~delta_only),
@@ -649,4 +674,4 @@ def _store_vertex(sub, j, r, si, hits, live, frame, wo_l, params, delta_only, be
         put_rows(sub.nm[j], r, si.nm)
     if not by_triangle:
         sub.store_params(j, r, params)
-    return dist, cos_prev
+    return dist, cos_prev, d2
