@@ -194,8 +194,9 @@ class Accel:
         wi : (n, 3) float64 or float32
             Unit directions toward the light samples at distances ``dist (n,)`` (inf for
             directions to the sun or the world).
-        light_normal : (n, 3) float64 or float32
-            Normal at the light sample (zero for points and directions).
+        light_normal : (n, 3) float64 or float32, or None
+            Normal at the light sample (zero for points and directions; None: zero, the
+            pinhole's, and the push along it skipped).
 
         Returns
         -------
@@ -208,10 +209,11 @@ class Accel:
         cost about 1.5 x those on either); all-float32 ones (BDPT's float32 connection ends)
         in float32, as Embree traces them: 64-ulp offsets are far above float32 rounding.
         """
-        dtype = np.result_type(p, ng, wi, dist, light_normal)
+        dtype = np.result_type(p, ng, wi, dist, *(() if light_normal is None else (light_normal,)))
         if dtype != np.float32:
-            p, ng, wi, dist, light_normal = (np.asarray(a, np.float64)
-                                             for a in (p, ng, wi, dist, light_normal))
+            p, ng, wi, dist = (np.asarray(a, np.float64) for a in (p, ng, wi, dist))
+            if light_normal is not None:
+                light_normal = np.asarray(light_normal, np.float64)
         origins = self.offset_origin(p, ng, prim, wi)
         finite = np.isfinite(dist)
         every_finite = finite.all()  # points on lamps and emitters (no sun, no world)
@@ -220,8 +222,9 @@ class Accel:
         q += p
         scale = np.maximum(max_abs_component(q), max_abs_component(p))
         eps = OFFSET_ULPS * FLOAT32_EPS * np.maximum(scale, 1e-30)
-        toward = np.sign(dots(light_normal, origins - q))
-        q += scaled(light_normal, toward * eps)
+        if light_normal is not None:  # (a zero normal adds zeros)
+            toward = np.sign(dots(light_normal, origins - q))
+            q += scaled(light_normal, toward * eps)
         seg = np.subtract(q, origins, out=q)
         length = np.sqrt(dots(seg, seg))
         ok = finite & (length > 0)

@@ -429,19 +429,26 @@ def splat_vertices(ctx, s, rows, y, prim, gather, beta_of, out, L=None, budget=0
         s = s[seen]
     w = divide_rows(ctx.cam_pos - y, np.maximum(dist, 1e-300))  # y -> camera
     yv = gather(seen)
-    w_y = yv.local(w)
+    # Float32 Lambert ends (.lambert_vertices): the value and the shadow rays in float32 (the
+    # film positions and the MIS densities stay float64).
+    f32 = yv.ng.dtype == np.float32
+    w_end, dist_end = (w.astype(np.float32), dist.astype(np.float32)) if f32 else (w, dist)
+    w_y = yv.local(w_end)
     we = importance(cam, cos_theta)
     # (beta f) scaled by We / d^2 in place, column by column: the values of combine_rows'
     # broadcast, 272 -> 131 us on 39 k rows.
-    value = beta_of(seen) * yv.f(w, w_y)
-    scaled(value, we / np.maximum(dist * dist, 1e-300), out=value)
+    value = beta_of(seen) * yv.f(w_end, w_y)
+    g = we / np.maximum(dist * dist, 1e-300)
+    scaled(value, g.astype(np.float32) if f32 else g, out=value)
     ok = (max_component(value) > 0) & finite_rows(value)
     cand = ok.nonzero()[0]
     if cand.size == 0:
         return
     o, dirs, tmax = ctx.prep.accel.shadow_rays(
-        take_rows(y, cand), take_rows(yv.ng, cand), prim[cand], take_rows(w, cand), dist[cand],
-        np.zeros((cand.size, 3)))
+        take_rows(y, cand), take_rows(yv.ng, cand), prim[cand], take_rows(w_end, cand),
+        dist_end[cand], None)
+    if f32:
+        w_y = w_y.astype(np.float64)  # the densities beside the subpaths' float64 tables
     ctx.counters.rays += cand.size
     # Through transparent surfaces, as the path tracer's shadow rays (:mod:`.shadows`).
     through, transmit = transmitted(ctx, o, dirs, tmax, budget[cand], VIS_CAMERA)
