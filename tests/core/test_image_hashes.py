@@ -58,9 +58,9 @@ CASES = {
 }
 
 PINNED = {
-    "bdpt cornell area power views": "d718c9aec96675fc0106fb1b05bf8f427b26ab735285f1d1fbdfc17db7141896",
-    "bdpt cornell point balance": "417567b2f08d4dabeaaf8f493219a50cf01242d4857d7d13d6679fbb708baf63",
-    "bdpt glass sphere light maximum": "e2a448593ac51a9da8c45258311bf18b9aef5c679bfc78bdfeaae12438ff0cba",
+    "bdpt cornell area power views": "6e527aeae4ded04445aa0ef77a67e74939812dba2e115790f80afa65f8e44bf1",
+    "bdpt cornell point balance": "dd959c5599c489bd7e15d8e929bf300b9829fa021b95cde2f07d499be6c0a55e",
+    "bdpt glass sphere light maximum": "cc83c7c3840cd20f82df907eac128ede75cfcfbfc65708a52712c414d70eabab",
     "light cornell mesh": "7bdaea47c1f03443b6f9af5768dcaa445d18319d73d2956d00545c7a0e8c811e",
     "light glass point": "09d2d760f0d0d821c8a18a6ccf1ee74489c24dbe5337e607e4ef7d20412af4f7",
     "path cornell area solid angle sobol": "4a0ec16d62462b01061f0eedc2790fa8c616a93abf72503513359101fae77d9e",
