@@ -30,6 +30,7 @@ RAY_CLASSES = (VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION, VIS_SHADOW
 # Offsets are this many float32 ulps of the triangle's largest coordinate.
 OFFSET_ULPS = 64.0
 FLOAT32_EPS = float(np.finfo(np.float32).eps)
+FLOAT32_TINY = float(np.finfo(np.float32).tiny)  # (np.finfo costs microseconds a call)
 
 
 def max_abs_component(v):
@@ -228,7 +229,7 @@ class Accel:
         seg = np.subtract(q, origins, out=q)
         length = np.sqrt(dots(seg, seg))
         ok = finite & (length > 0)
-        tiny = 1e-300 if length.dtype == np.float64 else float(np.finfo(np.float32).tiny)
+        tiny = 1e-300 if length.dtype == np.float64 else FLOAT32_TINY
         directions = np.divide(seg, np.maximum(length, tiny)[:, None], out=seg)
         if ok.all():
             # Every segment has a length (so every distance is finite): no choice per row.
