@@ -23,14 +23,13 @@ import numpy as np
 
 from .embree_commit import build_scene
 from .scene import VIS_ALL, VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_SHADOW, VIS_TRANSMISSION
-from .rows import dots, scaled
+from .rows import at_least_tiny, dots, scaled
 
 RAY_CLASSES = (VIS_CAMERA, VIS_DIFFUSE, VIS_GLOSSY, VIS_TRANSMISSION, VIS_SHADOW)
 
 # Offsets are this many float32 ulps of the triangle's largest coordinate.
 OFFSET_ULPS = 64.0
 FLOAT32_EPS = float(np.finfo(np.float32).eps)
-FLOAT32_TINY = float(np.finfo(np.float32).tiny)  # (np.finfo costs microseconds a call)
 
 
 def max_abs_component(v):
@@ -104,7 +103,7 @@ class Accel:
         self.tri_offset = OFFSET_ULPS * FLOAT32_EPS * np.maximum(self.tri_scale, 1e-30)
         self.tri_offset32 = self.tri_offset.astype(np.float32)  # for float32 points
         self._scenes = {}
-        self._hit_scenes = {}  # intersect's: ray mask -> _scene_for(mask)
+        self._by_mask = {}  # ray mask -> _scene_for(mask), once looked up
         self._building = threading.Lock()
         self.builds = {}
         self.rays_traced = 0
@@ -122,7 +121,12 @@ class Accel:
 
     def _scene_for(self, mask, cancel=None):
         """Embree scene of the triangles visible to rays of class ``mask`` (a ``VIS_*`` bit),
-        built at its first use (under a lock: the build releases the GIL)."""
+        built at its first use (under a lock: the build releases the GIL). Each mask's answer
+        is kept: finding its key tests every triangle's visibility against the mask (about
+        12 us a call on the bench box, several per bounce for closest hits and shadow rays)."""
+        found = self._by_mask.get(mask)
+        if found is not None:
+            return found
         key, visible = self._key(mask)
         if key not in self._scenes:
             with self._building:
@@ -133,7 +137,8 @@ class Accel:
                     self.builds[key] = report
                     self._scenes[key] = (scene, None if key == VIS_ALL
                                          else rows.astype(np.int32), rows.size > 0)
-        return self._scenes[key]
+        found = self._by_mask[mask] = self._scenes[key]
+        return found
 
     @property
     def visible_to_all(self):
@@ -155,12 +160,7 @@ class Accel:
         """Closest hits of rays ``origins (n, 3)``, unit ``directions (n, 3)``, up to ``tmax (n,)``."""
         n = origins.shape[0]
         self.rays_traced += n
-        # The scene of each mask once looked up: _scene_for tests every triangle's visibility
-        # against the mask (about 12 us a call on the bench box, a few per bounce).
-        found = self._hit_scenes.get(mask)
-        if found is None:
-            found = self._hit_scenes[mask] = self._scene_for(mask)
-        scene, rows, any_tris = found
+        scene, rows, any_tris = self._scene_for(mask)
         if n == 0 or not any_tris:
             return Hits(np.full(n, -1, np.int32), np.full(n, np.inf), np.zeros(n), np.zeros(n))
         out = scene.run(as_float32(origins), as_float32(directions),
@@ -229,8 +229,7 @@ class Accel:
         seg = np.subtract(q, origins, out=q)
         length = np.sqrt(dots(seg, seg))
         ok = finite & (length > 0)
-        tiny = 1e-300 if length.dtype == np.float64 else FLOAT32_TINY
-        directions = np.divide(seg, np.maximum(length, tiny)[:, None], out=seg)
+        directions = np.divide(seg, at_least_tiny(length)[:, None], out=seg)
         if ok.all():
             # Every segment has a length (so every distance is finite): no choice per row.
             tmax = np.subtract(length, eps, out=length)
@@ -243,8 +242,8 @@ class Accel:
         """Push points ``p (n, 3)`` off triangles ``prim (n,)`` to the side of ``w (n, 3)``.
 
         The push is ``OFFSET_ULPS`` float32 ulps of the triangle's largest coordinate, along its
-        unit geometric normal ``ng (n, 3)``. ``cos (n,)``: ``np.einsum("ij,ij->i", ng, w)``
-        where the caller has it already (the random walks keep it for the next vertex).
+        unit geometric normal ``ng (n, 3)``. ``cos (n,)``: ``rows.dots(ng, w)`` where the
+        caller has it already (the random walks keep it for the next vertex).
         """
         side = np.sign(dots(ng, w) if cos is None else cos)
         side[side == 0] = 1.0

@@ -99,6 +99,17 @@ def norms(v):
     return np.sqrt(out, out=out)
 
 
+# The smallest value divided by, per dtype (:func:`at_least_tiny`): float32 rows would round
+# float64's 1e-300 to zero.
+_TINY = {np.dtype(np.float64): 1e-300, np.dtype(np.float32): float(np.finfo(np.float32).tiny)}
+
+
+def at_least_tiny(x):
+    """``x`` (float64 or float32) with values below its dtype's smallest divisor (1e-300;
+    float32's smallest normal number) raised to it: no division by zero."""
+    return np.maximum(x, _TINY[x.dtype])
+
+
 # Rows from which :func:`dots` goes column by column: below, its five calls cost more than
 # einsum's one.
 DOTS_COLUMNWISE_ROWS = 512

@@ -17,7 +17,7 @@ from ..allocator import keeps_freed
 from ..camera import importance, project
 from ..lights.emission import EmitterPoints
 from ..materials.bsdf import IMPORTANCE, RADIANCE
-from ..rows import divide_rows, norms, scaled
+from ..rows import at_least_tiny, divide_rows, norms, scaled
 from ..scene import VIS_CAMERA, VIS_SHADOW
 from .common import bends_normals, finite_rows, max_component, nonzero_rows, take_rows
 from .lambert_vertices import LambertVertices, all_lambert, gatherer
@@ -35,15 +35,6 @@ from .transparent_passes import connection_budget, has_passes, transmitted
 # faster (docs/BENCHMARKS.md, eighth round).
 PIECE = 1 << 15
 SMALL_PIECE = 1 << 13
-
-# The smallest squared distance (or distance) divided by, per dtype: plain Lambert ends
-# compute in float32 (:mod:`.lambert_vertices`), where 1e-300 would round to zero.
-_TINY = {np.dtype(np.float64): 1e-300, np.dtype(np.float32): float(np.finfo(np.float32).tiny)}
-
-
-def _at_least_tiny(x):
-    """``x`` with values below its dtype's :data:`_TINY` raised to it (no division by zero)."""
-    return np.maximum(x, _TINY[x.dtype])
 
 
 class Fresh(NamedTuple):
@@ -161,7 +152,7 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     z = take_rows(C.flat("p"), at_z)
     w = take_rows(L.flat("p"), at_y) - z
     dist = norms(w)
-    np.divide(w, _at_least_tiny(dist)[:, None], out=w)  # z -> y (float32 positions: float32)
+    np.divide(w, at_least_tiny(dist)[:, None], out=w)  # z -> y (float32 positions: float32)
     zv = gather(C, at_z, RADIANCE)
     w_z = zv.local(w)
     f_z, toward_z, back_z = zv.values(w, w_z)
@@ -178,7 +169,7 @@ def _join_vertices(ctx, L, C, zj, yj, row, gather):
     value *= f_y
     value *= take_rows(f_z, e)
     value *= take_rows(C.flat("beta"), at_z[e])
-    scaled(value, 1.0 / _at_least_tiny(dist_e ** 2), out=value)
+    scaled(value, 1.0 / at_least_tiny(dist_e ** 2), out=value)
     budget = (connection_budget(ctx.settings.transparent_max_bounces,
                                 C.flat("passed")[at_z[e]], L.flat("passed")[at_y])
               if has_passes(ctx.prep) else None)  # not read where all is opaque
@@ -216,7 +207,7 @@ def _thinner(ctx, value, row, zj, yj=None, e=None):
 def _finite_area(pdf_sa, cos_at, d2):
     """:func:`.subpaths.to_area` of a finite distance whose square is ``d2`` (the same
     values, without its tests for infinite ones)."""
-    return pdf_sa * np.abs(cos_at) / _at_least_tiny(d2)
+    return pdf_sa * np.abs(cos_at) / at_least_tiny(d2)
 
 
 def _connect_emitters(ctx, L, C, fresh, gather):
@@ -282,8 +273,8 @@ def _toward_emitters(pts, z):
     if not infinite.any():
         w = pts.p - z
         dist = norms(w)
-        np.divide(w, _at_least_tiny(dist)[:, None], out=w)
-        return w, dist, pts.normal, 1.0 / _at_least_tiny(dist ** 2)
+        np.divide(w, at_least_tiny(dist)[:, None], out=w)
+        return w, dist, pts.normal, 1.0 / at_least_tiny(dist ** 2)
     to_y = np.where(infinite[:, None], -pts.w_inf, pts.p - z)
     dist = np.where(infinite, np.inf, norms(to_y))
     w = to_y / np.where(infinite, 1.0, np.maximum(dist, 1e-300))[:, None]  # z -> y

@@ -470,7 +470,8 @@ def walk(ctx, sub, o, d, tmax, beta, pdf_prev, prev_delta, vis, rows, stream, mo
     # number is not drawn (its dimension is skipped, as the path tracer skips it).
     draws_lobe = not (prep.lambert_only and not ctx.smooth and passes is None)
     # ng . d of the rays' origins (j >= 2), from their offsets: |ng . wo| at the hits' previous
-    # vertex, for _store_vertex (the same einsum per row, and wo = -d changes only its sign).
+    # vertex, for _store_vertex (the same dot product per row, and wo = -d changes only its
+    # sign).
     cos_origin = None
     # The survivors of the last roulette, not yet taken from path_stream: its compactions are
     # composed with the next hits' (one gather of its per-path arrays per bounce, not two).
