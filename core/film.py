@@ -203,12 +203,23 @@ class SplatSums(NamedTuple):
 
 def tap_sums(pixel, weighted, n):
     """Per-pixel sums of taps ``pixel (m,)``, ``weighted (m, 3)`` over a film of ``n`` pixels
-    (pixel ``n``, the taps outside the film, dropped): the very bincounts
+    (pixel ``n``, the taps outside the film, dropped): the very sums
     :meth:`Film.add_splat_taps` adds, so adding them gives the same film bit for bit."""
+    def channel(c, out):
+        np.copyto(out, weighted[:, c])
+    return _summed(pixel, channel, n)
+
+
+def _summed(pixel, channel, n):
+    """:class:`SplatSums` of taps at pixels ``pixel (m,)`` over a film of ``n`` pixels (pixel
+    ``n`` dropped); ``channel(c, out)`` writes channel ``c``'s weighted taps into ``out (m,)``,
+    one buffer for the three channels and their squares."""
+    buf = np.empty(pixel.size)
     total, total_sq = np.empty((n, 3)), np.empty((n, 3))
     for c in range(3):
-        total[:, c] = _film_bins(pixel, weighted[:, c], n)
-        total_sq[:, c] = _film_bins(pixel, weighted[:, c] ** 2, n)
+        channel(c, buf)
+        total[:, c] = _film_bins(pixel, buf, n)
+        total_sq[:, c] = _film_bins(pixel, np.square(buf, out=buf), n)
     return SplatSums(total, total_sq)
 
 
@@ -311,18 +322,27 @@ class Film:
         """
         self.add_splat_taps(*self.splat_taps(film_xy, value, pixel_filter))
 
-    def compact_splat_taps(self, pixel, weighted):
-        """What a work unit hands the render loop for its taps ``pixel (m,)``,
-        ``weighted (m, 3)``: the taps, or their :func:`tap_sums` when the film has fewer than
-        two thirds as many pixels as there are taps (two ``(n, 3)`` tables are then smaller
-        than the taps, and the render loop, which :meth:`add_splat_sums` them, has two array
-        additions to do instead of six bincounts). Reads nothing the film accumulates."""
-        if 3 * self.n_pixels < 2 * len(pixel):
-            return tap_sums(pixel, weighted, self.n_pixels)
-        return pixel, weighted
+    def unit_splats(self, film_xy, value, pixel_filter):
+        """What a work unit hands the render loop for its splats (as :meth:`splat`'s): their
+        taps (:meth:`splat_taps`), or their per-pixel :class:`SplatSums` when the film has
+        fewer than two thirds as many pixels as there are taps (two ``(n, 3)`` tables are then
+        smaller than the taps, and the render loop, which :meth:`add_splat_sums` them, has two
+        array additions to do instead of six bincounts). The sums are made from the filter
+        weights and the values without the ``(m, 3)`` table of weighted taps. Reads nothing
+        the film accumulates."""
+        pixel, w, channels = self._tap_weights(film_xy, value, pixel_filter)
+        if 3 * self.n_pixels >= 2 * len(pixel):
+            return pixel, _weighted(w, channels)
+
+        def channel(c, out):
+            if w is None:
+                np.copyto(out, channels[:, c])
+            else:
+                np.multiply(w, channels[c], out=out.reshape(w.shape))
+        return _summed(pixel, channel, self.n_pixels)
 
     def add_splat_sums(self, sums):
-        """Add a :class:`SplatSums` (:meth:`compact_splat_taps`): the same sums, in the same
+        """Add a :class:`SplatSums` (:meth:`unit_splats`): the same sums, in the same
         order, as :meth:`add_splat_taps` of its taps."""
         self.splat_sum += sums.sum
         self.splat_sum_sq += sums.sum_sq
@@ -339,6 +359,14 @@ class Film:
         :meth:`splat`); pixel ``n`` (the film's pixel count) holds the filter's taps outside
         the film, which :meth:`add_splat_taps` drops. Reads nothing the film accumulates, so
         a worker thread may make them while the render loop adds other units' taps."""
+        pixel, w, channels = self._tap_weights(film_xy, value, pixel_filter)
+        return pixel, _weighted(w, channels)
+
+    def _tap_weights(self, film_xy, value, pixel_filter):
+        """The taps of splats (:meth:`splat_taps`) before their values are weighted: pixels
+        ``(T * k,)``, filter weights ``(T, k)`` for the ``T`` pairs of taps of each of the
+        ``k`` finite splats, and their values ``(3, k)`` channel by channel; without
+        ``pixel_filter`` (a 1-pixel box) the weights are None and the values ``(k, 3)``."""
         film_xy = np.asarray(film_xy, np.float64).reshape(-1, 2)
         value = np.asarray(value, np.float64).reshape(-1, 3)
         # Column by column: an .all(axis=1) over three columns is about ten times slower.
@@ -353,7 +381,7 @@ class Film:
             x = np.floor(film_xy[:, 0]).astype(np.int64)
             y = np.floor(film_xy[:, 1]).astype(np.int64)
             inside = (x >= 0) & (x < self.width) & (y >= 0) & (y < self.height)
-            return (y * self.width + x)[inside], value[inside]
+            return (y * self.width + x)[inside], None, value[inside]
         n, k = self.n_pixels, value.shape[0]
         px, wx = _axis_taps(film_xy[:, 0], pixel_filter, self.width, 1, n)
         py, wy = _axis_taps(film_xy[:, 1], pixel_filter, self.height, self.width, n)
@@ -363,13 +391,7 @@ class Film:
         pixel = np.add(py[None, :, :], px[:, None, :])
         pixel = np.minimum(pixel, n, out=pixel).reshape(-1)
         w = (wx[:, None, :] * wy[None, :, :]).reshape(wx.shape[0] * wy.shape[0], k)
-        # Channel by channel into a (3, m) table, returned as its (m, 3) transpose: each
-        # channel's column is contiguous for add_splat_taps' bincounts.
-        weighted = np.empty((3, w.size))
-        channels = value.T.copy()  # contiguous channels for the broadcasts
-        for c in range(3):
-            np.multiply(w, channels[c], out=weighted[c].reshape(w.shape))
-        return pixel, weighted.T
+        return pixel, w, value.T.copy()  # contiguous channels for the broadcasts
 
     def add_splat_paths(self, k):
         self.splat_paths += int(k)
@@ -441,6 +463,19 @@ class Film:
         rgba[..., :3] = to_float32(self.mean())
         rgba[..., 3] = self.alpha()
         return rgba
+
+
+def _weighted(w, channels):
+    """The weighted taps ``(T * k, 3)`` of :meth:`Film._tap_weights`' weights ``w (T, k)`` and
+    values ``channels (3, k)`` (without weights, the values ``(k, 3)`` themselves)."""
+    if w is None:
+        return channels
+    # Channel by channel into a (3, m) table, returned as its (m, 3) transpose: each
+    # channel's column is contiguous for add_splat_taps' bincounts.
+    weighted = np.empty((3, w.size))
+    for c in range(3):
+        np.multiply(w, channels[c], out=weighted[c].reshape(w.shape))
+    return weighted.T
 
 
 def _axis_taps(x, pixel_filter, size, stride, outside):

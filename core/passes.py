@@ -323,7 +323,7 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
         ``(sums, BatchOutput, Counters, taps)`` for :meth:`Passes.accumulate` (``sums``: the
         camera samples summed per pixel, :class:`core.film.UnitSums`, the output's
         ``radiance`` and ``transparency`` then None; ``taps``: the splats' filter taps or
-        their ``SplatSums``, see ``Film.compact_splat_taps``; None without splats), or None
+        their ``SplatSums``, see ``Film.unit_splats``; None without splats), or None
         if ``abort`` stopped it.
     """
     p0, p1, s0, k = unit
@@ -346,10 +346,9 @@ def render_unit(integrator, sampler, film, frame_width, pixel_filter, unit, abor
         return None
     # The filter taps of the light-path splats are made here, on the worker: the render
     # loop, whose thread the next unit waits for, only adds them up.
-    # A small film gets their per-pixel sums instead (Film.compact_splat_taps): a smaller
-    # payload from a worker process, and less work for the render loop.
-    taps = (film.compact_splat_taps(*film.splat_taps(out.splats.xy, out.splats.value,
-                                                     pixel_filter))
+    # A small film gets their per-pixel sums instead (Film.unit_splats): a smaller payload
+    # from a worker process, and less work for the render loop.
+    taps = (film.unit_splats(out.splats.xy, out.splats.value, pixel_filter)
             if out.splats is not None and len(out.splats.xy) else None)
     if taps is not None:
         out.splats = None  # in the taps now: not sent back twice

@@ -49,8 +49,9 @@ class FilmWindow(NamedTuple):
     height: int
 
     n_pixels = Film.n_pixels
+    _tap_weights = Film._tap_weights
     splat_taps = Film.splat_taps
-    compact_splat_taps = Film.compact_splat_taps
+    unit_splats = Film.unit_splats
 
 
 class _Worker:

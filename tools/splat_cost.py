@@ -3,8 +3,8 @@ measurement, not a test).
 
 Beside :mod:`tools.ab_units` (whose ``light`` and ``bdpt`` measures time ``render_samples``,
 the ``t = 1`` bookkeeping included), this times what a unit does with its splats afterwards
-on the worker (``Film.splat_taps`` then ``Film.compact_splat_taps``: the filter taps and
-their per-pixel sums) and the camera projection of the light vertices (``camera.project``).
+on the worker (``Film.unit_splats``, or ``Film.splat_taps`` then ``Film.compact_splat_taps``
+in older trees: the filter taps and their per-pixel sums) and the camera projection of the light vertices (``camera.project``).
 Both trees get the same inputs: the splats of one light-tracing unit of the head tree, and
 points standing in for its light vertices, on the camera ray through each splat's film
 position at a random distance of 1 to 5 units (the distance changes no step's work). Thread CPU microseconds per camera sample (one
@@ -58,7 +58,11 @@ def _steps(pkg, scene, xy, value, points):
     cam = scene.camera
     film = film_mod.Film(cam.width, cam.height)
     pixel_filter = film_mod.PixelFilter()
-    return {"taps": lambda: film.compact_splat_taps(*film.splat_taps(xy, value, pixel_filter)),
+    if hasattr(film, "unit_splats"):
+        taps = lambda: film.unit_splats(xy, value, pixel_filter)  # noqa: E731
+    else:  # trees before the thirteenth round
+        taps = lambda: film.compact_splat_taps(*film.splat_taps(xy, value, pixel_filter))  # noqa: E731
+    return {"taps": taps,
             "project": lambda: camera.project(cam, points, 1.5)}
 
 

@@ -198,11 +198,14 @@ def uniform_triangle_barycentrics(u):
     (no stacking, no copies of float64 ``u``)."""
     u0 = np.asarray(u[:, 0], np.float64)
     u1 = np.asarray(u[:, 1], np.float64)
-    lower = u0 < u1
     # Halving is exact (u * 0.5 is u / 2 to the last bit): each half formed once.
     h0, h1 = u0 * 0.5, u1 * 0.5
-    b0 = np.where(lower, h0, u0 - h1)
-    b1 = np.where(lower, u1 - h0, h1)
+    # Below the diagonal (u0 < u1) b0 = u0 / 2 and b1 = u1 - u0 / 2, above it b0 = u0 - u1 / 2
+    # and b1 = u1 / 2: on each side the chosen value is the larger of the two, so a maximum
+    # picks it (the same bits as a select on u0 < u1, without its mispredicted branches on a
+    # random mask: a third of the time).
+    b0 = np.maximum(h0, u0 - h1)
+    b1 = np.maximum(u1 - h0, h1)
     return b0, b1, 1.0 - b0 - b1
 
 

@@ -1,18 +1,25 @@
-"""A work unit's splat taps summed per pixel (core.film.tap_sums, Film.compact_splat_taps) add
-to the film the very sums that adding the taps does, bit for bit."""
+"""A work unit's splat taps summed per pixel (core.film.tap_sums, Film.unit_splats) add to the
+film the very sums that adding the taps does, bit for bit."""
 
 import numpy as np
+import pytest
 
 from sampling_lab.core.film import Film, PixelFilter, SplatSums, tap_sums
 from sampling_lab.core.worker_child import FilmWindow
 
 
-def _taps(film, m, seed=5):
-    """Taps as Film.splat_taps makes them, some outside the film (pixel n)."""
+def _splats(film, m, seed=5):
+    """Splats ``(xy (m, 2), value (m, 3))``, some beyond the film's edges and some not finite."""
     rng = np.random.default_rng(seed)
-    xy = rng.random((m, 2)) * (film.width + 4, film.height + 4) - 2
+    xy = rng.random((m, 2)) * (film.width + 4, film.height + 4) - 2 + (film.x0, film.y0)
     value = rng.exponential(size=(m, 3)) * rng.choice([0.0, 1.0, 1e-3], size=(m, 1))
-    return film.splat_taps(xy, value, PixelFilter("BLACKMAN_HARRIS", 1.5))
+    value[:3, 1] = (np.nan, np.inf, -np.inf)
+    return xy, value
+
+
+def _taps(film, m, seed=5, pixel_filter=PixelFilter("BLACKMAN_HARRIS", 1.5)):
+    """Taps as Film.splat_taps makes them, some outside the film (pixel n)."""
+    return film.splat_taps(*_splats(film, m, seed), pixel_filter)
 
 
 def test_added_tap_sums_equal_added_taps_bit_for_bit():
@@ -27,11 +34,27 @@ def test_added_tap_sums_equal_added_taps_bit_for_bit():
     np.testing.assert_array_equal(by_sums.splat_sum_sq, by_taps.splat_sum_sq)
 
 
-def test_compact_splat_taps_sums_only_when_smaller():
+@pytest.mark.parametrize("pixel_filter", [PixelFilter("BLACKMAN_HARRIS", 1.5), None])
+@pytest.mark.parametrize("x0,y0", [(0, 0), (3, 2)])
+def test_unit_splats_sum_the_taps_to_the_bit(pixel_filter, x0, y0):
+    film = FilmWindow(x0, y0, 5, 4)
+    xy, value = _splats(film, 300)
+    sums = film.unit_splats(xy, value, pixel_filter)
+    assert isinstance(sums, SplatSums)
+    expected = tap_sums(*film.splat_taps(xy, value, pixel_filter), film.n_pixels)
+    assert np.any(expected.sum > 0)
+    assert sums.sum.tobytes() == expected.sum.tobytes()
+    assert sums.sum_sq.tobytes() == expected.sum_sq.tobytes()
+
+
+def test_unit_splats_sum_only_when_smaller():
     small, large = FilmWindow(0, 0, 4, 4), FilmWindow(0, 0, 64, 64)
-    pixel, weighted = _taps(Film(4, 4), 40)
-    assert len(pixel) * 2 > 3 * small.n_pixels
-    sums = small.compact_splat_taps(pixel, weighted)
+    xy, value = _splats(small, 40)
+    pixel_filter = PixelFilter("BLACKMAN_HARRIS", 1.5)
+    assert len(small.splat_taps(xy, value, pixel_filter)[0]) * 2 > 3 * small.n_pixels
+    sums = small.unit_splats(xy, value, pixel_filter)
     assert isinstance(sums, SplatSums) and sums.sum.shape == (small.n_pixels, 3)
-    kept = large.compact_splat_taps(pixel, weighted)
-    assert not isinstance(kept, SplatSums) and kept[0] is pixel and kept[1] is weighted
+    kept = large.unit_splats(xy, value, pixel_filter)
+    assert not isinstance(kept, SplatSums)
+    for a, b in zip(kept, large.splat_taps(xy, value, pixel_filter)):
+        assert a.tobytes() == b.tobytes()

@@ -118,6 +118,24 @@ def test_uniform_triangle_barycentrics_are_uniform_over_sub_triangles(k):
     chi_square_test(_subtriangle_index(b, k), _subtriangle_probs(k), what=f"triangle k={k}")
 
 
+def test_uniform_triangle_barycentrics_are_the_select_on_each_side_of_the_diagonal_to_the_bit():
+    # The maxima give the very values of the select on u0 < u1 they replaced (Heitz's map).
+    rng = np.random.default_rng(11)
+    u = rng.random((20000, 2))
+    u[:50, 1] = u[:50, 0]  # on the diagonal
+    u[50:60] = 0.0
+    u[60:70, 0] = 0.0
+    u[70:80, 1] = 0.0
+    u[80:90] = np.nextafter(1.0, 0.0)
+    u0, u1 = u[:, 0], u[:, 1]
+    lower = u0 < u1
+    b0 = np.where(lower, u0 * 0.5, u0 - u1 * 0.5)
+    b1 = np.where(lower, u1 - u0 * 0.5, u1 * 0.5)
+    got = W.uniform_triangle_barycentrics(u)
+    for a, b in zip(got, (b0, b1, 1.0 - b0 - b1)):
+        assert a.tobytes() == b.tobytes()
+
+
 def test_direction_chi_square_rejects_a_mismatched_pdf():
     # Cosine-weighted samples against the uniform-hemisphere pdf: the checker must object.
     with pytest.raises(AssertionError, match="chi-square"):
