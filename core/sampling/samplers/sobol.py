@@ -132,6 +132,14 @@ def _slot_coordinates(keys, reversed_index, layout):
     return reverse_bits(laine_karras_permutation(rows, sub[layout.coord_row]))
 
 
+def _distinct(dimensions):
+    """``np.unique(dimensions, return_inverse=True)`` of dimensions ``(m,)`` (small
+    non-negative integers) by counting instead of sorting: the distinct ones ascending and
+    each one's place among them ``(m,)``."""
+    present = np.bincount(dimensions) > 0
+    return np.flatnonzero(present), (np.cumsum(present) - 1).take(dimensions)
+
+
 class SobolStream(PaddedStream):
     salt = 0x510E527F
 
@@ -176,7 +184,7 @@ class SobolStream(PaddedStream):
         self.check_abort()
         layout = _slot_layout(tuple(sizes))
         starts = np.cumsum([0] + list(sizes[:-1]))
-        uniq, which = np.unique(dimensions, return_inverse=True)
+        uniq, which = _distinct(dimensions)
         table = np.array([[slot_word(d + a) for d in uniq.tolist()] for a in starts.tolist()],
                          np.uint32).reshape(len(sizes), uniq.size)
         out = np.empty((sum(sizes), rows.size))
