@@ -27,7 +27,8 @@ measures, in this order and in one process:
    alone would give: a consistency check of the renderers, not only of the bench.
    Then *light tracing and BDPT* at fixed sample counts (``BIDIR_SPP``), each round
    interleaved with a path-tracer render, best of two rounds: their camera samples/s and
-   their ratio to our path tracer's in the same rounds.
+   their ratio to our path tracer's in the same rounds, and each round's own ratio (the
+   spread that the machine's drift puts on the best-of-two figure).
 5. The targets (issue 12's): our samples/s >= 1.0 x Cycles' net samples/s, light tracing
    >= 0.5 x and BDPT >= 0.3 x our path tracer's samples/s, our equal-time relMSE <= 1.0 x
    Cycles'; our rays/s as a fraction of raw embreex (2 threads), 0.35 x expected at that
@@ -217,12 +218,14 @@ class _Bench:
 
     def bidirectional(self):
         """2b. Light tracing and BDPT against our path tracer, interleaved, best of two."""
-        best = {}
+        best, rounds = {}, []
         for round_ in range(2):
+            rounds.append({})
             for name in ("path", *BIDIR_SPP):
                 stage(f"{name}, {BIDIR_SPP.get(name, FIXED_SPP)} spp, round {round_ + 1} of 2")
                 res = render(self.scene, self.settings(integrator=name,
                                                        spp=BIDIR_SPP.get(name, FIXED_SPP)))
+                rounds[-1][name] = res.stats["samples_per_s"]
                 if name not in best or res.stats["time_s"] < best[name].stats["time_s"]:
                     best[name] = res
         path_sps = best["path"].stats["samples_per_s"]
@@ -234,9 +237,14 @@ class _Bench:
             stats = best[name].stats
             ratio = stats["samples_per_s"] / max(path_sps, 1e-300)
             self.bidir_ratios[name] = ratio
+            # Each round's ratio to its own path-tracer render: the spread a load change or
+            # the machine's drift puts on the best-of-two figure.
+            per_round = [r[name] / max(r["path"], 1e-300) for r in rounds]
             print(f"   {name:<6} {stats['samples_per_s'] / 1e6:.4f} M samples/s, "
                   f"{stats['rays_per_s'] / 1e6:.2f} M rays/s, {stats['time_s']:.2f} s "
-                  f"= {ratio:.3f} x our path tracer")
+                  f"= {ratio:.3f} x our path tracer (rounds: "
+                  f"{', '.join(f'{x:.3f}' for x in per_round)})")
+            self.summary[f"{name}_over_path_samples_rounds"] = per_round
             row = _ours_row("fixed spp", best[name], self.pixels)
             row["renderer"] = f"ours {name}"
             self.rows.append(row)
