@@ -21,7 +21,7 @@ PRESET_VALUES = [f"settings.{name}" for name in (
     "integrator", "sampler", "samples", "time_limit", "max_bounces", "diffuse_bounces",
     "glossy_bounces", "transmission_bounces", "transparent_max_bounces", "use_russian_roulette",
     "rr_min_bounces", "rr_survival", "connection_roulette", "mis_heuristic", "mis_beta", "mis_alpha",
-    "light_selection", "light_sampling", "distribution", "use_strategy_views",
+    "light_selection", "light_sampling", "light_points", "distribution", "use_strategy_views",
     "strategy_max_length")]
 
 

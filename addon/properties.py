@@ -87,6 +87,7 @@ class SamplingLabSettings(PropertyGroup):
     rr_min_bounces: _property("rr_min_bounces", soft_max=64)
     rr_survival: _property("rr_survival")
     connection_roulette: _property("connection_roulette", soft_max=1.0, precision=2)
+    light_points: _property("light_points")
     mis_heuristic: _property("mis_heuristic")
     mis_beta: _property("mis_beta", soft_min=0.5, soft_max=8.0, precision=2)
     mis_alpha: _property("mis_alpha", precision=3, subtype='FACTOR')

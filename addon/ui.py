@@ -86,6 +86,11 @@ class SAMPLINGLAB_RENDER_PT_light_sampling(SamplingLabButtonsPanel, Panel):
         area.active = sub.active and (settings.integrator in {'PATH', 'MLT', 'RADIOSITY'}
                                       or photon)
         area.prop(settings, "light_sampling")
+        # Where Bidirectional's s = 1 connections take their points on lights: its alone
+        # (whatever the MIS: its light paths always sample lights).
+        points = col.column()
+        points.active = settings.integrator == 'BDPT'
+        points.prop(settings, "light_points")
         # Also draws mixed materials' components: active whatever the light sampling.
         col.prop(settings, "distribution")
 

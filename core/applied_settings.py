@@ -62,7 +62,8 @@ def used_settings(settings):
         ``max_bounces`` alone) (``'n/a'`` where the integrator does not read them; the photon
         estimators use no MIS: one strategy per light contribution), and ``workers``
         (``'processes'`` or ``'threads'``: :func:`worker_mode`); ``connection_roulette``
-        (Russian roulette of connections) for BDPT alone.
+        (Russian roulette of connections) and ``light_points`` (where strategy ``s = 1``
+        takes its points) for BDPT alone.
     """
     return {**_used_settings(settings), "workers": worker_mode(settings)[0]}
 
@@ -113,6 +114,8 @@ def _used_settings(settings):
         # Russian roulette of connections before their shadow rays: BDPT's alone; 0 is off.
         "connection_roulette": (settings.connection_roulette
                                 if settings.integrator == "bdpt" else na),
+        # Where BDPT's s = 1 takes its points on lights; no other integrator has s = 1.
+        "light_points": settings.light_points if settings.integrator == "bdpt" else na,
         **{name: na for name in RADIOSITY_OPTIONS},
         **{name: na for name in MLT_OPTIONS},
         # Per-kind bounce limits count sampled lobes along one camera path: the path tracer's;
@@ -149,6 +152,7 @@ def _radiosity_used(settings):
         **{name: na for name in BOUNCE_KIND_OPTIONS},
         **{name: na for name in MLT_OPTIONS},
         "connection_roulette": na,
+        "light_points": na,
         **{name: getattr(settings, name) for name in RADIOSITY_OPTIONS},
         # Hierarchical radiosity's links adapt instead; its leaves stay uniform.
         "radiosity_adaptive": (settings.radiosity_adaptive

@@ -26,6 +26,7 @@ import numbers
 from dataclasses import dataclass
 
 from .integrators import INTEGRATORS
+from .integrators.bdpt import LIGHT_POINTS
 from .integrators.common import ROULETTE_SURVIVALS
 from .integrators.radiosity import DISPLAYS as RADIOSITY_DISPLAYS
 from .lights import LIGHT_SAMPLINGS, LIGHT_SELECTIONS
@@ -387,6 +388,19 @@ _ROULETTE_SURVIVAL_TEXT = {
         "component), pbrt's and Mitsuba's rule: the shortest paths, the most noise"),
 }
 
+_LIGHT_POINTS_TEXT = {
+    "light_path": (
+        "Light Path's Origin",
+        "Every camera vertex of a sample connects to the point on a light that the sample's "
+        "light path starts from, as in Veach's bidirectional path tracing: no light sampling "
+        "of its own, but the connections of one sample share their point"),
+    "fresh": (
+        "Fresh Sample",
+        "Every camera vertex samples a point on a light of its own, as next-event estimation "
+        "does (pbrt's bidirectional path tracer): independent points, one more light sample "
+        "per camera vertex"),
+}
+
 # The pixel filters core.film.PixelFilter implements and the UI offers (this list is the source).
 FILTER_CHOICES = (
     Choice("box", "Box", "Box filter: every sample counts only for the pixel it falls in"),
@@ -462,6 +476,11 @@ OPTIONS = {o.name: o for o in (
            "divided by that probability. Unbiased: a little more noise for fewer shadow rays "
            "(0.3 skips about a quarter of them in a Cornell box). 0 turns it off", 0.0,
            minimum=0.0, maximum=10.0),
+    _menu("light_points", "Direct Light Points",
+          "Bidirectional only: where the strategy that joins a camera vertex to a point on a "
+          "light (s = 1) takes that point. Both are unbiased and weighted alike; they differ "
+          "in cost and in how the noise of a sample's connections is shared", "light_path",
+          _choices(LIGHT_POINTS, _LIGHT_POINTS_TEXT)),
     _menu("mis_heuristic", "MIS",
           "How light sampling (next-event estimation) and BSDF sampling are combined for direct "
           "light: a multiple importance sampling heuristic, their plain average, or one "

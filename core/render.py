@@ -91,6 +91,7 @@ class RenderSettings:
     rr_min_bounces: int = DEFAULTS["rr_min_bounces"]
     rr_survival: str = DEFAULTS["rr_survival"]
     connection_roulette: float = DEFAULTS["connection_roulette"]
+    light_points: str = DEFAULTS["light_points"]
     mis_heuristic: str = DEFAULTS["mis_heuristic"]
     mis_beta: float = DEFAULTS["mis_beta"]
     mis_alpha: float = DEFAULTS["mis_alpha"]

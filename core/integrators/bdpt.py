@@ -72,6 +72,11 @@ from .connection_roulette import for_batch as roulette_for_batch
 from .connections import Fresh, connect_all, connect_emitter_to_camera
 
 
+# Where strategy ``s = 1`` finds its point on an emitter (the Direct Light Points option):
+# the light subpath's own first vertex, or a fresh sample for every camera vertex.
+LIGHT_POINTS = ("light_path", "fresh")
+
+
 class BDPT(Bidirectional):
     """Bidirectional path tracing (see the module docstring)."""
 
@@ -89,10 +94,13 @@ class BDPT(Bidirectional):
         self.unit_paths = self.chunk_paths = _unit_paths(settings.max_bounces + 2)
 
     def connect(self, ctx, stream, C, L, out):
-        """Strategies ``s >= 1, t >= 2`` (a fresh emitter point for ``s = 1``; under the
-        Connection Roulette, :mod:`.connection_roulette`), then ``s = 1, t = 1``."""
+        """Strategies ``s >= 1, t >= 2`` (for ``s = 1`` the light subpath's first vertex or a
+        fresh emitter point, :data:`LIGHT_POINTS`; under the Connection Roulette,
+        :mod:`.connection_roulette`), then ``s = 1, t = 1``."""
         ctx.roulette = roulette_for_batch(self.settings, stream)
-        connect_all(ctx, L, C, _fresh_points(ctx, stream, C), out)
+        points = (_fresh_points(ctx, stream, C) if self.settings.light_points == "fresh"
+                  else _light_path_points(ctx, C))
+        connect_all(ctx, L, C, points, out)
         connect_emitter_to_camera(ctx, L, out)
 
 
@@ -113,6 +121,27 @@ def _unit_paths(depth):
     return paths
 
 
+def _light_path_points(ctx, C):
+    """Strategy ``s = 1`` as Veach (1997, ch. 10) builds it: every connectible camera vertex
+    joined to its light subpath's first vertex (the point on an emitter that the light path
+    starts from). Its density is the one a fresh point would have (the MIS weights are the
+    same functions of the path); the joins of one sample share the point, which costs no
+    sampling but correlates them a little."""
+    level, rows = nonzero_rows(C.valid[1:] & C.connectible[1:])
+    if rows.size == 0:
+        return None
+    return _with_emitter(level + 1, rows,
+                         EmitterPoints(*(take_rows(a, rows) for a in ctx.light_points)))
+
+
+def _with_emitter(zj, rows, pts):
+    """:class:`Fresh` of the joins whose point ``pts`` lies on an emitter (``index >= 0``)."""
+    got = np.nonzero(pts.index >= 0)[0]
+    if got.size == rows.size:  # every point is on an emitter (any scene with one)
+        return Fresh(zj, rows, pts)
+    return Fresh(zj[got], rows[got], EmitterPoints(*(take_rows(a, got) for a in pts)))
+
+
 def _fresh_points(ctx, stream, C):
     """Strategy ``s = 1``: a fresh point on an emitter for every connectible camera vertex
     (drawn from that vertex's dimensions of the stream, so each is the same whichever other
@@ -126,11 +155,7 @@ def _fresh_points(ctx, stream, C):
     zj = level + 1
     u_sel, u_pos = stream.slots_of_rows(
         rows, DIMS_CAMERA + level * DIMS_PER_CAMERA_VERTEX + 4, (1, 2))
-    pts = ctx.emission.sample_points(u_sel, u_pos, ctx.counters)
-    got = np.nonzero(pts.index >= 0)[0]
-    if got.size == rows.size:  # every draw found an emitter (any scene with one)
-        return Fresh(zj, rows, pts)
-    return Fresh(zj[got], rows[got], EmitterPoints(*(take_rows(a, got) for a in pts)))
+    return _with_emitter(zj, rows, ctx.emission.sample_points(u_sel, u_pos, ctx.counters))
 
 
 # One work unit without a render loop (tests, one-off use); a render builds BDPT once.

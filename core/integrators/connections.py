@@ -38,7 +38,8 @@ SMALL_PIECE = 1 << 13
 
 
 class Fresh(NamedTuple):
-    """Points sampled on emitters for strategy ``s = 1``, one per connection: the camera
+    """Points on emitters for strategy ``s = 1`` (fresh samples, or the light subpaths' first
+    vertices: ``bdpt.LIGHT_POINTS``), one per connection: the camera
     vertex ``zj (m,)`` of subpath ``row (m,)`` each is joined to, and the points
     (:class:`core.lights.emission.EmitterPoints` of ``m`` rows)."""
 

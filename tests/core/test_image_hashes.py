@@ -58,9 +58,9 @@ CASES = {
 }
 
 PINNED = {
-    "bdpt cornell area power views": "6e527aeae4ded04445aa0ef77a67e74939812dba2e115790f80afa65f8e44bf1",
-    "bdpt cornell point balance": "dd959c5599c489bd7e15d8e929bf300b9829fa021b95cde2f07d499be6c0a55e",
-    "bdpt glass sphere light maximum": "cc83c7c3840cd20f82df907eac128ede75cfcfbfc65708a52712c414d70eabab",
+    "bdpt cornell area power views": "c07ac4a84e738a6310926166ecc4d5da17b17a3740bd069945a8bd2557d913d2",
+    "bdpt cornell point balance": "de3ac35df3f06b1b8de48f007712a540d807145b34e9da139dd77a0428e2c622",
+    "bdpt glass sphere light maximum": "c6e80f22c1e5c5f8041dda0af155a9d0a5cd450e014678365c59cdc8523c8937",
     "light cornell mesh": "7bdaea47c1f03443b6f9af5768dcaa445d18319d73d2956d00545c7a0e8c811e",
     "light glass point": "09d2d760f0d0d821c8a18a6ccf1ee74489c24dbe5337e607e4ef7d20412af4f7",
     "path cornell area solid angle sobol": "4a0ec16d62462b01061f0eedc2790fa8c616a93abf72503513359101fae77d9e",
