@@ -205,19 +205,21 @@ def tap_sums(pixel, weighted, n):
     """Per-pixel sums of taps ``pixel (m,)``, ``weighted (m, 3)`` over a film of ``n`` pixels
     (pixel ``n``, the taps outside the film, dropped): the very sums
     :meth:`Film.add_splat_taps` adds, so adding them gives the same film bit for bit."""
-    def channel(c, out):
-        np.copyto(out, weighted[:, c])
-    return _summed(pixel, channel, n)
+    return _summed(pixel, None, weighted, n)
 
 
-def _summed(pixel, channel, n):
+def _summed(pixel, w, channels, n):
     """:class:`SplatSums` of taps at pixels ``pixel (m,)`` over a film of ``n`` pixels (pixel
-    ``n`` dropped); ``channel(c, out)`` writes channel ``c``'s weighted taps into ``out (m,)``,
-    one buffer for the three channels and their squares."""
+    ``n`` dropped), whose values are :func:`_weighted`'s of ``w`` and ``channels``, formed
+    channel by channel in one buffer (for the channel's sums, then its squares) instead of
+    the ``(m, 3)`` table."""
     buf = np.empty(pixel.size)
     total, total_sq = np.empty((n, 3)), np.empty((n, 3))
     for c in range(3):
-        channel(c, buf)
+        if w is None:
+            np.copyto(buf, channels[:, c])
+        else:
+            np.multiply(w, channels[c], out=buf.reshape(w.shape))
         total[:, c] = _film_bins(pixel, buf, n)
         total_sq[:, c] = _film_bins(pixel, np.square(buf, out=buf), n)
     return SplatSums(total, total_sq)
@@ -333,13 +335,7 @@ class Film:
         pixel, w, channels = self._tap_weights(film_xy, value, pixel_filter)
         if 3 * self.n_pixels >= 2 * len(pixel):
             return pixel, _weighted(w, channels)
-
-        def channel(c, out):
-            if w is None:
-                np.copyto(out, channels[:, c])
-            else:
-                np.multiply(w, channels[c], out=out.reshape(w.shape))
-        return _summed(pixel, channel, self.n_pixels)
+        return _summed(pixel, w, channels, self.n_pixels)
 
     def add_splat_sums(self, sums):
         """Add a :class:`SplatSums` (:meth:`unit_splats`): the same sums, in the same

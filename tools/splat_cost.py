@@ -4,7 +4,8 @@ measurement, not a test).
 Beside :mod:`tools.ab_units` (whose ``light`` and ``bdpt`` measures time ``render_samples``,
 the ``t = 1`` bookkeeping included), this times what a unit does with its splats afterwards
 on the worker (``Film.unit_splats``, or ``Film.splat_taps`` then ``Film.compact_splat_taps``
-in older trees: the filter taps and their per-pixel sums) and the camera projection of the light vertices (``camera.project``).
+in older trees: the filter taps and their per-pixel sums) and the camera projection of the
+light vertices (``camera.project``).
 Both trees get the same inputs: the splats of one light-tracing unit of the head tree, and
 points standing in for its light vertices, on the camera ray through each splat's film
 position at a random distance of 1 to 5 units (the distance changes no step's work). Thread CPU microseconds per camera sample (one
